@@ -1,0 +1,90 @@
+// The YAML reader every room uses for its configuration. Setup-time only: it allocates and
+// throws. Every error message names the file, the line and column, and the key path at fault,
+// e.g. "configs/plant/x.yaml:12:5: effects.gas_generator.pressure_exponent: must be < 1".
+#pragma once
+
+#include <filesystem>
+#include <initializer_list>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+namespace hil::cfg {
+
+// A configuration error; what() names file:line:column and the key.
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Node {
+ public:
+  // Throws Error for a missing file or a YAML syntax error (with its line and column).
+  static Node load_file(const std::filesystem::path& file);
+  // For configs posted over an API or built in tests; `origin` stands in for the file name.
+  static Node load_string(std::string_view text, const std::string& origin);
+
+  const std::filesystem::path& file() const { return *file_; }
+  const std::string& path() const { return path_; }
+  int line() const { return mark_.line + 1; }
+  int column() const { return mark_.column + 1; }
+  bool is_map() const { return node_.IsMap(); }
+  bool is_sequence() const { return node_.IsSequence(); }
+  bool is_scalar() const { return node_.IsScalar(); }
+  bool is_null() const { return !node_ || node_.IsNull(); }
+
+  // Mapping. allow_keys() rejects any key not listed, naming the closest allowed one.
+  void allow_keys(std::initializer_list<std::string_view> allowed) const;
+  void allow_keys(const std::vector<std::string>& allowed) const;
+  bool has(std::string_view key) const;
+  Node at(std::string_view key) const;  // required key
+  std::optional<Node> find(std::string_view key) const;
+  std::vector<std::pair<std::string, Node>> entries() const;  // in file order
+
+  // Sequence.
+  std::vector<Node> items() const;
+
+  // Scalars, strictly typed: "1.5x" is not a number, "yes" is not a number.
+  double number() const;
+  long long integer() const;
+  bool boolean() const;
+  std::string text() const;
+  std::vector<double> numbers() const;  // a sequence of numbers
+
+  // Shorthands for required and defaulted keys of a mapping.
+  double number(std::string_view key) const { return at(key).number(); }
+  double number(std::string_view key, double fallback) const;
+  long long integer(std::string_view key, long long fallback) const;
+  bool boolean(std::string_view key, bool fallback) const;
+  std::string text(std::string_view key) const { return at(key).text(); }
+  std::string text(std::string_view key, std::string_view fallback) const;
+
+  // Range checks that name this node: fail unless `ok`, with "<why>, got <value>".
+  void require(bool ok, std::string_view why) const;
+  // A path in this file, relative to the file's folder unless absolute.
+  std::filesystem::path resolve_path(const std::string& relative) const;
+
+  [[noreturn]] void fail(std::string_view message) const;
+
+ private:
+  Node(YAML::Node node, std::shared_ptr<const std::filesystem::path> file, std::string path,
+       YAML::Mark mark)
+      : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)), mark_(mark) {}
+  Node child(const YAML::Node& value, std::string path, YAML::Mark mark) const;
+
+  YAML::Node node_;
+  std::shared_ptr<const std::filesystem::path> file_;
+  std::string path_;
+  YAML::Mark mark_;
+};
+
+// "did you mean" helper, also used for sub-command and effect names.
+std::string closest(std::string_view word, const std::vector<std::string>& candidates);
+
+}  // namespace hil::cfg

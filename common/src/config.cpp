@@ -1,0 +1,212 @@
+#include "hil/config.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace hil::cfg {
+namespace {
+
+std::string describe(const YAML::Node& n) {
+  if (!n || n.IsNull()) return "nothing";
+  if (n.IsMap()) return "a mapping";
+  if (n.IsSequence()) return "a list";
+  return "'" + n.Scalar() + "'";
+}
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string join(const std::vector<std::string>& words) {
+  std::string out;
+  for (const auto& w : words) out += (out.empty() ? "" : ", ") + w;
+  return out;
+}
+
+}  // namespace
+
+std::string closest(std::string_view word, const std::vector<std::string>& candidates) {
+  std::string best;
+  std::size_t best_d = word.size() / 2 + 2;  // beyond this a suggestion misleads more than helps
+  for (const auto& c : candidates) {
+    const std::size_t d = edit_distance(word, c);
+    if (d < best_d) best_d = d, best = c;
+  }
+  return best;
+}
+
+Node Node::load_file(const std::filesystem::path& file) {
+  auto shared = std::make_shared<const std::filesystem::path>(file);
+  std::ifstream in(file);
+  if (!in) throw Error(file.string() + ": cannot open the file");
+  try {
+    return Node(YAML::Load(in), shared, "", YAML::Mark());
+  } catch (const YAML::Exception& e) {
+    throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" +
+                std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+  }
+}
+
+Node Node::load_string(std::string_view text, const std::string& origin) {
+  auto shared = std::make_shared<const std::filesystem::path>(origin);
+  try {
+    return Node(YAML::Load(std::string(text)), shared, "", YAML::Mark());
+  } catch (const YAML::Exception& e) {
+    throw Error(origin + ":" + std::to_string(e.mark.line + 1) + ":" +
+                std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+  }
+}
+
+Node Node::child(const YAML::Node& value, std::string path, YAML::Mark mark) const {
+  return Node(value, file_, std::move(path), mark);
+}
+
+void Node::fail(std::string_view message) const {
+  std::string where = file_->string();
+  if (mark_.line >= 0) where += ":" + std::to_string(line()) + ":" + std::to_string(column());
+  throw Error(where + ": " + (path_.empty() ? std::string("(top level)") : path_) + ": " +
+              std::string(message));
+}
+
+void Node::require(bool ok, std::string_view why) const {
+  if (ok) return;
+  fail(std::string(why) + ", got " + describe(node_));
+}
+
+void Node::allow_keys(std::initializer_list<std::string_view> allowed) const {
+  allow_keys(std::vector<std::string>(allowed.begin(), allowed.end()));
+}
+
+void Node::allow_keys(const std::vector<std::string>& allowed) const {
+  if (!node_.IsMap()) fail("expected a mapping of " + join(allowed) + ", got " + describe(node_));
+  for (auto it = node_.begin(); it != node_.end(); ++it) {
+    const std::string key = it->first.Scalar();
+    if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+    const std::string hint = closest(key, allowed);
+    child(it->second, path_.empty() ? key : path_ + "." + key, it->first.Mark())
+        .fail("unknown key '" + key + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
+              "; allowed: " + join(allowed));
+  }
+}
+
+bool Node::has(std::string_view key) const { return find(key).has_value(); }
+
+std::optional<Node> Node::find(std::string_view key) const {
+  if (!node_.IsMap()) fail("expected a mapping, got " + describe(node_));
+  for (auto it = node_.begin(); it != node_.end(); ++it) {
+    if (it->first.Scalar() != key) continue;
+    // Errors about a value point at its key: that is the line a person edits.
+    return child(it->second, path_.empty() ? std::string(key) : path_ + "." + std::string(key),
+                 it->first.Mark());
+  }
+  return std::nullopt;
+}
+
+Node Node::at(std::string_view key) const {
+  if (auto n = find(key)) return *n;
+  fail("missing required key '" + std::string(key) + "'");
+}
+
+std::vector<std::pair<std::string, Node>> Node::entries() const {
+  if (!node_.IsMap()) fail("expected a mapping, got " + describe(node_));
+  std::vector<std::pair<std::string, Node>> out;
+  for (auto it = node_.begin(); it != node_.end(); ++it) {
+    const std::string key = it->first.Scalar();
+    out.emplace_back(key, child(it->second, path_.empty() ? key : path_ + "." + key, it->first.Mark()));
+  }
+  return out;
+}
+
+std::vector<Node> Node::items() const {
+  if (!node_.IsSequence()) fail("expected a list, got " + describe(node_));
+  std::vector<Node> out;
+  std::size_t i = 0;
+  for (const auto& item : node_) {
+    out.push_back(child(item, path_ + "[" + std::to_string(i++) + "]", item.Mark()));
+  }
+  return out;
+}
+
+double Node::number() const {
+  if (!node_.IsScalar()) fail("expected a number, got " + describe(node_));
+  const std::string& s = node_.Scalar();
+  double v = 0;
+  const char* first = s.data();
+  if (!s.empty() && s[0] == '+') ++first;
+  const auto [ptr, ec] = std::from_chars(first, s.data() + s.size(), v);
+  if (ec != std::errc() || ptr != s.data() + s.size() || !std::isfinite(v)) {
+    fail("expected a number, got '" + s + "'");
+  }
+  return v;
+}
+
+long long Node::integer() const {
+  if (!node_.IsScalar()) fail("expected a whole number, got " + describe(node_));
+  const std::string& s = node_.Scalar();
+  long long v = 0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || ptr != s.data() + s.size()) fail("expected a whole number, got '" + s + "'");
+  return v;
+}
+
+bool Node::boolean() const {
+  if (node_.IsScalar()) {
+    const std::string& s = node_.Scalar();
+    if (s == "true") return true;
+    if (s == "false") return false;
+  }
+  fail("expected true or false, got " + describe(node_));
+}
+
+std::string Node::text() const {
+  if (!node_.IsScalar()) fail("expected a text value, got " + describe(node_));
+  return node_.Scalar();
+}
+
+std::vector<double> Node::numbers() const {
+  std::vector<double> out;
+  for (const auto& item : items()) out.push_back(item.number());
+  return out;
+}
+
+double Node::number(std::string_view key, double fallback) const {
+  auto n = find(key);
+  return n ? n->number() : fallback;
+}
+
+long long Node::integer(std::string_view key, long long fallback) const {
+  auto n = find(key);
+  return n ? n->integer() : fallback;
+}
+
+bool Node::boolean(std::string_view key, bool fallback) const {
+  auto n = find(key);
+  return n ? n->boolean() : fallback;
+}
+
+std::string Node::text(std::string_view key, std::string_view fallback) const {
+  auto n = find(key);
+  return n ? n->text() : std::string(fallback);
+}
+
+std::filesystem::path Node::resolve_path(const std::string& relative) const {
+  std::filesystem::path p(relative);
+  if (p.is_absolute()) return p;
+  return file_->parent_path() / p;
+}
+
+}  // namespace hil::cfg

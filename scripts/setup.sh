@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages hilbench needs, only those missing.
+#   scripts/setup.sh          build and run (compiler, libraries)
+#   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll)
+#   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
+set -euo pipefail
+
+build_pkgs=(build-essential cmake ninja-build pkg-config git
+  libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev
+  libgtest-dev libgmock-dev libbenchmark-dev)
+test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
+  python3 python3-pymodbus mbpoll procps)
+bench_pkgs=(rt-tests)
+
+want=("${build_pkgs[@]}")
+for arg in "$@"; do
+  case "$arg" in
+    --test) want+=("${test_pkgs[@]}") ;;
+    --bench) want+=("${test_pkgs[@]}" "${bench_pkgs[@]}") ;;
+    *) echo "setup.sh: unknown option '$arg' (use --test or --bench)" >&2; exit 2 ;;
+  esac
+done
+
+missing=()
+for p in "${want[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$p")
+done
+if ((${#missing[@]} == 0)); then
+  echo "setup: all ${#want[@]} packages present"
+  exit 0
+fi
+
+sudo=()
+if ((EUID != 0)); then
+  command -v sudo >/dev/null || { echo "setup: missing packages (${missing[*]}) and not root; run as root" >&2; exit 1; }
+  sudo=(sudo)
+fi
+echo "setup: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo[@]}" apt-get update -qq
+"${sudo[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "setup: done"

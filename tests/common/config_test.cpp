@@ -1,0 +1,73 @@
+// The config reader must name file, line and key for every kind of mistake a person makes.
+#include "hil/config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+using hil::cfg::Error;
+using hil::cfg::Node;
+
+namespace {
+
+std::string error_of(const std::string& yaml, auto&& use) {
+  try {
+    use(Node::load_string(yaml, "plant.yaml"));
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Config, UnknownKeyNamesFileLineKeyAndSuggestion) {
+  const std::string msg = error_of("gas:\n  cstar_m_s: 900\n  presure_exponent: 0.35\n", [](const Node& n) {
+    n.at("gas").allow_keys({"cstar_m_s", "pressure_exponent"});
+  });
+  EXPECT_NE(msg.find("plant.yaml:3:3"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("gas.presure_exponent"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("did you mean 'pressure_exponent'"), std::string::npos) << msg;
+}
+
+TEST(Config, WrongTypeNamesTheValue) {
+  const std::string msg = error_of("a:\n  b: 1.5x\n", [](const Node& n) { (void)n.at("a").number("b"); });
+  EXPECT_NE(msg.find("plant.yaml:2:3: a.b: expected a number, got '1.5x'"), std::string::npos) << msg;
+}
+
+TEST(Config, MissingKeyNamesTheMapping) {
+  const std::string msg = error_of("a:\n  b: 1\n", [](const Node& n) { (void)n.at("a").number("c"); });
+  EXPECT_NE(msg.find("plant.yaml:1:1: a: missing required key 'c'"), std::string::npos) << msg;
+}
+
+TEST(Config, RequireReportsTheOffendingValue) {
+  const std::string msg = error_of("n: 1.2\n", [](const Node& n) {
+    const Node v = n.at("n");
+    v.require(v.number() < 1, "must be < 1");
+  });
+  EXPECT_NE(msg.find("plant.yaml:1:1: n: must be < 1, got '1.2'"), std::string::npos) << msg;
+}
+
+TEST(Config, SyntaxErrorHasLineAndColumn) {
+  const std::string msg = error_of("a: [1, 2\nb: 3\n", [](const Node&) {});
+  EXPECT_NE(msg.find("plant.yaml:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("YAML syntax"), std::string::npos) << msg;
+}
+
+TEST(Config, StrictScalars) {
+  const Node n = Node::load_string("x: +2.5\ny: 1e3\nz: yes\nw: .nan\nk: 3\n", "t");
+  EXPECT_DOUBLE_EQ(n.number("x"), 2.5);
+  EXPECT_DOUBLE_EQ(n.number("y"), 1000.0);
+  EXPECT_THROW((void)n.at("z").boolean(), Error);
+  EXPECT_THROW((void)n.number("w"), Error);
+  EXPECT_EQ(n.at("k").integer(), 3);
+  EXPECT_DOUBLE_EQ(n.number("missing", 7.0), 7.0);
+}
+
+TEST(Config, ListItemsCarryTheirIndex) {
+  const std::string msg = error_of("runs:\n  - a: 1\n  - a: oops\n", [](const Node& n) {
+    for (const Node& r : n.at("runs").items()) (void)r.number("a");
+  });
+  EXPECT_NE(msg.find("runs[1].a"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(":3:"), std::string::npos) << msg;
+}
+
+}  // namespace
