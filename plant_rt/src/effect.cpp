@@ -27,8 +27,6 @@ std::string range_text(const ParamSpec& p) {
 
 }  // namespace
 
-std::string Effect::extra_yaml(std::string_view) const { return {}; }
-
 std::vector<double> read_params(const cfg::Node& block, std::span<const ParamSpec> specs,
                                 std::span<const std::string_view> extra_keys) {
   std::vector<std::string> allowed;

@@ -99,10 +99,11 @@ void Plant::step(PlantState& st, const PlantInputs& in, double dt_s) const noexc
   if (first_sensor_ == effects_.size()) s.p_meas_pa = s.p_chamber_pa;
 }
 
-double Plant::settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s) const {
+double Plant::settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s, double gap_rad) const {
   Signals& s = st.s;
   s = Signals{};
   s.t_s = t0_s;
+  s.gap_rad = gap_rad;
   s.theta_cmd_rad = cmd_rad;
   s.theta_valve_rad = valve_hint_rad;
   double* x = st.x.data();
@@ -114,12 +115,12 @@ double Plant::settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad
   return s.p_meas_pa;
 }
 
-void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s) const {
+void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad) const {
   const bool positive_contact = std::isnan(theta_cmd_rad);
-  settle_chain(st, 0.0, kNaN, t0_s);
-  const double gap_rad = std::isfinite(st.s.gap_rad) ? st.s.gap_rad : 0.0;
+  settle_chain(st, 0.0, kNaN, t0_s, gap_rad);
+  const double gap_now = std::isfinite(st.s.gap_rad) ? st.s.gap_rad : 0.0;
   auto pressure_at = [&](double valve_rad) {
-    return settle_chain(st, positive_contact ? valve_rad + gap_rad / 2 : theta_cmd_rad, valve_rad, t0_s);
+    return settle_chain(st, positive_contact ? valve_rad + gap_now / 2 : theta_cmd_rad, valve_rad, t0_s, gap_rad);
   };
   double lo = kSearchLoRad, hi = kSearchHiRad;  // pressure falls as the valve opens
   const double p_hi = pressure_at(lo), p_lo = pressure_at(hi);
@@ -139,8 +140,8 @@ void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, doubl
 std::pair<double, double> Plant::pressure_range_pa() const {
   PlantState st = make_state(1);
   // Motor and valve together at each end of the search window: the stops clamp the valve.
-  const double p_low = settle_chain(st, kSearchHiRad, kSearchHiRad, 0.0);
-  const double p_high = settle_chain(st, kSearchLoRad, kSearchLoRad, 0.0);
+  const double p_low = settle_chain(st, kSearchHiRad, kSearchHiRad, 0.0, kNaN);
+  const double p_high = settle_chain(st, kSearchLoRad, kSearchLoRad, 0.0, kNaN);
   return {p_low, p_high};
 }
 
@@ -178,18 +179,25 @@ std::string Plant::to_yaml(std::string_view header_comment) const {
   for (const auto& e : effects_) {
     out << "  " << e->kind() << ":";
     const auto params = e->params();
-    const std::string extra = e->extra_yaml("    ");
-    if (params.empty() && extra.empty()) {
+    const auto tables = e->tables();
+    if (params.empty() && tables.empty()) {
       out << " {}\n";
       continue;
     }
     out << "\n";
+    char buf[64];
     for (const auto& p : params) {
-      char buf[64];
       std::snprintf(buf, sizeof buf, "%.10g", p.value);
       out << "    " << p.key << ": " << buf << "\n";
     }
-    out << extra;
+    for (const auto& t : tables) {
+      out << "    " << t.key << ": [";
+      for (std::size_t i = 0; i < t.values.size(); ++i) {
+        std::snprintf(buf, sizeof buf, "%.10g", t.values[i]);
+        out << (i ? ", " : "") << buf;
+      }
+      out << "]\n";
+    }
   }
   return out.str();
 }

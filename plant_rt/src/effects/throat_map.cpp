@@ -1,6 +1,5 @@
 // Valve angle -> throat area: a monotone table, linear between points, clamped at its ends.
 #include <algorithm>
-#include <cstdio>
 
 #include "hil/config.hpp"
 #include "hil/plant/registry.hpp"
@@ -43,19 +42,7 @@ class ThroatMap final : public Effect {
   std::shared_ptr<const Effect> with_params(std::span<const double>) const override {
     return std::make_shared<ThroatMap>(angle_deg_, area_mm2_);
   }
-  std::string extra_yaml(std::string_view indent) const override {
-    auto list = [](const std::vector<double>& v) {
-      std::string out = "[";
-      char buf[32];
-      for (std::size_t i = 0; i < v.size(); ++i) {
-        std::snprintf(buf, sizeof buf, "%.10g", v[i]);
-        out += (i ? ", " : "") + std::string(buf);
-      }
-      return out + "]";
-    };
-    return std::string(indent) + "angle_deg: " + list(angle_deg_) + "\n" + std::string(indent) +
-           "area_mm2: " + list(area_mm2_) + "\n";
-  }
+  std::vector<Table> tables() const override { return {{"angle_deg", angle_deg_}, {"area_mm2", area_mm2_}}; }
 
  private:
   double area_at(double angle_rad) const noexcept {

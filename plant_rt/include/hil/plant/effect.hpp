@@ -48,6 +48,12 @@ struct Param {
   double value;
 };
 
+// A list-valued parameter (a map's breakpoints), written as a YAML flow sequence.
+struct Table {
+  std::string key;
+  std::vector<double> values;
+};
+
 class Effect {
  public:
   virtual ~Effect() = default;
@@ -68,8 +74,8 @@ class Effect {
   // A copy with new parameter values (same order as params()); throws std::invalid_argument
   // for values outside the specs.
   virtual std::shared_ptr<const Effect> with_params(std::span<const double> values) const = 0;
-  // Extra YAML lines for non-scalar parameters (tables); default none.
-  virtual std::string extra_yaml(std::string_view indent) const;
+  // List-valued parameters (tables); default none.
+  virtual std::vector<Table> tables() const { return {}; }
 };
 
 // Reads and validates the scalar params of `specs` from a YAML block (located errors).

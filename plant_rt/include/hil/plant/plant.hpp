@@ -43,8 +43,9 @@ class Plant {
   // command equals the motor angle. Otherwise the motor sits at theta_cmd_rad and the valve is
   // placed inside the gap where the pressure fits. Throws std::out_of_range when no valve angle
   // reaches the pressure, naming the reachable range.
-  void settle(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN,
-              double t0_s = 0) const;
+  // gap_rad: a programmed gap at t0 (NaN: the model's own).
+  void settle(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN, double t0_s = 0,
+              double gap_rad = kNaN) const;
 
   // Advances state.s from t to t + dt_s with inputs held. Real-time safe: noexcept, no
   // allocation, no locking, no I/O.
@@ -61,7 +62,7 @@ class Plant {
 
  private:
   // Runs every effect's settle once; returns the noise-free p_meas.
-  double settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s) const;
+  double settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s, double gap_rad) const;
 
   std::vector<std::shared_ptr<const Effect>> effects_;
   std::vector<std::size_t> offsets_;  // start of each effect's state slice
