@@ -329,6 +329,7 @@ struct Cia402Drive::Impl {
   }
 
   void sdo_finish(std::exception_ptr err, std::uint32_t value) {
+    publish();  // counters first: the caller may look at health() as soon as it wakes
     sdo_timer.cancel();
     auto req = std::move(sdo_active);
     sdo_active.reset();
