@@ -125,7 +125,22 @@ int add_stress(Document& doc) {
                     .series = {Series{.name = "</script><script>throw 1</script>", .x = {0, 1, 2, 3},
                                       .y = {1, 3, NAN, 2}, .style = Series::Style::step}},
                     .height_px = 140});
-  return 3;
+  doc.columns_begin(3);
+  doc.bars(Bars{.title = "Bias by regime (negative, missing)", .y_label = "bias [MPa]",
+                .categories = {"free motion", "closing contact with a long name", "opening", "gap"},
+                .groups = {{"before", {-0.02, 0.015, NAN, -0.04}}, {"after", {-0.005, 0.004, 0.001, -0.01}}},
+                .height_px = 220});
+  doc.figure(Figure{.title = "Constant and single points", .x_label = "time [s]", .y_label = "gap [deg]",
+                    .series = {Series{.name = "constant", .x = {0, 1, 2, 3}, .y = {2, 2, 2, 2}},
+                               Series{.name = "one point", .x = {1.5}, .y = {2.1}, .style = Series::Style::points}},
+                    .height_px = 220});
+  std::vector<double> fx, fy;
+  for (int k = 1; k < 3000; ++k) fx.push_back(0.01 * k), fy.push_back(1e-3 * std::pow(0.01 * k, -1.5) * (1 + 0.3 * std::sin(k)));
+  doc.figure(Figure{.title = "Scatter on log axes", .x_label = "frequency [Hz]", .y_label = "gain",
+                    .series = {Series{.name = "samples", .x = fx, .y = fy, .style = Series::Style::points}},
+                    .x_log = true, .y_log = true, .height_px = 220});
+  doc.columns_end();
+  return 6;
 }
 
 }  // namespace

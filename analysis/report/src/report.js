@@ -714,26 +714,31 @@
       }, { passive: false });
     }
 
-    // Index of the point to read out for series s at axis-space x, or -1.
-    pick(s, xv, mx, my) {
+    // What series s reads at axis-space x: {x, y} in axis space (y NaN inside a gap), or null.
+    // Lines interpolate and steps hold, so the read-out is the drawn curve at the cursor; scatter
+    // and curves that double back snap to the nearest point on screen instead.
+    readout(s, xv, mx, my) {
       const g = this.g, n = s.ax.length;
-      if (!n) return -1;
+      if (!n) return null;
       if (s.mono && s.style !== 'points') {
         const tol = 4 / g.sx;
-        if (xv < s.ax[0] - tol || xv > s.ax[n - 1] + tol) return -1;
-        let k = lowerBound(s.ax, xv);
-        if (s.style === 'step') return s.ax[Math.min(k, n - 1)] <= xv ? Math.min(k, n - 1) : Math.max(0, k - 1);
-        if (k >= n) k = n - 1;
-        if (k > 0 && xv - s.ax[k - 1] < s.ax[k] - xv) k--;
-        return k;
+        if (xv < s.ax[0] - tol || xv > s.ax[n - 1] + tol) return null;
+        const k = lowerBound(s.ax, xv);
+        if (k < n && s.ax[k] === xv) return { x: xv, y: s.ay[k] };
+        if (k === 0) return { x: s.ax[0], y: s.ay[0] };
+        if (k >= n) return { x: s.ax[n - 1], y: s.ay[n - 1] };
+        const y0 = s.ay[k - 1], y1 = s.ay[k];
+        if (s.style === 'step') return { x: xv, y: y0 };
+        const f = (xv - s.ax[k - 1]) / (s.ax[k] - s.ax[k - 1]);
+        return { x: xv, y: y0 + f * (y1 - y0) };  // NaN if either side is a gap
       }
-      let best = -1, bd = 14 * 14;  // nearest point on screen, within 14 px
+      let best = -1, bd = 14 * 14;  // within 14 px
       for (let k = 0; k < n; k++) {
         if (!isFinite(s.ay[k])) continue;
         const dx = g.X(s.ax[k]) - mx, dy = g.Y(s.ay[k]) - my, d = dx * dx + dy * dy;
         if (d < bd) { bd = d; best = k; }
       }
-      return best;
+      return best < 0 ? null : { x: s.ax[best], y: s.ay[best], snapped: true };
     }
 
     hover(mx, my, e) {
@@ -751,12 +756,11 @@
       let xShown = xr;
       for (const s of this.series) {
         if (s.hidden) continue;
-        const k = this.pick(s, xv, mx, my);
-        if (k < 0) continue;
-        const yv = s.ay[k];
-        const yr = !isFinite(yv) ? null : this.yLog ? Math.pow(10, yv) : yv;
-        if (s.style === 'points' || !s.mono) xShown = this.xLog ? Math.pow(10, s.ax[k]) : s.ax[k];
-        if (isFinite(yv)) this.marks.push([s.ax[k], yv, s.color]);
+        const r = this.readout(s, xv, mx, my);
+        if (!r) continue;
+        const yr = !isFinite(r.y) ? null : this.yLog ? Math.pow(10, r.y) : r.y;
+        if (r.snapped) xShown = this.xLog ? Math.pow(10, r.x) : r.x;
+        if (isFinite(r.y)) this.marks.push([r.x, r.y, s.color]);
         const kind = s.style === 'points' ? 'dot' : s.dashed ? 'dashed' : '';
         rows.push(tipSwatch(s.color, kind) + esc(s.name) + '<span class="v">' + fmtVal(yr) + '</span>');
       }
@@ -765,7 +769,9 @@
       }
       this.drawOverlay();
       const xName = this.spec.xLabel || 'x';
-      showTip('<div class="hd">' + esc(xName) + ' = ' + fmtVal(xShown) + '</div>' +
+      // The cursor's x is only known to a pixel: show the digits a pixel resolves, no more.
+      const xText = xShown !== xr || this.xLog ? fmtVal(xShown) : fmtTick(xr, Math.pow(10, Math.floor(Math.log10(1 / g.sx))));
+      showTip('<div class="hd">' + esc(xName) + ' = ' + xText + '</div>' +
         (rows.length ? rows.join('<br>') : '<span class="hd">no value here</span>'), e.clientX, e.clientY);
     }
 
@@ -832,8 +838,20 @@
     }
 
     render(countInk) {
+      // Category labels: horizontal if they fit their slot, else slanted, and then the canvas
+      // grows by their depth so the bars keep the height asked for.
+      const ctx = this.ctx;
+      ctx.font = FONT;
+      const labels = this.cats.map(c => (c.length > 28 ? c.slice(0, 27) + '\u2026' : c));
+      let widest = 0;
+      for (const s of labels) widest = Math.max(widest, ctx.measureText(s).width);
+      const guessW = (this.wrap.clientWidth || 600) - 70 - 16;
+      const slant = this.cats.length > 0 && widest + 8 > guessW / this.cats.length;
+      const b = slant ? Math.min(130, Math.ceil(widest * Math.sin(Math.PI / 5)) + 26) : 26;
+      this.height = (this.spec.height || 260) + b - 26;
+      this.wrap.style.height = this.height + 'px';
       if (!this.size()) return;
-      const ctx = this.ctx, W = this.cssW, H = this.height;
+      const W = this.cssW, H = this.height;
       ctx.clearRect(0, 0, W, H);
       ctx.fillStyle = C.bg;
       ctx.fillRect(0, 0, W, H);
@@ -845,15 +863,7 @@
       if (hi > 0) hi += pad;
       if (lo < 0) lo -= pad;
 
-      // Category labels: horizontal if they fit their slot, else slanted.
-      ctx.font = FONT;
-      const labels = this.cats.map(c => (c.length > 28 ? c.slice(0, 27) + '\u2026' : c));
-      let widest = 0;
-      for (const s of labels) widest = Math.max(widest, ctx.measureText(s).width);
       const t = 10;
-      const guessW = W - 70 - 16;
-      const slant = this.cats.length > 0 && widest + 8 > guessW / this.cats.length;
-      const b = slant ? Math.min(130, Math.ceil(widest * Math.sin(Math.PI / 5)) + 26) : 26;
       const h = Math.max(20, H - t - b);
       const yt = ticks(lo, hi, false, Math.max(2, Math.floor(h / 42)));
       const majors = yt.filter(v => v.major);
@@ -906,6 +916,11 @@
       labels.forEach((s, i) => {
         const cx = l + (i + 0.5) * g.slot;
         if (!slant) { this.drawText(ctx, s, cx, t + h + 6, 'center', 'top'); return; }
+        ctx.font = FONT;  // slanted labels run left: shorten those that would leave the canvas
+        const room = (cx - 2) / Math.cos(Math.PI / 5);
+        let n = s.length;
+        while (n > 1 && ctx.measureText(s.slice(0, n) + (n < s.length ? '\u2026' : '')).width > room) n--;
+        if (n < s.length) s = s.slice(0, n) + '\u2026';
         ctx.save();
         ctx.translate(cx, t + h + 6);
         ctx.rotate(-Math.PI / 5);
