@@ -357,7 +357,7 @@
       r.textContent = 'reset zoom';
       r.title = 'or double-click the plot';
       r.addEventListener('click', () => this.reset());
-      this.caption.append(r);
+      this.wrap.append(r);
       this.resetButton = r;
     }
 
