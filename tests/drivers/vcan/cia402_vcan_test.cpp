@@ -173,6 +173,9 @@ TEST(Cia402Wire, ConfigureAndEnableBytesFollowTheStandard) {
     } else if (l.id == 0x205) {
       ASSERT_EQ(l.data.size(), 6u) << l.text;
       const int cw = l.data[0] | l.data[1] << 8;
+      // target position, little-endian: the drive stands at 0.25 rad = 1630 counts
+      const std::int32_t target = l.data[2] | l.data[3] << 8 | l.data[4] << 16 | l.data[5] << 24;
+      EXPECT_NEAR(target, 1630, 3) << l.text;
       if (controlwords.empty() || controlwords.back() != cw) controlwords.push_back(cw);
       // The client's next frame is the SYNC (the drive's heartbeat may come in between).
       std::size_t j = i + 1;
@@ -214,6 +217,24 @@ TEST(Cia402Wire, NmtCommandsBytes) {
     if (at == std::string::npos) break;
   }
   EXPECT_GE(std::count_if(log.begin(), log.end(), [](const Logged& l) { return l.text == "707#00"; }), 2);  // boot-ups
+}
+
+TEST(Cia402Wire, SdoReplyCommandSpecifiers) {
+  Candump dump_;
+  {
+    Rig r(kVcan, test_config(5));
+    EXPECT_EQ(r.client.sdo_read(0x6041, 0) & 0x4F, 0x40u);  // statusword: switch on disabled
+    EXPECT_THROW(r.client.sdo_read(0x2000, 0), SdoAbortError);
+    EXPECT_THROW(r.client.sdo_write(0x1000, 0, 1, 4), SdoAbortError);  // read-only
+  }
+  const auto log = dump_.stop();
+  // 2-byte upload reply: cs 0x4B, statusword 0x0240 little-endian.
+  EXPECT_NE(find(log, "605#4041600000000000"), std::string::npos) << dump(log);
+  EXPECT_NE(find(log, "585#4B41600040020000"), std::string::npos) << dump(log);
+  // Aborts: cs 0x80, the object, then the code little-endian.
+  EXPECT_NE(find(log, "585#8000200000000206"), std::string::npos) << dump(log);  // 0x06020000
+  EXPECT_NE(find(log, "605#2300100001000000"), std::string::npos) << dump(log);
+  EXPECT_NE(find(log, "585#8000100002000106"), std::string::npos) << dump(log);  // 0x06010002
 }
 
 // ---- cansend: frames from outside that the client must handle ------------------------------

@@ -1,6 +1,7 @@
 // An in-process CAN bus for unit tests: every frame one endpoint sends reaches every other
 // endpoint whose filters pass it (like vcan with local loopback, without the own-message echo).
-// A test double: the vcan tests run the same code on a real kernel bus.
+// A test double: the vcan tests run the same code on a real kernel bus. Not real-time safe
+// (send() locks the bus and allocates a posted handler).
 #pragma once
 
 #include <functional>
