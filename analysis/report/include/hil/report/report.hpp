@@ -1,0 +1,95 @@
+// Offline HTML report writer: one self-contained report.html (inline CSS, JS and data; no network)
+// with interactive canvas plots: box/wheel zoom, pan, hover read-out, legend toggles, and x-zoom
+// linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
+//
+// Series are decimated when added (min and max per index bucket, at most kMaxBuckets buckets), so
+// a Document holds only what it will write and a million-point series costs a few milliseconds.
+// Not real-time safe: allocates, formats and does file I/O.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hil::report {
+
+// A series longer than 2 * kMaxBuckets points is reduced to the min and max of each of
+// kMaxBuckets index buckets (plus its first and last points); NaN gaps survive.
+inline constexpr int kMaxBuckets = 4000;
+
+struct Series {
+  std::string name = "";              // legend text, with unit if it differs from the axis
+  std::vector<double> x = {}, y = {}; // same length; NaN in either breaks the line
+  std::string color = "";             // any CSS colour; empty: the figure's palette in order
+  enum class Style { line, step, points } style = Style::line;  // step: holds y until next x
+  bool dashed = false;
+};
+
+struct Band {  // shaded x-interval, e.g. a failing time window
+  double x0 = 0, x1 = 0;
+  std::string label = "";
+  std::string color = "";  // empty: translucent red
+};
+
+struct HLine {  // horizontal reference, e.g. a confidence bound or a tolerance
+  double y = 0;
+  std::string label = "";
+  bool dashed = true;
+};
+
+struct Figure {
+  std::string title = "", x_label = "", y_label = "";  // labels carry units: "time [s]", "pressure [MPa]"
+  std::vector<Series> series = {};
+  std::vector<Band> bands = {};
+  std::vector<HLine> hlines = {};
+  std::string group = "";  // figures with the same non-empty group share x zoom and cursor
+  bool x_log = false, y_log = false;  // on a log axis, values <= 0 are left out
+  int height_px = 260;
+};
+
+struct Bars {  // grouped bar chart: one bar per (category, group)
+  std::string title = "", y_label = "";
+  std::vector<std::string> categories = {};
+  std::vector<std::pair<std::string, std::vector<double>>> groups = {};  // name, one value per category
+  int height_px = 260;
+};
+
+class Document {
+ public:
+  explicit Document(std::string title);
+
+  void heading(std::string text, int level = 2);  // level 1..4
+  void paragraph(std::string text);               // plain text, HTML-escaped
+  void note(std::string text, bool warning);      // highlighted box, e.g. "no candidate explains..."
+  // Cells that look like numbers are right-aligned; clicking a header sorts by that column.
+  void table(std::vector<std::string> header, std::vector<std::vector<std::string>> rows);
+  // Throws std::invalid_argument if a series has x and y of different lengths.
+  void figure(const Figure& fig);
+  // Throws std::invalid_argument if a group does not have one value per category.
+  void bars(const Bars& chart);
+  // Side-by-side layout: the blocks added until columns_end() fill n columns row by row (so add
+  // run 1's pressure, run 2's pressure, ..., then run 1's angle, ...). No nesting.
+  void columns_begin(int n);
+  void columns_end();
+
+  // The whole page as a string (what write() puts in the file).
+  std::string html() const;
+  // Atomic: writes a temporary file in the same folder, then renames it over `file`. On failure
+  // the temporary is removed, an existing `file` is untouched, and std::system_error names it.
+  void write(const std::filesystem::path& file) const;
+
+ private:
+  void block(const std::string& html);  // appends one top-level block (a grid cell in columns)
+  void open_block();
+  void close_block();
+  std::string page_head() const;  // html() is page_head() + body_ + page_tail()
+  std::string page_tail() const;
+
+  std::string title_;
+  std::string body_;  // HTML of the blocks so far; figure data already decimated and encoded
+  int next_id_ = 0;
+  int columns_ = 0;   // > 0 while inside columns_begin/columns_end
+};
+
+}  // namespace hil::report

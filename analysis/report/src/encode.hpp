@@ -1,0 +1,43 @@
+// Internals of the report writer, visible to its tests: number formatting, decimation, escaping.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace hil::report::detail {
+
+// Writes `v` with 6 significant digits in the shortest form ("12.5", "0.000123", "1.5e-07") and
+// returns the end. Needs 16 chars of room. Non-finite values are written as "null" (JSON gap).
+char* format_number(char* out, double v);
+
+// Decimated series: y NaN marks a gap (written as null). Points are in input order.
+struct Decimated {
+  std::vector<double> x, y;
+};
+
+enum class Thin { line, points };
+
+// line: if n > 2 * max_buckets, splits the index range into max_buckets buckets and keeps, in input
+// order, each bucket's min-y and max-y points and a gap marker if the bucket has a non-finite
+// point; the first and last points always stay. Then drops interior points of runs of equal y
+// (the drawn line is the same), which shrinks steps and constants to their corners.
+// points: if n > 2 * max_buckets, keeps the first point in each cell of a 256 x 256 grid over the
+// data's bounding box (the scatter's shape survives, its density does not).
+// Points with x <= 0 (x_log) or y <= 0 (y_log) are left out without a gap.
+Decimated decimate(std::span<const double> x, std::span<const double> y, std::size_t max_buckets,
+                   Thin thin, bool x_log, bool y_log);
+
+// Appends `v` as a JSON array of format_number values.
+void append_numbers(std::string& out, std::span<const double> v);
+
+// Text for HTML element content and attribute values: & < > " ' escaped.
+std::string html_escape(std::string_view text);
+
+// A JSON string literal that is also safe inside <script>: < > & are written as \u003c etc., and
+// invalid UTF-8 is replaced rather than thrown on.
+std::string json_string(std::string_view text);
+
+}  // namespace hil::report::detail

@@ -1,0 +1,278 @@
+#include "hil/report/report.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <stdexcept>
+#include <system_error>
+
+#include "assets.hpp"
+#include "encode.hpp"
+
+namespace hil::report {
+namespace {
+
+using detail::html_escape;
+using detail::json_string;
+
+const char* style_name(Series::Style s) {
+  switch (s) {
+    case Series::Style::step: return "step";
+    case Series::Style::points: return "points";
+    default: return "line";
+  }
+}
+
+void append_number(std::string& out, double v) {
+  char buf[32];
+  out.append(buf, detail::format_number(buf, v));
+}
+
+// "a-b" style keys keep the embedded JSON small; report.js reads the same names.
+void append_series(std::string& out, const Series& s, bool x_log, bool y_log) {
+  const auto thin = s.style == Series::Style::points ? detail::Thin::points : detail::Thin::line;
+  const auto d = detail::decimate(s.x, s.y, kMaxBuckets, thin, x_log, y_log);
+  out += "{\"name\":" + json_string(s.name) + ",\"color\":" + json_string(s.color) +
+         ",\"style\":\"" + style_name(s.style) + "\",\"dashed\":" + (s.dashed ? "true" : "false") +
+         ",\"n\":" + std::to_string(s.x.size()) + ",\"x\":";
+  detail::append_numbers(out, d.x);
+  out += ",\"y\":";
+  detail::append_numbers(out, d.y);
+  out += '}';
+}
+
+// Figure data sits in a non-executed <script> next to its canvas; report.js parses it.
+constexpr std::string_view kDataOpen = "<script type=\"application/json\" class=\"hil-data\">";
+constexpr std::string_view kDataClose = "</script></figure>";
+
+std::string figure_head(const std::string& kind, int id, const std::string& title) {
+  return "<figure class=\"hil-fig hil-" + kind + "\" id=\"fig" + std::to_string(id) +
+         "\"><figcaption>" + html_escape(title) + "</figcaption>";
+}
+
+bool looks_numeric(const std::string& cell) {
+  if (cell.empty()) return false;
+  double v = 0;
+  const char* b = cell.data() + (cell[0] == '+' ? 1 : 0);
+  const char* e = cell.data() + cell.size();
+  const auto r = std::from_chars(b, e, v);
+  // Allow a trailing unit or percent sign ("12.5 %", "3 ms") so metric tables align too.
+  return r.ec == std::errc() && (r.ptr == e || *r.ptr == ' ' || *r.ptr == '%');
+}
+
+}  // namespace
+
+Document::Document(std::string title) : title_(std::move(title)) {}
+
+void Document::open_block() {
+  if (columns_ > 0) body_ += "<div class=\"hil-cell\">";
+}
+
+void Document::close_block() { body_ += columns_ > 0 ? "</div>\n" : "\n"; }
+
+void Document::block(const std::string& html) {
+  open_block();
+  body_ += html;
+  close_block();
+}
+
+void Document::heading(std::string text, int level) {
+  const char digit = static_cast<char>('0' + std::clamp(level, 1, 4));
+  std::string html = "<h0>";
+  html[2] = digit;
+  html += html_escape(text);
+  html += "</h0>";
+  html[html.size() - 2] = digit;
+  block(html);
+}
+
+void Document::paragraph(std::string text) { block("<p>" + html_escape(text) + "</p>"); }
+
+void Document::note(std::string text, bool warning) {
+  block(std::string("<div class=\"hil-note") + (warning ? " hil-warn" : "") + "\" role=\"note\">" +
+        html_escape(text) + "</div>");
+}
+
+void Document::table(std::vector<std::string> header, std::vector<std::vector<std::string>> rows) {
+  std::string h = "<div class=\"hil-table-wrap\"><table class=\"hil-table\"><thead><tr>";
+  for (const auto& c : header) h += "<th>" + html_escape(c) + "</th>";
+  h += "</tr></thead><tbody>";
+  for (const auto& row : rows) {
+    h += "<tr>";
+    for (const auto& c : row) {
+      h += looks_numeric(c) ? "<td class=\"num\">" : "<td>";
+      h += html_escape(c) + "</td>";
+    }
+    h += "</tr>";
+  }
+  h += "</tbody></table></div>";
+  block(h);
+}
+
+void Document::figure(const Figure& fig) {
+  for (const auto& s : fig.series) {
+    if (s.x.size() != s.y.size()) {
+      throw std::invalid_argument("report figure '" + fig.title + "': series '" + s.name + "' has " +
+                                  std::to_string(s.x.size()) + " x but " +
+                                  std::to_string(s.y.size()) + " y values");
+    }
+  }
+  // Encoded straight into body_: the data is the bulk of the page, copies of it cost time.
+  const std::size_t mark = body_.size();
+  try {
+    open_block();
+    std::string& json = body_;
+    json += figure_head("plot", next_id_++, fig.title);
+    json += kDataOpen;
+    json += "{\"kind\":\"plot\",\"xLabel\":" + json_string(fig.x_label) +
+            ",\"yLabel\":" + json_string(fig.y_label) + ",\"group\":" + json_string(fig.group) +
+            ",\"xLog\":" + (fig.x_log ? "true" : "false") + ",\"yLog\":" +
+            (fig.y_log ? "true" : "false") + ",\"height\":" + std::to_string(std::max(fig.height_px, 80)) +
+            ",\"series\":[";
+    for (std::size_t i = 0; i < fig.series.size(); ++i) {
+      if (i > 0) json += ',';
+      append_series(json, fig.series[i], fig.x_log, fig.y_log);
+    }
+    json += "],\"bands\":[";
+    for (std::size_t i = 0; i < fig.bands.size(); ++i) {
+      const auto& b = fig.bands[i];
+      json += i > 0 ? ",{\"x0\":" : "{\"x0\":";
+      append_number(json, b.x0);
+      json += ",\"x1\":";
+      append_number(json, b.x1);
+      json += ",\"label\":" + json_string(b.label) + ",\"color\":" + json_string(b.color) + "}";
+    }
+    json += "],\"hlines\":[";
+    for (std::size_t i = 0; i < fig.hlines.size(); ++i) {
+      const auto& l = fig.hlines[i];
+      json += i > 0 ? ",{\"y\":" : "{\"y\":";
+      append_number(json, l.y);
+      json += ",\"label\":" + json_string(l.label) + ",\"dashed\":" + (l.dashed ? "true" : "false") + "}";
+    }
+    json += "]}";
+    json += kDataClose;
+    close_block();
+  } catch (...) {
+    body_.resize(mark);  // no half figure in the page
+    throw;
+  }
+}
+
+void Document::bars(const Bars& chart) {
+  for (const auto& [name, values] : chart.groups) {
+    if (values.size() != chart.categories.size()) {
+      throw std::invalid_argument("report bars '" + chart.title + "': group '" + name + "' has " +
+                                  std::to_string(values.size()) + " values for " +
+                                  std::to_string(chart.categories.size()) + " categories");
+    }
+  }
+  std::string json = "{\"kind\":\"bars\",\"yLabel\":" + json_string(chart.y_label) +
+                     ",\"height\":" + std::to_string(std::max(chart.height_px, 80)) +
+                     ",\"categories\":[";
+  for (std::size_t i = 0; i < chart.categories.size(); ++i) {
+    if (i > 0) json += ',';
+    json += json_string(chart.categories[i]);
+  }
+  json += "],\"groups\":[";
+  for (std::size_t i = 0; i < chart.groups.size(); ++i) {
+    if (i > 0) json += ',';
+    json += "{\"name\":" + json_string(chart.groups[i].first) + ",\"values\":";
+    detail::append_numbers(json, chart.groups[i].second);
+    json += '}';
+  }
+  json += "]}";
+  block(figure_head("bars", next_id_++, chart.title) + std::string(kDataOpen) + json +
+        std::string(kDataClose));
+}
+
+void Document::columns_begin(int n) {
+  if (columns_ > 0) throw std::logic_error("report: columns_begin inside columns (no nesting)");
+  columns_ = std::clamp(n, 1, 6);
+  body_ += "<div class=\"hil-cols\" style=\"grid-template-columns:repeat(" +
+           std::to_string(columns_) + ",minmax(0,1fr))\">\n";
+}
+
+void Document::columns_end() {
+  if (columns_ == 0) throw std::logic_error("report: columns_end without columns_begin");
+  columns_ = 0;
+  body_ += "</div>\n";
+}
+
+std::string Document::page_head() const {
+  std::string head;
+  head.reserve(detail::kReportCss.size() + 1024);
+  head += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+          "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
+          "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
+  head += html_escape(title_);
+  head += "</title>\n<style>\n";
+  head += detail::kReportCss;
+  head += "</style>\n</head>\n<body>\n<header class=\"hil-header\"><h1>";
+  head += html_escape(title_);
+  head += "</h1><p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
+          "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; "
+          "click a legend entry to hide it, double-click to show it alone.</p></header>\n<main>\n";
+  return head;
+}
+
+std::string Document::page_tail() const {
+  std::string tail;
+  tail.reserve(detail::kReportJs.size() + 256);
+  if (columns_ > 0) tail += "</div>\n";  // an unclosed columns_begin still gives valid HTML
+  tail += "</main>\n<div class=\"hil-tip\" hidden></div>\n<script>\n";
+  tail += detail::kReportJs;
+  tail += "</script>\n</body></html>\n";
+  return tail;
+}
+
+std::string Document::html() const { return page_head() + body_ + page_tail(); }
+
+void Document::write(const std::filesystem::path& file) const {
+  const std::string head = page_head(), tail = page_tail();
+  // A per-process counter keeps two writers in one process apart; O_EXCL keeps processes apart.
+  static std::atomic<unsigned> counter{0};
+  const auto dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
+  std::filesystem::path tmp;
+  int fd = -1;
+  for (int attempt = 0; attempt < 100 && fd < 0; ++attempt) {
+    std::string name = ".";  // hidden, and named after the target so a leftover explains itself
+    name += file.filename().string();
+    name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+    tmp = dir / name;
+    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);  // umask applies
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) {
+    throw std::system_error(errno, std::generic_category(),
+                            "report: cannot create a temporary file next to " + file.string());
+  }
+  int err = 0;
+  for (const std::string* part : {&head, &body_, &tail}) {
+    const char* p = part->data();
+    std::size_t left = part->size();
+    while (left > 0 && err == 0) {
+      const ssize_t n = ::write(fd, p, left);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        err = n < 0 ? errno : EIO;
+        break;
+      }
+      p += n;
+      left -= static_cast<std::size_t>(n);
+    }
+  }
+  // No fsync: the rename makes the file appear whole to readers, which is what a report needs;
+  // surviving a power cut is not worth milliseconds of a command budgeted at ~20 ms.
+  if (::close(fd) != 0 && err == 0) err = errno;
+  if (err == 0 && ::rename(tmp.c_str(), file.c_str()) != 0) err = errno;
+  if (err != 0) {
+    ::unlink(tmp.c_str());
+    throw std::system_error(err, std::generic_category(), "report: cannot write " + file.string());
+  }
+}
+
+}  // namespace hil::report

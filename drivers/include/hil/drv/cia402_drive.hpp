@@ -1,0 +1,126 @@
+// A CANopen CiA 402 client for one servo drive in cyclic synchronous position mode.
+//
+// An I/O thread (Boost.Asio) owns the CAN channel: it produces SYNC at the loop rate, sends
+// RPDO1 (controlword 0x6040, target position 0x607A) before each SYNC, receives TPDO1
+// (statusword 0x6041, position actual 0x6064), consumes the drive's heartbeat, decodes EMCY
+// and error frames, and runs the CiA 402 state machine. The real-time side only touches
+// lock-free mailboxes (read/write/health never block).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "hil/drv/can.hpp"
+#include "hil/drv/canopen.hpp"
+#include "hil/drv/io_types.hpp"
+
+namespace hil::cfg {
+class Node;
+}
+
+namespace hil::drv {
+
+// Encoder counts <-> load-side radians: rad = sign * counts * 2π / (counts_per_rev * gear_ratio).
+struct DriveUnits {
+  double counts_per_rev = 4096;  // encoder counts per motor revolution
+  double gear_ratio = 1.0;       // motor revolutions per load (valve) revolution
+  int sign = 1;                  // -1 when the drive counts the other way round
+  double rad_per_count() const;
+  std::int32_t to_counts(double position_rad) const noexcept;  // rounds, saturates; real-time safe
+  double to_rad(std::int32_t counts) const noexcept;           // real-time safe
+  static DriveUnits from_yaml(const cfg::Node& units);
+};
+
+// What to do when the controller goes bus-off.
+enum class BusOffPolicy {
+  report,   // latch a fault; resume only when clear_bus_off() is called
+  wait,     // latch until the controller reports it restarted (restart-ms / ip link ... restart)
+  recover,  // after recover_after, reopen the channel and resume
+};
+
+struct Cia402Config {
+  std::string interface = "vcan0";
+  std::uint8_t node_id = 1;
+  long bitrate = 1000000;  // informational: a real interface is set up with `ip link`; vcan ignores it
+  std::chrono::microseconds sync_period{1000};
+  enum class SyncSource { timer, loop } sync_source = SyncSource::timer;  // loop: write() triggers SYNC
+  std::chrono::milliseconds heartbeat_producer{100};  // written to the drive's 0x1017
+  std::chrono::milliseconds heartbeat_timeout{350};
+  DriveUnits units;
+  std::chrono::milliseconds boot_timeout{5000};
+  std::chrono::milliseconds sdo_timeout{200};
+  int sdo_retries = 2;
+  std::chrono::milliseconds transition_timeout{2000};
+  BusOffPolicy bus_off_policy = BusOffPolicy::wait;
+  std::chrono::milliseconds bus_off_recover_after{500};
+  bool disable_unused_pdos = true;  // mark RPDO2-4 and TPDO2-4 invalid
+
+  // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.
+  static Cia402Config from_yaml(const cfg::Node& node);
+  // A file holding that mapping at its top level or under `cia402_drive:`.
+  static Cia402Config load(const std::filesystem::path& file);
+};
+
+class DriveError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The drive refused an SDO: what() names the drive, the object and the abort code's meaning.
+class SdoAbortError : public DriveError {
+ public:
+  SdoAbortError(const std::string& what, std::uint16_t index, std::uint8_t sub, std::uint32_t code)
+      : DriveError(what), index(index), sub(sub), code(code) {}
+  std::uint16_t index;
+  std::uint8_t sub;
+  std::uint32_t code;
+};
+
+class Cia402Drive {
+ public:
+  // Opens the channel (SocketCAN on config.interface unless a factory is given) and starts
+  // the I/O thread. Throws when the channel cannot be opened.
+  explicit Cia402Drive(Cia402Config config, CanTransportFactory transport = {});
+  ~Cia402Drive();
+  Cia402Drive(const Cia402Drive&) = delete;
+  Cia402Drive& operator=(const Cia402Drive&) = delete;
+  Cia402Drive(Cia402Drive&&) = delete;
+  Cia402Drive& operator=(Cia402Drive&&) = delete;
+
+  // Setup (blocking, throw DriveError/SdoAbortError naming node, object and cause).
+  // NMT reset communication, wait boot-up, check 0x1000, heartbeat 0x1017, map RPDO1/TPDO1,
+  // CSP mode (0x6060 = 8), interpolation period, NMT start, wait operational and the first TPDO.
+  void configure();
+  // Shutdown -> switch on -> enable operation (one fault reset first if in fault); the target
+  // starts at the actual position.
+  void activate();
+  // Enable operation -> switched on (power stage idle, drive keeps its position).
+  void deactivate();
+
+  // Real-time safe: the newest feedback (sequence counts TPDOs).
+  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept;
+  // Real-time safe: the command for the next SYNC (with sync_source loop, also triggers it).
+  void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept;
+  // Real-time safe.
+  DeviceHealth health() const noexcept;
+  cia402::State state() const noexcept;  // real-time safe
+
+  // Setup-time services (blocking; never from the I/O thread).
+  std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);
+  void sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size);
+  void nmt(canopen::NmtCommand command);
+  void reset_fault();    // one fault-reset edge at the next SYNC
+  void clear_bus_off();  // with BusOffPolicy::report: the operator says the bus is fine again
+
+  const Cia402Config& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hil::drv

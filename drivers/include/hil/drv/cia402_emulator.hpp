@@ -1,0 +1,76 @@
+// A CiA 402 servo drive on a CAN bus, backed by a DriveModel: NMT slave with boot-up and
+// heartbeat producer, an SDO server (expedited) for the objects it has (communication objects
+// incl. PDO parameters 0x1400-0x1403 / 0x1600-0x1603 / 0x1800-0x1803 / 0x1A00-0x1A03, and
+// 0x603F 0x6040 0x6041 0x6060 0x6061 0x6064 0x606C 0x607A 0x60C2), RPDO/TPDO processed on SYNC
+// through whatever mapping the master wrote, the CiA 402 state machine, and EMCY.
+// One I/O thread. A fault API makes it misbehave on purpose.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "hil/drv/can.hpp"
+#include "hil/drv/canopen.hpp"
+#include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/models.hpp"
+
+namespace hil::drv {
+
+struct Cia402EmulatorConfig {
+  std::string interface = "vcan0";
+  std::uint8_t node_id = 1;
+  DriveUnits units;  // must match the client's to read the same radians
+
+  // `node`: keys interface, node_id, units (as in Cia402Config).
+  static Cia402EmulatorConfig from_yaml(const cfg::Node& node);
+  static Cia402EmulatorConfig load(const std::filesystem::path& file);  // top level or `cia402_emulator:`
+};
+
+class Cia402DriveEmulator {
+ public:
+  // Opens the channel (SocketCAN on config.interface unless a factory is given), starts its
+  // thread and boots: boot-up message, then pre-operational. `model` must outlive it.
+  Cia402DriveEmulator(Cia402EmulatorConfig config, DriveModel& model, CanTransportFactory transport = {});
+  ~Cia402DriveEmulator();
+  Cia402DriveEmulator(const Cia402DriveEmulator&) = delete;
+  Cia402DriveEmulator& operator=(const Cia402DriveEmulator&) = delete;
+  Cia402DriveEmulator(Cia402DriveEmulator&&) = delete;
+  Cia402DriveEmulator& operator=(Cia402DriveEmulator&&) = delete;
+
+  // Observations, thread-safe.
+  canopen::NmtState nmt_state() const;
+  cia402::State state() const;
+  std::uint64_t syncs_seen() const;
+  // Reads an object from the dictionary; nullopt when it does not exist.
+  std::optional<std::uint32_t> object(std::uint16_t index, std::uint8_t sub);
+
+  // Misbehaviour on command, thread-safe.
+  void stop_heartbeat(bool stopped);
+  void set_silent(bool silent);  // answer nothing at all: no SDO, PDO, heartbeat, NMT reaction
+  void set_response_delay(std::chrono::microseconds delay);  // SDO replies and TPDOs go out this late
+  // Sends EMCY (code, register, manufacturer bytes) and enters fault; a fault reset clears it
+  // (and sends EMCY 0x0000).
+  void raise_emcy(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer = {});
+  // Every SDO access to index:sub is aborted with `abort_code`.
+  void fail_sdo(std::uint16_t index, std::uint8_t sub, std::uint32_t abort_code);
+  void clear_sdo_failures();
+  // Floods the bus with high-priority data frames (default ID 0x001, 8 x 0xFF), `frames_per_ms`
+  // every millisecond. Real error frames come from a CAN controller; see emulate_bus_error.
+  void flood(bool on, std::uint32_t id = 0x001, int frames_per_ms = 20);
+  // Puts an error frame on the bus as a controller driver would report it (bus-off, restarted,
+  // error-passive...). On vcan the kernel delivers it to every socket whose CAN_RAW_ERR_FILTER
+  // asks for that class, exactly as it delivers a real controller's error frames.
+  void emulate_bus_error(EmulatedBusError kind);
+  // As if power-cycled: dictionary back to defaults, boot-up message, pre-operational.
+  void reboot();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hil::drv

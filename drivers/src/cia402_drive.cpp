@@ -1,0 +1,652 @@
+#include "hil/drv/cia402_drive.hpp"
+
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/posix/stream_descriptor.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <future>
+#include <numbers>
+#include <thread>
+
+#include "hil/config.hpp"
+#include "hil/drv/socketcan.hpp"
+
+namespace hil::drv {
+
+namespace asio = boost::asio;
+using namespace canopen;
+using std::chrono::milliseconds;
+
+// ---- units and config ------------------------------------------------------------------------
+
+double DriveUnits::rad_per_count() const {
+  return sign * 2.0 * std::numbers::pi / (counts_per_rev * gear_ratio);
+}
+
+std::int32_t DriveUnits::to_counts(double position_rad) const noexcept {
+  const double c = std::nearbyint(position_rad / rad_per_count());
+  if (!(c > -2147483648.0)) return INT32_MIN;  // also NaN
+  if (c > 2147483647.0) return INT32_MAX;
+  return static_cast<std::int32_t>(c);
+}
+
+double DriveUnits::to_rad(std::int32_t counts) const noexcept { return counts * rad_per_count(); }
+
+DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
+  n.allow_keys({"counts_per_rev", "gear_ratio", "sign"});
+  DriveUnits u;
+  u.counts_per_rev = n.number("counts_per_rev", u.counts_per_rev);
+  n.at("counts_per_rev").require(u.counts_per_rev > 0, "must be > 0");
+  u.gear_ratio = n.number("gear_ratio", u.gear_ratio);
+  if (auto g = n.find("gear_ratio")) g->require(u.gear_ratio > 0, "must be > 0");
+  u.sign = static_cast<int>(n.integer("sign", 1));
+  if (auto s = n.find("sign")) s->require(u.sign == 1 || u.sign == -1, "must be 1 or -1");
+  return u;
+}
+
+namespace {
+milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1) {
+  auto v = n.find(key);
+  if (!v) return fallback;
+  const long long x = v->integer();
+  v->require(x >= min, "must be >= " + std::to_string(min) + " ms");
+  return milliseconds(x);
+}
+}  // namespace
+
+Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
+  n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units",
+                "timeouts", "bus_off", "disable_unused_pdos"});
+  Cia402Config c;
+  c.interface = n.text("interface");
+  const long long node = n.at("node_id").integer();
+  n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");
+  c.node_id = static_cast<std::uint8_t>(node);
+  c.bitrate = static_cast<long>(n.integer("bitrate", c.bitrate));
+  const long long sync_us = n.integer("sync_period_us", c.sync_period.count());
+  if (auto s = n.find("sync_period_us")) s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
+  c.sync_period = std::chrono::microseconds(sync_us);
+  const std::string src = n.text("sync_source", "timer");
+  if (src == "loop") c.sync_source = SyncSource::loop;
+  else if (src != "timer") n.at("sync_source").fail("must be 'timer' or 'loop', got '" + src + "'");
+  if (auto hb = n.find("heartbeat")) {
+    hb->allow_keys({"producer_ms", "timeout_ms"});
+    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer);
+    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout);
+    if (c.heartbeat_timeout <= c.heartbeat_producer) {
+      hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
+    }
+  }
+  if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
+  if (auto t = n.find("timeouts")) {
+    t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
+    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout);
+    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout);
+    c.sdo_retries = static_cast<int>(t->integer("sdo_retries", c.sdo_retries));
+    if (auto r = t->find("sdo_retries")) r->require(c.sdo_retries >= 0 && c.sdo_retries <= 10, "must be 0..10");
+    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout);
+  }
+  if (auto b = n.find("bus_off")) {
+    b->allow_keys({"policy", "recover_after_ms"});
+    const std::string p = b->text("policy", "wait");
+    if (p == "report") c.bus_off_policy = BusOffPolicy::report;
+    else if (p == "wait") c.bus_off_policy = BusOffPolicy::wait;
+    else if (p == "recover") c.bus_off_policy = BusOffPolicy::recover;
+    else b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
+    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after);
+  }
+  c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
+  return c;
+}
+
+Cia402Config Cia402Config::load(const std::filesystem::path& file) {
+  const auto root = cfg::Node::load_file(file);
+  if (auto d = root.find("cia402_drive")) return from_yaml(*d);
+  return from_yaml(root);
+}
+
+// ---- the client ------------------------------------------------------------------------------
+
+struct Cia402Drive::Impl {
+  struct SdoRequest {
+    bool upload = false;
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::uint32_t value = 0;
+    std::uint8_t size = 0;
+    int tries = 0;
+    std::promise<std::uint32_t> done;
+  };
+
+  Cia402Config cfg;
+  std::string who;  // "CiA 402 drive node 5 on vcan0"
+  std::uint8_t n;
+  asio::io_context io;
+  asio::executor_work_guard<asio::io_context::executor_type> work{io.get_executor()};
+  std::unique_ptr<CanTransport> tr;
+  asio::steady_timer sync_timer{io}, hb_timer{io}, sdo_timer{io}, bus_timer{io};
+  int kick_fd = -1;
+  asio::posix::stream_descriptor kick{io};
+  std::uint64_t kick_buf = 0;
+  std::thread thread;
+
+  // Shared with other threads.
+  Mailbox<DriveCommand> command;
+  Mailbox<DriveFeedback> feedback;
+  Mailbox<DeviceHealth> health_box;
+  std::atomic<std::uint8_t> target{static_cast<std::uint8_t>(cia402::Target::disabled)};
+  std::atomic<std::uint8_t> state_now{static_cast<std::uint8_t>(cia402::State::not_ready_to_switch_on)};
+  std::atomic<bool> reset_request{false};
+  std::atomic<std::uint64_t> bootups{0};
+  std::atomic<std::uint8_t> nmt_now{0xFF};
+
+  // I/O thread only.
+  DeviceHealth h;
+  DriveFeedback fb;
+  BusStateTracker bus;
+  bool pdo_running = false;
+  bool expect_heartbeat = false;
+  bool rebooted = false;
+  bool bus_off_latched = false;
+  bool prev_cmd_reset = false;
+  std::uint16_t last_cw = 0;
+  std::int32_t last_pos_counts = 0;
+  Clock::time_point last_sync{};
+  std::deque<std::shared_ptr<SdoRequest>> sdo_queue;
+  std::shared_ptr<SdoRequest> sdo_active;
+
+  explicit Impl(Cia402Config c) : cfg(std::move(c)), n(cfg.node_id) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "CiA 402 drive node %u on %s", n, cfg.interface.c_str());
+    who = buf;
+    h.heartbeat_timeout = cfg.heartbeat_timeout;
+  }
+
+  // -- publishing (I/O thread) --
+  void error(const std::string& text) { h.set_last_error(text); }
+
+  void publish() {
+    const auto st = cia402::decode_statusword(fb.statusword);
+    const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
+    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted;
+    h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
+    h.statusword = fb.statusword;
+    fb.fault = h.fault;
+    fb.enabled = fb.valid && st == cia402::State::operation_enabled;
+    feedback.store(fb);
+    health_box.store(h);
+  }
+
+  bool send(const CanFrame& f) {
+    if (tr->send(f)) {
+      ++h.tx_frames;
+      return true;
+    }
+    ++h.tx_failed;
+    return false;
+  }
+
+  // -- receive --
+  void on_frame(const CanFrame& f) {
+    if (f.error) {
+      on_error_frame(f);
+    } else {
+      ++h.rx_frames;
+      if (f.id == kHeartbeat + n) on_heartbeat(f);
+      else if (f.id == kTpdo1 + n) on_tpdo(f);
+      else if (f.id == kSdoTx + n) on_sdo(f);
+      else if (f.id == kEmcy + n) on_emcy(f);
+    }
+    publish();
+  }
+
+  void malformed(const CanFrame& f, const char* what) {
+    ++h.malformed;
+    error(who + ": malformed " + what + " " + to_string(f));
+  }
+
+  void on_heartbeat(const CanFrame& f) {
+    if (f.dlc < 1 || f.rtr) return malformed(f, "heartbeat");
+    const std::uint8_t s = f.data[0] & 0x7F;
+    h.nmt_state = s;
+    nmt_now = s;
+    h.last_heartbeat = f.rx_time;
+    if (h.heartbeat_lost) {
+      h.heartbeat_lost = false;
+      error(who + ": heartbeat resumed");
+    }
+    if (s == static_cast<std::uint8_t>(NmtState::boot_up)) {
+      ++bootups;
+      if (pdo_running) {  // it rebooted behind our back: its PDO mapping is gone
+        rebooted = true;
+        pdo_running = false;
+        error(who + ": the drive rebooted (boot-up message); configure() again");
+      }
+    }
+  }
+
+  void on_tpdo(const CanFrame& f) {
+    if (f.dlc < 6 || f.rtr) return malformed(f, "TPDO1 (expected 6 bytes: statusword, position actual)");
+    ++h.pdo_received;
+    fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
+    last_pos_counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
+    fb.position_rad = cfg.units.to_rad(last_pos_counts);
+    fb.valid = true;
+    fb.rx_time = f.rx_time;
+    ++fb.sequence;
+    const auto st = cia402::decode_statusword(fb.statusword);
+    if (static_cast<std::uint8_t>(st) != state_now.load()) {
+      if (st == cia402::State::fault) error(who + ": drive entered fault");
+      state_now = static_cast<std::uint8_t>(st);
+    }
+  }
+
+  void on_emcy(const CanFrame& f) {
+    const auto e = parse_emcy(f);
+    if (!e) return malformed(f, "EMCY (expected 8 bytes)");
+    ++h.emcy_count;
+    h.last_emcy_code = e->error_code;
+    h.last_emcy_register = e->error_register;
+    error(who + ": " + describe(*e));
+  }
+
+  void on_error_frame(const CanFrame& f) {
+    ++h.error_frames;
+    const auto info = decode_error_frame(f);
+    const BusState before = bus.state();
+    bus.update(info);
+    h.bus_state = bus.state();
+    error(who + ": bus: " + info.text);
+    if (h.bus_state == BusState::bus_off && before != BusState::bus_off) {
+      bus_off_latched = true;
+      if (cfg.bus_off_policy == BusOffPolicy::recover) {
+        bus_timer.expires_after(cfg.bus_off_recover_after);
+        bus_timer.async_wait([this](const boost::system::error_code& ec) {
+          if (ec) return;
+          try {
+            tr->reopen();
+          } catch (const std::exception& e) {
+            error(e.what());
+            publish();
+            return;
+          }
+          bus.reset();
+          h.bus_state = BusState::error_active;
+          resume_after_bus_off("channel reopened after bus-off (policy recover)");
+        });
+      }
+    } else if (before == BusState::bus_off && h.bus_state == BusState::error_active && bus_off_latched &&
+               cfg.bus_off_policy == BusOffPolicy::wait) {
+      resume_after_bus_off("controller restarted after bus-off (policy wait)");
+    }
+  }
+
+  void resume_after_bus_off(const std::string& why) {
+    bus_off_latched = false;
+    ++h.reconnects;
+    h.last_heartbeat = Clock::now();  // the bus was down; give the heartbeat a fresh timeout
+    error(who + ": " + why);
+    publish();
+  }
+
+  // -- SDO client --
+  void on_sdo(const CanFrame& f) {
+    const auto r = parse_sdo_reply(f);
+    if (r.kind == SdoReply::Kind::malformed) return malformed(f, "SDO reply");
+    if (!sdo_active || r.index != sdo_active->index || r.sub != sdo_active->sub) return;  // stray reply
+    auto req = sdo_active;
+    const std::string obj = object_name(req->index, req->sub);
+    const std::string op = req->upload ? "SDO read " + obj : "SDO write " + obj;
+    switch (r.kind) {
+      case SdoReply::Kind::upload:
+        if (!req->upload) return;
+        return sdo_finish(nullptr, r.value);
+      case SdoReply::Kind::download:
+        if (req->upload) return;
+        return sdo_finish(nullptr, 0);
+      case SdoReply::Kind::abort: {
+        ++h.aborts_or_exceptions;
+        char code[16];
+        std::snprintf(code, sizeof code, "0x%08X", r.value);
+        const std::string text = who + ": " + op + ": abort " + code + " (" + std::string(sdo_abort_name(r.value)) + ")";
+        error(text);
+        return sdo_finish(std::make_exception_ptr(SdoAbortError(text, req->index, req->sub, r.value)), 0);
+      }
+      default: {
+        const std::string text = who + ": " + op + ": the drive started a segmented transfer; only expedited SDO is supported";
+        error(text);
+        return sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
+      }
+    }
+  }
+
+  void sdo_finish(std::exception_ptr err, std::uint32_t value) {
+    publish();  // counters first: the caller may look at health() as soon as it wakes
+    sdo_timer.cancel();
+    auto req = std::move(sdo_active);
+    sdo_active.reset();
+    if (err) req->done.set_exception(err);
+    else req->done.set_value(value);
+    sdo_next();
+  }
+
+  void sdo_next() {
+    if (sdo_active || sdo_queue.empty()) return;
+    sdo_active = sdo_queue.front();
+    sdo_queue.pop_front();
+    sdo_send();
+  }
+
+  void sdo_send() {
+    auto& r = *sdo_active;
+    ++r.tries;
+    send(r.upload ? sdo_upload(n, r.index, r.sub) : sdo_download(n, r.index, r.sub, r.value, r.size));
+    sdo_timer.expires_after(cfg.sdo_timeout);
+    sdo_timer.async_wait([this, req = sdo_active](const boost::system::error_code& ec) {
+      if (ec || sdo_active != req) return;
+      ++h.timeouts;
+      if (req->tries <= cfg.sdo_retries) {
+        sdo_send();
+        return;
+      }
+      const std::string text = who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
+                               ": no reply after " + std::to_string(req->tries) + " tries of " +
+                               std::to_string(cfg.sdo_timeout.count()) + " ms";
+      error(text);
+      publish();
+      sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
+    });
+  }
+
+  std::uint32_t sdo(bool upload, std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
+    if (std::this_thread::get_id() == thread.get_id()) throw DriveError(who + ": SDO called from the I/O thread");
+    auto req = std::make_shared<SdoRequest>();
+    req->upload = upload, req->index = index, req->sub = sub, req->value = value, req->size = size;
+    auto fut = req->done.get_future();
+    asio::post(io, [this, req] {
+      sdo_queue.push_back(req);
+      sdo_next();
+    });
+    const auto budget = (cfg.sdo_timeout + milliseconds(50)) * (cfg.sdo_retries + 1) * 4 + std::chrono::seconds(2);
+    if (fut.wait_for(budget) != std::future_status::ready) {
+      throw DriveError(who + ": SDO " + object_name(index, sub) + ": the I/O thread did not answer");
+    }
+    return fut.get();
+  }
+
+  // -- SYNC and RPDO --
+  void tick() {
+    last_sync = Clock::now();
+    if (!pdo_running || bus_off_latched) return;
+    const DriveCommand cmd = command.load();
+    if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
+    prev_cmd_reset = cmd.fault_reset;
+    auto tgt = static_cast<cia402::Target>(target.load());
+    if (tgt == cia402::Target::operation_enabled && !cmd.enable) tgt = cia402::Target::switched_on;
+    const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
+    // A fault reset is the 0 -> 1 edge of bit 7, so only after a controlword with bit 7 low.
+    const bool reset = reset_request && st == cia402::State::fault && !(last_cw & cia402::kCwFaultReset);
+    const std::uint16_t cw = cia402::next_controlword(st, tgt, reset);
+    if (cw == cia402::kCwFaultReset) reset_request = false;
+    // Until enabled, the target follows the actual position so that enabling does not jump.
+    const std::int32_t pos = st == cia402::State::operation_enabled && tgt == cia402::Target::operation_enabled
+                                 ? cfg.units.to_counts(cmd.target_position_rad)
+                                 : last_pos_counts;
+    CanFrame rpdo;
+    rpdo.id = kRpdo1 + n;
+    rpdo.dlc = 6;
+    put_le(&rpdo.data[0], cw, 2);
+    put_le(&rpdo.data[2], static_cast<std::uint32_t>(pos), 4);
+    send(rpdo);
+    send(canopen::sync());
+    last_cw = cw;
+    ++h.sync_sent;
+  }
+
+  void arm_sync_timer() {
+    sync_timer.expires_at(sync_timer.expiry() + cfg.sync_period);
+    if (sync_timer.expiry() < Clock::now() - cfg.sync_period) sync_timer.expires_after(cfg.sync_period);
+    sync_timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      // With sync_source loop the loop's write() drives SYNC; the timer only keeps it alive
+      // while no loop runs (during configure/activate, or a stalled loop).
+      if (cfg.sync_source == Cia402Config::SyncSource::timer || Clock::now() - last_sync > 2 * cfg.sync_period) {
+        tick();
+      }
+      arm_sync_timer();
+    });
+  }
+
+  void arm_kick() {
+    kick.async_read_some(asio::buffer(&kick_buf, sizeof kick_buf), [this](const boost::system::error_code& ec, std::size_t) {
+      if (ec) return;
+      tick();
+      arm_kick();
+    });
+  }
+
+  // -- heartbeat consumer --
+  void arm_hb_timer() {
+    const auto check = std::max(milliseconds(5), std::min(milliseconds(50), cfg.heartbeat_timeout / 4));
+    hb_timer.expires_after(check);
+    hb_timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      if (expect_heartbeat && !h.heartbeat_lost && Clock::now() - h.last_heartbeat > cfg.heartbeat_timeout) {
+        h.heartbeat_lost = true;
+        error(who + ": heartbeat lost (none for " + std::to_string(cfg.heartbeat_timeout.count()) + " ms)");
+        publish();
+      }
+      arm_hb_timer();
+    });
+  }
+
+  void run_on_io(std::function<void()> fn) {
+    std::promise<void> done;
+    auto fut = done.get_future();
+    asio::post(io, [&] {
+      fn();
+      done.set_value();
+    });
+    fut.wait();
+  }
+
+  template <class Pred>
+  bool wait_for(milliseconds timeout, Pred pred) {
+    const auto until = Clock::now() + timeout;
+    while (!pred()) {
+      if (Clock::now() > until) return false;
+      std::this_thread::sleep_for(milliseconds(2));
+    }
+    return true;
+  }
+};
+
+Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : impl_(std::make_unique<Impl>(std::move(config))) {
+  auto& m = *impl_;
+  if (!transport) transport = SocketCanTransport::factory(m.cfg.interface);
+  const std::uint32_t n = m.n;
+  m.tr = transport(m.io, {{kHeartbeat + n, 0x7FF}, {kTpdo1 + n, 0x7FF}, {kSdoTx + n, 0x7FF}, {kEmcy + n, 0x7FF}});
+  m.tr->start([&m](const CanFrame& f) { m.on_frame(f); });
+  if (m.cfg.sync_source == Cia402Config::SyncSource::loop) {
+    m.kick_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (m.kick_fd < 0) throw DriveError(m.who + ": eventfd failed");
+    m.kick.assign(m.kick_fd);
+    m.arm_kick();
+  }
+  m.sync_timer.expires_after(m.cfg.sync_period);
+  m.arm_sync_timer();
+  m.arm_hb_timer();
+  m.publish();
+  m.thread = std::thread([&m] { m.io.run(); });
+}
+
+Cia402Drive::~Cia402Drive() {
+  auto& m = *impl_;
+  asio::post(m.io, [&m] {
+    m.tr->stop();
+    m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo_timer.cancel(), m.bus_timer.cancel();
+    boost::system::error_code ec;
+    m.kick.close(ec);
+  });
+  m.work.reset();
+  m.io.stop();
+  if (m.thread.joinable()) m.thread.join();
+}
+
+void Cia402Drive::configure() {
+  auto& m = *impl_;
+  const auto n = m.n;
+  m.run_on_io([&m] {
+    m.pdo_running = false;
+    m.expect_heartbeat = false;
+    m.rebooted = false;
+    m.fb.valid = false;
+    m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
+    m.publish();
+  });
+  const auto boots = m.bootups.load();
+  nmt(NmtCommand::reset_communication);
+  if (!m.wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
+    char id[8];
+    std::snprintf(id, sizeof id, "0x%03X", kHeartbeat + n);
+    throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
+                     " ms of NMT reset communication");
+  }
+  const std::uint32_t device_type = sdo_read(0x1000, 0);
+  if ((device_type & 0xFFFF) != 402) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "0x%08X", device_type);
+    throw DriveError(m.who + ": not a CiA 402 device (0x1000:00 device type = " + buf + ")");
+  }
+  sdo_write(0x1017, 0, static_cast<std::uint32_t>(m.cfg.heartbeat_producer.count()), 2);
+  // PDO mapping, CiA 301 7.5.2.36: invalidate, clear count, map, set count, set type, validate.
+  const std::uint32_t rpdo = kRpdo1 + n, tpdo = kTpdo1 + n;
+  sdo_write(0x1400, 1, kCobIdInvalid | rpdo, 4);
+  sdo_write(0x1600, 0, 0, 1);
+  sdo_write(0x1600, 1, 0x60400010, 4);  // controlword, 16 bit
+  sdo_write(0x1600, 2, 0x607A0020, 4);  // target position, 32 bit
+  sdo_write(0x1600, 0, 2, 1);
+  sdo_write(0x1400, 2, 1, 1);  // synchronous: applied at the next SYNC
+  sdo_write(0x1400, 1, rpdo, 4);
+  sdo_write(0x1800, 1, kCobIdInvalid | tpdo, 4);
+  sdo_write(0x1A00, 0, 0, 1);
+  sdo_write(0x1A00, 1, 0x60410010, 4);  // statusword
+  sdo_write(0x1A00, 2, 0x60640020, 4);  // position actual value
+  sdo_write(0x1A00, 0, 2, 1);
+  sdo_write(0x1800, 2, 1, 1);  // sent on every SYNC
+  sdo_write(0x1800, 1, tpdo, 4);
+  if (m.cfg.disable_unused_pdos) {
+    for (std::uint32_t k = 1; k <= 3; ++k) {
+      sdo_write(static_cast<std::uint16_t>(0x1400 + k), 1, kCobIdInvalid | (rpdo + 0x100 * k), 4);
+      sdo_write(static_cast<std::uint16_t>(0x1800 + k), 1, kCobIdInvalid | (tpdo + 0x100 * k), 4);
+    }
+  }
+  sdo_write(cia402::kModesOfOperation, 0, static_cast<std::uint8_t>(cia402::kModeCsp), 1);
+  const auto mode = static_cast<std::int8_t>(sdo_read(cia402::kModesDisplay, 0) & 0xFF);
+  if (mode != cia402::kModeCsp) {
+    throw DriveError(m.who + ": did not enter cyclic synchronous position mode (0x6061:00 = " + std::to_string(mode) + ")");
+  }
+  const long long us = m.cfg.sync_period.count();
+  if (us % 1000 == 0 && us / 1000 <= 255) {
+    sdo_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(us / 1000), 1);
+    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-3), 1);
+  } else {
+    sdo_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(us / 100), 1);
+    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-4), 1);
+  }
+  const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
+  m.command.store({m.cfg.units.to_rad(pos), false, false});
+  m.run_on_io([&m, pos] {
+    m.last_pos_counts = pos;
+    m.h.last_heartbeat = Clock::now();
+    m.expect_heartbeat = true;
+    m.pdo_running = true;
+    m.publish();
+  });
+  nmt(NmtCommand::start);
+  const bool up = m.wait_for(m.cfg.boot_timeout, [&] {
+    return m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid;
+  });
+  if (!up) {
+    throw DriveError(m.who + ": not operational with TPDOs flowing within " + std::to_string(m.cfg.boot_timeout.count()) +
+                     " ms of NMT start (last heartbeat state " +
+                     std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) + ")");
+  }
+}
+
+void Cia402Drive::activate() {
+  auto& m = *impl_;
+  const auto fb = m.feedback.load();
+  if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
+  m.command.store({fb.position_rad, true, false});
+  if (state() == cia402::State::fault) m.reset_request = true;
+  m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
+  if (!m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
+    throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
+                     " ms (state: " + std::string(cia402::to_string(state())) + "; last error: " +
+                     std::string(health().last_error_text()) + ")");
+  }
+}
+
+void Cia402Drive::deactivate() {
+  auto& m = *impl_;
+  m.target = static_cast<std::uint8_t>(cia402::Target::switched_on);
+  if (!m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switched_on; })) {
+    throw DriveError(m.who + ": did not reach switched on within " + std::to_string(m.cfg.transition_timeout.count()) +
+                     " ms (state: " + std::string(cia402::to_string(state())) + ")");
+  }
+}
+
+DriveFeedback Cia402Drive::read(Clock::time_point, Clock::duration) noexcept { return impl_->feedback.load(); }
+
+void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
+  impl_->command.store(command);
+  if (impl_->kick_fd >= 0) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] auto r = ::write(impl_->kick_fd, &one, sizeof one);  // non-blocking eventfd
+  }
+}
+
+DeviceHealth Cia402Drive::health() const noexcept {
+  DeviceHealth h = impl_->health_box.load();
+  if (h.last_heartbeat != Clock::time_point{}) h.heartbeat_age = Clock::now() - h.last_heartbeat;
+  return h;
+}
+
+cia402::State Cia402Drive::state() const noexcept { return static_cast<cia402::State>(impl_->state_now.load()); }
+
+std::uint32_t Cia402Drive::sdo_read(std::uint16_t index, std::uint8_t sub) { return impl_->sdo(true, index, sub, 0, 0); }
+
+void Cia402Drive::sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
+  if (size < 1 || size > 4) throw DriveError(impl_->who + ": SDO write " + object_name(index, sub) + ": size must be 1..4 bytes");
+  impl_->sdo(false, index, sub, value, size);
+}
+
+void Cia402Drive::nmt(NmtCommand command) {
+  auto& m = *impl_;
+  asio::post(m.io, [&m, command] { m.send(canopen::nmt(command, m.n)); });
+}
+
+void Cia402Drive::reset_fault() { impl_->reset_request = true; }
+
+void Cia402Drive::clear_bus_off() {
+  auto& m = *impl_;
+  asio::post(m.io, [&m] {
+    if (!m.bus_off_latched) return;
+    m.bus.reset();
+    m.h.bus_state = BusState::error_active;
+    m.resume_after_bus_off("bus-off cleared by the operator (policy report)");
+  });
+}
+
+const Cia402Config& Cia402Drive::config() const { return impl_->cfg; }
+
+}  // namespace hil::drv

@@ -1,0 +1,39 @@
+// Private: one libmodbus context (client side) and the error vocabulary both clients share.
+#pragma once
+
+#include <modbus/modbus.h>
+
+#include <string>
+
+#include "hil/drv/modbus.hpp"
+
+namespace hil::drv::detail {
+
+enum class Failure { exception, timeout, protocol, connection };
+
+Failure classify(int err);
+// "ILLEGAL DATA ADDRESS (exception 2)", "no reply within 100 ms", "Connection reset by peer"...
+std::string error_text(int err, const ModbusLinkConfig& cfg);
+modbus_t* new_context(const ModbusLinkConfig& cfg);  // TCP or RTU by cfg.transport; nullptr on failure
+
+class ModbusLink {
+ public:
+  explicit ModbusLink(const ModbusLinkConfig& cfg) : cfg_(cfg) {}
+  ~ModbusLink() { close(); }
+  ModbusLink(const ModbusLink&) = delete;
+  ModbusLink& operator=(const ModbusLink&) = delete;
+
+  void connect();  // throws ModbusError naming the endpoint
+  void close();
+  bool is_open() const { return ctx_ != nullptr; }
+  bool read(const RegisterBlock& b, std::uint16_t* dest);
+  bool write(const Register& r, const std::uint16_t* words);
+  int error() const { return err_; }
+
+ private:
+  const ModbusLinkConfig& cfg_;
+  modbus_t* ctx_ = nullptr;
+  int err_ = 0;
+};
+
+}  // namespace hil::drv::detail

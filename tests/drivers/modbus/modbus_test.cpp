@@ -1,0 +1,403 @@
+// libmodbus clients against our libmodbus emulators (TCP on 127.0.0.1, RTU over a socat pty
+// pair), against an independent pymodbus server, and mbpoll against our emulators.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <thread>
+
+#include "hil/config.hpp"
+#include "hil/drv/modbus.hpp"
+#include "hil/drv/modbus_emulator.hpp"
+#include "hil/drv/servo_test_model.hpp"
+
+namespace hil::drv {
+namespace {
+
+using namespace std::chrono_literals;
+const std::filesystem::path kConfigs = HIL_SOURCE_DIR "/drivers/configs";
+
+bool eventually(const std::function<bool()>& pred, std::chrono::milliseconds limit = 15s) {
+  const auto until = Clock::now() + limit;
+  while (!pred()) {
+    if (Clock::now() > until) return false;
+    std::this_thread::sleep_for(2ms);
+  }
+  return true;
+}
+
+int free_port() {
+  const int s = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  ::bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  ::getsockname(s, reinterpret_cast<sockaddr*>(&a), &len);
+  ::close(s);
+  return ntohs(a.sin_port);
+}
+
+// A child process, ended by its pid (SIGTERM) when the test is done.
+class Child {
+ public:
+  explicit Child(std::vector<std::string> argv) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      std::vector<char*> args;
+      for (auto& a : argv) args.push_back(a.data());
+      args.push_back(nullptr);
+      ::execvp(args[0], args.data());
+      std::_Exit(127);
+    }
+  }
+  ~Child() {
+    ::kill(pid_, SIGTERM);
+    ::waitpid(pid_, nullptr, 0);
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+std::string run(const std::string& cmd) {
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  char buf[256];
+  while (p && std::fgets(buf, sizeof buf, p)) out += buf;
+  if (p) ::pclose(p);
+  return out;
+}
+
+// The value mbpoll printed for reference `ref`, e.g. "[10]: \t1.5".
+double mbpoll_value(const std::string& out, int ref) {
+  const std::string key = "[" + std::to_string(ref) + "]:";
+  const auto at = out.find(key);
+  if (at == std::string::npos) return NAN;
+  return std::stod(out.substr(at + key.size()));
+}
+
+ModbusLinkConfig tcp_link(int port) {
+  ModbusLinkConfig c;
+  c.host = "127.0.0.1";
+  c.port = port;
+  c.response_timeout = 200ms;
+  c.poll_period = 2ms;
+  c.reconnect_initial = 50ms;
+  c.reconnect_max = 800ms;
+  return c;
+}
+
+RegisterMap drive_map() { return RegisterMap::load(kConfigs / "modbus_drive_map.yaml"); }
+RegisterMap transducer_map() { return RegisterMap::load(kConfigs / "modbus_transducer_map.yaml"); }
+
+struct TcpTransducer {
+  PositionPressureTestModel model{1.5e6};
+  ModbusTransducerEmulator emulator{tcp_link(0), transducer_map(), model};
+  ModbusTransducer client{{tcp_link(emulator.port()), transducer_map()}};
+};
+
+struct TcpDrive {
+  FirstOrderServoTestModel model{0.01, 20.0, 0.25};
+  ModbusDriveEmulator emulator{tcp_link(0), drive_map(), model};
+  ModbusDrive client{{tcp_link(emulator.port()), drive_map(), 5000ms}};
+};
+
+// ---- our clients against our emulators, TCP -------------------------------------------------
+
+TEST(ModbusTcp, TransducerReadsTheModelsPressure) {
+  TcpTransducer t;
+  t.client.configure();
+  auto r = t.client.read(Clock::now(), 1ms);
+  EXPECT_TRUE(r.valid);
+  EXPECT_FALSE(r.fault);
+  EXPECT_DOUBLE_EQ(r.pressure_pa, 1.5e6);  // float32 MPa on the wire, exact for 1.5
+  t.model.set_p0_pa(1.234e6);
+  EXPECT_TRUE(eventually([&] { return std::abs(t.client.read(Clock::now(), 1ms).pressure_pa - 1.234e6) < 1.0; }));
+  t.model.set_sensor_fault(true);
+  EXPECT_TRUE(eventually([&] { return t.client.read(Clock::now(), 1ms).fault; }));
+  const auto h = t.client.health();
+  EXPECT_TRUE(h.connected);
+  EXPECT_GT(h.rx_frames, 0u);
+  EXPECT_GE(h.heartbeat_age.count(), 0);
+}
+
+TEST(ModbusTcp, DriveActivatesAndTracksTheTarget) {
+  TcpDrive d;
+  d.client.configure();
+  auto fb = d.client.read(Clock::now(), 1ms);
+  EXPECT_NEAR(fb.position_rad, 0.25, 1e-5);
+  EXPECT_FALSE(fb.enabled);
+  d.client.activate();
+  EXPECT_TRUE(d.model.enabled());
+  EXPECT_NEAR(d.model.target_rad(), 0.25, 1e-5);  // enabling did not move the target
+  for (double target : {0.5, -0.2}) {
+    d.client.write(Clock::now(), 1ms, {target, true, false});
+    EXPECT_TRUE(eventually([&] { return std::abs(d.client.read(Clock::now(), 1ms).position_rad - target) < 1e-4; }))
+        << d.client.read(Clock::now(), 1ms).position_rad;
+    EXPECT_NEAR(d.model.target_rad(), target, 1e-5);
+  }
+  fb = d.client.read(Clock::now(), 1ms);
+  EXPECT_EQ(fb.statusword & 1, 1);
+  EXPECT_TRUE(std::isfinite(fb.velocity_rad_s));
+  d.client.deactivate();
+  EXPECT_FALSE(d.model.enabled());
+}
+
+TEST(ModbusTcp, DriveFaultIsReportedAndReset) {
+  TcpDrive d;
+  d.client.configure();
+  d.client.activate();
+  d.emulator.raise_fault(0x2310);
+  ASSERT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).fault; }));
+  EXPECT_FALSE(d.client.read(Clock::now(), 1ms).enabled);
+  EXPECT_EQ(d.client.health().last_emcy_code, 0x2310);  // from the fault_code register
+  d.client.write(Clock::now(), 1ms, {0.25, true, true});  // fault-reset edge from the loop
+  EXPECT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).enabled; }));
+  EXPECT_FALSE(d.client.read(Clock::now(), 1ms).fault);
+}
+
+TEST(ModbusTcp, ExceptionsAreSurfacedByName) {
+  TcpTransducer t;
+  t.emulator.set_exception(4);
+  try {
+    t.client.configure();
+    FAIL() << "configure() ignored the exception";
+  } catch (const ModbusError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("reading input registers 0..2 (pressure, status): SERVER DEVICE FAILURE (exception 4)"),
+              std::string::npos) << what;
+    EXPECT_NE(what.find("Modbus transducer tcp 127.0.0.1:"), std::string::npos) << what;
+  }
+  t.emulator.set_exception(0);
+  t.client.configure();
+  const auto before = t.client.health().aborts_or_exceptions;
+  t.emulator.set_exception(6);
+  ASSERT_TRUE(eventually([&] { return t.client.health().aborts_or_exceptions > before; }));
+  const auto h = t.client.health();
+  EXPECT_NE(h.last_error_text().find("SERVER DEVICE BUSY (exception 6)"), std::string_view::npos) << h.last_error_text();
+  EXPECT_EQ(h.reconnects, 0u);  // an exception is an answer: the connection stays
+  t.emulator.set_exception(0);
+  const auto seq = t.client.read(Clock::now(), 1ms).sequence;
+  EXPECT_TRUE(eventually([&] { return t.client.read(Clock::now(), 1ms).sequence > seq + 3; }));
+}
+
+TEST(ModbusTcp, IllegalAddressFromTheServerNamesTheRegister) {
+  PositionPressureTestModel model(1e6);
+  ModbusTransducerEmulator emu(tcp_link(0), transducer_map(), model);
+  // A client that believes the pressure lives at input register 100: libmodbus' server answers
+  // ILLEGAL DATA ADDRESS on its own.
+  const auto wrong = RegisterMap::from_yaml(cfg::Node::load_string(
+      "registers:\n  pressure: {table: input, address: 100, type: float32, scale: 1.0e6}\n", "wrong_map.yaml"));
+  ModbusTransducer client({tcp_link(emu.port()), wrong});
+  try {
+    client.configure();
+    FAIL();
+  } catch (const ModbusError& e) {
+    EXPECT_NE(std::string(e.what()).find("reading input registers 100..101 (pressure): ILLEGAL DATA ADDRESS (exception 2)"),
+              std::string::npos) << e.what();
+  }
+}
+
+TEST(ModbusTcp, TimeoutReconnectsAndResumes) {
+  TcpTransducer t;
+  t.client.configure();
+  t.emulator.set_silent(true);
+  ASSERT_TRUE(eventually([&] { return t.client.health().timeouts >= 1; }));
+  EXPECT_NE(t.client.health().last_error_text().find("no reply within 200 ms"), std::string_view::npos)
+      << t.client.health().last_error_text();
+  EXPECT_TRUE(eventually([&] { return t.client.read(Clock::now(), 1ms).fault; }));  // link down is a fault
+  t.emulator.set_silent(false);
+  ASSERT_TRUE(eventually([&] { return t.client.health().connected && !t.client.read(Clock::now(), 1ms).fault; }));
+  EXPECT_GE(t.client.health().reconnects, 1u);
+  const auto seq = t.client.read(Clock::now(), 1ms).sequence;
+  EXPECT_TRUE(eventually([&] { return t.client.read(Clock::now(), 1ms).sequence > seq + 3; }));
+  // Late answers (beyond the timeout) are timeouts too, and the client comes back after them.
+  const auto timeouts = t.client.health().timeouts;
+  t.emulator.set_response_delay(400ms);
+  ASSERT_TRUE(eventually([&] { return t.client.health().timeouts > timeouts; }));
+  t.emulator.set_response_delay(0us);
+  EXPECT_TRUE(eventually([&] { return t.client.health().connected; }));
+}
+
+TEST(ModbusTcp, DroppedConnectionReconnectsWithBackoff) {
+  TcpDrive d;
+  d.client.configure();
+  d.emulator.refuse_connections(true);
+  d.emulator.drop_connections();
+  ASSERT_TRUE(eventually([&] { return !d.client.health().connected; }));
+  ASSERT_TRUE(eventually([&] {
+    return d.client.health().last_error_text().find("cannot connect: Connection refused") != std::string_view::npos;
+  })) << d.client.health().last_error_text();
+  const auto failed = d.client.health().tx_failed;
+  std::this_thread::sleep_for(1500ms);
+  // Back-off 50, 100, 200, 400, 800, 800 ms: a handful of attempts, not one per 2 ms poll.
+  EXPECT_LT(d.client.health().tx_failed - failed, 15u);
+  d.emulator.refuse_connections(false);
+  ASSERT_TRUE(eventually([&] { return d.client.health().connected; })) << d.client.health().last_error_text();
+  EXPECT_GE(d.client.health().reconnects, 1u);
+  // After the reconnect the command is written again and the drive still follows.
+  d.client.activate();
+  d.client.write(Clock::now(), 1ms, {0.4, true, false});
+  EXPECT_TRUE(eventually([&] { return std::abs(d.client.read(Clock::now(), 1ms).position_rad - 0.4) < 1e-4; }));
+}
+
+TEST(ModbusTcp, ConfigureNamesTheEndpointWhenNobodyListens) {
+  const int port = free_port();
+  ModbusTransducer client({tcp_link(port), transducer_map()});
+  try {
+    client.configure();
+    FAIL();
+  } catch (const ModbusError& e) {
+    EXPECT_NE(std::string(e.what()).find("Modbus transducer tcp 127.0.0.1:" + std::to_string(port) +
+                                         " unit 1: cannot connect: Connection refused"),
+              std::string::npos) << e.what();
+  }
+}
+
+TEST(ModbusConfig, ExampleFilesLoad) {
+  const auto d = ModbusDriveConfig::load(kConfigs / "modbus_drive.yaml");
+  EXPECT_EQ(d.link.port, 1502);
+  EXPECT_EQ(d.map.at("target_position").type, RegisterType::int32);
+  const auto t = ModbusTransducerConfig::load(kConfigs / "modbus_transducer.yaml");
+  EXPECT_EQ(t.link.transport, ModbusLinkConfig::Transport::rtu);
+  EXPECT_EQ(t.link.describe(), "rtu /dev/ttyUSB0 115200 8N1 unit 2");
+  EXPECT_EQ(t.map.at("pressure").scale, 1e6);
+}
+
+// ---- RTU over a socat pty pair --------------------------------------------------------------
+
+class ModbusRtu : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("hil-rtu-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    socat_ = std::make_unique<Child>(std::vector<std::string>{
+        "socat", "pty,raw,echo=0,link=" + (dir_ / "server").string(), "pty,raw,echo=0,link=" + (dir_ / "client").string()});
+    ASSERT_TRUE(eventually([&] { return std::filesystem::exists(dir_ / "server") && std::filesystem::exists(dir_ / "client"); }))
+        << "socat did not make the pty pair";
+    // socat ends when the last opener of a pty closes it; a client that gives up and closes
+    // its port must not take the line down for the next one.
+    hold_fd_ = ::open((dir_ / "client").c_str(), O_RDWR | O_NOCTTY);
+  }
+  void TearDown() override {
+    if (hold_fd_ >= 0) ::close(hold_fd_);
+    socat_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  ModbusLinkConfig rtu(const char* end, int unit) {
+    ModbusLinkConfig c;
+    c.transport = ModbusLinkConfig::Transport::rtu;
+    c.device = (dir_ / end).string();
+    c.baud = 115200;
+    c.unit_id = unit;
+    c.response_timeout = 300ms;
+    c.poll_period = 5ms;
+    return c;
+  }
+  std::filesystem::path dir_;
+  std::unique_ptr<Child> socat_;
+  int hold_fd_ = -1;
+};
+
+TEST_F(ModbusRtu, DriveAndTransducerOverAPtyPair) {
+  FirstOrderServoTestModel servo(0.01, 20.0, 0.1);
+  ModbusDriveEmulator emu(rtu("server", 3), drive_map(), servo);
+  ModbusDrive client({rtu("client", 3), drive_map(), 5000ms});
+  client.configure();
+  EXPECT_NEAR(client.read(Clock::now(), 1ms).position_rad, 0.1, 1e-5);
+  client.activate();
+  client.write(Clock::now(), 1ms, {0.3, true, false});
+  EXPECT_TRUE(eventually([&] { return std::abs(client.read(Clock::now(), 1ms).position_rad - 0.3) < 1e-4; }));
+  // Silence on the line: timeouts, then the client resumes by itself.
+  emu.set_silent(true);
+  ASSERT_TRUE(eventually([&] { return client.health().timeouts >= 1; }));
+  emu.set_silent(false);
+  const auto seq = client.read(Clock::now(), 1ms).sequence;
+  EXPECT_TRUE(eventually([&] { return client.read(Clock::now(), 1ms).sequence > seq + 3; }));
+  // An exception over RTU is named too.
+  emu.set_exception(2);
+  ASSERT_TRUE(eventually([&] {
+    return client.health().last_error_text().find("ILLEGAL DATA ADDRESS (exception 2)") != std::string_view::npos;
+  })) << client.health().last_error_text();
+}
+
+TEST_F(ModbusRtu, TransducerOverAPtyPair) {
+  PositionPressureTestModel p(0.75e6);
+  ModbusTransducerEmulator emu(rtu("server", 2), transducer_map(), p);
+  ModbusTransducer client({rtu("client", 2), transducer_map()});
+  client.configure();
+  EXPECT_DOUBLE_EQ(client.read(Clock::now(), 1ms).pressure_pa, 0.75e6);
+  p.set_p0_pa(0.5e6);
+  EXPECT_TRUE(eventually([&] { return client.read(Clock::now(), 1ms).pressure_pa == 0.5e6; }));
+  EXPECT_GT(emu.requests(), 1u);
+}
+
+// ---- interop: our clients against pymodbus, mbpoll against our emulators ---------------------
+
+TEST(ModbusInterop, ClientsAgainstPymodbusServer) {
+  const int port = free_port();
+  Child server({"/usr/bin/python3", HIL_SOURCE_DIR "/tests/drivers/modbus/pymodbus_server.py", std::to_string(port), "1.75"});
+  // The pymodbus layout puts the transducer at input 10.
+  const auto tmap = RegisterMap::from_yaml(cfg::Node::load_string(
+      "registers:\n  pressure: {table: input, address: 10, type: float32, word_order: big, scale: 1.0e6}\n"
+      "  status: {table: input, address: 12, type: uint16}\n",
+      "pymodbus_transducer_map.yaml"));
+  ModbusTransducer transducer({tcp_link(port), tmap});
+  ASSERT_TRUE(eventually([&] {
+    try {
+      transducer.configure();
+      return true;
+    } catch (const ModbusError&) {
+      return false;  // the python server is still starting
+    }
+  }, 30s));
+  EXPECT_DOUBLE_EQ(transducer.read(Clock::now(), 1ms).pressure_pa, 1.75e6);
+  ModbusDrive drive({tcp_link(port), drive_map(), 5000ms});
+  drive.configure();
+  EXPECT_NEAR(drive.read(Clock::now(), 1ms).position_rad, 0.5, 1e-9);  // 50000 counts of 1e-5 rad
+  drive.activate();  // the server mirrors control bit 0 into status bit 0
+  drive.write(Clock::now(), 1ms, {-0.125, true, false});  // int32 big-endian -12500 -> FFFF CF2C
+  EXPECT_TRUE(eventually([&] { return std::abs(drive.read(Clock::now(), 1ms).position_rad + 0.125) < 1e-9; }));
+}
+
+TEST(ModbusInterop, MbpollReadsAndWritesOurEmulators) {
+  PositionPressureTestModel pressure(2.25e6);
+  ModbusTransducerEmulator t(tcp_link(0), transducer_map(), pressure);
+  const std::string tp = " -p " + std::to_string(t.port()) + " 127.0.0.1";
+  // float32 MPa, big-endian word order (-B), PDU addressing (-0), input registers (-t 3).
+  auto out = run("mbpoll -m tcp -a 1 -0 -1 -t 3:float -B -r 0 -c 1" + tp);
+  EXPECT_DOUBLE_EQ(mbpoll_value(out, 0), 2.25) << out;
+  out = run("mbpoll -m tcp -a 1 -0 -1 -t 3 -r 2 -c 1" + tp);
+  EXPECT_EQ(mbpoll_value(out, 2), 0) << out;  // status: no fault
+  // Beyond the map: our server answers ILLEGAL DATA ADDRESS, which mbpoll reports.
+  out = run("mbpoll -m tcp -a 1 -0 -1 -t 3 -r 50 -c 1" + tp);
+  EXPECT_NE(out.find("Illegal data address"), std::string::npos) << out;
+
+  FirstOrderServoTestModel servo(0.01, 20.0, 0.0);
+  ModbusDriveEmulator d(tcp_link(0), drive_map(), servo);
+  const std::string dp = " -p " + std::to_string(d.port()) + " 127.0.0.1";
+  out = run("mbpoll -m tcp -a 1 -0 -1 -t 4:int -B -r 1" + dp + " 30000");  // target 0.3 rad
+  EXPECT_NE(out.find("Written 1 references"), std::string::npos) << out;
+  out = run("mbpoll -m tcp -a 1 -0 -1 -t 4 -r 0" + dp + " 1");  // control: enable
+  EXPECT_NE(out.find("Written 1 references"), std::string::npos) << out;
+  EXPECT_TRUE(eventually([&] {
+    const auto o = run("mbpoll -m tcp -a 1 -0 -1 -t 3:int -B -r 1 -c 1" + dp);
+    return std::abs(mbpoll_value(o, 1) - 30000) <= 1;
+  }));
+  out = run("mbpoll -m tcp -a 1 -0 -1 -t 3 -r 0 -c 1" + dp);
+  EXPECT_EQ(mbpoll_value(out, 0), 1) << out;  // status: enabled
+  EXPECT_NEAR(servo.target_rad(), 0.3, 1e-9);
+}
+
+}  // namespace
+}  // namespace hil::drv

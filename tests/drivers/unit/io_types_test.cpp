@@ -1,0 +1,80 @@
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "hil/config.hpp"
+#include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/io_types.hpp"
+
+namespace hil::drv {
+namespace {
+
+struct Pair {
+  std::uint64_t a = 0, b = 0, c = 0;
+};
+
+TEST(Mailbox, ReaderNeverSeesATornValue) {
+  Mailbox<Pair> box;
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    for (std::uint64_t i = 1; i < 200000; ++i) box.store({i, i * 3, i * 7});
+    stop = true;
+  });
+  std::uint64_t last = 0, reads = 0;
+  while (!stop) {
+    const Pair p = box.load();
+    ASSERT_EQ(p.b, p.a * 3);
+    ASSERT_EQ(p.c, p.a * 7);
+    ASSERT_GE(p.a, last);  // newest value wins, never goes back
+    last = p.a;
+    ++reads;
+  }
+  writer.join();
+  EXPECT_EQ(box.load().a, 199999u);
+  EXPECT_GT(reads, 0u);
+}
+
+TEST(DeviceHealth, LastErrorIsTruncatedNotOverflowed) {
+  DeviceHealth h;
+  h.set_last_error(std::string(500, 'x'));
+  EXPECT_EQ(h.last_error_text().size(), h.last_error.size() - 1);
+}
+
+TEST(DriveUnits, CountsAndRadians) {
+  DriveUnits u{4096, 10.0, -1};
+  EXPECT_EQ(u.to_counts(2 * 3.14159265358979), -40960);
+  EXPECT_NEAR(u.to_rad(-40960), 2 * 3.14159265358979, 1e-12);
+  EXPECT_EQ(u.to_counts(1e12), INT32_MIN);  // saturates (sign -1)
+  EXPECT_EQ(u.to_counts(kNaN), INT32_MIN);
+}
+
+TEST(Cia402Config, ReadsTheExampleFile) {
+  const auto c = Cia402Config::load(HIL_SOURCE_DIR "/drivers/configs/cia402_drive.yaml");
+  EXPECT_EQ(c.interface, "vcan0");
+  EXPECT_EQ(c.node_id, 5);
+  EXPECT_EQ(c.sync_period, std::chrono::microseconds(1000));
+  EXPECT_EQ(c.heartbeat_timeout, std::chrono::milliseconds(350));
+  EXPECT_EQ(c.units.counts_per_rev, 131072);
+  EXPECT_EQ(c.bus_off_policy, BusOffPolicy::wait);
+}
+
+TEST(Cia402Config, ErrorsNameFileLineAndKey) {
+  const auto bad = cfg::Node::load_string("interface: vcan0\nnode_id: 200\n", "drive.yaml");
+  try {
+    Cia402Config::from_yaml(bad);
+    FAIL();
+  } catch (const cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("drive.yaml:2:1: node_id: a CANopen node id is 1..127"), std::string::npos)
+        << e.what();
+  }
+  const auto typo = cfg::Node::load_string("interface: vcan0\nnode_id: 2\nheartbeat: {producer_ms: 100, timeout: 5}\n", "d.yaml");
+  try {
+    Cia402Config::from_yaml(typo);
+    FAIL();
+  } catch (const cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("did you mean 'timeout_ms'"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace hil::drv

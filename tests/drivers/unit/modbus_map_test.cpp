@@ -1,0 +1,81 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hil/config.hpp"
+#include "hil/drv/modbus_map.hpp"
+
+namespace hil::drv {
+namespace {
+
+RegisterMap map_of(const std::string& yaml) { return RegisterMap::from_yaml(cfg::Node::load_string(yaml, "map.yaml")); }
+
+TEST(RegisterMap, DecodeAndEncodeEachType) {
+  const auto m = map_of(R"(registers:
+  a: {table: holding, address: 0, type: int16, scale: 0.5, offset: 1}
+  b: {table: holding, address: 1, type: uint16}
+  c: {table: input, address: 0, type: int32, word_order: big}
+  d: {table: input, address: 2, type: int32, word_order: little}
+  e: {table: input, address: 4, type: float32, word_order: big, scale: 1.0e6}
+  f: {table: input, address: 6, type: uint32, word_order: little}
+)");
+  std::uint16_t w[2];
+  const std::uint16_t neg[1] = {0xFFFE};  // -2 -> -2 * 0.5 + 1 = 0
+  EXPECT_DOUBLE_EQ(m.at("a").decode(neg), 0.0);
+  m.at("a").encode(-4.0, w);  // (-4 - 1) / 0.5 = -10
+  EXPECT_EQ(w[0], 0xFFF6);
+  m.at("b").encode(70000, w);  // saturates
+  EXPECT_EQ(w[0], 0xFFFF);
+  const std::uint16_t big[2] = {0xFFFF, 0xFFFE}, little[2] = {0xFFFE, 0xFFFF};
+  EXPECT_DOUBLE_EQ(m.at("c").decode(big), -2.0);
+  EXPECT_DOUBLE_EQ(m.at("d").decode(little), -2.0);
+  m.at("c").encode(65537, w);
+  EXPECT_EQ(w[0], 0x0001);
+  EXPECT_EQ(w[1], 0x0001);
+  m.at("d").encode(0x00020003, w);
+  EXPECT_EQ(w[0], 0x0003);
+  EXPECT_EQ(w[1], 0x0002);
+  const std::uint16_t f15[2] = {0x3FC0, 0x0000};  // 1.5f, high word first
+  EXPECT_DOUBLE_EQ(m.at("e").decode(f15), 1.5e6);
+  m.at("e").encode(2.25e6, w);
+  EXPECT_EQ(w[0], 0x4010);
+  EXPECT_EQ(w[1], 0x0000);
+  m.at("f").encode(4294967295.0, w);
+  EXPECT_DOUBLE_EQ(m.at("f").decode(w), 4294967295.0);
+  m.at("c").encode(NAN, w);
+  EXPECT_DOUBLE_EQ(m.at("c").decode(w), 0.0);
+}
+
+TEST(RegisterMap, BlocksJoinNeighboursPerTable) {
+  const auto m = RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_drive_map.yaml");
+  const auto b = m.blocks({"status", "actual_position", "actual_velocity", "fault_code", "missing"});
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].table, RegisterTable::input);
+  EXPECT_EQ(b[0].start, 0);
+  EXPECT_EQ(b[0].count, 6);
+  EXPECT_EQ(b[0].names, "status, actual_position, actual_velocity, fault_code");
+  EXPECT_EQ(m.bit("fault", -1), 3);
+  EXPECT_EQ(m.extent(RegisterTable::holding), (std::pair<std::uint16_t, std::uint32_t>{0, 3}));
+}
+
+TEST(RegisterMap, ErrorsNameTheKey) {
+  const auto expect_error = [](const std::string& yaml, const std::string& text) {
+    try {
+      map_of(yaml);
+      ADD_FAILURE() << "accepted: " << yaml;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  expect_error("registers:\n  p: {table: input, address: 0, type: float64}\n",
+               "map.yaml:2:33: registers.p.type: must be int16, uint16, int32, uint32 or float32, got 'float64'");
+  expect_error("registers:\n  p: {table: input, address: 0, type: int32}\n  q: {table: input, address: 1, type: uint16}\n",
+               "registers.q.address: overlaps input register 0 (p)");
+  expect_error("registers:\n  p: {table: input, address: 0, type: int16, word_order: little}\n",
+               "a 16-bit register has no word order");
+  expect_error("registers:\n  p: {table: coil, address: 0, type: int16}\n", "must be holding or input");
+  expect_error("registers:\n  p: {table: input, adress: 0, type: int16}\n", "did you mean 'address'");
+}
+
+}  // namespace
+}  // namespace hil::drv

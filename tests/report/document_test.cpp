@@ -1,0 +1,199 @@
+// The Document: page structure, escaping, atomic write, size and speed on realistic data.
+#include "hil/report/report.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <chrono>
+#include <csignal>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "sample_reports.hpp"
+
+namespace fs = std::filesystem;
+using hil::report::Bars;
+using hil::report::Document;
+using hil::report::Figure;
+using hil::report::Series;
+
+namespace {
+
+std::size_t count(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
+}
+
+std::string slurp(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A fresh folder per test, removed afterwards.
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "hil-report-test-XXXXXX").string();
+    path = ::mkdtemp(t.data());
+  }
+  ~TempDir() { fs::remove_all(path); }
+  std::size_t entries() const { return static_cast<std::size_t>(std::distance(fs::directory_iterator(path), {})); }
+};
+
+Document small_doc() {
+  Document doc("small");
+  doc.figure(Figure{.title = "f", .x_label = "time [s]", .y_label = "y",
+                    .series = {Series{.name = "s", .x = {0, 1, 2}, .y = {1, 2, 3}}}});
+  return doc;
+}
+
+}  // namespace
+
+TEST(Document, HostileTextCannotBreakThePage) {
+  Document doc("<script>alert('title')</script>");
+  doc.heading("<b>heading</b>");
+  doc.paragraph("<b>bold</b> & <i>it</i>");
+  doc.note("<img src=x onerror=alert(1)>", true);
+  doc.table({"<th>"}, {{"<td>"}, {"</table>"}});
+  doc.figure(Figure{.title = "</figure><script>alert(2)</script>", .x_label = "</script>", .y_label = "<b>y</b>",
+                    .series = {Series{.name = "</script><script>alert(3)</script>", .x = {0, 1}, .y = {0, 1},
+                                      .color = "red\"></canvas><script>alert(4)</script>"}},
+                    .bands = {{0, 1, "<!-- band", ""}}, .hlines = {{0.5, "</script>"}}});
+  doc.bars(Bars{.title = "<b>", .y_label = "<i>", .categories = {"</script>"}, .groups = {{"<g>", {1.0}}}});
+  const std::string page = doc.html();
+  EXPECT_EQ(page.find("<b>"), std::string::npos);
+  EXPECT_EQ(page.find("<i>"), std::string::npos);
+  EXPECT_EQ(page.find("<img"), std::string::npos);
+  EXPECT_EQ(page.find("<!-- band"), std::string::npos);
+  EXPECT_EQ(page.find("<script>alert"), std::string::npos);
+  // Exactly the page's own scripts: one data script per figure and the plotting script.
+  EXPECT_EQ(count(page, "<script"), 3u);
+  EXPECT_EQ(count(page, "</script>"), 3u);
+  EXPECT_EQ(count(page, "<figure"), 2u);
+  EXPECT_EQ(count(page, "</figure>"), 2u);
+}
+
+TEST(Document, RejectsMismatchedData) {
+  Document doc("bad");
+  EXPECT_THROW(doc.figure(Figure{.title = "t", .series = {Series{.name = "s", .x = {0, 1}, .y = {0}}}}),
+               std::invalid_argument);
+  EXPECT_THROW(doc.bars(Bars{.title = "b", .categories = {"a", "b"}, .groups = {{"g", {1.0}}}}),
+               std::invalid_argument);
+  EXPECT_THROW(doc.columns_end(), std::logic_error);
+  doc.columns_begin(2);
+  EXPECT_THROW(doc.columns_begin(2), std::logic_error);
+  doc.columns_end();
+}
+
+TEST(Document, TablesMarkNumericCells) {
+  Document doc("t");
+  doc.table({"name", "value"}, {{"rms", "0.0123"}, {"share", "12.5 %"}, {"note", "n/a"}});
+  const std::string page = doc.html();
+  EXPECT_EQ(count(page, "<td class=\"num\">"), 2u);
+}
+
+TEST(DocumentWrite, WritesTheWholePageAndNoTemporary) {
+  TempDir dir;
+  const auto file = dir.path / "report.html";
+  const auto doc = small_doc();
+  doc.write(file);
+  EXPECT_EQ(slurp(file), doc.html());
+  EXPECT_EQ(dir.entries(), 1u);
+  doc.write(file);  // replaces
+  EXPECT_EQ(dir.entries(), 1u);
+}
+
+TEST(DocumentWrite, FailedRenameLeavesNoTemporary) {
+  TempDir dir;
+  const auto target = dir.path / "report.html";
+  fs::create_directory(target);
+  fs::create_directory(target / "keep");  // a non-empty folder cannot be renamed over
+  try {
+    small_doc().write(target);
+    FAIL() << "write over a directory should throw";
+  } catch (const std::system_error& e) {
+    EXPECT_NE(std::string(e.what()).find("report.html"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::is_directory(target / "keep"));
+  EXPECT_EQ(dir.entries(), 1u);
+}
+
+TEST(DocumentWrite, MissingFolderThrowsNamingTheFile) {
+  try {
+    small_doc().write("/nonexistent-hil-folder/report.html");
+    FAIL() << "should throw";
+  } catch (const std::system_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-hil-folder/report.html"), std::string::npos);
+  }
+}
+
+// A write that fails halfway (here: the file size limit, as a full disk would) must leave the
+// previous report whole and no partial file behind.
+TEST(DocumentWrite, FailureHalfwayKeepsThePreviousReport) {
+  TempDir dir;
+  const auto file = dir.path / "report.html";
+  { std::ofstream(file) << "previous report"; }
+  const auto doc = small_doc();
+  ASSERT_GT(doc.html().size(), 8192u);
+
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);  // so write() returns EFBIG instead
+  rlimit small = old;
+  small.rlim_cur = 4096;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  bool threw = false;
+  try {
+    doc.write(file);
+  } catch (const std::system_error&) {
+    threw = true;
+  }
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_TRUE(threw);
+  EXPECT_EQ(slurp(file), "previous report");
+  EXPECT_EQ(dir.entries(), 1u);
+}
+
+// Budget: `hilbench sim` writes a 3-run, 18-s campaign report in its ~20 ms command.
+TEST(DocumentSize, CampaignReportIsSmallAndQuick) {
+  using clock = std::chrono::steady_clock;
+  const auto runs = hil::test::simulate_campaign(3, 18.0);
+  TempDir dir;
+  const auto t0 = clock::now();
+  Document doc("Campaign report");
+  hil::test::add_campaign(doc, runs);
+  const auto t1 = clock::now();
+  doc.write(dir.path / "report.html");
+  const auto t2 = clock::now();
+  const auto size = fs::file_size(dir.path / "report.html");
+  const double build_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  const double write_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  std::printf("campaign report (3 runs x 18 s at 1 kHz, 12 figures): %.0f kB; "
+              "build %.1f ms, write %.1f ms\n", static_cast<double>(size) / 1e3, build_ms, write_ms);
+  EXPECT_LT(size, 3'000'000u);
+}
+
+TEST(DocumentSize, HourAt1kHzDecimatesQuickly) {
+  const std::size_t n = 3'600'000;
+  Series s{.name = "pressure", .x = std::vector<double>(n), .y = std::vector<double>(n)};
+  for (std::size_t i = 0; i < n; ++i) {
+    s.x[i] = static_cast<double>(i) * 1e-3;
+    s.y[i] = 3 + std::sin(static_cast<double>(i) * 1e-4) + (i % 100000 == 0 ? 1.0 : 0.0);
+  }
+  Figure fig{.title = "1 h at 1 kHz", .x_label = "time [s]", .y_label = "pressure [MPa]"};
+  fig.series.push_back(std::move(s));
+  Document doc("hour");
+  const auto t0 = std::chrono::steady_clock::now();
+  doc.figure(fig);
+  const auto t1 = std::chrono::steady_clock::now();
+  const auto page = doc.html();
+  std::printf("3.6 M-point series: figure() %.1f ms, page %.0f kB\n",
+              std::chrono::duration<double, std::milli>(t1 - t0).count(), static_cast<double>(page.size()) / 1e3);
+  EXPECT_LT(page.size(), 400'000u);
+  EXPECT_NE(page.find("\"n\":3600000"), std::string::npos);
+}
