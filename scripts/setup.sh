@@ -9,7 +9,7 @@ build_pkgs=(build-essential cmake ninja-build pkg-config git
   libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
-  python3 python3-pymodbus mbpoll procps)
+  python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps)
 bench_pkgs=(rt-tests)
 
 want=("${build_pkgs[@]}")

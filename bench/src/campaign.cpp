@@ -140,7 +140,7 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
     for (std::size_t i = 0; i < data.rows(); ++i) b.go(body.at("file"), data.values[0][i], data.values[1][i] * u);
   } else if (type == "random") {
     body.allow_keys({"seed", "from_s", "to_s", "min_mpa", "max_mpa", "dwell_s", "ramp_probability", "ramp_s",
-                     "min_change_mpa"});
+                     "min_change_mpa", "directions"});
     plant::Rng rng(static_cast<std::uint64_t>(body.integer("seed", static_cast<long long>(campaign_seed) + 7919)));
     const double from = body.number("from_s", 0.0), to = body.number("to_s", duration_s);
     const double lo = body.number("min_mpa") * u, hi = body.number("max_mpa") * u;
@@ -151,11 +151,20 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
     const double ramp_p = body.number("ramp_probability", 0.3);
     body.require(ramp_p >= 0 && ramp_p <= 1, "ramp_probability must be in [0, 1]");
     const auto ramp_s = body.has("ramp_s") ? range_of(body, "ramp_s") : std::pair{0.2, 1.0};
+    const std::string directions = body.text("directions", "random");
+    if (auto d = body.find("directions")) d->require(directions == "random" || directions == "alternate", "must be random or alternate");
+    body.require(directions == "random" || min_change < (hi - lo) / 2,
+                 "alternating directions need min_change_mpa below half of max_mpa - min_mpa");
     b.starts(body, from);
     double t = from;
+    int dir = b.level() < (lo + hi) / 2 ? 1 : -1;
     while (true) {
+      // A level at least min_change away; alternating: on the other side of the last move.
       double next = b.level();
-      while (std::abs(next - b.level()) < min_change) next = lo + (hi - lo) * rng.uniform();
+      while (std::abs(next - b.level()) < min_change || (directions == "alternate" && dir * (next - b.level()) < 0)) {
+        next = lo + (hi - lo) * rng.uniform();
+      }
+      dir = -dir;
       const double ramp = rng.uniform() < ramp_p ? uniform(rng, ramp_s) : 0.0;
       if (t + ramp >= to) break;
       b.go(body, t, b.level());
@@ -245,11 +254,12 @@ const RobustKey kRobustKeys[] = {
     {"fit_lead_ms", &ctl::RobustObserverParams::fit_lead_s, 1e-3, 0, 500},
     {"fit_after_ms", &ctl::RobustObserverParams::fit_after_s, 1e-3, 1, 500},
     {"learn_gain", &ctl::RobustObserverParams::learn_gain, 1.0, 1e-3, 1},
+    {"jump_fraction", &ctl::RobustObserverParams::jump_fraction, 1.0, 1e-3, 10},
     {"gap_max_deg", &ctl::RobustObserverParams::gap_max_rad, units::kRadPerDeg, 1e-3, 90},
 };
 
 void read_robust(const Node& n, ctl::RobustObserverParams& r) {
-  std::vector<std::string> keys{"confirm_samples"};
+  std::vector<std::string> keys{"confirm_samples", "fit_tries"};
   for (const auto& k : kRobustKeys) keys.emplace_back(k.key);
   n.allow_keys(keys);
   for (const auto& k : kRobustKeys) {
@@ -260,9 +270,12 @@ void read_robust(const Node& n, ctl::RobustObserverParams& r) {
       r.*k.field = v->number() * k.scale;
     }
   }
-  if (auto v = n.find("confirm_samples")) {
-    v->require(v->integer() >= 1 && v->integer() <= 1000, "must be a whole number in [1, 1000]");
-    r.confirm_samples = static_cast<int>(v->integer());
+  for (auto [key, field] : {std::pair{"confirm_samples", &ctl::RobustObserverParams::confirm_samples},
+                            std::pair{"fit_tries", &ctl::RobustObserverParams::fit_tries}}) {
+    if (auto v = n.find(key)) {
+      v->require(v->integer() >= 1 && v->integer() <= 1000, "must be a whole number in [1, 1000]");
+      r.*field = static_cast<int>(v->integer());
+    }
   }
 }
 
@@ -350,6 +363,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     c.reference_pa = b.take();
   }
   c.reversals_s = reversal_times(c.reference_pa, c.duration_s, c.period_s, 1e3);
+  c.reference_moves = move_count(c.reference_pa, c.duration_s, c.period_s);
 
   // Programmed gap, in degrees; default: the plant's own.
   const double plant_gap_deg = param_of(truth, "backlash", "gap_deg");
@@ -424,6 +438,7 @@ ctl::ChamberModel chamber_model_of(const plant::Plant& plant) {
   m.burning_area_m2 = param_of(plant, "gas_generator", "burning_area_m2");
   m.cstar_m_s = param_of(plant, "gas_generator", "cstar_m_s");
   m.rtc_m2_s2 = param_of(plant, "gas_generator", "rtc_m2_s2");
+  m.volume_growth = param_of(plant, "gas_generator", "volume_growth");
   const plant::Effect* map = plant.find("throat_map");
   if (map == nullptr) throw std::invalid_argument("the plant has no 'throat_map' block");
   const auto tables = map->tables();

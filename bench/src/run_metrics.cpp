@@ -9,8 +9,10 @@ namespace hil::bench {
 using units::pa_to_mpa;
 using units::rad_to_deg;
 
-RunMetrics::RunMetrics(std::vector<double> reversals_s, double period_s, double motion_threshold_rad_s)
+RunMetrics::RunMetrics(std::vector<double> reversals_s, long reference_changes, double period_s,
+                       double motion_threshold_rad_s)
     : period_s_(period_s), motion_step_rad_(motion_threshold_rad_s * period_s) {
+  sum_.reference_changes = reference_changes;
   sum_.reversals.reserve(reversals_s.size());
   for (double t : reversals_s) sum_.reversals.push_back({t});
 }
@@ -81,6 +83,9 @@ nlohmann::json RunSummary::to_json() const {
           {"touch_state_changes", touch_state_changes},
           {"touch_state_changes_per_reversal",
            reversals.empty() ? 0.0 : static_cast<double>(touch_state_changes) / reversals.size()},
+          {"touch_state_changes_per_reference_change",
+           reference_changes == 0 ? 0.0 : static_cast<double>(touch_state_changes) / reference_changes},
+          {"reference_changes", reference_changes},
           {"compensation_events", compensation_events},
           {"gap_measurements", gap_measurements},
           {"reversals", rev}};

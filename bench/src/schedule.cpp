@@ -70,4 +70,21 @@ std::vector<double> reversal_times(const Schedule& s, double duration_s, double 
   return out;
 }
 
+long move_count(const Schedule& s, double duration_s, double period_s) {
+  Schedule::Cursor cursor;
+  double prev = s.at(0.0, cursor);
+  int was = 0;  // direction of the previous sample's change, 0 = resting
+  long moves = 0;
+  const auto n = static_cast<long>(std::floor(duration_s / period_s + 1e-9));
+  for (long k = 1; k <= n; ++k) {
+    const double v = s.at(k * period_s, cursor);
+    const double d = v - prev;
+    const int now = std::abs(d) <= 1e-9 * (1 + std::abs(v)) ? 0 : (d > 0 ? 1 : -1);
+    if (now != 0 && now != was) ++moves;
+    was = now;
+    prev = v;
+  }
+  return moves;
+}
+
 }  // namespace hil::bench

@@ -76,7 +76,7 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
                    std::atomic<long>& steps_done) {
   const auto t0 = Clock::now();
   const long n = std::lround(c.duration_s / c.period_s);
-  RunMetrics metrics(c.reversals_s, c.period_s, kMotionThresholdRadS);
+  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
   Decimator report({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg", "theta_cmd_deg",
                     "gap_est_deg", "gap_true_deg"},
                    n);
@@ -139,7 +139,7 @@ std::array<double, kSimColumns> telemetry_row(const StepRecord& r) {
 }
 
 RunSummary summarise_run(const Campaign& c, const RunSpec& run) {
-  RunMetrics metrics(c.reversals_s, c.period_s, kMotionThresholdRadS);
+  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
   simulate_run(c, run, [&](const StepRecord& r) { metrics.add(r); });
   return metrics.finish();
 }

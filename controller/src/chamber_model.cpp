@@ -16,6 +16,7 @@ void ChamberModel::validate() const {
   positive(burning_area_m2, "burning area");
   positive(cstar_m_s, "c*");
   positive(rtc_m2_s2, "R*Tc");
+  if (!(volume_growth >= 0 && volume_growth <= 1)) throw std::invalid_argument("chamber model: volume growth must be in [0, 1]");
   if (!(pressure_exponent > 0 && pressure_exponent < 1)) {
     throw std::invalid_argument("chamber model: pressure exponent must be in (0, 1)");
   }
@@ -34,7 +35,7 @@ void ChamberModel::validate() const {
 
 double ChamberModel::equilibrium_area_m2(double p_pa) const noexcept {
   p_pa = std::max(p_pa, 1.0);
-  return burning_area_m2 * burn_coeff_si * cstar_m_s * (propellant_density_kg_m3 - p_pa / rtc_m2_s2) *
+  return burning_area_m2 * burn_coeff_si * cstar_m_s * (propellant_density_kg_m3 - volume_growth * p_pa / rtc_m2_s2) *
          std::pow(p_pa, pressure_exponent - 1);
 }
 
@@ -43,7 +44,7 @@ double ChamberModel::throat_area_m2(double p_pa, double dpdt_pa_s, double volume
   p_pa = std::max(p_pa, 1.0);
   const double mdot_gen = propellant_density_kg_m3 * burning_area_m2 * burn_coeff_si * std::pow(p_pa, pressure_exponent);
   const double mdot_out =
-      mdot_gen * (1 - p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) - volume_m3 / rtc_m2_s2 * dpdt_pa_s;
+      mdot_gen * (1 - volume_growth * p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) - volume_m3 / rtc_m2_s2 * dpdt_pa_s;
   return mdot_out * cstar_m_s / p_pa;
 }
 
@@ -75,7 +76,7 @@ double ChamberModel::gain_pa_per_rad(double p_pa) const noexcept {
 }
 
 double ChamberModel::volume_rate_m3_s(double p_pa) const noexcept {
-  return burning_area_m2 * burn_coeff_si * std::pow(std::max(p_pa, 1.0), pressure_exponent);
+  return volume_growth * burning_area_m2 * burn_coeff_si * std::pow(std::max(p_pa, 1.0), pressure_exponent);
 }
 
 }  // namespace hil::ctl

@@ -61,11 +61,13 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   const double motor_rad = p_.use_encoder && std::isfinite(in.theta_motor_rad) ? in.theta_motor_rad : s.motor_model_rad;
 
   // The play model presumes the motor pushed a flank when it sits within the intention's
-  // dead-band of it (a reversal is only seen after that retreat); with no gap known, nothing.
+  // dead-band of it (a reversal is only seen after that retreat); with no gap known, or while a
+  // jump may still be under way in the drive, nothing.
   const double gap = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;
   const bool gap_known = p_.compensation == Compensation::constant || s.gap_measurements > 0;
   const double near = gap / 2 - p_.robust.intention_deadband_rad - 1e-12;
-  const int presumed = !gap_known ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
+  if (s.presume_wait > 0) --s.presume_wait;
+  const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
   const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad,
                               p_.chamber.time_constant_s(in.p_ref_pa, s.volume_m3), s.volume_m3, presumed};
   const ObserverOutputs obs = p_.observer == ObserverKind::paper ? paper_.step(s.paper, obs_in) : robust_.step(s.robust, obs_in);
@@ -76,9 +78,12 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
     if (p_.observer == ObserverKind::paper) {
       s.gap_est_rad += obs.transition_travel_rad;
     } else if (obs.gap_measured) {
-      // The first measurement replaces the initial guess; later ones move the estimate part way.
-      const double gain = s.gap_measurements++ == 0 ? 1.0 : p_.robust.learn_gain;
-      s.gap_est_rad += gain * (obs.gap_measured_rad - s.gap_est_rad);
+      // The first measurement, and one showing a real change, replace the estimate; the others
+      // move it part way (averaging the measurement noise).
+      const double innovation = obs.gap_measured_rad - s.gap_est_rad;
+      const bool jump = std::abs(innovation) > p_.robust.jump_fraction * s.gap_est_rad;
+      const double gain = s.gap_measurements++ == 0 || jump ? 1.0 : p_.robust.learn_gain;
+      s.gap_est_rad += gain * innovation;
     }
   }
   if (p_.observer == ObserverKind::paper) {
@@ -92,6 +97,8 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
       out.comp_rad = d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + p_.contact_overlap_rad);  // past the flank ahead
       s.gap_pos_rad += out.comp_rad;
       s.boost_rad = p_.traverse_boost * out.comp_rad;
+      // The drive needs the crossing at its slew limit plus a few lags to really get there.
+      s.presume_wait = std::lround((std::abs(out.comp_rad) / p_.motor.rate_limit_rad_s + 3 * p_.motor.time_constant_s) / p_.period_s);
     }
     s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
   }

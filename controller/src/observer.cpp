@@ -47,7 +47,9 @@ void RobustObserverParams::validate() const {
   check(confirm_samples >= 1, "confirm_samples must be >= 1");
   check(fit_lead_s >= 0, "fit_lead must be >= 0");
   check(fit_after_s > 0, "fit_after must be > 0");
+  check(fit_tries >= 1, "fit_tries must be >= 1");
   check(learn_gain > 0 && learn_gain <= 1, "learn_gain must be in (0, 1]");
+  check(jump_fraction > 0, "jump_fraction must be > 0");
   check(gap_max_rad > 0, "gap_max must be > 0");
 }
 
@@ -180,7 +182,10 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
     s.confirm = departure > p_.detect_sigmas * p_eq_noise_pa(in.tau_s) ? s.confirm + 1 : 0;
     if (s.confirm >= p_.confirm_samples) {
       s.touch = s.transition_dir;
-      if (s.transition_extreme_valid) s.fit_at = now + after_samples_;
+      if (s.transition_extreme_valid) {
+        s.fit_at = now + after_samples_;
+        s.fit_tries_left = p_.fit_tries;
+      }
     }
   } else if (s.fit_at >= 0 && now >= s.fit_at) {
     measure(s, out);  // 4. the new flank has shown enough: fit the gap
@@ -190,10 +195,14 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
 }
 
 void RobustObserver::measure(RobustObserverState& s, ObserverOutputs& out) const noexcept {
+  const bool motion_goes_on = !out.reversed;
   s.fit_at = -1;
   const GapFit::Result r = fit_.fit(s.history, s.transition_extreme_at, s.transition_extreme_rad, s.touch,
                                     lead_samples_, skip_samples_);
-  if (!r.ok) return;
+  if (!r.ok) {
+    if (motion_goes_on && --s.fit_tries_left > 0) s.fit_at = s.history.count - 1 + after_samples_;  // look again later
+    return;
+  }
   out.gap_measured = true;
   out.gap_measured_rad = r.gap_rad;
 }

@@ -1,7 +1,10 @@
 // The gas generator: a lumped chamber filled by an end-burning grain and emptied through the
 // choked throat (physics.md section 2):
 //   mdot_gen = rho_p * Ab * r,  r = a * (Pg / 1 MPa)^n     mdot_out = Pg * At / c*
-//   dV/dt = Ab * r              dPg/dt = (R*Tc / V) * (mdot_gen - mdot_out) - (Pg / V) * dV/dt
+//   dV/dt = g * Ab * r          dPg/dt = (R*Tc / V) * (mdot_gen - mdot_out) - (Pg / V) * dV/dt
+// g (volume_growth) is 1 for an end-burning grain in a closed case (physics.md); 0 keeps the free
+// volume constant (a bench simulator, a fed generator, or an hour-long soak a real grain would
+// not survive).
 // Integrated with classical RK4 at the loop step, the throat area held over the step. The
 // state also carries the generated and discharged gas masses, integrated with the same stages,
 // so the mass balance m_gas(t) - m_gas(0) = M_gen - M_out is checkable to integrator accuracy.
@@ -26,6 +29,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
       {"cstar_m_s", 0, 1e5, true, false, kNaN, "characteristic velocity c*"},
       {"rtc_m2_s2", 0, 1e8, true, false, kNaN, "R*Tc of the gas"},
       {"free_volume_l", 0, 1e5, true, false, kNaN, "free volume of the chamber at t = 0 (must be > 0)"},
+      {"volume_growth", 0, 1, false, false, 1.0, "fraction of the burned grain's volume freed to the gas"},
   };
   explicit GasGenerator(std::vector<double> v)
       : ScalarEffect(std::move(v)),
@@ -36,17 +40,18 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
         ab_(value(3)),
         cstar_(value(4)),
         rtc_(value(5)),
-        v0_(value(6) * units::kM3PerL) {}
+        v0_(value(6) * units::kM3PerL),
+        growth_(value(7)) {}
 
   // State: chamber pressure, free volume, generated gas mass, discharged gas mass.
   std::size_t state_size() const noexcept override { return 4; }
 
   void settle(std::span<double> x, Signals& s) const override {
-    // Equilibrium: Ab a P^n (rho_p - P/RTc) = P At / c*, solved by fixed point (contracts fast
+    // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point (contracts fast
     // because P/RTc << rho_p).
     double p = 1e6;
     for (int i = 0; i < 60; ++i) {
-      p = std::pow(ab_ * a_si_ * cstar_ * (rho_ - p / rtc_) / s.throat_area_m2, 1.0 / (1.0 - n_));
+      p = std::pow(ab_ * a_si_ * cstar_ * (rho_ - growth_ * p / rtc_) / s.throat_area_m2, 1.0 / (1.0 - n_));
     }
     x[0] = p;
     x[1] = v0_;
@@ -82,7 +87,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     const double burn_m_s = a_si_ * std::pow(p, n_);
     const double mdot_gen = rho_ * ab_ * burn_m_s;
     const double mdot_out = p * at / cstar_;
-    const double dv = ab_ * burn_m_s;
+    const double dv = growth_ * ab_ * burn_m_s;
     return {(rtc_ * (mdot_gen - mdot_out) - p * dv) / v, dv, mdot_gen, mdot_out};
   }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
@@ -91,7 +96,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     s.mdot_gen_kg_s = mdot_gen;
     s.mdot_out_kg_s = mdot_out;
   }
-  double rho_, a_si_, n_, ab_, cstar_, rtc_, v0_;
+  double rho_, a_si_, n_, ab_, cstar_, rtc_, v0_, growth_;
 };
 
 HIL_REGISTER_EFFECT(GasGenerator, "lumped gas-generator chamber with end-burning grain and choked throat")

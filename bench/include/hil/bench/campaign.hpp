@@ -40,6 +40,7 @@ struct Campaign {
   Schedule reference_pa;
   Schedule gap_rad;
   std::vector<double> reversals_s;   // reference reversals (the first movement is reversal 1)
+  long reference_moves = 0;          // steps and ramps of the reference, either direction
   std::vector<RunSpec> runs;
   std::string yaml_text;             // the file as loaded, for the run's snapshot
 };

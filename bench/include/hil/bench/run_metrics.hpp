@@ -48,6 +48,7 @@ struct RunSummary {
   long touch_state_changes = 0;
   long compensation_events = 0;
   long gap_measurements = 0;
+  long reference_changes = 0;  // moves of the reference (steps, ramps), in either direction
   std::vector<ReversalSummary> reversals;
   nlohmann::json to_json() const;
 };
@@ -55,7 +56,7 @@ struct RunSummary {
 class RunMetrics {
  public:
   // Motor "moves" when faster than motion_threshold_rad_s (noise makes it creep).
-  RunMetrics(std::vector<double> reversals_s, double period_s, double motion_threshold_rad_s);
+  RunMetrics(std::vector<double> reversals_s, long reference_changes, double period_s, double motion_threshold_rad_s);
   void add(const StepRecord& r) noexcept;
   RunSummary finish() const;
 

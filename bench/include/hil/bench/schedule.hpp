@@ -52,4 +52,7 @@ class Schedule {
 // hysteresis from its extreme; the reported time is when the extreme was left.
 std::vector<double> reversal_times(const Schedule& s, double duration_s, double period_s, double hysteresis);
 
+// How many separate moves (a step, a ramp) the schedule makes, in either direction.
+long move_count(const Schedule& s, double duration_s, double period_s);
+
 }  // namespace hil::bench

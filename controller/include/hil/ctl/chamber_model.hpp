@@ -16,6 +16,7 @@ struct ChamberModel {
   double burning_area_m2 = 0;      // Ab
   double cstar_m_s = 0;            // c*
   double rtc_m2_s2 = 0;            // R*Tc
+  double volume_growth = 1;        // fraction of the burned volume freed to the gas
   static constexpr std::size_t kMaxMapPoints = 16;
   std::array<double, kMaxMapPoints> map_angle_rad{};  // throat map, increasing angles
   std::array<double, kMaxMapPoints> map_area_m2{};    // non-decreasing areas
@@ -39,7 +40,7 @@ struct ChamberModel {
   double time_constant_s(double p_pa, double volume_m3) const noexcept;
   // Static gain |dP/dtheta_V| = P / ((1 - n) At0) * dAt/dtheta_V.
   double gain_pa_per_rad(double p_pa) const noexcept;
-  // Growth of the free volume as the grain burns: Ab a p^n.
+  // Growth of the free volume as the grain burns: g Ab a p^n.
   double volume_rate_m3_s(double p_pa) const noexcept;
 };
 

@@ -75,6 +75,7 @@ struct ControllerState {
   double motor_model_rad = 0;
   double gap_pos_rad = 0;        // robust: believed motor position in the gap
   double boost_rad = 0;          // robust: extra command while the motor crosses the gap
+  long presume_wait = 0;         // robust: steps before the play model's flank may be trusted
   int gap_measurements = 0;
   PaperObserverState paper;
   RobustObserverState robust;

@@ -4,7 +4,9 @@
 // candidate gap sigma, the valve's path follows from the motor's through the play operator,
 // starting on the old flank at the motor's extreme; passed through the same two low-pass stages
 // it predicts valve_eq up to a constant (map offsets). The gap is the sigma whose prediction fits
-// best in least squares: the filters' memory of the gap crossing is modelled, not ignored.
+// best in least squares: the filters' memory of the gap crossing is modelled, not ignored. A fit
+// whose valve hardly moves (less than kMinExcursion residual RMS) is no measurement: a valve that
+// did not move cannot tell where contact was.
 // Fixed-size storage; fit() is bounded (a coarse grid, then golden section) and real-time safe.
 #pragma once
 
@@ -17,6 +19,7 @@ class GapFit {
  public:
   static constexpr std::int64_t kCapacity = 1024;  // samples kept (1 s at 1 kHz)
   static constexpr std::int64_t kMaxWindow = 700;  // samples a fit may use: bounds its cost
+  static constexpr double kMinExcursion = 4;      // in residual RMS
 
   struct History {
     std::array<double, kCapacity> motor_rad{};
@@ -27,7 +30,8 @@ class GapFit {
   struct Result {
     bool ok = false;
     double gap_rad = 0;
-    double rms_rad = 0;  // residual of the best fit
+    double rms_rad = 0;        // residual of the best fit
+    double excursion_rad = 0;  // how far the best fit's valve moved while scored
   };
 
   // alpha: per-step factor of each of the two low-pass stages.
@@ -47,7 +51,7 @@ class GapFit {
 
  private:
   double cost(const History& h, std::int64_t from, std::int64_t to, std::int64_t extreme, double extreme_rad,
-              int dir, std::int64_t skip, double gap_rad, double* rms) const noexcept;
+              int dir, std::int64_t skip, double gap_rad, double* rms = nullptr, double* excursion = nullptr) const noexcept;
   double alpha_;
   double gap_max_rad_;
 };

@@ -76,19 +76,21 @@ class PaperObserver {
 //    P_eq's noise (computed from the transducer noise and the filters) for confirm_samples in a
 //    row. Noise alone does this about never, so Tf changes twice per real reversal.
 // 4. The gap is measured, not accumulated: fit_after_s after the exit (or at the next reversal,
-//    if sooner), GapFit finds the gap that best explains the recent history of the motor angle
+//    if sooner; and again every fit_after_s, up to fit_tries times, while the valve has not moved
+//    enough to tell where contact was), GapFit finds the gap that best explains the recent history of the motor angle
 //    and of the valve angle implied by the filtered pressure and its slope (the chamber equation
 //    solved exactly for the throat area, then the map; see gap_fit.hpp), starting fit_lead_s
 //    before the motor's extreme on the old flank. The motor must really have pushed the valve
 //    there: confirmed by pressure, or presumed by the controller's play model of the gap (a
 //    well-sized jump moves the valve too little for pressure to show). The estimate moves toward
-//    each measurement by learn_gain (the controller takes the first one whole), so it follows a
-//    gap that shrinks as well as one that grows, and one bad measurement moves it only part way.
+//    each measurement by learn_gain, so it follows a gap that shrinks as well as one that grows
+//    and averages the measurement noise; a measurement farther than jump_fraction from the
+//    estimate is a real change and is taken whole (as is the first).
 struct RobustObserverParams {
   double period_s = 1e-3;
   double pressure_noise_rms_pa = 2000;  // what the transducer's noise is believed to be
   double intention_deadband_rad = 0.05 * 0.017453292519943295;
-  double intention_sigmas = 5;
+  double intention_sigmas = 8;
   double filter_time_constant_s = 0.015;
   double hold_smoothing = 4;  // the hold level's extra low-pass, in filter time constants
   double time_constant_scale = 0.9;
@@ -96,7 +98,9 @@ struct RobustObserverParams {
   int confirm_samples = 5;
   double fit_lead_s = 0.02;
   double fit_after_s = 0.04;
+  int fit_tries = 8;
   double learn_gain = 0.8;
+  double jump_fraction = 0.2;
   double gap_max_rad = 6 * 0.017453292519943295;
   void validate() const;  // throws std::invalid_argument naming the parameter
 };
@@ -128,6 +132,7 @@ struct RobustObserverState {
   int confirm = 0;
   // gap measurement after an exit
   std::int64_t fit_at = -1;      // sample number at which to fit; -1: none pending
+  int fit_tries_left = 0;        // a slow contact may need a longer look before it shows enough
   GapFit::History history;
 };
 
