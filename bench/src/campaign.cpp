@@ -454,6 +454,18 @@ ctl::ChamberModel chamber_model_of(const plant::Plant& plant) {
   return m;
 }
 
+Campaign with_sensor_noise(Campaign c, double noise_rms_kpa) {
+  if (!(noise_rms_kpa >= 0)) throw std::invalid_argument("sensor noise must be >= 0 kPa");
+  const std::vector<double> v{noise_rms_kpa};
+  const plant::Effect* sensor = c.plant->find("pressure_sensor");
+  auto effect = sensor ? sensor->with_params(v)
+                       : plant::find_effect("pressure_sensor")
+                             ->from_yaml(Node::load_string("noise_rms_kpa: " + std::to_string(noise_rms_kpa), "noise"));
+  c.plant = std::make_shared<const plant::Plant>(c.plant->with(effect));
+  c.sensor_noise_rms_pa = noise_rms_kpa * kPaPerKpa;
+  return c;
+}
+
 Campaign load_campaign(const std::filesystem::path& file) {
   const Node root = Node::load_file(file);
   std::ifstream in(file);

@@ -1,5 +1,6 @@
 // hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 
 #include "cli.hpp"
@@ -10,10 +11,17 @@
 namespace hil::bench {
 
 int cmd_sim(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"out", "runs"}, {"no-telemetry", "quiet"});
+  const Args args = parse_args(argv, {"out", "runs", "sensor-noise-kpa"}, {"no-telemetry", "quiet"});
   if (args.positional.size() != 1) throw UsageError("sim needs exactly one campaign file");
   // Load and validate everything before anything is written.
-  const Campaign campaign = load_campaign(args.positional[0]);
+  Campaign campaign = load_campaign(args.positional[0]);
+  if (args.options.count("sensor-noise-kpa")) {
+    const std::string v = args.option("sensor-noise-kpa", "");
+    char* end = nullptr;
+    const double kpa = std::strtod(v.c_str(), &end);
+    if (end == v.c_str() || *end != '\0' || !(kpa >= 0)) throw UsageError("--sensor-noise-kpa needs a number >= 0, got '" + v + "'");
+    campaign = with_sensor_noise(std::move(campaign), kpa);
+  }
   SimOptions options;
   options.out_dir = args.option("out", "out");
   options.telemetry = !args.has("no-telemetry");

@@ -19,7 +19,7 @@ struct Command {
 
 const Command kCommands[] = {
     {"sim", hil::bench::cmd_sim,
-     "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]\n"
+     "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa X] [--no-telemetry] [--quiet]\n"
      "      run a campaign on the simulated plant, faster than real time"},
     {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
 };

@@ -49,6 +49,10 @@ Campaign load_campaign(const std::filesystem::path& file);
 // For YAML posted over the API: `origin` names it in errors; relative paths resolve from `base_dir`.
 Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir);
 
+// The same campaign with another transducer noise (0 reproduces the paper's noise-free
+// simulation). The controllers keep what they were told of the transducer.
+Campaign with_sensor_noise(Campaign c, double noise_rms_kpa);
+
 // The controller's design model from a plant (its gas_generator and throat_map blocks).
 ctl::ChamberModel chamber_model_of(const plant::Plant& plant);
 

@@ -1,0 +1,99 @@
+// `hilbench sim` as a user runs it: the files it writes, and what it does with bad input.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "hil/csv_reader.hpp"
+#include "support/run_command.hpp"
+#include "support/temp_file.hpp"
+
+using hil::test::hilbench;
+using hil::test::run_command;
+using hil::test::source_path;
+
+namespace {
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+TEST(SimCli, PaperAdaptiveWritesTelemetrySummariesAndReport) {
+  hil::test::TempDir out;
+  const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_adaptive.yaml").string() +
+                             " --out " + out.path().string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("report: "), std::string::npos);
+  const auto dir = out.path() / "paper_adaptive";
+  EXPECT_TRUE(std::filesystem::exists(dir / "report.html"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "campaign.yaml"));
+  for (const char* run : {"none", "adaptive", "adaptive_paper"}) {
+    // The telemetry is a measurement file (physics.md section 4) plus the internals.
+    hil::CsvHeader header;
+    const auto data = hil::read_csv(dir / run / "telemetry.csv",
+                                    {{"t_s", "theta_cmd_deg", "p_meas_mpa"},
+                                     {"theta_motor_deg", "p_ref_mpa", "theta_valve_deg", "gap_true_deg", "touch_state",
+                                      "motion_intention", "comp_deg", "gap_est_deg"},
+                                     "t_s"},
+                                    &header);
+    EXPECT_EQ(data.rows(), 18000u) << run;
+    for (bool present : header.present) EXPECT_TRUE(present) << run;
+    EXPECT_NEAR(data.values[0].back(), 17.999, 1e-9);
+    EXPECT_NEAR(data.values[6].back(), 2.0, 1e-9);   // the gap grew to 2 deg at 12 s
+    EXPECT_NEAR(data.values[6].front(), 1.0, 1e-9);
+    const auto summary = nlohmann::json::parse(slurp(dir / run / "summary.json"));
+    for (const char* key : {"iae_mpa_s", "stall_s_per_reversal", "gap_est_final_deg", "gap_true_final_deg",
+                            "touch_state_changes", "compensation_events"}) {
+      EXPECT_TRUE(summary.contains(key)) << run << " " << key;
+    }
+    EXPECT_EQ(summary["stall_s_per_reversal"].size(), 7u);  // reversals at 2.5, 5, ..., 17.5 s
+  }
+  // Nothing half-finished is left beside it.
+  for (const auto& e : std::filesystem::directory_iterator(out.path())) EXPECT_EQ(e.path().filename(), "paper_adaptive");
+}
+
+TEST(SimCli, BadCampaignWritesNothingAndKeepsThePreviousOutput) {
+  hil::test::TempDir out;
+  const auto good = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
+                                " --no-telemetry --quiet --out " + out.path().string());
+  ASSERT_EQ(good.status, 0) << good.output;
+  const auto before = slurp(out.path() / "paper_fig6" / "none" / "summary.json");
+  std::string text = slurp(source_path("configs/campaigns/paper_fig6.yaml"));
+  text.replace(text.find("high_mpa: 1.5"), 13, "high_mpa: 9.0");
+  text.replace(text.find("../plant/nominal.yaml"), 21, source_path("configs/plant/nominal.yaml").string());
+  const auto bad = out.write("in/paper_fig6.yaml", text);
+  const auto r = run_command(hilbench() + " sim " + bad.string() + " --out " + out.path().string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("paper_fig6.yaml:14:"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("high_mpa"), std::string::npos) << r.output;
+  EXPECT_EQ(slurp(out.path() / "paper_fig6" / "none" / "summary.json"), before);
+}
+
+TEST(SimCli, UsageErrorsSuggest) {
+  auto r = run_command(hilbench() + " simm x.yaml");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.output.find("did you mean 'sim'"), std::string::npos) << r.output;
+  r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() + " --outt /tmp/x");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.output.find("did you mean --out"), std::string::npos) << r.output;
+  r = run_command(hilbench() + " sim /no/such/campaign.yaml");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("/no/such/campaign.yaml: cannot open"), std::string::npos) << r.output;
+}
+
+TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
+  hil::test::TempDir out;
+  const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_constant.yaml").string() +
+                             " --sensor-noise-kpa 0 --runs constant --quiet --out " + out.path().string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(out.path() / "paper_constant" / "none"));
+  const auto data = hil::read_csv(out.path() / "paper_constant" / "constant" / "telemetry.csv",
+                                  {{"p_meas_mpa"}, {"p_chamber_mpa"}, ""});
+  for (std::size_t i = 0; i < data.rows(); i += 97) ASSERT_NEAR(data.values[0][i], data.values[1][i], 1e-6);
+}
+
+}  // namespace

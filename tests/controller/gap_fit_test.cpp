@@ -1,0 +1,61 @@
+// The gap fit on a synthetic history with a known gap.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "hil/ctl/gap_fit.hpp"
+
+using hil::ctl::GapFit;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180;
+
+// The motor rests on the old flank (pushing in -dir), turns at `turn`, crosses at `speed`.
+GapFit::History history(double gap, int dir, double speed_deg_s, double noise_deg, int turn, int n,
+                        std::int64_t* extreme, double* extreme_rad) {
+  const double alpha = 1 - std::exp(-1e-3 / 0.015);
+  GapFit::History h;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, noise_deg * kDeg);
+  double motor = 0.2, valve = motor + dir * gap / 2, lp1 = valve, lp2 = valve;
+  for (int k = 0; k < n; ++k) {
+    if (k > turn) motor += dir * speed_deg_s * kDeg * 1e-3;
+    if (motor - gap / 2 > valve) valve = motor - gap / 2;
+    if (motor + gap / 2 < valve) valve = motor + gap / 2;
+    lp1 += alpha * (valve - lp1);
+    lp2 += alpha * (lp1 - lp2);
+    GapFit::push(h, motor, lp2 + noise(rng));
+  }
+  *extreme = turn;
+  *extreme_rad = 0.2;
+  return h;
+}
+
+TEST(GapFit, RecoversTheGapThroughTheFilters) {
+  const GapFit fit(1 - std::exp(-1e-3 / 0.015), 6 * kDeg);
+  for (double gap_deg : {0.6, 1.3, 2.4}) {
+    for (int dir : {-1, +1}) {
+      std::int64_t ext;
+      double ext_rad;
+      // Slow enough that the valve moves well after contact within the window.
+      const auto h = history(gap_deg * kDeg, dir, 8.0, 0.02, 50, 50 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext, &ext_rad);
+      const auto r = fit.fit(h, ext, ext_rad, dir, 20, 30);
+      ASSERT_TRUE(r.ok) << gap_deg << " dir " << dir;
+      EXPECT_NEAR(r.gap_rad / kDeg, gap_deg, 0.03) << "dir " << dir;
+      EXPECT_LT(r.rms_rad / kDeg, 0.03);
+    }
+  }
+}
+
+TEST(GapFit, NoContactNoMeasurement) {
+  const GapFit fit(1 - std::exp(-1e-3 / 0.015), 6 * kDeg);
+  std::int64_t ext;
+  double ext_rad;
+  // The motor crosses only half of a 2 deg gap: the valve never moves.
+  const auto h = history(2.0 * kDeg, +1, 8.0, 0.02, 50, 50 + 125, &ext, &ext_rad);
+  EXPECT_FALSE(fit.fit(h, ext, ext_rad, +1, 20, 30).ok);
+}
+
+}  // namespace
