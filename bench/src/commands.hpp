@@ -2,6 +2,7 @@
 // process exit code; usage errors throw UsageError, configuration errors throw cfg::Error.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -9,5 +10,9 @@ namespace hil::bench {
 
 int cmd_sim(const std::vector<std::string>& args);
 int cmd_effects(const std::vector<std::string>& args);
+int cmd_characterise(const std::vector<std::string>& args);
+
+// The characterisation table (markdown) of the observers on the paper's scenarios.
+std::string characterise_table(const std::filesystem::path& campaigns_dir);
 
 }  // namespace hil::bench

@@ -22,6 +22,9 @@ const Command kCommands[] = {
      "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa X] [--no-telemetry] [--quiet]\n"
      "      run a campaign on the simulated plant, faster than real time"},
     {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
+    {"characterise", hil::bench::cmd_characterise,
+     "characterise [--readme README.md] [--campaigns DIR]\n"
+     "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},
 };
 
 void usage(std::FILE* to) {

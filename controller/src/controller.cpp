@@ -55,7 +55,15 @@ double Controller::ki_rad_per_pa_s(double p0_pa, double volume_m3) const noexcep
 
 ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& in) const noexcept {
   ControllerOutputs out;
-  out.ki_rad_per_pa_s = ki_rad_per_pa_s(in.p_ref_pa, s.volume_m3);
+  // The KI(Pg0, V0) schedule: at a given reference tau is proportional to V and KI to 1/V, so
+  // the expensive part is computed once per reference value.
+  if (in.p_ref_pa != s.sched_p_ref_pa) {
+    s.sched_p_ref_pa = in.p_ref_pa;
+    s.sched_tau_s_per_m3 = p_.chamber.time_constant_s(in.p_ref_pa, 1.0);
+    s.sched_ki_m3 = ki_rad_per_pa_s(in.p_ref_pa, 1.0);
+  }
+  const double tau_s = s.sched_tau_s_per_m3 * s.volume_m3;
+  out.ki_rad_per_pa_s = s.sched_ki_m3 / s.volume_m3;
   // Pressure too high -> open the valve: the stabilising sign of eq. (5).
   double cmd_step = out.ki_rad_per_pa_s * p_.period_s * (in.p_meas_pa - in.p_ref_pa);
   const double motor_rad = p_.use_encoder && std::isfinite(in.theta_motor_rad) ? in.theta_motor_rad : s.motor_model_rad;
@@ -69,7 +77,7 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   if (s.presume_wait > 0) --s.presume_wait;
   const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
   const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad,
-                              p_.chamber.time_constant_s(in.p_ref_pa, s.volume_m3), s.volume_m3, presumed};
+                              tau_s, s.volume_m3, presumed};
   const ObserverOutputs obs = p_.observer == ObserverKind::paper ? paper_.step(s.paper, obs_in) : robust_.step(s.robust, obs_in);
 
   // The estimate: law (10) for the paper observer, measured gaps for the robust one. With
@@ -111,7 +119,12 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   const double lagged = cmd + (s.motor_model_rad - cmd) * motor_keep_;
   const double max_move = p_.motor.rate_limit_rad_s * p_.period_s;
   s.motor_model_rad += std::clamp(lagged - s.motor_model_rad, -max_move, max_move);
-  s.volume_m3 += p_.chamber.volume_rate_m3_s(in.p_meas_pa) * p_.period_s;
+  s.volume_p_sum_pa += in.p_meas_pa;
+  if (++s.volume_steps == kVolumeSteps) {
+    s.volume_m3 += p_.chamber.volume_rate_m3_s(s.volume_p_sum_pa / kVolumeSteps) * kVolumeSteps * p_.period_s;
+    s.volume_p_sum_pa = 0;
+    s.volume_steps = 0;
+  }
 
   out.theta_cmd_rad = cmd;
   out.touch_state = obs.touch;

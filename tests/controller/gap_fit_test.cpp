@@ -40,7 +40,7 @@ TEST(GapFit, RecoversTheGapThroughTheFilters) {
       std::int64_t ext;
       double ext_rad;
       // Slow enough that the valve moves well after contact within the window.
-      const auto h = history(gap_deg * kDeg, dir, 8.0, 0.02, 50, 50 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext, &ext_rad);
+      auto h = history(gap_deg * kDeg, dir, 8.0, 0.02, 50, 50 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext, &ext_rad);
       const auto r = fit.fit(h, ext, ext_rad, dir, 20, 30);
       ASSERT_TRUE(r.ok) << gap_deg << " dir " << dir;
       EXPECT_NEAR(r.gap_rad / kDeg, gap_deg, 0.03) << "dir " << dir;
@@ -54,7 +54,7 @@ TEST(GapFit, NoContactNoMeasurement) {
   std::int64_t ext;
   double ext_rad;
   // The motor crosses only half of a 2 deg gap: the valve never moves.
-  const auto h = history(2.0 * kDeg, +1, 8.0, 0.02, 50, 50 + 125, &ext, &ext_rad);
+  auto h = history(2.0 * kDeg, +1, 8.0, 0.02, 50, 50 + 125, &ext, &ext_rad);
   EXPECT_FALSE(fit.fit(h, ext, ext_rad, +1, 20, 30).ok);
 }
 

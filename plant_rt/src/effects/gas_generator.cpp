@@ -51,22 +51,26 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     // because P/RTc << rho_p).
     double p = 1e6;
     for (int i = 0; i < 60; ++i) {
-      p = std::pow(ab_ * a_si_ * cstar_ * (rho_ - growth_ * p / rtc_) / s.throat_area_m2, 1.0 / (1.0 - n_));
+      const double next = std::pow(ab_ * a_si_ * cstar_ * (rho_ - growth_ * p / rtc_) / s.throat_area_m2, 1.0 / (1.0 - n_));
+      const bool converged = std::abs(next - p) <= 1e-12 * next;
+      p = next;
+      if (converged) break;
     }
     x[0] = p;
     x[1] = v0_;
     x[2] = x[3] = 0;
-    const Rates r = rates(p, v0_, s.throat_area_m2);
+    const Rates r = rates(p, std::pow(p, n_), v0_, s.throat_area_m2);
     write(x, s, r.mdot_gen, r.mdot_out);
   }
 
   void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
     const double at = s.throat_area_m2;
-    const double p = x[0], v = x[1];
-    const Rates k1 = rates(p, v, at);
-    const Rates k2 = rates(p + 0.5 * dt_s * k1.dp, v + 0.5 * dt_s * k1.dv, at);
-    const Rates k3 = rates(p + 0.5 * dt_s * k2.dp, v + 0.5 * dt_s * k2.dv, at);
-    const Rates k4 = rates(p + dt_s * k3.dp, v + dt_s * k3.dv, at);
+    const double p = std::max(x[0], kMinPressurePa), v = x[1];
+    const double pn = std::pow(p, n_);
+    const Rates k1 = rates(p, pn, v, at);
+    const Rates k2 = rates(p + 0.5 * dt_s * k1.dp, pn, p, v + 0.5 * dt_s * k1.dv, at);
+    const Rates k3 = rates(p + 0.5 * dt_s * k2.dp, pn, p, v + 0.5 * dt_s * k2.dv, at);
+    const Rates k4 = rates(p + dt_s * k3.dp, pn, p, v + dt_s * k3.dv, at);
     auto avg = [](double a, double b, double c, double d) { return (a + 2 * b + 2 * c + d) / 6; };
     const double mdot_gen = avg(k1.mdot_gen, k2.mdot_gen, k3.mdot_gen, k4.mdot_gen);
     const double mdot_out = avg(k1.mdot_out, k2.mdot_out, k3.mdot_out, k4.mdot_out);
@@ -82,9 +86,16 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   struct Rates {
     double dp, dv, mdot_gen, mdot_out;
   };
-  Rates rates(double p, double v, double at) const noexcept {
+  // The later RK stages differ from the step's start by a fraction of a percent: P^n from a
+  // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
+  Rates rates(double p, double p0n, double p0, double v, double at) const noexcept {
     p = std::max(p, kMinPressurePa);
-    const double burn_m_s = a_si_ * std::pow(p, n_);
+    const double d = (p - p0) / p0;
+    if (std::abs(d) > 0.01) return rates(p, std::pow(p, n_), v, at);
+    return rates(p, p0n * (1 + n_ * d * (1 + 0.5 * (n_ - 1) * d)), v, at);
+  }
+  Rates rates(double p, double pn, double v, double at) const noexcept {
+    const double burn_m_s = a_si_ * pn;
     const double mdot_gen = rho_ * ab_ * burn_m_s;
     const double mdot_out = p * at / cstar_;
     const double dv = growth_ * ab_ * burn_m_s;

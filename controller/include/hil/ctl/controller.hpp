@@ -72,6 +72,11 @@ struct ControllerState {
   double theta_cmd_rad = 0;
   double gap_est_rad = 0;
   double volume_m3 = 0;          // integrated from the nominal burn rate and the measured pressure
+  double volume_p_sum_pa = 0;    // pressures since the last volume update (every kVolumeSteps)
+  int volume_steps = 0;
+  double sched_p_ref_pa = -1;    // the reference the schedule below was computed for
+  double sched_tau_s_per_m3 = 0; // tau / V at that reference (tau is proportional to V)
+  double sched_ki_m3 = 0;        // KI * V at that reference
   double motor_model_rad = 0;
   double gap_pos_rad = 0;        // robust: believed motor position in the gap
   double boost_rad = 0;          // robust: extra command while the motor crosses the gap
@@ -96,6 +101,7 @@ class Controller {
   PaperObserver paper_;
   RobustObserver robust_;
   double motor_keep_ = 0;  // exp(-dT / tau_m) of the motor model
+  static constexpr int kVolumeSteps = 10;  // the volume grows slowly: integrate it every 10 steps
 };
 
 }  // namespace hil::ctl

@@ -21,10 +21,18 @@ class GapFit {
   static constexpr std::int64_t kMaxWindow = 700;  // samples a fit may use: bounds its cost
   static constexpr double kMinExcursion = 4;      // in residual RMS
 
+  // The fit's window, copied out of the ring once so the many cost evaluations run contiguous.
+  struct Window {
+    std::array<double, kMaxWindow> motor_rad;
+    std::array<double, kMaxWindow> valve_eq_rad;
+    std::int64_t n = 0;
+    std::int64_t extreme = 0;  // index of the motor's extreme within the window (may be < 0)
+  };
   struct History {
     std::array<double, kCapacity> motor_rad{};
     std::array<double, kCapacity> valve_eq_rad{};
     std::int64_t count = 0;  // samples pushed so far; sample i lives at i % kCapacity
+    Window scratch;          // the fit's working copy (state, so the const model stays shareable)
   };
 
   struct Result {
@@ -46,12 +54,12 @@ class GapFit {
   // Fits over samples [extreme - lead, last]: `extreme` is the sample at which the motor turned
   // (last pushing the valve in -dir), `extreme_rad` its angle; dir is the new direction.
   // `skip` samples at the start are simulated but not scored (the filters' start-up).
-  Result fit(const History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
+  Result fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
              std::int64_t skip) const noexcept;
 
  private:
-  double cost(const History& h, std::int64_t from, std::int64_t to, std::int64_t extreme, double extreme_rad,
-              int dir, std::int64_t skip, double gap_rad, double* rms = nullptr, double* excursion = nullptr) const noexcept;
+  double cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad,
+              double* rms = nullptr, double* excursion = nullptr) const noexcept;
   double alpha_;
   double gap_max_rad_;
 };
