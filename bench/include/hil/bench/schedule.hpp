@@ -1,0 +1,55 @@
+// A signal programmed over time: piecewise linear between breakpoints (two breakpoints at the
+// same time make a jump), plus optional sine overlays. Used for the pressure reference and for
+// the programmed gap. Evaluation with a cursor is real-time safe for increasing times.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace hil::bench {
+
+struct Breakpoint {
+  double t_s;
+  double value;
+};
+
+struct SineOverlay {
+  double from_s, to_s, amplitude, period_s;
+};
+
+class Schedule {
+ public:
+  Schedule() = default;
+  explicit Schedule(double initial) : initial_(initial) {}
+
+  void add(double t_s, double value) { points_.push_back({t_s, value}); }
+  void add_sine(const SineOverlay& s) { sines_.push_back(s); }
+
+  // Random access, O(log n).
+  double at(double t_s) const noexcept;
+  // For increasing times: O(1) amortised, no allocation. Real-time safe.
+  struct Cursor {
+    std::size_t next = 0;
+  };
+  double at(double t_s, Cursor& cursor) const noexcept;
+
+  double initial() const { return initial_; }
+  const std::vector<Breakpoint>& points() const { return points_; }
+  const std::vector<SineOverlay>& sines() const { return sines_; }
+  // Every value the piecewise-linear part takes at a breakpoint (the extremes of that part).
+  double last_level() const { return points_.empty() ? initial_ : points_.back().value; }
+
+ private:
+  double base_between(std::size_t next, double t_s) const noexcept;
+  double sines_at(double t_s) const noexcept;
+  double initial_ = 0;
+  std::vector<Breakpoint> points_;
+  std::vector<SineOverlay> sines_;
+};
+
+// Times at which the schedule reverses direction (its first movement counts as a reversal):
+// sampled every period_s, a reversal is declared once the signal has retreated more than
+// hysteresis from its extreme; the reported time is when the extreme was left.
+std::vector<double> reversal_times(const Schedule& s, double duration_s, double period_s, double hysteresis);
+
+}  // namespace hil::bench

@@ -1,0 +1,32 @@
+// Command-line parsing for the hilbench sub-commands: positional arguments, "--name value"
+// options and "--switch" flags. Unknown options fail with a suggestion.
+#pragma once
+
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace hil::bench {
+
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Args {
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> options;
+  std::set<std::string> switches;
+  bool has(const std::string& s) const { return switches.count(s) > 0; }
+  std::string option(const std::string& name, const std::string& fallback) const {
+    const auto it = options.find(name);
+    return it == options.end() ? fallback : it->second;
+  }
+};
+
+Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
+                const std::vector<std::string>& switch_options);
+
+}  // namespace hil::bench

@@ -1,0 +1,40 @@
+// hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]
+#include <cstdio>
+#include <sstream>
+
+#include "cli.hpp"
+#include "commands.hpp"
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/sim.hpp"
+
+namespace hil::bench {
+
+int cmd_sim(const std::vector<std::string>& argv) {
+  const Args args = parse_args(argv, {"out", "runs"}, {"no-telemetry", "quiet"});
+  if (args.positional.size() != 1) throw UsageError("sim needs exactly one campaign file");
+  // Load and validate everything before anything is written.
+  const Campaign campaign = load_campaign(args.positional[0]);
+  SimOptions options;
+  options.out_dir = args.option("out", "out");
+  options.telemetry = !args.has("no-telemetry");
+  options.progress = !args.has("quiet");
+  std::stringstream runs(args.option("runs", ""));
+  for (std::string name; std::getline(runs, name, ',');) {
+    if (!name.empty()) options.only_runs.push_back(name);
+  }
+  const CampaignOutcome out = run_campaign(campaign, options);
+  if (!args.has("quiet")) {
+    std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
+                out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
+    std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
+    for (const auto& r : out.runs) {
+      std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s,
+                  r.summary.stall_s_total, r.summary.gap_est_final_deg, r.summary.touch_state_changes,
+                  r.summary.compensation_events);
+    }
+    std::printf("  report: %s\n", (out.dir / "report.html").c_str());
+  }
+  return 0;
+}
+
+}  // namespace hil::bench

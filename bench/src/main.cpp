@@ -1,0 +1,70 @@
+// hilbench: one executable, one sub-command per job.
+#include <cstdio>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "commands.hpp"
+#include "hil/config.hpp"
+#include "hil/csv_reader.hpp"
+
+namespace {
+
+struct Command {
+  const char* name;
+  int (*run)(const std::vector<std::string>&);
+  const char* usage;
+};
+
+const Command kCommands[] = {
+    {"sim", hil::bench::cmd_sim,
+     "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]\n"
+     "      run a campaign on the simulated plant, faster than real time"},
+    {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
+};
+
+void usage(std::FILE* to) {
+  std::fprintf(to, "usage: hilbench <command> [arguments]\n\ncommands:\n");
+  for (const auto& c : kCommands) std::fprintf(to, "  %s\n", c.usage);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    usage(argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string name = argv[1];
+  if (name == "--version") {
+    std::printf("hilbench %s\n", HIL_VERSION);
+    return 0;
+  }
+  std::vector<std::string> args(argv + 2, argv + argc);
+  std::vector<std::string> names;
+  for (const auto& c : kCommands) {
+    names.emplace_back(c.name);
+    if (name != c.name) continue;
+    try {
+      return c.run(args);
+    } catch (const hil::bench::UsageError& e) {
+      std::fprintf(stderr, "hilbench %s: %s\nusage: hilbench %s\n", c.name, e.what(), c.usage);
+      return 2;
+    } catch (const hil::cfg::Error& e) {
+      std::fprintf(stderr, "hilbench %s: %s\n", c.name, e.what());
+      return 1;
+    } catch (const hil::CsvError& e) {
+      std::fprintf(stderr, "hilbench %s: %s\n", c.name, e.what());
+      return 1;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "hilbench %s: error: %s\n", c.name, e.what());
+      return 1;
+    }
+  }
+  const std::string hint = hil::cfg::closest(name, names);
+  std::fprintf(stderr, "hilbench: unknown command '%s'%s\n\n", name.c_str(),
+               hint.empty() ? "" : (" (did you mean '" + hint + "'?)").c_str());
+  usage(stderr);
+  return 2;
+}

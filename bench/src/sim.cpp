@@ -1,0 +1,227 @@
+#include "hil/bench/sim.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "hil/bench/sim_report.hpp"
+#include "hil/units.hpp"
+
+namespace hil::bench {
+namespace {
+
+using units::pa_to_mpa;
+using units::rad_to_deg;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
+constexpr std::size_t kReportBuckets = 10000;
+
+// Min/max decimation of several series sampled together.
+class Decimator {
+ public:
+  Decimator(std::vector<std::string> names, long total_samples)
+      : bucket_(std::max<long>(1, (total_samples + static_cast<long>(kReportBuckets) - 1) / static_cast<long>(kReportBuckets))) {
+    for (auto& n : names) series_.push_back({std::move(n), {}, {}});
+    lo_.resize(series_.size());
+    hi_.resize(series_.size());
+    const auto reserve = static_cast<std::size_t>(2 * std::min<long>(total_samples, 2 * kReportBuckets) + 4);
+    for (auto& s : series_) s.t_s.reserve(reserve), s.value.reserve(reserve);
+  }
+  void add(double t, const double* values) {
+    for (std::size_t i = 0; i < series_.size(); ++i) {
+      if (count_ == 0 || values[i] < lo_[i].second) lo_[i] = {t, values[i]};
+      if (count_ == 0 || values[i] > hi_[i].second) hi_[i] = {t, values[i]};
+    }
+    if (++count_ == bucket_) flush();
+  }
+  std::vector<ReportSeries> take() {
+    flush();
+    return std::move(series_);
+  }
+
+ private:
+  void flush() {
+    if (count_ == 0) return;
+    for (std::size_t i = 0; i < series_.size(); ++i) {
+      auto a = lo_[i], b = hi_[i];
+      if (a.first > b.first) std::swap(a, b);
+      series_[i].t_s.push_back(a.first);
+      series_[i].value.push_back(a.second);
+      if (b.first != a.first) {
+        series_[i].t_s.push_back(b.first);
+        series_[i].value.push_back(b.second);
+      }
+    }
+    count_ = 0;
+  }
+  long bucket_;
+  long count_ = 0;
+  std::vector<ReportSeries> series_;
+  std::vector<std::pair<double, double>> lo_, hi_;
+};
+
+void write_text(const std::filesystem::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  out.close();
+  if (!out) throw std::runtime_error("cannot write " + file.string());
+}
+
+RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
+                   std::atomic<long>& steps_done) {
+  const auto t0 = Clock::now();
+  const long n = std::lround(c.duration_s / c.period_s);
+  RunMetrics metrics(c.reversals_s, c.period_s, kMotionThresholdRadS);
+  Decimator report({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg", "theta_cmd_deg",
+                    "gap_est_deg", "gap_true_deg"},
+                   n);
+  std::unique_ptr<CsvWriter> csv;
+  if (telemetry) {
+    csv = std::make_unique<CsvWriter>(dir / "telemetry.csv", sim_telemetry_columns(),
+                                      std::vector<std::pair<std::string, std::string>>{
+                                          {"source", "hilbench sim"}, {"campaign", c.name}, {"run", run.name}});
+  }
+  simulate_run(
+      c, run,
+      [&](const StepRecord& r) {
+        metrics.add(r);
+        const double values[] = {pa_to_mpa(r.p_ref_pa),        pa_to_mpa(r.p_meas_pa),       static_cast<double>(r.touch),
+                                 rad_to_deg(r.theta_motor_rad), rad_to_deg(r.theta_valve_rad), rad_to_deg(r.theta_cmd_rad),
+                                 rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad)};
+        report.add(r.t_s, values);
+        if (csv) csv->row(telemetry_row(r));
+      },
+      &steps_done);
+  if (csv) csv->close();
+  RunOutcome out{run.name, metrics.finish(), report.take(), 0};
+  out.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  nlohmann::json summary = out.summary.to_json();
+  summary["campaign"] = c.name;
+  summary["run"] = run.name;
+  summary["compensation"] = run.controller.compensation == ctl::Compensation::none       ? "none"
+                            : run.controller.compensation == ctl::Compensation::constant ? "constant"
+                                                                                         : "adaptive";
+  summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
+  summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
+  summary["wall_s"] = out.wall_s;
+  write_text(dir / "summary.json", summary.dump(2) + "\n");
+  return out;
+}
+
+}  // namespace
+
+const std::vector<CsvColumn>& sim_telemetry_columns() {
+  static const std::vector<CsvColumn> columns = {
+      {"t_s", 4},          {"theta_cmd_deg", 5},    {"p_meas_mpa", 6},       {"theta_motor_deg", 5},
+      {"p_ref_mpa", 6},    {"theta_valve_deg", 5},  {"gap_true_deg", 5},     {"touch_state", 0},
+      {"motion_intention", 0}, {"comp_deg", 5},     {"gap_est_deg", 5},      {"p_chamber_mpa", 6}};
+  return columns;
+}
+
+std::array<double, kSimColumns> telemetry_row(const StepRecord& r) {
+  return {r.t_s,
+          rad_to_deg(r.theta_cmd_rad),
+          pa_to_mpa(r.p_meas_pa),
+          rad_to_deg(r.theta_motor_rad),
+          pa_to_mpa(r.p_ref_pa),
+          rad_to_deg(r.theta_valve_rad),
+          rad_to_deg(r.gap_true_rad),
+          static_cast<double>(r.touch),
+          static_cast<double>(r.intention),
+          rad_to_deg(r.comp_rad),
+          rad_to_deg(r.gap_est_rad),
+          pa_to_mpa(r.p_chamber_pa)};
+}
+
+RunSummary summarise_run(const Campaign& c, const RunSpec& run) {
+  RunMetrics metrics(c.reversals_s, c.period_s, kMotionThresholdRadS);
+  simulate_run(c, run, [&](const StepRecord& r) { metrics.add(r); });
+  return metrics.finish();
+}
+
+CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
+  std::vector<const RunSpec*> runs;
+  for (const auto& r : c.runs) {
+    if (options.only_runs.empty() ||
+        std::find(options.only_runs.begin(), options.only_runs.end(), r.name) != options.only_runs.end()) {
+      runs.push_back(&r);
+    }
+  }
+  if (runs.empty()) throw std::runtime_error("no run of campaign '" + c.name + "' matches --runs");
+
+  // Everything goes into a hidden folder first and is renamed into place at the end.
+  const auto t0 = Clock::now();
+  std::filesystem::create_directories(options.out_dir);
+  const auto final_dir = options.out_dir / c.name;
+  const auto tmp_dir = options.out_dir / ("." + c.name + ".tmp-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(tmp_dir);
+  for (const auto* r : runs) std::filesystem::create_directories(tmp_dir / r->name);
+  write_text(tmp_dir / "campaign.yaml", c.yaml_text);
+
+  CampaignOutcome outcome;
+  outcome.runs.resize(runs.size());
+  std::atomic<long> steps_done{0};
+  const long steps_total = std::lround(c.duration_s / c.period_s) * static_cast<long>(runs.size());
+  std::vector<std::exception_ptr> errors(runs.size());
+  std::atomic<std::size_t> next{0};
+  auto worker = [&] {
+    for (std::size_t i; (i = next.fetch_add(1)) < runs.size();) {
+      try {
+        outcome.runs[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), runs.size()));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
+  if (options.progress && c.duration_s * runs.size() >= 120) {
+    // Long campaign: a progress line while the workers run.
+    std::thread progress([&] {
+      const bool tty = ::isatty(STDERR_FILENO);
+      int last_decile = -1;
+      while (next.load() <= runs.size() && steps_done.load() < steps_total) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        const double f = static_cast<double>(steps_done.load()) / steps_total;
+        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        const int decile = static_cast<int>(f * 10);
+        if (tty || decile != last_decile) {
+          std::fprintf(stderr, "%ssim %s: %3.0f%% (%.0f of %.0f s simulated, %.0fx real time)%s", tty ? "\r" : "",
+                       c.name.c_str(), 100 * f, f * c.duration_s * runs.size(), c.duration_s * runs.size(),
+                       f * c.duration_s * runs.size() / std::max(wall, 1e-9), tty ? "" : "\n");
+          last_decile = decile;
+        }
+        if (f >= 1) break;
+      }
+      if (tty) std::fprintf(stderr, "\n");
+    });
+    worker();
+    for (auto& t : pool) t.join();
+    steps_done.store(steps_total);
+    progress.join();
+  } else {
+    worker();
+    for (auto& t : pool) t.join();
+  }
+  for (auto& e : errors) {
+    if (e) {
+      std::filesystem::remove_all(tmp_dir);
+      std::rethrow_exception(e);
+    }
+  }
+  for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
+  write_sim_report(c, outcome.runs, tmp_dir / "report.html");
+  std::filesystem::remove_all(final_dir);
+  std::filesystem::rename(tmp_dir, final_dir);
+  outcome.dir = final_dir;
+  outcome.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return outcome;
+}
+
+}  // namespace hil::bench

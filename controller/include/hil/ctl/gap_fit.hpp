@@ -1,0 +1,55 @@
+// Measures the backlash from the recent history around a reversal. The observer keeps, per
+// control period, the motor angle and the valve angle implied by the equilibrium pressure
+// (valve_eq = the nominal map's angle for P_eq, which the filters delay and smooth). For a
+// candidate gap sigma, the valve's path follows from the motor's through the play operator,
+// starting on the old flank at the motor's extreme; passed through the same two low-pass stages
+// it predicts valve_eq up to a constant (map offsets). The gap is the sigma whose prediction fits
+// best in least squares: the filters' memory of the gap crossing is modelled, not ignored.
+// Fixed-size storage; fit() is bounded (a coarse grid, then golden section) and real-time safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+namespace hil::ctl {
+
+class GapFit {
+ public:
+  static constexpr std::int64_t kCapacity = 1024;  // samples kept (1 s at 1 kHz)
+  static constexpr std::int64_t kMaxWindow = 700;  // samples a fit may use: bounds its cost
+
+  struct History {
+    std::array<double, kCapacity> motor_rad{};
+    std::array<double, kCapacity> valve_eq_rad{};
+    std::int64_t count = 0;  // samples pushed so far; sample i lives at i % kCapacity
+  };
+
+  struct Result {
+    bool ok = false;
+    double gap_rad = 0;
+    double rms_rad = 0;  // residual of the best fit
+  };
+
+  // alpha: per-step factor of each of the two low-pass stages.
+  GapFit(double alpha, double gap_max_rad) : alpha_(alpha), gap_max_rad_(gap_max_rad) {}
+
+  static void push(History& h, double motor_rad, double valve_eq_rad) noexcept {
+    h.motor_rad[static_cast<std::size_t>(h.count % kCapacity)] = motor_rad;
+    h.valve_eq_rad[static_cast<std::size_t>(h.count % kCapacity)] = valve_eq_rad;
+    ++h.count;
+  }
+
+  // Fits over samples [extreme - lead, last]: `extreme` is the sample at which the motor turned
+  // (last pushing the valve in -dir), `extreme_rad` its angle; dir is the new direction.
+  // `skip` samples at the start are simulated but not scored (the filters' start-up).
+  Result fit(const History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
+             std::int64_t skip) const noexcept;
+
+ private:
+  double cost(const History& h, std::int64_t from, std::int64_t to, std::int64_t extreme, double extreme_rad,
+              int dir, std::int64_t skip, double gap_rad, double* rms) const noexcept;
+  double alpha_;
+  double gap_max_rad_;
+};
+
+}  // namespace hil::ctl

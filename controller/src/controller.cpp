@@ -1,0 +1,117 @@
+#include "hil/ctl/controller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace hil::ctl {
+
+void ControllerParams::validate() const {
+  auto check = [](bool ok, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("controller: ") + what);
+  };
+  check(period_s > 0, "period must be > 0");
+  check(gap_known_rad >= 0, "known gap must be >= 0");
+  check(gap_initial_rad >= 0, "initial gap estimate must be >= 0");
+  check(damping_ratio > 0, "damping ratio must be > 0");
+  check(traverse_boost >= 0 && traverse_boost <= 5, "traverse boost must be in [0, 5]");
+  check(contact_overlap_rad >= 0, "contact overlap must be >= 0");
+  check(cmd_min_rad < cmd_max_rad, "command limits must have min < max");
+  check(volume_initial_m3 > 0, "initial volume must be > 0");
+  check(motor.time_constant_s > 0 && motor.rate_limit_rad_s > 0, "motor model needs positive lag and rate limit");
+  chamber.validate();
+  robust.validate();
+}
+
+namespace {
+ControllerParams validated(ControllerParams p) {
+  p.robust.period_s = p.period_s;
+  p.validate();
+  return p;
+}
+}  // namespace
+
+Controller::Controller(const ControllerParams& params)
+    : p_(validated(params)), robust_(p_.robust, p_.chamber), motor_keep_(std::exp(-p_.period_s / p_.motor.time_constant_s)) {}
+
+ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
+  ControllerState s;
+  s.theta_cmd_rad = theta_cmd_rad;
+  s.gap_est_rad = p_.compensation == Compensation::constant ? p_.gap_known_rad : p_.gap_initial_rad;
+  s.volume_m3 = p_.volume_initial_m3;
+  s.motor_model_rad = theta_cmd_rad;
+  s.gap_pos_rad = touch * s.gap_est_rad / 2;
+  s.paper = paper_.initial_state(touch, p_meas_pa);
+  s.robust = robust_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad,
+                                   p_.chamber.time_constant_s(p_meas_pa, s.volume_m3));
+  return s;
+}
+
+double Controller::ki_rad_per_pa_s(double p0_pa, double volume_m3) const noexcept {
+  const double tau = p_.chamber.time_constant_s(p0_pa, volume_m3);
+  const double kp = p_.chamber.gain_pa_per_rad(p0_pa);
+  return 1.0 / (4 * p_.damping_ratio * p_.damping_ratio * tau * kp);
+}
+
+ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& in) const noexcept {
+  ControllerOutputs out;
+  out.ki_rad_per_pa_s = ki_rad_per_pa_s(in.p_ref_pa, s.volume_m3);
+  // Pressure too high -> open the valve: the stabilising sign of eq. (5).
+  double cmd_step = out.ki_rad_per_pa_s * p_.period_s * (in.p_meas_pa - in.p_ref_pa);
+  const double motor_rad = p_.use_encoder && std::isfinite(in.theta_motor_rad) ? in.theta_motor_rad : s.motor_model_rad;
+
+  // The play model presumes the motor pushed a flank when it sits within the intention's
+  // dead-band of it (a reversal is only seen after that retreat); with no gap known, nothing.
+  const double gap = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;
+  const bool gap_known = p_.compensation == Compensation::constant || s.gap_measurements > 0;
+  const double near = gap / 2 - p_.robust.intention_deadband_rad - 1e-12;
+  const int presumed = !gap_known ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
+  const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad,
+                              p_.chamber.time_constant_s(in.p_ref_pa, s.volume_m3), s.volume_m3, presumed};
+  const ObserverOutputs obs = p_.observer == ObserverKind::paper ? paper_.step(s.paper, obs_in) : robust_.step(s.robust, obs_in);
+
+  // The estimate: law (10) for the paper observer, measured gaps for the robust one. With
+  // compensation `none` it is still learned (observe only) so telemetry shows what it would do.
+  if (p_.compensation != Compensation::constant) {
+    if (p_.observer == ObserverKind::paper) {
+      s.gap_est_rad += obs.transition_travel_rad;
+    } else if (obs.gap_measured) {
+      // The first measurement replaces the initial guess; later ones move the estimate part way.
+      const double gain = s.gap_measurements++ == 0 ? 1.0 : p_.robust.learn_gain;
+      s.gap_est_rad += gain * (obs.gap_measured_rad - s.gap_est_rad);
+    }
+  }
+  if (p_.observer == ObserverKind::paper) {
+    // Eq. (7) with sigma (constant) or sigma_r (adaptive).
+    if (p_.compensation != Compensation::none) out.comp_rad = obs.kick * gap;
+  } else {
+    s.gap_pos_rad += cmd_step;
+    if (obs.reversed) s.boost_rad = 0;
+    if (p_.compensation != Compensation::none && obs.reversed) {
+      const int d = obs.intention;
+      out.comp_rad = d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + p_.contact_overlap_rad);  // past the flank ahead
+      s.gap_pos_rad += out.comp_rad;
+      s.boost_rad = p_.traverse_boost * out.comp_rad;
+    }
+    s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
+  }
+  s.theta_cmd_rad = std::clamp(s.theta_cmd_rad + cmd_step + out.comp_rad, p_.cmd_min_rad, p_.cmd_max_rad);
+  // Take the boost back when the motor will reach the jump's target within this step.
+  const double step_reach = p_.motor.rate_limit_rad_s * p_.period_s;
+  if (s.boost_rad > 0 ? motor_rad + step_reach >= s.theta_cmd_rad : motor_rad - step_reach <= s.theta_cmd_rad) s.boost_rad = 0;
+  const double cmd = std::clamp(s.theta_cmd_rad + s.boost_rad, p_.cmd_min_rad, p_.cmd_max_rad);
+  // The motor model predicts the drive's angle at the next sample (lag, then rate limit).
+  const double lagged = cmd + (s.motor_model_rad - cmd) * motor_keep_;
+  const double max_move = p_.motor.rate_limit_rad_s * p_.period_s;
+  s.motor_model_rad += std::clamp(lagged - s.motor_model_rad, -max_move, max_move);
+  s.volume_m3 += p_.chamber.volume_rate_m3_s(in.p_meas_pa) * p_.period_s;
+
+  out.theta_cmd_rad = cmd;
+  out.touch_state = obs.touch;
+  out.motion_intention = obs.intention;
+  out.gap_est_rad = s.gap_est_rad;
+  out.gap_measured = obs.gap_measured;
+  return out;
+}
+
+}  // namespace hil::ctl

@@ -1,0 +1,41 @@
+// Motor drive in position mode: first-order lag on the command, then a slew-rate limit.
+// With a measured encoder angle (replay), the measurement replaces the model.
+#include <algorithm>
+#include <cmath>
+
+#include "hil/plant/registry.hpp"
+#include "hil/units.hpp"
+
+namespace hil::plant {
+
+class MotorServo final : public ScalarEffect<MotorServo> {
+ public:
+  static constexpr std::string_view kKind = "motor_servo";
+  static constexpr Stage kStage = Stage::motor;
+  static constexpr ParamSpec kSpecs[] = {
+      {"time_constant_s", 0, 10, true, false, kNaN, "first-order lag of the position servo"},
+      {"rate_limit_deg_s", 0, 1e6, true, false, kNaN, "slew-rate limit of the motor"},
+  };
+  using ScalarEffect::ScalarEffect;
+
+  std::size_t state_size() const noexcept override { return 1; }
+  void settle(std::span<double> x, Signals& s) const override {
+    x[0] = std::isfinite(s.theta_motor_meas_rad) ? s.theta_motor_meas_rad : s.theta_cmd_rad;
+    s.theta_motor_rad = x[0];
+  }
+  void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
+    if (std::isfinite(s.theta_motor_meas_rad)) {
+      x[0] = s.theta_motor_meas_rad;
+    } else {
+      // Exact discretisation of the lag, so the step size does not change the response.
+      const double lagged = s.theta_cmd_rad + (x[0] - s.theta_cmd_rad) * std::exp(-dt_s / value(0));
+      const double max_move = units::deg_to_rad(value(1)) * dt_s;
+      x[0] += std::clamp(lagged - x[0], -max_move, max_move);
+    }
+    s.theta_motor_rad = x[0];
+  }
+};
+
+HIL_REGISTER_EFFECT(MotorServo, "position servo: first-order lag and rate limit on the command")
+
+}  // namespace hil::plant

@@ -1,0 +1,87 @@
+// Measurement files: strict about what it needs, tolerant of what it does not.
+#include "hil/csv_reader.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "temp_file.hpp"
+
+using hil::CsvError;
+using hil::CsvRequest;
+
+namespace {
+
+const CsvRequest kMeasurement{{"t_s", "theta_cmd_deg", "p_meas_mpa"}, {"theta_motor_deg"}, "t_s"};
+
+std::string error_of(const std::string& text) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("m.csv", text);
+  try {
+    (void)hil::read_csv(file, kMeasurement);
+  } catch (const CsvError& e) {
+    const std::string msg = e.what();
+    return msg.substr(msg.find("m.csv"));
+  }
+  return "no error";
+}
+
+TEST(CsvReader, ReadsMetadataRequiredOptionalAndIgnoresOthers) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("m.csv",
+                              "# rig: lab 3\n# source: logger\n"
+                              "t_s,comment_col,p_meas_mpa,theta_cmd_deg\n"
+                              "0.000,anything,1.0,11.5\n"
+                              "0.0013,  here ,1.1,+11.6\r\n"
+                              "0.0021,x,1.2e0,11.7");  // no final newline, uneven steps
+  hil::CsvHeader header;
+  const auto data = hil::read_csv(file, kMeasurement, &header);
+  ASSERT_EQ(data.rows(), 3u);
+  EXPECT_EQ(header.metadata.size(), 2u);
+  EXPECT_EQ(header.metadata[0].second, "lab 3");
+  EXPECT_DOUBLE_EQ(data.values[0][2], 0.0021);
+  EXPECT_DOUBLE_EQ(data.values[1][1], 11.6);
+  EXPECT_DOUBLE_EQ(data.values[2][2], 1.2);
+  EXPECT_FALSE(header.present[3]);  // no encoder column
+  EXPECT_TRUE(data.values[3].empty());
+  EXPECT_EQ(data.first_line, 4u);
+}
+
+TEST(CsvReader, MissingRequiredColumnNamesIt) {
+  const auto msg = error_of("t_s,p_meas_mpa\n0,1\n");
+  EXPECT_EQ(msg.rfind("m.csv:1:1: missing required column 'theta_cmd_deg'", 0), 0u) << msg;
+}
+
+TEST(CsvReader, NonNumericCellNamesLineAndColumn) {
+  const auto msg = error_of("t_s,theta_cmd_deg,p_meas_mpa\n0,1,1\n0.001,1,abc\n");
+  EXPECT_EQ(msg, "m.csv:3:3: column 'p_meas_mpa': not a number: 'abc'");
+  EXPECT_EQ(error_of("t_s,theta_cmd_deg,p_meas_mpa\n0,,1\n"), "m.csv:2:2: column 'theta_cmd_deg': not a number: ''");
+  EXPECT_NE(error_of("t_s,theta_cmd_deg,p_meas_mpa\n0,nan,1\n").find("m.csv:2:2"), std::string::npos);
+}
+
+TEST(CsvReader, TimeGoingBackwardsIsAnError) {
+  const auto msg = error_of("t_s,theta_cmd_deg,p_meas_mpa\n0.001,1,1\n0.002,1,1\n0.0015,1,1\n");
+  EXPECT_EQ(msg.rfind("m.csv:4:1: column 't_s': t_s goes backwards", 0), 0u) << msg;
+}
+
+TEST(CsvReader, RaggedRowAndEmptyFile) {
+  EXPECT_EQ(error_of("t_s,theta_cmd_deg,p_meas_mpa\n0,1\n").rfind("m.csv:2:3: expected 3 fields", 0), 0u);
+  EXPECT_EQ(error_of("").rfind("m.csv:1:1: no header row", 0), 0u);
+  EXPECT_EQ(error_of("# only: metadata\n").rfind("m.csv:2:1: no header row", 0), 0u);
+}
+
+TEST(CsvReader, StreamsInChunks) {
+  hil::test::TempDir dir;
+  std::string text = "t_s,theta_cmd_deg,p_meas_mpa\n";
+  for (int i = 0; i < 10000; ++i) text += std::to_string(i * 1e-3) + ",1," + std::to_string(1 + i * 1e-6) + "\n";
+  const auto file = dir.write("big.csv", text);
+  hil::CsvReader reader(file, kMeasurement);
+  hil::CsvChunk chunk;
+  std::size_t rows = 0, chunks = 0;
+  while (reader.next(chunk, 3000)) rows += chunk.rows(), ++chunks;
+  EXPECT_EQ(rows, 10000u);
+  EXPECT_EQ(chunks, 4u);
+  EXPECT_EQ(reader.bytes_read(), reader.file_bytes());
+}
+
+}  // namespace
