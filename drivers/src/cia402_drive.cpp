@@ -18,6 +18,7 @@
 
 #include "hil/config.hpp"
 #include "hil/drv/socketcan.hpp"
+#include "setup_util.hpp"
 
 namespace hil::drv {
 
@@ -458,15 +459,6 @@ struct Cia402Drive::Impl {
     fut.wait();
   }
 
-  template <class Pred>
-  bool wait_for(milliseconds timeout, Pred pred) {
-    const auto until = Clock::now() + timeout;
-    while (!pred()) {
-      if (Clock::now() > until) return false;
-      std::this_thread::sleep_for(milliseconds(2));
-    }
-    return true;
-  }
 };
 
 Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : impl_(std::make_unique<Impl>(std::move(config))) {
@@ -514,7 +506,7 @@ void Cia402Drive::configure() {
   });
   const auto boots = m.bootups.load();
   nmt(NmtCommand::reset_communication);
-  if (!m.wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
+  if (!detail::wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
     char id[8];
     std::snprintf(id, sizeof id, "0x%03X", kHeartbeat + n);
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
@@ -572,7 +564,7 @@ void Cia402Drive::configure() {
     m.publish();
   });
   nmt(NmtCommand::start);
-  const bool up = m.wait_for(m.cfg.boot_timeout, [&] {
+  const bool up = detail::wait_for(m.cfg.boot_timeout, [&] {
     return m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid;
   });
   if (!up) {
@@ -589,7 +581,7 @@ void Cia402Drive::activate() {
   m.command.store({fb.position_rad, true, false});
   if (state() == cia402::State::fault) m.reset_request = true;
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
-  if (!m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
+  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
     throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) + "; last error: " +
                      std::string(health().last_error_text()) + ")");
@@ -599,7 +591,7 @@ void Cia402Drive::activate() {
 void Cia402Drive::deactivate() {
   auto& m = *impl_;
   m.target = static_cast<std::uint8_t>(cia402::Target::switched_on);
-  if (!m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switched_on; })) {
+  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switched_on; })) {
     throw DriveError(m.who + ": did not reach switched on within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) + ")");
   }
@@ -615,11 +607,7 @@ void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& 
   }
 }
 
-DeviceHealth Cia402Drive::health() const noexcept {
-  DeviceHealth h = impl_->health_box.load();
-  if (h.last_heartbeat != Clock::time_point{}) h.heartbeat_age = Clock::now() - h.last_heartbeat;
-  return h;
-}
+DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }
 
 cia402::State Cia402Drive::state() const noexcept { return static_cast<cia402::State>(impl_->state_now.load()); }
 

@@ -9,6 +9,7 @@
 #include "hil/config.hpp"
 #include "hil/drv/modbus.hpp"
 #include "modbus_link.hpp"
+#include "setup_util.hpp"
 
 namespace hil::drv {
 
@@ -369,15 +370,7 @@ class Poller {
   std::thread thread_;
 };
 
-template <class Pred>
-bool wait_for(milliseconds timeout, Pred pred) {
-  const auto until = Clock::now() + timeout;
-  while (!pred()) {
-    if (Clock::now() > until) return false;
-    std::this_thread::sleep_for(milliseconds(2));
-  }
-  return true;
-}
+using detail::wait_for;
 
 }  // namespace
 
@@ -508,11 +501,7 @@ DriveFeedback ModbusDrive::read(Clock::time_point, Clock::duration) noexcept { r
 void ModbusDrive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
   impl_->command.store(command);
 }
-DeviceHealth ModbusDrive::health() const noexcept {
-  DeviceHealth h = impl_->poller.health_box().load();
-  if (h.last_heartbeat != Clock::time_point{}) h.heartbeat_age = Clock::now() - h.last_heartbeat;
-  return h;
-}
+DeviceHealth ModbusDrive::health() const noexcept { return detail::with_age(impl_->poller.health_box()); }
 
 // ---- the transducer --------------------------------------------------------------------------
 
@@ -565,10 +554,6 @@ void ModbusTransducer::configure() {
 }
 
 PressureReading ModbusTransducer::read(Clock::time_point, Clock::duration) noexcept { return impl_->reading.load(); }
-DeviceHealth ModbusTransducer::health() const noexcept {
-  DeviceHealth h = impl_->poller.health_box().load();
-  if (h.last_heartbeat != Clock::time_point{}) h.heartbeat_age = Clock::now() - h.last_heartbeat;
-  return h;
-}
+DeviceHealth ModbusTransducer::health() const noexcept { return detail::with_age(impl_->poller.health_box()); }
 
 }  // namespace hil::drv

@@ -1,0 +1,78 @@
+// The telemetry recorder of one run: a writer thread drains the loop's telemetry and event rings
+// into telemetry.csv (flushed every flush period, so a crash loses at most that much) and
+// events.jsonl (spdlog, one JSON object a line, flushed per event), and hands every row to a
+// sink (the WebSocket stream). Memory is bounded by the rings; the loop counts what does not fit.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/rt_loop.hpp"
+
+namespace spdlog {
+class logger;
+}
+
+namespace hil::bench {
+
+// An event as written to events.jsonl (without "utc", which the logger adds).
+nlohmann::json event_json(const LoopEvent& e);
+
+class Recorder {
+ public:
+  using RowSink = std::function<void(const TelemetryRecord&)>;
+
+  // Creates dir/telemetry.csv and dir/events.jsonl and starts the writer thread. Throws naming
+  // the file when it cannot.
+  Recorder(const std::filesystem::path& dir, const std::vector<std::pair<std::string, std::string>>& csv_metadata,
+           std::size_t ring_rows, RowSink on_row = {},
+           std::chrono::milliseconds flush_period = std::chrono::milliseconds(100));
+  ~Recorder();
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+
+  SpscRing<TelemetryRecord>& telemetry() noexcept { return telemetry_; }
+  SpscRing<LoopEvent>& events() noexcept { return events_; }
+
+  // An event from outside the loop (run start/end, rig setup, operator requests). Any thread.
+  void log(const nlohmann::json& event);
+
+  // Drains both rings, stops the writer thread and closes the files. Call after the loop thread
+  // has ended. Returns the first write error ("" when none); never throws.
+  std::string finish();
+
+  std::uint64_t rows_written() const noexcept { return rows_written_.load(); }
+  std::uint64_t rows_unwritten() const noexcept { return rows_unwritten_.load(); }  // after a disk error
+  std::uint64_t events_written() const noexcept { return events_written_.load(); }
+
+ private:
+  void writer();
+  bool drain();  // one pass; true when it found anything
+
+  SpscRing<TelemetryRecord> telemetry_;
+  SpscRing<LoopEvent> events_;
+  std::unique_ptr<CsvWriter> csv_;
+  std::shared_ptr<spdlog::logger> log_;
+  RowSink on_row_;
+  std::chrono::milliseconds flush_period_;
+  std::vector<TelemetryRecord> batch_;
+  std::string error_;
+  std::atomic<std::uint64_t> rows_written_{0}, rows_unwritten_{0}, events_written_{0};
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::thread thread_;  // last: starts after everything above exists
+};
+
+}  // namespace hil::bench

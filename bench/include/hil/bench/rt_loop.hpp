@@ -1,0 +1,212 @@
+// The real-time loop of one run: every period it reads the rig, steps the controller, applies
+// the safety interlocks, writes the rig and pushes a telemetry row, and nothing else. It
+// reproduces simulate_run's per-step sequence exactly (tests/bench compares them row by row).
+//
+// RunLoop is the period's work without the clock: the pacing thread (rt_thread.hpp) wakes it
+// on absolute deadlines and passes the times in, so tests drive it with made-up times.
+// Operators reach it through a request ring (stop, abort, gap change, faults); it reports through
+// the telemetry ring, the event ring and a snapshot mailbox. It never blocks on any of them.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/loop_stats.hpp"
+#include "hil/bench/rig.hpp"
+#include "hil/bench/run_metrics.hpp"
+#include "hil/bench/safety.hpp"
+#include "hil/bench/sim.hpp"
+#include "hil/bench/spsc_ring.hpp"
+#include "hil/drv/io_types.hpp"
+#include "hil/plant/rng.hpp"
+
+namespace hil::cfg {
+class Node;
+}
+
+namespace hil::bench {
+
+enum class OverrunPolicy : std::uint8_t { count, abort };
+
+// The `loop` block of a rig file.
+struct LoopConfig {
+  int priority = 80;            // SCHED_FIFO priority 1..99; 0 = the normal scheduler
+  int cpu = -1;                 // pin the loop thread to this CPU; -1 = no pinning
+  OverrunPolicy overrun_policy = OverrunPolicy::count;
+  int overrun_abort_after = 10; // policy abort: this many overruns in a row trip the run
+  int ring_rows = 65536;        // telemetry ring capacity (rows); the loss counter reports overflow
+  static LoopConfig from_yaml(const cfg::Node& node);
+};
+
+// Bits of the loop_flags telemetry column (and of LoopSnapshot::flags).
+enum LoopFlag : std::uint32_t {
+  kFlagSensorFault = 1u << 0,
+  kFlagDriveFault = 1u << 1,
+  kFlagRigFault = 1u << 2,      // an injected rig fault (silent) is on
+  kFlagGapOverride = 1u << 3,   // the operator set the gap
+  kFlagReadMissed = 1u << 4,    // no usable reading this period
+  kFlagCmdLimited = 1u << 5,    // an angle or rate limit changed the command
+  kFlagSafeState = 1u << 6,
+  kFlagOverrun = 1u << 7,       // this period ended after the next deadline
+};
+
+struct TelemetryRecord {
+  StepRecord step;
+  double wake_latency_us = 0;
+  double compute_us = 0;
+  std::uint32_t flags = 0;
+};
+
+// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags.
+inline constexpr std::size_t kLoopColumns = kSimColumns + 3;
+const std::vector<CsvColumn>& loop_telemetry_columns();
+std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
+
+enum class SensorFault : std::uint8_t { none, stuck, dropout, bias, noise };
+std::string_view to_string(SensorFault f) noexcept;
+
+// An operator's request, carried from the API to the loop.
+struct LoopRequest {
+  enum class Kind : std::uint8_t { stop, abort, set_gap, programme_gap, sensor_fault, drive_fault, rig_fault, clear_faults };
+  Kind kind = Kind::stop;
+  SensorFault sensor = SensorFault::none;
+  double value = 0;       // set_gap: gap [rad]; sensor bias: offset [Pa]; sensor noise: RMS [Pa]
+  double duration_s = 0;  // faults: 0 = until cleared
+  bool on = true;         // drive_fault, rig_fault: on or off
+};
+
+// Something the loop did or saw, with the loop time it happened at. a/b depend on the kind.
+struct LoopEvent {
+  enum class Kind : std::uint8_t {
+    gap_change,      // a = gap [rad] (operator)
+    gap_programme,   // the campaign's gap programme is back
+    sensor_fault,    // sensor; a = value (bias/noise [Pa], stuck: the held [Pa]); b = duration [s] (0 = until cleared)
+    drive_fault,     // a = 1 on / 0 off; b = duration [s]
+    rig_fault,       // a = 1 on / 0 off; b = 1 if the rig accepted it
+    fault_expired,   // sensor != none: the sensor fault; otherwise the drive fault
+    faults_cleared,
+    trip,            // trip; a = value, b = limit (Pa for pressure, count for watchdog/overruns)
+    safe_state,      // a = the safe command [rad]
+    cmd_limited,     // a = the requested command [rad], b = the limited one [rad]
+    overrun,         // a = how far past the next deadline [us]; starts of streaks only
+    stopped,         // operator stop
+  };
+  Kind kind = Kind::stopped;
+  SensorFault sensor = SensorFault::none;
+  Trip trip = Trip::none;
+  std::int64_t period = 0;
+  double t_s = 0;
+  double a = kNaN, b = kNaN;
+};
+
+enum class LoopEnd : std::uint8_t { running, completed, stopped, tripped };
+
+// The loop's state for status requests; written every period, read from any thread.
+struct LoopSnapshot {
+  double t_s = 0;
+  std::int64_t periods = 0, total_periods = 0;
+  std::uint32_t flags = 0;
+  LoopEnd end = LoopEnd::running;
+  Trip trip = Trip::none;
+  double gap_rad = kNaN, gap_override_rad = kNaN;
+  SensorFault sensor = SensorFault::none;
+  double sensor_value = 0, sensor_until_s = 0, drive_until_s = 0;  // until: +inf = until cleared
+  std::int64_t overruns = 0, missed_reads = 0, limited_periods = 0;
+  std::uint64_t rows_lost = 0, events_lost = 0;
+  double p_meas_pa = kNaN, p_ref_pa = kNaN, theta_cmd_rad = kNaN;
+};
+
+class RunLoop {
+ public:
+  // Setup: builds the controller, keeps references (all must outlive the loop). wall_period is
+  // the pacing period (the campaign's dT divided by the speed factor).
+  RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
+          Clock::duration wall_period, SpscRing<TelemetryRecord>& telemetry, SpscRing<LoopEvent>& events,
+          SpscRing<LoopRequest>& requests, TimedRig::NowFn now = &Clock::now);
+  RunLoop(const RunLoop&) = delete;
+  RunLoop& operator=(const RunLoop&) = delete;
+
+  // Setup, after the rig is active: one reading gives the controller its initial state and the
+  // first command (the drive's own target: no jump). Throws when the rig gives none.
+  void begin(Clock::time_point now);
+
+  // One period: requests, read, controller, safety, write. Real-time safe.
+  void cycle(Clock::time_point deadline, Clock::time_point woke) noexcept;
+  // Closes the period: compute time (end - woke), overrun check, telemetry row, snapshot.
+  // Returns false once the run is over. Real-time safe.
+  bool finish_cycle(Clock::time_point end) noexcept;
+
+  Clock::duration wall_period() const noexcept { return wall_period_; }
+  std::int64_t total_periods() const noexcept { return n_; }
+  LoopEnd end() const noexcept { return end_; }
+  LoopSnapshot snapshot() const noexcept { return snapshot_.load(); }  // any thread
+
+  // After the loop thread has finished (or from it):
+  Trip trip() const noexcept { return trip_; }
+  double trip_t_s() const noexcept { return trip_t_s_; }
+  double trip_value() const noexcept { return trip_value_; }
+  double trip_limit() const noexcept { return trip_limit_; }
+  std::uint64_t rows_pushed() const noexcept { return rows_pushed_; }
+  std::uint64_t rows_lost() const noexcept { return rows_lost_; }
+  std::uint64_t events_lost() const noexcept { return events_lost_; }
+  std::int64_t overruns() const noexcept { return overruns_; }
+  std::int64_t periods_run() const noexcept { return k_; }
+  // Any thread (status):
+  const LatencyHistogram& wake_latency() const noexcept { return wake_latency_; }
+  const LatencyHistogram& compute_time() const noexcept { return compute_; }
+  const TimedRig& rig() const noexcept { return rig_; }
+
+ private:
+  void apply(const LoopRequest& r, double t_s) noexcept;
+  void emit(LoopEvent e) noexcept;
+  void enter_safe(Trip trip, double value, double limit, double t_s) noexcept;
+
+  const Campaign& c_;
+  const RunSpec& run_;
+  const ctl::Controller controller_;
+  TimedRig rig_;
+  const bool simulated_;
+  Safety safety_;
+  const LoopConfig loop_;
+  const Clock::duration wall_period_;
+  const std::int64_t n_;
+  SpscRing<TelemetryRecord>& telemetry_;
+  SpscRing<LoopEvent>& events_;
+  SpscRing<LoopRequest>& requests_;
+  TimedRig::NowFn now_;
+
+  ctl::ControllerState cs_;
+  ctl::ControllerOutputs out_;
+  Schedule::Cursor ref_cursor_, gap_cursor_;
+  plant::Rng rng_;
+  std::int64_t k_ = 0;
+  double last_sent_rad_ = 0;    // the last command the bench sent
+  double last_p_meas_pa_ = kNaN;
+  bool limited_ = false;
+  // Faults and overrides.
+  double gap_override_rad_ = kNaN;
+  SensorFault sensor_ = SensorFault::none;
+  double sensor_value_ = 0, sensor_until_s_ = 0;
+  bool drive_fault_ = false;
+  double drive_until_s_ = 0, drive_frozen_rad_ = 0;
+  bool rig_silent_ = false;
+  // Safety and ending.
+  bool safe_ = false;
+  double safe_since_s_ = 0;
+  bool abort_requested_ = false, stop_requested_ = false, overrun_trip_ = false;
+  Trip trip_ = Trip::none;
+  double trip_t_s_ = kNaN, trip_value_ = kNaN, trip_limit_ = kNaN;
+  LoopEnd end_ = LoopEnd::running;
+  // Statistics and the period in progress.
+  LatencyHistogram wake_latency_, compute_;
+  std::int64_t overruns_ = 0, overruns_in_a_row_ = 0, missed_reads_ = 0, limited_periods_ = 0;
+  std::uint64_t rows_pushed_ = 0, rows_lost_ = 0, events_lost_ = 0;
+  Clock::time_point deadline_{}, woke_{};
+  TelemetryRecord rec_;
+  drv::Mailbox<LoopSnapshot> snapshot_;
+};
+
+}  // namespace hil::bench

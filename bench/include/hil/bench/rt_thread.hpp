@@ -1,0 +1,42 @@
+// Real-time thread setup and pacing: SCHED_FIFO, CPU affinity and locked memory when the
+// system permits them (with a warning and the normal scheduler when it does not), and a loop
+// woken on absolute CLOCK_MONOTONIC deadlines. Setup calls allocate and may fail; run_paced is
+// the real-time part.
+#pragma once
+
+#include <chrono>
+#include <string>
+#include <thread>
+
+#include "hil/bench/rt_loop.hpp"
+
+namespace hil::bench {
+
+// What a thread got, for the operator and run.json.
+struct RtSetup {
+  bool fifo = false;
+  int priority = 0;
+  int cpu = -1;  // pinned to this CPU, -1 = not pinned
+  std::string warning;  // empty when everything asked for was granted
+  std::string describe() const;  // "SCHED_FIFO 80, CPU 1" / "SCHED_OTHER (...)"
+};
+
+// Applies SCHED_FIFO at `priority` (0: leave the normal scheduler) and pins to `cpu` (-1: no
+// pinning) on `thread`. Never throws: whatever is refused lands in the warning.
+RtSetup make_realtime(std::thread& thread, int priority, int cpu);
+
+// mlockall(MCL_CURRENT | MCL_FUTURE): page faults would otherwise stall the loop. Returns an
+// empty string when granted, else the warning.
+std::string lock_memory();
+
+// Touches `bytes` of stack so the loop never faults a stack page in. Real-time safe.
+void prefault_stack(std::size_t bytes = 256 * 1024) noexcept;
+
+// Sleeps until `deadline` on CLOCK_MONOTONIC (absolute, so errors do not accumulate). Real-time safe.
+void sleep_until(Clock::time_point deadline) noexcept;
+
+// Runs `loop` until the run ends: wakes at start, start + period, ... (never skipping a deadline:
+// a late period is followed at once by the next), calls cycle/finish_cycle. Real-time safe.
+void run_paced(RunLoop& loop, Clock::time_point start) noexcept;
+
+}  // namespace hil::bench

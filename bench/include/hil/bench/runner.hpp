@@ -1,0 +1,83 @@
+// The campaign runner: runs a campaign's runs one after the other on a rig, each in its own
+// real-time loop thread with its own recorder and run folder
+//   <runs_dir>/<UTC start>_<campaign>_<run>/  telemetry.csv, events.jsonl, run.json
+// and answers the operator's requests (status, stop, abort, injections) from any thread.
+// Not real-time: it sets the loop up, waits for it, and writes run.json.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/rig_config.hpp"
+#include "hil/bench/rt_loop.hpp"
+
+namespace hil::bench {
+
+// Refusals the API turns into 4xx: the runner's state does not allow the request.
+class Conflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct StartRequest {
+  Campaign campaign;
+  RigConfig rig;
+  std::vector<std::string> runs;  // empty: all, in the campaign's order
+  double speed = 1.0;             // loop periods per dT of wall time; simulated rigs only
+  std::string source;             // where the campaign came from ("configs/campaigns/x.yaml", "posted")
+};
+
+struct RunnerOptions {
+  std::filesystem::path runs_dir = "runs";
+  std::string version = "0";
+  std::string mlock_warning;      // what lock_memory() said at start ("" = memory locked)
+  std::function<void(const TelemetryRecord&)> on_row;   // recorder thread, every row
+  std::function<void(const nlohmann::json&)> on_notice; // run started / finished; any thread
+};
+
+class CampaignRunner {
+ public:
+  explicit CampaignRunner(RunnerOptions options);
+  ~CampaignRunner();  // aborts a running campaign and waits for it
+  CampaignRunner(const CampaignRunner&) = delete;
+  CampaignRunner& operator=(const CampaignRunner&) = delete;
+
+  // Validates and starts; returns at once. Throws Conflict when a campaign runs, std::invalid_argument
+  // for a request that cannot run (unknown run name, speed on a hardware rig).
+  void start(StartRequest request);
+  // Ends the campaign after the current period (outcome "stopped"). Throws Conflict when idle.
+  void stop();
+  // Safety abort: safe state, then the end (outcome "aborted", reason as given). Throws Conflict when idle.
+  void abort(const std::string& reason);
+  // An injection for the running loop. Throws Conflict when no loop runs, invalid_argument when
+  // the rig cannot do it.
+  void inject(const LoopRequest& request);
+
+  bool running() const;
+  void wait();  // until the campaign thread has finished
+  nlohmann::json status() const;
+
+ private:
+  struct Active;
+  void run_campaign(std::shared_ptr<Active> a);
+  void run_one(Active& a, std::size_t index);
+  void notice(const nlohmann::json& j) const;
+
+  RunnerOptions o_;
+  mutable std::mutex mutex_;
+  std::shared_ptr<Active> active_;  // the running campaign, or null
+  nlohmann::json last_;             // the last finished campaign
+  std::thread thread_;
+};
+
+}  // namespace hil::bench

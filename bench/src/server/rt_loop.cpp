@@ -1,0 +1,335 @@
+#include "hil/bench/rt_loop.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "hil/config.hpp"
+
+namespace hil::bench {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kRequestsPerPeriod = 8;  // more wait for the next period
+
+double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t_s + duration_s : kInf; }
+
+}  // namespace
+
+LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows"});
+  LoopConfig c;
+  c.priority = static_cast<int>(n.integer("priority", 80));
+  if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
+  c.cpu = static_cast<int>(n.integer("cpu", -1));
+  if (n.has("cpu")) n.at("cpu").require(c.cpu >= -1 && c.cpu < 1024, "must be a CPU number, or -1 for no pinning");
+  if (const auto o = n.find("overrun")) {
+    o->allow_keys({"policy", "abort_after"});
+    const std::string policy = o->text("policy", "count");
+    if (policy == "count") {
+      c.overrun_policy = OverrunPolicy::count;
+    } else if (policy == "abort") {
+      c.overrun_policy = OverrunPolicy::abort;
+    } else {
+      o->at("policy").fail("must be 'count' or 'abort', got '" + policy + "'");
+    }
+    c.overrun_abort_after = static_cast<int>(o->integer("abort_after", 10));
+    if (o->has("abort_after")) o->at("abort_after").require(c.overrun_abort_after >= 1, "must be >= 1");
+  }
+  c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
+  if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
+  return c;
+}
+
+const std::vector<CsvColumn>& loop_telemetry_columns() {
+  static const std::vector<CsvColumn> columns = [] {
+    std::vector<CsvColumn> c = sim_telemetry_columns();
+    c.push_back({"wake_latency_us", 2});
+    c.push_back({"compute_us", 2});
+    c.push_back({"loop_flags", 0});
+    return c;
+  }();
+  return columns;
+}
+
+std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r) {
+  std::array<double, kLoopColumns> row{};
+  const auto sim = telemetry_row(r.step);
+  for (std::size_t i = 0; i < kSimColumns; ++i) row[i] = sim[i];
+  row[kSimColumns] = r.wake_latency_us;
+  row[kSimColumns + 1] = r.compute_us;
+  row[kSimColumns + 2] = static_cast<double>(r.flags);
+  return row;
+}
+
+std::string_view to_string(SensorFault f) noexcept {
+  switch (f) {
+    case SensorFault::none: return "none";
+    case SensorFault::stuck: return "stuck";
+    case SensorFault::dropout: return "dropout";
+    case SensorFault::bias: return "bias";
+    case SensorFault::noise: return "noise";
+  }
+  return "?";
+}
+
+RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const SafetyConfig& safety,
+                 const LoopConfig& loop, Clock::duration wall_period, SpscRing<TelemetryRecord>& telemetry,
+                 SpscRing<LoopEvent>& events, SpscRing<LoopRequest>& requests, TimedRig::NowFn now)
+    : c_(campaign),
+      run_(run),
+      controller_(run.controller),
+      rig_(rig, now),
+      simulated_(rig.simulated()),
+      safety_(safety),
+      loop_(loop),
+      wall_period_(wall_period),
+      n_(std::lround(campaign.duration_s / campaign.period_s)),
+      telemetry_(telemetry),
+      events_(events),
+      requests_(requests),
+      now_(now),
+      rng_(campaign.seed ^ 0x5eed5eedULL) {
+  if (wall_period_ <= Clock::duration::zero()) throw std::invalid_argument("loop period must be > 0");
+}
+
+void RunLoop::begin(Clock::time_point now) {
+  RigReading rd;
+  const RigStatus s = rig_.read(now, wall_period_, rd);
+  if (s != RigStatus::ok || !std::isfinite(rd.p_meas_pa)) {
+    throw std::runtime_error(std::string("rig '") + std::string(rig_.rig().kind()) +
+                             "' gave no reading at the start of the run (" +
+                             std::string(s == RigStatus::fault ? rig_.rig().health().last_error_text() : "no data") + ")");
+  }
+  const double theta0 = std::isfinite(rd.theta_target_rad) ? rd.theta_target_rad : rd.theta_motor_rad;
+  if (!std::isfinite(theta0)) {
+    throw std::runtime_error(std::string("rig '") + std::string(rig_.rig().kind()) +
+                             "' reports neither a drive target nor a motor angle at the start of the run");
+  }
+  cs_ = controller_.initial_state(theta0, rd.p_meas_pa, run_.initial_touch);
+  last_sent_rad_ = theta0;
+  last_p_meas_pa_ = rd.p_meas_pa;
+  LoopSnapshot snap;
+  snap.total_periods = n_;
+  snap.p_meas_pa = rd.p_meas_pa;
+  snap.theta_cmd_rad = theta0;
+  snapshot_.store(snap);
+}
+
+void RunLoop::emit(LoopEvent e) noexcept {
+  e.period = k_;
+  if (!events_.try_push(e)) ++events_lost_;
+}
+
+void RunLoop::apply(const LoopRequest& r, double t_s) noexcept {
+  using K = LoopRequest::Kind;
+  switch (r.kind) {
+    case K::stop: stop_requested_ = true; break;
+    case K::abort: abort_requested_ = true; break;
+    case K::set_gap:
+      gap_override_rad_ = r.value;
+      emit({.kind = LoopEvent::Kind::gap_change, .t_s = t_s, .a = r.value});
+      break;
+    case K::programme_gap:
+      gap_override_rad_ = kNaN;
+      emit({.kind = LoopEvent::Kind::gap_programme, .t_s = t_s});
+      break;
+    case K::sensor_fault:
+      sensor_ = r.sensor;
+      sensor_value_ = r.sensor == SensorFault::stuck ? last_p_meas_pa_ : r.value;
+      sensor_until_s_ = until(t_s, r.duration_s);
+      emit({.kind = LoopEvent::Kind::sensor_fault, .sensor = r.sensor, .t_s = t_s, .a = sensor_value_, .b = r.duration_s});
+      break;
+    case K::drive_fault:
+      drive_fault_ = r.on;
+      drive_frozen_rad_ = last_sent_rad_;
+      drive_until_s_ = until(t_s, r.duration_s);
+      emit({.kind = LoopEvent::Kind::drive_fault, .t_s = t_s, .a = r.on ? 1.0 : 0.0, .b = r.duration_s});
+      break;
+    case K::rig_fault: {
+      const bool accepted = rig_.rig().inject(RigFault::silent, r.on);
+      if (accepted) rig_silent_ = r.on;
+      emit({.kind = LoopEvent::Kind::rig_fault, .t_s = t_s, .a = r.on ? 1.0 : 0.0, .b = accepted ? 1.0 : 0.0});
+      break;
+    }
+    case K::clear_faults:
+      sensor_ = SensorFault::none;
+      drive_fault_ = false;
+      if (rig_silent_) rig_.rig().inject(RigFault::silent, false);
+      rig_silent_ = false;
+      emit({.kind = LoopEvent::Kind::faults_cleared, .t_s = t_s});
+      break;
+  }
+}
+
+void RunLoop::enter_safe(Trip trip, double value, double limit, double t_s) noexcept {
+  safe_ = true;
+  safe_since_s_ = t_s;
+  trip_ = trip;
+  trip_t_s_ = t_s;
+  trip_value_ = value;
+  trip_limit_ = limit;
+  emit({.kind = LoopEvent::Kind::trip, .trip = trip, .t_s = t_s, .a = value, .b = limit});
+}
+
+void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept {
+  deadline_ = deadline;
+  woke_ = woke;
+  const double t = static_cast<double>(k_) * c_.period_s;
+  const double dt = c_.period_s;
+  std::uint32_t flags = 0;
+
+  LoopRequest req;
+  for (int i = 0; i < kRequestsPerPeriod && requests_.pop(&req, 1) == 1; ++i) apply(req, t);
+  if (sensor_ != SensorFault::none && t >= sensor_until_s_) {
+    emit({.kind = LoopEvent::Kind::fault_expired, .sensor = sensor_, .t_s = t});
+    sensor_ = SensorFault::none;
+  }
+  if (drive_fault_ && t >= drive_until_s_) {
+    emit({.kind = LoopEvent::Kind::fault_expired, .t_s = t});
+    drive_fault_ = false;
+  }
+
+  // Read, and what the injected sensor faults make of the reading.
+  RigReading rd;
+  const RigStatus status = rig_.read(woke, wall_period_, rd);
+  bool missed = status != RigStatus::ok || !std::isfinite(rd.p_meas_pa);
+  if (!missed) last_p_meas_pa_ = rd.p_meas_pa;
+  if (!missed && sensor_ != SensorFault::none) {
+    switch (sensor_) {
+      case SensorFault::stuck: rd.p_meas_pa = sensor_value_; break;
+      case SensorFault::dropout: missed = true; rd.p_meas_pa = kNaN; break;
+      case SensorFault::bias: rd.p_meas_pa += sensor_value_; break;
+      case SensorFault::noise: rd.p_meas_pa += sensor_value_ * rng_.gaussian(); break;
+      case SensorFault::none: break;
+    }
+  }
+  const double p_ref = c_.reference_pa.at(t, ref_cursor_);
+  const double programmed_gap = c_.gap_rad.at(t, gap_cursor_);
+  const double gap = std::isnan(gap_override_rad_) ? programmed_gap : gap_override_rad_;
+
+  // Controller, then safety.
+  double cmd = last_sent_rad_;
+  out_.comp_rad = 0;
+  out_.gap_measured = false;
+  if (!safe_) {
+    double value = kNaN, limit = kNaN;
+    Trip trip = safety_.check(missed, status == RigStatus::fault, rd.p_meas_pa, value, limit);
+    if (trip == Trip::none && abort_requested_) trip = Trip::operator_abort;
+    if (trip == Trip::none && overrun_trip_) {
+      trip = Trip::overruns;
+      value = static_cast<double>(overruns_in_a_row_);
+      limit = loop_.overrun_abort_after;
+    }
+    if (trip != Trip::none) {
+      enter_safe(trip, value, limit, t);
+    } else if (!missed) {
+      out_ = controller_.step(cs_, {rd.p_meas_pa, p_ref, rd.theta_motor_rad});
+      cmd = out_.theta_cmd_rad;
+    }
+  }
+  if (safe_) {
+    cmd = safety_.safe_command(last_sent_rad_, dt);
+    if (safe_since_s_ == t) emit({.kind = LoopEvent::Kind::safe_state, .t_s = t, .a = cmd});
+    flags |= kFlagSafeState;
+  } else {
+    bool limited = false;
+    const double requested = cmd;
+    cmd = safety_.limit(requested, last_sent_rad_, dt, limited);
+    if (limited) {
+      flags |= kFlagCmdLimited;
+      ++limited_periods_;
+      if (!limited_) emit({.kind = LoopEvent::Kind::cmd_limited, .t_s = t, .a = requested, .b = cmd});
+    }
+    limited_ = limited;
+  }
+
+  // Write (a drive that ignores commands keeps the one it had).
+  rig_.write(woke, wall_period_, {drive_fault_ ? drive_frozen_rad_ : cmd, true, simulated_ ? gap : kNaN});
+  last_sent_rad_ = cmd;
+
+  if (missed) {
+    flags |= kFlagReadMissed;
+    ++missed_reads_;
+  }
+  if (sensor_ != SensorFault::none) flags |= kFlagSensorFault;
+  if (drive_fault_) flags |= kFlagDriveFault;
+  if (rig_silent_) flags |= kFlagRigFault;
+  if (!std::isnan(gap_override_rad_)) flags |= kFlagGapOverride;
+
+  StepRecord& r = rec_.step;
+  r.t_s = t;
+  r.p_ref_pa = p_ref;
+  r.p_chamber_pa = rd.p_chamber_pa;
+  r.p_meas_pa = rd.p_meas_pa;
+  r.theta_cmd_rad = cmd;
+  r.theta_motor_rad = rd.theta_motor_rad;
+  r.theta_valve_rad = rd.theta_valve_rad;
+  r.gap_true_rad = simulated_ ? gap : kNaN;
+  r.gap_est_rad = out_.gap_est_rad;
+  r.comp_rad = out_.comp_rad;
+  r.touch = out_.touch_state;
+  r.intention = out_.motion_intention;
+  r.gap_measured = out_.gap_measured;
+  rec_.wake_latency_us = std::chrono::duration<double, std::micro>(woke - deadline).count();
+  rec_.flags = flags;
+  wake_latency_.add(woke - deadline);
+}
+
+bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
+  compute_.add(end - woke_);
+  rec_.compute_us = std::chrono::duration<double, std::micro>(end - woke_).count();
+  const auto late = end - (deadline_ + wall_period_);
+  if (late > Clock::duration::zero()) {
+    rec_.flags |= kFlagOverrun;
+    ++overruns_;
+    if (overruns_in_a_row_++ == 0) {
+      emit({.kind = LoopEvent::Kind::overrun, .t_s = rec_.step.t_s, .a = std::chrono::duration<double, std::micro>(late).count()});
+    }
+    if (loop_.overrun_policy == OverrunPolicy::abort && overruns_in_a_row_ >= loop_.overrun_abort_after) overrun_trip_ = true;
+  } else {
+    overruns_in_a_row_ = 0;
+  }
+  if (telemetry_.try_push(rec_)) {
+    ++rows_pushed_;
+  } else {
+    ++rows_lost_;
+  }
+  const double t = rec_.step.t_s;
+  ++k_;
+  if (stop_requested_ && !safe_) {
+    end_ = LoopEnd::stopped;
+    emit({.kind = LoopEvent::Kind::stopped, .t_s = t});
+  } else if (safe_ && t - safe_since_s_ + 0.5 * c_.period_s >= safety_.config().safe_hold_s) {
+    end_ = LoopEnd::tripped;
+  } else if (k_ >= n_ && !safe_) {
+    end_ = LoopEnd::completed;
+  }
+
+  LoopSnapshot snap;
+  snap.t_s = t;
+  snap.periods = k_;
+  snap.total_periods = n_;
+  snap.flags = rec_.flags;
+  snap.end = end_;
+  snap.trip = trip_;
+  snap.gap_rad = rec_.step.gap_true_rad;
+  snap.gap_override_rad = gap_override_rad_;
+  snap.sensor = sensor_;
+  snap.sensor_value = sensor_value_;
+  snap.sensor_until_s = sensor_until_s_;
+  snap.drive_until_s = drive_fault_ ? drive_until_s_ : 0;
+  snap.overruns = overruns_;
+  snap.missed_reads = missed_reads_;
+  snap.limited_periods = limited_periods_;
+  snap.rows_lost = rows_lost_;
+  snap.events_lost = events_lost_;
+  snap.p_meas_pa = rec_.step.p_meas_pa;
+  snap.p_ref_pa = rec_.step.p_ref_pa;
+  snap.theta_cmd_rad = rec_.step.theta_cmd_rad;
+  snapshot_.store(snap);
+  return end_ == LoopEnd::running;
+}
+
+}  // namespace hil::bench

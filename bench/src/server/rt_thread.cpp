@@ -1,0 +1,80 @@
+#include "hil/bench/rt_thread.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace hil::bench {
+
+static_assert(std::is_same_v<Clock, std::chrono::steady_clock>, "the loop sleeps on CLOCK_MONOTONIC = steady_clock");
+
+std::string RtSetup::describe() const {
+  std::string s = fifo ? "SCHED_FIFO " + std::to_string(priority) : std::string("SCHED_OTHER");
+  s += cpu >= 0 ? ", CPU " + std::to_string(cpu) : std::string(", any CPU");
+  return s;
+}
+
+RtSetup make_realtime(std::thread& thread, int priority, int cpu) {
+  RtSetup r;
+  const pthread_t h = thread.native_handle();
+  if (priority > 0) {
+    sched_param sp{};
+    sp.sched_priority = priority;
+    const int err = pthread_setschedparam(h, SCHED_FIFO, &sp);
+    if (err == 0) {
+      r.fifo = true;
+      r.priority = priority;
+    } else {
+      r.warning += "SCHED_FIFO " + std::to_string(priority) + " refused (" + std::strerror(err) +
+                   "; run as root or grant CAP_SYS_NICE / an rtprio limit): the loop runs on the normal scheduler, expect jitter. ";
+    }
+  }
+  if (cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(static_cast<unsigned>(cpu), &set);
+    const int err = pthread_setaffinity_np(h, sizeof set, &set);
+    if (err == 0) {
+      r.cpu = cpu;
+    } else {
+      r.warning += "CPU affinity " + std::to_string(cpu) + " refused (" + std::strerror(err) + "): the loop may migrate. ";
+    }
+  }
+  if (!r.warning.empty()) r.warning.pop_back();
+  return r;
+}
+
+std::string lock_memory() {
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return {};
+  return std::string("mlockall refused (") + std::strerror(errno) +
+         "; raise RLIMIT_MEMLOCK or run as root): page faults may delay the loop";
+}
+
+void prefault_stack(std::size_t bytes) noexcept {
+  volatile unsigned char* p = static_cast<unsigned char*>(__builtin_alloca(bytes));
+  for (std::size_t i = 0; i < bytes; i += 4096) p[i] = 0;
+}
+
+void sleep_until(Clock::time_point deadline) noexcept {
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline.time_since_epoch()).count();
+  timespec ts{static_cast<time_t>(ns / 1000000000), static_cast<long>(ns % 1000000000)};
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+void run_paced(RunLoop& loop, Clock::time_point start) noexcept {
+  Clock::time_point deadline = start;
+  for (;;) {
+    sleep_until(deadline);
+    const auto woke = Clock::now();
+    loop.cycle(deadline, woke);
+    if (!loop.finish_cycle(Clock::now())) return;
+    deadline += loop.wall_period();
+  }
+}
+
+}  // namespace hil::bench

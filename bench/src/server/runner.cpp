@@ -1,0 +1,457 @@
+#include "hil/bench/runner.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <semaphore>
+
+#include <spdlog/spdlog.h>
+
+#include "hil/bench/recorder.hpp"
+#include "hil/bench/rt_thread.hpp"
+#include "hil/config.hpp"
+#include "hil/units.hpp"
+
+namespace hil::bench {
+namespace {
+
+using nlohmann::json;
+using SysClock = std::chrono::system_clock;
+
+std::string utc(SysClock::time_point t, const char* format) {
+  const std::time_t s = SysClock::to_time_t(t);
+  std::tm tm{};
+  gmtime_r(&s, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, format, &tm);
+  return buf;
+}
+std::string utc_iso(SysClock::time_point t) {
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count() % 1000;
+  char frac[8];
+  std::snprintf(frac, sizeof frac, ".%03dZ", static_cast<int>(ms));
+  return utc(t, "%Y-%m-%dT%H:%M:%S") + frac;
+}
+
+std::string hostname() {
+  char buf[256] = {};
+  gethostname(buf, sizeof buf - 1);
+  return buf;
+}
+
+void write_json_atomically(const std::filesystem::path& file, const json& j) {
+  const auto tmp = file.parent_path() / (file.filename().string() + ".tmp");
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out << j.dump(2) << "\n";
+    out.close();
+    if (!out) throw std::runtime_error("cannot write " + tmp.string());
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+std::filesystem::path unique_dir(const std::filesystem::path& base) {
+  std::filesystem::path p = base;
+  for (int i = 2; std::filesystem::exists(p); ++i) p = base.string() + "_" + std::to_string(i);
+  std::filesystem::create_directories(p);
+  return p;
+}
+
+std::string fmt(const char* format, double a, double b = 0, double c = 0) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, format, a, b, c);
+  return buf;
+}
+
+// The reason of a trip in the operator's words.
+std::string describe_trip(const RunLoop& loop, const Rig& rig) {
+  const double t = loop.trip_t_s();
+  switch (loop.trip()) {
+    case Trip::overpressure:
+      return fmt("overpressure: p_meas %.4f MPa above the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
+                 units::pa_to_mpa(loop.trip_limit()), t);
+    case Trip::underpressure:
+      return fmt("underpressure: p_meas %.4f MPa below the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
+                 units::pa_to_mpa(loop.trip_limit()), t);
+    case Trip::watchdog:
+      return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t);
+    case Trip::rig_fault:
+      return fmt("rig fault at t = %.3f s: ", t) + std::string(rig.health().last_error_text());
+    case Trip::overruns:
+      return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
+    case Trip::operator_abort:
+      return "operator abort";
+    case Trip::none:
+      break;
+  }
+  return "none";
+}
+
+json loop_stats_json(const RunLoop& loop) {
+  return {{"periods", loop.snapshot().periods},
+          {"overruns", loop.snapshot().overruns},
+          {"missed_reads", loop.snapshot().missed_reads},
+          {"limited_periods", loop.snapshot().limited_periods},
+          {"wake_latency_us", loop.wake_latency().summary().to_json()},
+          {"compute_us", loop.compute_time().summary().to_json()},
+          {"rig_read_us", loop.rig().read_time().summary().to_json()},
+          {"rig_write_us", loop.rig().write_time().summary().to_json()}};
+}
+
+json faults_json(const LoopSnapshot& s) {
+  json faults = json::array();
+  auto until = [](double u) { return std::isfinite(u) ? json(std::round(u * 1e3) / 1e3) : json(nullptr); };
+  if (s.flags & kFlagGapOverride) faults.push_back({{"kind", "gap"}, {"gap_deg", units::rad_to_deg(s.gap_override_rad)}});
+  if (s.sensor != SensorFault::none) {
+    json f = {{"kind", "sensor"}, {"mode", to_string(s.sensor)}, {"until_s", until(s.sensor_until_s)}};
+    if (s.sensor == SensorFault::bias) f["bias_kpa"] = s.sensor_value / 1e3;
+    if (s.sensor == SensorFault::noise) f["rms_kpa"] = s.sensor_value / 1e3;
+    if (s.sensor == SensorFault::stuck) f["held_mpa"] = units::pa_to_mpa(s.sensor_value);
+    faults.push_back(f);
+  }
+  if (s.flags & kFlagDriveFault) faults.push_back({{"kind", "drive"}, {"mode", "ignores_commands"}, {"until_s", until(s.drive_until_s)}});
+  if (s.flags & kFlagRigFault) faults.push_back({{"kind", "rig"}, {"mode", "silent"}});
+  return faults;
+}
+
+int outcome_rank(const std::string& o) { return o == "completed" ? 0 : o == "stopped" ? 1 : o == "aborted" ? 2 : 3; }
+
+}  // namespace
+
+struct CampaignRunner::Active {
+  StartRequest req;
+  std::vector<const RunSpec*> runs;
+  Clock::time_point started;
+  SysClock::time_point started_utc;
+  // Guarded by the runner's mutex:
+  bool stop = false, abort = false;
+  std::string abort_reason;
+  std::size_t index = 0;
+  std::filesystem::path dir;
+  const RunLoop* loop = nullptr;
+  SpscRing<LoopRequest>* requests = nullptr;
+  Recorder* recorder = nullptr;
+  RtSetup rt;
+  std::int64_t periods_done = 0;  // in finished runs
+  json finished = json::array();
+};
+
+CampaignRunner::CampaignRunner(RunnerOptions options) : o_(std::move(options)) {}
+
+CampaignRunner::~CampaignRunner() {
+  {
+    std::lock_guard lock(mutex_);
+    if (active_) {
+      active_->abort = true;
+      active_->abort_reason = "server shutting down";
+      if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::abort});
+    }
+  }
+  if (thread_.joinable()) thread_.join();
+}
+
+void CampaignRunner::notice(const json& j) const {
+  if (o_.on_notice) o_.on_notice(j);
+}
+
+bool CampaignRunner::running() const {
+  std::lock_guard lock(mutex_);
+  return active_ != nullptr;
+}
+
+void CampaignRunner::wait() {
+  if (thread_.joinable()) thread_.join();
+}
+
+void CampaignRunner::start(StartRequest request) {
+  auto a = std::make_shared<Active>();
+  std::vector<std::string> names;
+  for (const auto& r : request.campaign.runs) names.push_back(r.name);
+  for (const auto& want : request.runs) {
+    if (std::find(names.begin(), names.end(), want) == names.end()) {
+      const std::string hint = cfg::closest(want, names);
+      throw std::invalid_argument("campaign '" + request.campaign.name + "' has no run '" + want + "'" +
+                                  (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+    }
+  }
+  if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
+  if (request.rig.kind != "sim" && request.speed != 1.0) {
+    throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
+  }
+  make_rig(request.rig);  // the kind exists
+  {
+    std::lock_guard lock(mutex_);
+    if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
+  }
+  if (thread_.joinable()) thread_.join();  // the previous campaign's thread, already finishing
+  std::lock_guard lock(mutex_);
+  if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
+  a->req = std::move(request);
+  for (const auto& r : a->req.campaign.runs) {
+    if (a->req.runs.empty() || std::find(a->req.runs.begin(), a->req.runs.end(), r.name) != a->req.runs.end()) {
+      a->runs.push_back(&r);
+    }
+  }
+  a->started = Clock::now();
+  a->started_utc = SysClock::now();
+  active_ = a;
+  thread_ = std::thread([this, a] { run_campaign(a); });
+}
+
+void CampaignRunner::stop() {
+  std::lock_guard lock(mutex_);
+  if (!active_) throw Conflict("no campaign is running");
+  active_->stop = true;
+  if (active_->recorder) active_->recorder->log({{"kind", "stop_request"}, {"source", "operator"}});
+  if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::stop});
+}
+
+void CampaignRunner::abort(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (!active_) throw Conflict("no campaign is running");
+  if (!active_->abort) {
+    active_->abort = true;
+    active_->abort_reason = reason;
+  }
+  if (active_->recorder) active_->recorder->log({{"kind", "abort_request"}, {"source", "operator"}, {"reason", reason}});
+  if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::abort});
+}
+
+void CampaignRunner::inject(const LoopRequest& request) {
+  std::lock_guard lock(mutex_);
+  if (!active_) throw Conflict("no campaign is running");
+  if (!active_->requests) throw Conflict("no run is in its loop right now (between runs); try again");
+  const bool simulated = active_->req.rig.kind == "sim";
+  using K = LoopRequest::Kind;
+  if (!simulated && (request.kind == K::set_gap || request.kind == K::programme_gap || request.kind == K::rig_fault)) {
+    throw std::invalid_argument("rig '" + active_->req.rig.name + "' is hardware: gap changes and rig faults need a simulated rig");
+  }
+  if (!active_->requests->try_push(request)) throw Conflict("the loop has not taken the previous requests yet; try again");
+}
+
+void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
+  for (std::size_t i = 0; i < a->runs.size(); ++i) {
+    {
+      std::lock_guard lock(mutex_);
+      if (a->stop || a->abort) break;
+      a->index = i;
+    }
+    try {
+      run_one(*a, i);
+    } catch (const std::exception& e) {
+      spdlog::error("campaign '{}' run '{}': {}", a->req.campaign.name, a->runs[i]->name, e.what());
+      a->finished.push_back({{"run", a->runs[i]->name}, {"outcome", "error"}, {"reason", e.what()}});
+    }
+    if (a->finished.back()["outcome"] != "completed") break;
+  }
+  json last = {{"campaign", a->req.campaign.name}, {"source", a->req.source}, {"rig", a->req.rig.name},
+               {"started_utc", utc_iso(a->started_utc)}, {"finished_utc", utc_iso(SysClock::now())},
+               {"runs", a->finished}, {"outcome", "completed"}, {"reason", nullptr}};
+  for (const auto& r : a->finished) {
+    if (outcome_rank(r["outcome"]) > outcome_rank(last["outcome"])) last["outcome"] = r["outcome"], last["reason"] = r["reason"];
+  }
+  if (a->finished.size() < a->runs.size()) last["runs_skipped"] = a->runs.size() - a->finished.size();
+  notice({{"type", "campaign_end"}, {"campaign", a->req.campaign.name}, {"outcome", last["outcome"]}, {"reason", last["reason"]}});
+  std::lock_guard lock(mutex_);
+  last_ = std::move(last);
+  active_.reset();
+}
+
+void CampaignRunner::run_one(Active& a, std::size_t index) {
+  const Campaign& c = a.req.campaign;
+  const RunSpec& run = *a.runs[index];
+  const RigConfig& rc = a.req.rig;
+  const auto start_utc = SysClock::now();
+  const auto dir = unique_dir(o_.runs_dir / (utc(start_utc, "%Y%m%dT%H%M%SZ") + "_" + c.name + "_" + run.name));
+  json info = {{"version", o_.version},
+               {"host", hostname()},
+               {"campaign", c.name},
+               {"run", run.name},
+               {"run_index", index},
+               {"runs_in_campaign", a.runs.size()},
+               {"rig", {{"name", rc.name}, {"kind", rc.kind}}},
+               {"start_utc", utc_iso(start_utc)},
+               {"stop_utc", nullptr},
+               {"outcome", "running"},
+               {"reason", nullptr},
+               {"period_s", c.period_s},
+               {"duration_s", c.duration_s},
+               {"speed", a.req.speed},
+               {"config",
+                {{"campaign_source", a.req.source},
+                 {"campaign_file", c.file.string()},
+                 {"campaign_yaml", c.yaml_text},
+                 {"rig_file", rc.file.string()},
+                 {"rig_yaml", rc.yaml_text}}}};
+  write_json_atomically(dir / "run.json", info);
+
+  Recorder rec(dir,
+               {{"source", "hilbench serve"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
+                {"start_utc", utc_iso(start_utc)}},
+               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row);
+  rec.log({{"kind", "run_start"}, {"source", "bench"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
+           {"speed", a.req.speed}});
+  {
+    std::lock_guard lock(mutex_);
+    a.dir = dir;
+    a.recorder = &rec;
+  }
+
+  std::unique_ptr<Rig> rig = make_rig(rc);
+  SpscRing<LoopRequest> requests(64);
+  std::unique_ptr<RunLoop> loop;
+  std::string outcome, reason;
+  try {
+    Schedule::Cursor rc0, gc0;
+    rig->configure({&c, c.period_s, c.reference_pa.at(0.0, rc0), c.gap_rad.at(0.0, gc0)});
+    rig->activate();
+    const auto wall = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s / a.req.speed));
+    loop = std::make_unique<RunLoop>(c, run, *rig, rc.safety, rc.loop, wall, rec.telemetry(), rec.events(), requests);
+    loop->begin(Clock::now());
+  } catch (const std::exception& e) {
+    outcome = "error";
+    reason = std::string("rig '") + rc.name + "' setup: " + e.what();
+    rec.log({{"kind", "rig_error"}, {"source", "bench"}, {"detail", reason}});
+    rig->deactivate();
+    loop.reset();
+  }
+
+  RtSetup rt;
+  if (loop) {
+    std::binary_semaphore go(0);
+    std::thread t([&] {
+      go.acquire();
+      prefault_stack();
+      run_paced(*loop, Clock::now());
+    });
+    rt = make_realtime(t, rc.loop.priority, rc.loop.cpu);
+    if (!rt.warning.empty()) spdlog::warn("loop thread: {}", rt.warning);
+    rec.log({{"kind", "loop_start"}, {"source", "bench"}, {"sched", rt.describe()}, {"warning", rt.warning},
+             {"mlock_warning", o_.mlock_warning}});
+    {
+      std::lock_guard lock(mutex_);
+      a.loop = loop.get();
+      a.requests = &requests;
+      a.rt = rt;
+      if (a.abort) requests.try_push({.kind = LoopRequest::Kind::abort});
+      if (a.stop) requests.try_push({.kind = LoopRequest::Kind::stop});
+    }
+    notice({{"type", "run_start"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
+            {"period_s", c.period_s}, {"duration_s", c.duration_s}});
+    go.release();
+    t.join();
+    std::lock_guard lock(mutex_);
+    switch (loop->end()) {
+      case LoopEnd::completed: outcome = "completed"; break;
+      case LoopEnd::stopped: outcome = "stopped", reason = "operator stop"; break;
+      case LoopEnd::tripped:
+      case LoopEnd::running:
+        outcome = "aborted";
+        reason = loop->trip() == Trip::operator_abort ? (a.abort_reason.empty() ? "operator abort" : a.abort_reason)
+                                                       : describe_trip(*loop, *rig);
+        break;
+    }
+    a.periods_done += loop->periods_run();
+  }
+  if (loop) rig->deactivate();
+
+  const std::string write_error = rec.finish();
+  {
+    std::lock_guard lock(mutex_);
+    a.loop = nullptr;
+    a.requests = nullptr;
+    a.recorder = nullptr;
+  }
+  if (!write_error.empty() && outcome == "completed") outcome = "error", reason = "telemetry: " + write_error;
+  const auto stop_utc = SysClock::now();
+  info["stop_utc"] = utc_iso(stop_utc);
+  info["outcome"] = outcome;
+  info["reason"] = reason.empty() ? json(nullptr) : json(reason);
+  info["trip"] = nullptr;
+  if (loop) {
+    if (loop->trip() != Trip::none) {
+      info["trip"] = {{"reason", to_string(loop->trip())}, {"t_s", loop->trip_t_s()},
+                      {"value", std::isfinite(loop->trip_value()) ? json(loop->trip_value()) : json(nullptr)},
+                      {"limit", std::isfinite(loop->trip_limit()) ? json(loop->trip_limit()) : json(nullptr)}};
+    }
+    info["periods_run"] = loop->periods_run();
+    json stats = loop_stats_json(*loop);
+    stats["sched"] = rt.describe();
+    stats["rt_warning"] = rt.warning;
+    stats["memory_locked"] = o_.mlock_warning.empty();
+    stats["overrun_policy"] = rc.loop.overrun_policy == OverrunPolicy::abort ? "abort" : "count";
+    stats["wall_period_us"] = std::chrono::duration<double, std::micro>(loop->wall_period()).count();
+    info["loop"] = stats;
+  }
+  info["telemetry"] = {{"file", "telemetry.csv"},
+                       {"rows_written", rec.rows_written()},
+                       {"rows_lost", loop ? loop->rows_lost() : 0},
+                       {"rows_unwritten", rec.rows_unwritten()},
+                       {"events_lost", loop ? loop->events_lost() : 0},
+                       {"ring_rows", rec.telemetry().capacity()},
+                       {"write_error", write_error.empty() ? json(nullptr) : json(write_error)}};
+  write_json_atomically(dir / "run.json", info);
+  const json summary = {{"run", run.name}, {"dir", dir.filename().string()}, {"outcome", outcome},
+                        {"reason", info["reason"]}};
+  notice({{"type", "run_end"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
+          {"outcome", outcome}, {"reason", info["reason"]}});
+  std::lock_guard lock(mutex_);
+  a.finished.push_back(summary);
+}
+
+json CampaignRunner::status() const {
+  std::lock_guard lock(mutex_);
+  json s;
+  s["last"] = last_.is_null() ? json(nullptr) : last_;
+  if (!active_) {
+    s["state"] = "idle";
+    return s;
+  }
+  const Active& a = *active_;
+  const Campaign& c = a.req.campaign;
+  s["campaign"] = c.name;
+  s["source"] = a.req.source;
+  s["rig"] = a.req.rig.name;
+  s["speed"] = a.req.speed;
+  s["run"] = a.runs[a.index]->name;
+  s["run_index"] = a.index;
+  s["runs_total"] = a.runs.size();
+  s["run_dir"] = a.dir.filename().string();
+  const double per_run = c.duration_s;
+  double t = 0;
+  if (a.loop) {
+    const LoopSnapshot snap = a.loop->snapshot();
+    t = std::min(snap.t_s + c.period_s, per_run);
+    if (snap.periods == 0) t = 0;
+    s["state"] = (snap.flags & kFlagSafeState) ? "safe" : "running";
+    json loop = loop_stats_json(*a.loop);
+    loop["sched"] = a.rt.describe();
+    loop["rt_warning"] = a.rt.warning;
+    loop["memory_locked"] = o_.mlock_warning.empty();
+    s["loop"] = loop;
+    s["faults"] = faults_json(snap);
+    s["safety"] = {{"safe_state", (snap.flags & kFlagSafeState) != 0},
+                   {"trip", snap.trip == Trip::none ? json(nullptr) : json(to_string(snap.trip))}};
+    s["telemetry"] = {{"rows_lost", snap.rows_lost}, {"events_lost", snap.events_lost}};
+    s["now"] = {{"t_s", snap.t_s}, {"p_meas_mpa", std::isfinite(snap.p_meas_pa) ? json(units::pa_to_mpa(snap.p_meas_pa)) : json(nullptr)},
+                {"p_ref_mpa", units::pa_to_mpa(snap.p_ref_pa)}, {"theta_cmd_deg", units::rad_to_deg(snap.theta_cmd_rad)},
+                {"gap_true_deg", std::isfinite(snap.gap_rad) ? json(units::rad_to_deg(snap.gap_rad)) : json(nullptr)}};
+  } else {
+    s["state"] = "starting";
+    s["faults"] = json::array();
+  }
+  const double total = per_run * static_cast<double>(a.runs.size());
+  const double done = per_run * static_cast<double>(a.index) + t;
+  const double elapsed = std::chrono::duration<double>(Clock::now() - a.started).count();
+  s["progress"] = {{"t_s", t},
+                   {"duration_s", per_run},
+                   {"fraction", total > 0 ? done / total : 0},
+                   {"elapsed_s", elapsed},
+                   {"remaining_s", (total - done) / a.req.speed}};
+  return s;
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,264 @@
+// The real-time loop's period, driven with made-up times: it reproduces hilbench sim row by row,
+// applies the operator's injections, and its interlocks trip as configured.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "hil/bench/sim.hpp"
+#include "hil/units.hpp"
+#include "loop_fixture.hpp"
+
+using namespace hil::bench;
+using hil::test::LoopHarness;
+using hil::test::short_campaign;
+using hil::units::deg_to_rad;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::vector<StepRecord> simulated(const Campaign& c, const std::string& run) {
+  std::vector<StepRecord> out;
+  simulate_run(c, hil::test::run_named(c, run), [&](const StepRecord& r) { out.push_back(r); });
+  return out;
+}
+
+const LoopEvent* find_event(const std::vector<LoopEvent>& events, LoopEvent::Kind kind) {
+  for (const auto& e : events) {
+    if (e.kind == kind) return &e;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+// Both runs over the first two reversals (2.5 s, 5 s) and the gap growth is beyond: 6 s.
+TEST(RunLoop, ReproducesSimRowByRow) {
+  for (const std::string run : {"none", "adaptive"}) {
+    const Campaign c = short_campaign(6.0);
+    const auto expected = simulated(c, run);
+    LoopHarness h(c, run);
+    std::vector<TelemetryRecord> got;
+    while (h.step()) {
+      for (const auto& r : h.rows()) got.push_back(r);
+    }
+    for (const auto& r : h.rows()) got.push_back(r);
+    ASSERT_EQ(got.size(), expected.size()) << run;
+    EXPECT_EQ(h.loop->end(), LoopEnd::completed);
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      const StepRecord& a = got[i].step;
+      const StepRecord& b = expected[i];
+      ASSERT_EQ(a.t_s, b.t_s) << run << " row " << i;
+      ASSERT_EQ(a.p_meas_pa, b.p_meas_pa) << run << " row " << i;
+      ASSERT_EQ(a.theta_cmd_rad, b.theta_cmd_rad) << run << " row " << i;
+      ASSERT_EQ(a.theta_motor_rad, b.theta_motor_rad) << run << " row " << i;
+      ASSERT_EQ(a.theta_valve_rad, b.theta_valve_rad) << run << " row " << i;
+      ASSERT_EQ(a.p_chamber_pa, b.p_chamber_pa) << run << " row " << i;
+      ASSERT_EQ(a.gap_true_rad, b.gap_true_rad) << run << " row " << i;
+      ASSERT_EQ(a.gap_est_rad, b.gap_est_rad) << run << " row " << i;
+      ASSERT_EQ(a.comp_rad, b.comp_rad) << run << " row " << i;
+      ASSERT_EQ(a.touch, b.touch) << run << " row " << i;
+      ASSERT_EQ(a.intention, b.intention) << run << " row " << i;
+      ASSERT_EQ(got[i].flags, 0u) << run << " row " << i;
+    }
+    EXPECT_EQ(h.loop->rows_lost(), 0u);
+    EXPECT_EQ(h.loop->rows_pushed(), expected.size());
+  }
+}
+
+TEST(RunLoop, GapChangeReachesThePlantAndTheEvents) {
+  LoopHarness h(short_campaign(2.0));
+  for (int i = 0; i < 500; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::set_gap, .value = deg_to_rad(2.5)}));
+  while (h.step()) {
+  }
+  const auto rows = h.rows();
+  ASSERT_EQ(rows.size(), 2000u);
+  EXPECT_DOUBLE_EQ(rows[499].step.gap_true_rad, deg_to_rad(1.0));
+  EXPECT_DOUBLE_EQ(rows[500].step.gap_true_rad, deg_to_rad(2.5));
+  EXPECT_DOUBLE_EQ(rows.back().step.gap_true_rad, deg_to_rad(2.5));
+  EXPECT_TRUE(rows[500].flags & kFlagGapOverride);
+  const auto events = h.take_events();
+  const LoopEvent* e = find_event(events, LoopEvent::Kind::gap_change);
+  ASSERT_NE(e, nullptr);
+  EXPECT_DOUBLE_EQ(e->t_s, 0.5);
+  EXPECT_DOUBLE_EQ(e->a, deg_to_rad(2.5));
+}
+
+TEST(RunLoop, WatchdogHoldsWithinThreePeriodsWhenTheRigFallsSilent) {
+  SafetyConfig safety;
+  safety.watchdog_misses = 3;
+  safety.safe_hold_s = 0.05;
+  LoopHarness h(short_campaign(3.0), "adaptive", safety);
+  for (int i = 0; i < 1000; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::rig_fault, .on = true}));
+  long periods = 0;
+  while (h.step()) ++periods;
+  EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
+  EXPECT_EQ(h.loop->trip(), Trip::watchdog);
+  const auto events = h.take_events();
+  const LoopEvent* silent = find_event(events, LoopEvent::Kind::rig_fault);
+  const LoopEvent* trip = find_event(events, LoopEvent::Kind::trip);
+  const LoopEvent* safe = find_event(events, LoopEvent::Kind::safe_state);
+  ASSERT_TRUE(silent && trip && safe);
+  EXPECT_EQ(silent->b, 1.0);  // accepted
+  EXPECT_EQ(trip->trip, Trip::watchdog);
+  EXPECT_LE(trip->period - silent->period, 3);
+  EXPECT_EQ(safe->period, trip->period);
+  const auto rows = h.rows();
+  // Holding: from the trip on, the command never moves.
+  const double held = rows[static_cast<std::size_t>(trip->period)].step.theta_cmd_rad;
+  for (std::size_t i = static_cast<std::size_t>(trip->period); i < rows.size(); ++i) {
+    EXPECT_TRUE(rows[i].flags & kFlagSafeState);
+    EXPECT_EQ(rows[i].step.theta_cmd_rad, held);
+  }
+  EXPECT_NEAR(rows.back().step.t_s - trip->t_s, 0.05, 1.5e-3);  // safe_hold
+  EXPECT_LT(periods, 1100);
+}
+
+TEST(RunLoop, SafeAngleRampsAtTheSafeRate) {
+  SafetyConfig safety;
+  safety.safe_mode = SafeMode::angle;
+  safety.safe_angle_rad = 0;
+  safety.safe_rate_rad_s = deg_to_rad(20);
+  safety.safe_hold_s = 1.0;
+  LoopHarness h(short_campaign(3.0), "adaptive", safety);
+  for (int i = 0; i < 100; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::abort}));
+  while (h.step()) {
+  }
+  EXPECT_EQ(h.loop->trip(), Trip::operator_abort);
+  const auto rows = h.rows();
+  for (std::size_t i = 101; i < rows.size(); ++i) {
+    EXPECT_LE(std::abs(rows[i].step.theta_cmd_rad - rows[i - 1].step.theta_cmd_rad), deg_to_rad(20) * 1e-3 + 1e-12);
+  }
+  EXPECT_GT(rows[99].step.theta_cmd_rad, deg_to_rad(4));
+  EXPECT_NEAR(rows.back().step.theta_cmd_rad, 0.0, 1e-9);  // ~6 deg at 20 deg/s: there within 1 s
+}
+
+TEST(RunLoop, OverpressureTripsAfterTheDebounce) {
+  SafetyConfig safety;
+  safety.p_max_pa = 1.8e6;
+  safety.pressure_debounce = 3;
+  LoopHarness h(short_campaign(2.0), "adaptive", safety);
+  for (int i = 0; i < 200; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::bias, .value = 1.0e6}));
+  while (h.step()) {
+  }
+  EXPECT_EQ(h.loop->trip(), Trip::overpressure);
+  EXPECT_NEAR(h.loop->trip_t_s(), 0.202, 1e-9);  // readings 200, 201, 202 are over
+  EXPECT_GT(h.loop->trip_value(), 1.8e6);
+  EXPECT_EQ(h.loop->trip_limit(), 1.8e6);
+}
+
+TEST(RunLoop, SensorFaultsShapeTheReading) {
+  LoopHarness h(short_campaign(2.0));
+  for (int i = 0; i < 100; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::stuck, .duration_s = 0.1}));
+  for (int i = 0; i < 200; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::noise, .value = 50e3, .duration_s = 0.1}));
+  for (int i = 0; i < 200; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::dropout, .duration_s = 0.002}));
+  for (int i = 0; i < 10; ++i) h.step();
+  const auto rows = h.rows();
+  for (int i = 100; i < 200; ++i) {
+    EXPECT_EQ(rows[i].step.p_meas_pa, rows[100].step.p_meas_pa);
+    EXPECT_TRUE(rows[i].flags & kFlagSensorFault);
+  }
+  EXPECT_FALSE(rows[200].flags & kFlagSensorFault);  // expired after 0.1 s
+  double sum2 = 0;
+  for (int i = 300; i < 400; ++i) sum2 += std::pow(rows[i].step.p_meas_pa - rows[i].step.p_ref_pa, 2);
+  EXPECT_GT(std::sqrt(sum2 / 100), 25e3);  // the 50 kPa burst, not the 2 kPa transducer
+  EXPECT_TRUE(rows[500].flags & kFlagReadMissed);
+  EXPECT_TRUE(rows[501].flags & kFlagReadMissed);
+  EXPECT_FALSE(rows[502].flags & kFlagReadMissed);  // two misses: below the watchdog's three
+  EXPECT_EQ(h.loop->trip(), Trip::none);
+  EXPECT_EQ(rows[501].step.theta_cmd_rad, rows[499].step.theta_cmd_rad);  // held while blind
+}
+
+TEST(RunLoop, DriveThatIgnoresCommandsKeepsItsTarget) {
+  LoopHarness h(short_campaign(4.0));
+  for (int i = 0; i < 2400; ++i) h.step();  // past the first reversal at 2.5 s the command moves
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::drive_fault, .duration_s = 0.5}));
+  for (int i = 0; i < 400; ++i) h.step();
+  const auto rows = h.rows();
+  // The bench keeps commanding; the motor sits where it was told before the fault.
+  EXPECT_GT(std::abs(rows[2799].step.theta_cmd_rad - rows[2400].step.theta_cmd_rad), deg_to_rad(0.5));
+  EXPECT_NEAR(rows[2799].step.theta_motor_rad, rows[2399].step.theta_cmd_rad, deg_to_rad(0.05));
+  EXPECT_TRUE(rows[2799].flags & kFlagDriveFault);
+}
+
+TEST(RunLoop, LimitsClampTheCommand) {
+  SafetyConfig safety;
+  safety.cmd_min_rad = deg_to_rad(8.0);  // the run starts near 11 deg and closes to ~4 deg at 2.5 s
+  safety.rate_limit_rad_s = deg_to_rad(100);
+  LoopHarness h(short_campaign(4.0), "adaptive", safety);
+  while (h.step()) {
+  }
+  const auto rows = h.rows();
+  bool limited = false;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_GE(rows[i].step.theta_cmd_rad, deg_to_rad(8.0));
+    EXPECT_LE(std::abs(rows[i].step.theta_cmd_rad - rows[i - 1].step.theta_cmd_rad), deg_to_rad(100) * 1e-3 + 1e-12);
+    limited |= (rows[i].flags & kFlagCmdLimited) != 0;
+  }
+  EXPECT_TRUE(limited);
+  EXPECT_NE(find_event(h.take_events(), LoopEvent::Kind::cmd_limited), nullptr);
+}
+
+TEST(RunLoop, OverrunPolicyAbortTripsAfterNInARow) {
+  LoopConfig cfg;
+  cfg.overrun_policy = OverrunPolicy::abort;
+  cfg.overrun_abort_after = 5;
+  SafetyConfig safety;
+  safety.safe_hold_s = 0.01;
+  LoopHarness h(short_campaign(2.0), "adaptive", safety, cfg);
+  for (int i = 0; i < 100; ++i) h.step();
+  for (int i = 0; i < 4; ++i) h.step(1500us);  // four in a row: counted only
+  h.step();
+  EXPECT_EQ(h.loop->overruns(), 4);
+  EXPECT_EQ(h.loop->trip(), Trip::none);
+  for (int i = 0; i < 5; ++i) h.step(1500us);
+  h.step();
+  EXPECT_EQ(h.loop->trip(), Trip::overruns);
+  EXPECT_EQ(h.loop->overruns(), 9);
+  const auto rows = h.rows();
+  EXPECT_TRUE(rows[100].flags & kFlagOverrun);
+  EXPECT_NEAR(rows[100].compute_us, 1500, 1e-6);
+}
+
+TEST(RunLoop, OverrunPolicyCountNeverTrips) {
+  LoopHarness h(short_campaign(0.5));
+  while (h.step(1200us)) {
+  }
+  EXPECT_EQ(h.loop->end(), LoopEnd::completed);
+  EXPECT_EQ(h.loop->overruns(), 500);
+}
+
+TEST(RunLoop, FullRingCountsTheLossAndNeverBlocks) {
+  LoopHarness h(short_campaign(1.0), "adaptive", {}, {}, 64);
+  while (h.step()) {
+  }
+  EXPECT_EQ(h.loop->rows_pushed(), 64u);
+  EXPECT_EQ(h.loop->rows_lost(), 1000u - 64u);
+  EXPECT_EQ(h.loop->snapshot().rows_lost, 1000u - 64u);
+}
+
+TEST(RunLoop, StopEndsAtTheNextPeriod) {
+  LoopHarness h(short_campaign(2.0));
+  for (int i = 0; i < 10; ++i) h.step();
+  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::stop}));
+  EXPECT_FALSE(h.step());
+  EXPECT_EQ(h.loop->end(), LoopEnd::stopped);
+  EXPECT_EQ(h.loop->periods_run(), 11);
+}
+
+TEST(RunLoop, TimingStatisticsComeFromTheGivenTimes) {
+  LoopHarness h(short_campaign(0.2));
+  while (h.step(37us)) {
+  }
+  const TimingSummary s = h.loop->compute_time().summary();
+  EXPECT_EQ(s.count, 200);
+  EXPECT_NEAR(s.p50_us, 37, 37 * 0.016);
+  EXPECT_NEAR(s.max_us, 37, 1e-9);
+  EXPECT_EQ(h.loop->wake_latency().summary().max_us, 0);
+}
