@@ -11,6 +11,7 @@ namespace hil::bench {
 int cmd_sim(const std::vector<std::string>& args);
 int cmd_effects(const std::vector<std::string>& args);
 int cmd_characterise(const std::vector<std::string>& args);
+int cmd_plant(const std::vector<std::string>& args);
 
 // The characterisation table (markdown) of the observers on the paper's scenarios.
 std::string characterise_table(const std::filesystem::path& campaigns_dir);

@@ -22,6 +22,10 @@ const Command kCommands[] = {
      "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa X] [--no-telemetry] [--quiet]\n"
      "      run a campaign on the simulated plant, faster than real time"},
     {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
+    {"plant", hil::bench::cmd_plant,
+     "plant [--plant FILE] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml] [--period-ms 1]\n"
+     "      [--initial-mpa 1.0] [--duration-s S] [--rt-priority P]\n"
+     "      the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices"},
     {"characterise", hil::bench::cmd_characterise,
      "characterise [--readme README.md] [--campaigns DIR]\n"
      "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},
