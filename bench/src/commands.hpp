@@ -9,5 +9,7 @@ namespace hil::bench {
 
 int cmd_sim(const std::vector<std::string>& args);
 int cmd_effects(const std::vector<std::string>& args);
+int cmd_serve(const std::vector<std::string>& args);
+int cmd_ctl(const std::vector<std::string>& args);
 
 }  // namespace hil::bench

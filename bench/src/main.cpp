@@ -22,6 +22,12 @@ const Command kCommands[] = {
      "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]\n"
      "      run a campaign on the simulated plant, faster than real time"},
     {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
+    {"serve", hil::bench::cmd_serve,
+     "serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F] [--no-mlock]\n"
+     "      the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)"},
+    {"ctl", hil::bench::cmd_ctl,
+     "ctl [--server URL] [--token T] status|campaigns|rigs|runs|start|watch|stop|abort|inject|telemetry|show|get ...\n"
+     "      command-line client of hilbench serve (hilbench ctl --help)"},
 };
 
 void usage(std::FILE* to) {

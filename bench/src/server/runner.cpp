@@ -123,6 +123,7 @@ int outcome_rank(const std::string& o) { return o == "completed" ? 0 : o == "sto
 
 struct CampaignRunner::Active {
   StartRequest req;
+  bool simulated = true;
   std::vector<const RunSpec*> runs;
   Clock::time_point started;
   SysClock::time_point started_utc;
@@ -178,10 +179,10 @@ void CampaignRunner::start(StartRequest request) {
     }
   }
   if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
-  if (request.rig.kind != "sim" && request.speed != 1.0) {
+  const bool simulated = make_rig(request.rig)->simulated();
+  if (!simulated && request.speed != 1.0) {
     throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
   }
-  make_rig(request.rig);  // the kind exists
   {
     std::lock_guard lock(mutex_);
     if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
@@ -190,6 +191,7 @@ void CampaignRunner::start(StartRequest request) {
   std::lock_guard lock(mutex_);
   if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
   a->req = std::move(request);
+  a->simulated = simulated;
   for (const auto& r : a->req.campaign.runs) {
     if (a->req.runs.empty() || std::find(a->req.runs.begin(), a->req.runs.end(), r.name) != a->req.runs.end()) {
       a->runs.push_back(&r);
@@ -224,7 +226,7 @@ void CampaignRunner::inject(const LoopRequest& request) {
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
   if (!active_->requests) throw Conflict("no run is in its loop right now (between runs); try again");
-  const bool simulated = active_->req.rig.kind == "sim";
+  const bool simulated = active_->simulated;
   using K = LoopRequest::Kind;
   if (!simulated && (request.kind == K::set_gap || request.kind == K::programme_gap || request.kind == K::rig_fault)) {
     throw std::invalid_argument("rig '" + active_->req.rig.name + "' is hardware: gap changes and rig faults need a simulated rig");
@@ -288,10 +290,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                  {"rig_yaml", rc.yaml_text}}}};
   write_json_atomically(dir / "run.json", info);
 
+  std::unique_ptr<Rig> rig = make_rig(rc);
   Recorder rec(dir,
                {{"source", "hilbench serve"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
                 {"start_utc", utc_iso(start_utc)}},
-               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row);
+               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->simulated());
   rec.log({{"kind", "run_start"}, {"source", "bench"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
            {"speed", a.req.speed}});
   {
@@ -300,7 +303,6 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.recorder = &rec;
   }
 
-  std::unique_ptr<Rig> rig = make_rig(rc);
   SpscRing<LoopRequest> requests(64);
   std::unique_ptr<RunLoop> loop;
   std::string outcome, reason;

@@ -60,10 +60,15 @@ struct TelemetryRecord {
   std::uint32_t flags = 0;
 };
 
-// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags.
+// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags. A hardware rig has no
+// truth: its files leave out theta_valve_deg, gap_true_deg and p_chamber_mpa (with_truth false)
+// rather than fill them with nan. A period without a reading repeats the last one recorded, with
+// kFlagReadMissed set, so every row parses.
 inline constexpr std::size_t kLoopColumns = kSimColumns + 3;
-const std::vector<CsvColumn>& loop_telemetry_columns();
+const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
+// The row for the columns of loop_telemetry_columns(with_truth); returns how many values.
+std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::array<double, kLoopColumns>& out);
 
 enum class SensorFault : std::uint8_t { none, stuck, dropout, bias, noise };
 std::string_view to_string(SensorFault f) noexcept;
@@ -185,6 +190,7 @@ class RunLoop {
   std::int64_t k_ = 0;
   double last_sent_rad_ = 0;    // the last command the bench sent
   double last_p_meas_pa_ = kNaN;
+  RigReading last_shown_;       // recorded again in periods without a reading
   bool limited_ = false;
   // Faults and overrides.
   double gap_override_rad_ = kNaN;
