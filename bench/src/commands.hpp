@@ -11,5 +11,7 @@ int cmd_sim(const std::vector<std::string>& args);
 int cmd_effects(const std::vector<std::string>& args);
 int cmd_serve(const std::vector<std::string>& args);
 int cmd_ctl(const std::vector<std::string>& args);
+int cmd_compare(const std::vector<std::string>& args);
+int cmd_diagnose(const std::vector<std::string>& args);
 
 }  // namespace hil::bench

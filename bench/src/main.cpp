@@ -28,6 +28,13 @@ const Command kCommands[] = {
     {"ctl", hil::bench::cmd_ctl,
      "ctl [--server URL] [--token T] status|campaigns|rigs|runs|start|watch|stop|abort|inject|telemetry|show|get ...\n"
      "      command-line client of hilbench serve (hilbench ctl --help)"},
+    {"compare", hil::bench::cmd_compare,
+     "compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]\n"
+     "      replay a measurement through a model and show where the model fails"},
+    {"diagnose", hil::bench::cmd_diagnose,
+     "diagnose --model MODEL.yaml --data FILE.csv [--out DIR] [--write-model FITTED.yaml] [--candidates a,b]\n"
+     "         [--threads N] [--quiet]\n"
+     "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place"},
 };
 
 void usage(std::FILE* to) {
