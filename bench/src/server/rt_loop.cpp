@@ -18,7 +18,7 @@ double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t
 }  // namespace
 
 LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"priority", "cpu", "overrun", "ring_rows"});
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us"});
   LoopConfig c;
   c.priority = static_cast<int>(n.integer("priority", 80));
   if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
@@ -37,6 +37,8 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
     c.overrun_abort_after = static_cast<int>(o->integer("abort_after", 10));
     if (o->has("abort_after")) o->at("abort_after").require(c.overrun_abort_after >= 1, "must be >= 1");
   }
+  c.cpu_dma_latency_us = static_cast<int>(n.integer("cpu_dma_latency_us", 0));
+  if (n.has("cpu_dma_latency_us")) n.at("cpu_dma_latency_us").require(c.cpu_dma_latency_us >= -1, "must be >= 0, or -1 for none");
   c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
   if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
   return c;
@@ -346,6 +348,7 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   snap.sensor_until_s = sensor_until_s_;
   snap.drive_until_s = drive_fault_ ? drive_until_s_ : 0;
   snap.overruns = overruns_;
+  snap.skipped_deadlines = skipped_;
   snap.missed_reads = missed_reads_;
   snap.limited_periods = limited_periods_;
   snap.rows_lost = rows_lost_;

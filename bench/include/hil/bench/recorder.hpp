@@ -37,7 +37,8 @@ class Recorder {
   // the file when it cannot. with_truth: the rig is simulated (see loop_telemetry_columns).
   Recorder(const std::filesystem::path& dir, const std::vector<std::pair<std::string, std::string>>& csv_metadata,
            std::size_t ring_rows, RowSink on_row = {},
-           std::chrono::milliseconds flush_period = std::chrono::milliseconds(100), bool with_truth = true);
+           std::chrono::milliseconds flush_period = std::chrono::milliseconds(100), bool with_truth = true,
+           int avoid_cpu = -1);
   ~Recorder();
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
@@ -57,7 +58,7 @@ class Recorder {
   std::uint64_t events_written() const noexcept { return events_written_.load(); }
 
  private:
-  void writer();
+  void writer(int avoid_cpu);
   bool drain();  // one pass; true when it found anything
 
   SpscRing<TelemetryRecord> telemetry_;
