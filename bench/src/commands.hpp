@@ -10,6 +10,10 @@ namespace hil::bench {
 
 int cmd_sim(const std::vector<std::string>& args);
 int cmd_effects(const std::vector<std::string>& args);
+int cmd_serve(const std::vector<std::string>& args);
+int cmd_ctl(const std::vector<std::string>& args);
+int cmd_compare(const std::vector<std::string>& args);
+int cmd_diagnose(const std::vector<std::string>& args);
 int cmd_characterise(const std::vector<std::string>& args);
 int cmd_plant(const std::vector<std::string>& args);
 

@@ -22,6 +22,19 @@ const Command kCommands[] = {
      "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa X] [--no-telemetry] [--quiet]\n"
      "      run a campaign on the simulated plant, faster than real time"},
     {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
+    {"serve", hil::bench::cmd_serve,
+     "serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F] [--no-mlock]\n"
+     "      the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)"},
+    {"ctl", hil::bench::cmd_ctl,
+     "ctl [--server URL] [--token T] status|campaigns|rigs|runs|start|watch|stop|abort|inject|telemetry|show|get ...\n"
+     "      command-line client of hilbench serve (hilbench ctl --help)"},
+    {"compare", hil::bench::cmd_compare,
+     "compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]\n"
+     "      replay a measurement through a model and show where the model fails"},
+    {"diagnose", hil::bench::cmd_diagnose,
+     "diagnose --model MODEL.yaml --data FILE.csv [--out DIR] [--write-model FITTED.yaml] [--candidates a,b]\n"
+     "         [--threads N] [--quiet]\n"
+     "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place"},
     {"plant", hil::bench::cmd_plant,
      "plant [--plant FILE] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml] [--period-ms 1]\n"
      "      [--initial-mpa 1.0] [--duration-s S] [--rt-priority P]\n"

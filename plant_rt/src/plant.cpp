@@ -116,6 +116,15 @@ double Plant::settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad
 }
 
 void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad) const {
+  settle_impl(st, p_meas_pa, theta_cmd_rad, t0_s, gap_rad, false);
+}
+
+double Plant::settle_nearest(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad) const {
+  return settle_impl(st, p_meas_pa, theta_cmd_rad, t0_s, gap_rad, true);
+}
+
+double Plant::settle_impl(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad,
+                          bool nearest) const {
   const bool positive_contact = std::isnan(theta_cmd_rad);
   settle_chain(st, 0.0, kNaN, t0_s, gap_rad);
   const double gap_now = std::isfinite(st.s.gap_rad) ? st.s.gap_rad : 0.0;
@@ -124,6 +133,7 @@ void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, doubl
   };
   double lo = kSearchLoRad, hi = kSearchHiRad;  // pressure falls as the valve opens
   const double p_hi = pressure_at(lo), p_lo = pressure_at(hi);
+  if (nearest && std::isfinite(p_meas_pa)) p_meas_pa = std::clamp(p_meas_pa, p_lo, p_hi);
   if (!(p_meas_pa <= p_hi && p_meas_pa >= p_lo)) {
     char msg[200];
     std::snprintf(msg, sizeof msg, "pressure %.4g MPa is outside what the plant reaches (%.4g to %.4g MPa)",
@@ -134,7 +144,7 @@ void Plant::settle(PlantState& st, double p_meas_pa, double theta_cmd_rad, doubl
     const double mid = 0.5 * (lo + hi);
     (pressure_at(mid) > p_meas_pa ? lo : hi) = mid;
   }
-  pressure_at(0.5 * (lo + hi));
+  return pressure_at(0.5 * (lo + hi));
 }
 
 std::pair<double, double> Plant::pressure_range_pa() const {

@@ -71,3 +71,22 @@ TEST(Recorder, FlushesWhileRunning) {
   EXPECT_EQ(chunk.rows(), 100u);
   rec.finish();
 }
+
+TEST(Recorder, HardwareRigFilesLeaveTheTruthOut) {
+  hil::test::TempDir dir;
+  Recorder rec(dir.path(), {}, 64, {}, 10ms, /*with_truth=*/false);
+  TelemetryRecord r;
+  r.step.p_meas_pa = 1e6;
+  r.step.theta_valve_rad = kNaN;  // a hardware rig has none
+  r.step.p_chamber_pa = kNaN;
+  r.step.gap_true_rad = kNaN;
+  ASSERT_TRUE(rec.telemetry().try_push(r));
+  EXPECT_EQ(rec.finish(), "");
+  hil::CsvHeader header;
+  const auto chunk = hil::read_csv(dir.path() / "telemetry.csv", {{"t_s", "theta_cmd_deg", "p_meas_mpa", "loop_flags"}, {}, "t_s"}, &header);
+  EXPECT_EQ(chunk.rows(), 1u);
+  EXPECT_EQ(header.names.size(), kLoopColumns - 3);
+  for (const char* truth : {"theta_valve_deg", "gap_true_deg", "p_chamber_mpa"}) {
+    EXPECT_EQ(std::find(header.names.begin(), header.names.end(), truth), header.names.end()) << truth;
+  }
+}

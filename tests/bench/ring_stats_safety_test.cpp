@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "hil/bench/loop_stats.hpp"
+#include "hil/bench/rt_thread.hpp"
 #include "hil/bench/safety.hpp"
 #include "hil/bench/spsc_ring.hpp"
 #include "hil/config.hpp"
@@ -140,4 +141,18 @@ TEST(Safety, ConfigErrorsNameTheKey) {
   const auto typo = hil::cfg::Node::load_string(
       "cmd_min_deg: -5\ncmd_max_deg: 35\nrate_limit_deg_s: 100\np_max_mpa: 2\np_min_mpa: 0.2\nwatchdog_mises: 3\n", "rig.yaml");
   EXPECT_THROW(SafetyConfig::from_yaml(typo), hil::cfg::Error);
+}
+
+TEST(Pacer, SkipsPassedDeadlinesLikeCyclictest) {
+  using namespace std::chrono_literals;
+  const Clock::time_point d{1s};
+  std::int64_t skipped = -1;
+  EXPECT_EQ(next_deadline(d, 1ms, d + 300us, skipped), d + 1ms);  // on time
+  EXPECT_EQ(skipped, 0);
+  EXPECT_EQ(next_deadline(d, 1ms, d + 1ms, skipped), d + 1ms);  // ends exactly on it: not passed
+  EXPECT_EQ(skipped, 0);
+  EXPECT_EQ(next_deadline(d, 1ms, d + 1001us, skipped), d + 2ms);  // overran by 1 us: wait for the next
+  EXPECT_EQ(skipped, 1);
+  EXPECT_EQ(next_deadline(d, 1ms, d + 10500us, skipped), d + 11ms);  // a 10 ms stall: no burst
+  EXPECT_EQ(skipped, 10);
 }

@@ -171,6 +171,10 @@ TEST(RunLoop, SensorFaultsShapeTheReading) {
   EXPECT_TRUE(rows[500].flags & kFlagReadMissed);
   EXPECT_TRUE(rows[501].flags & kFlagReadMissed);
   EXPECT_FALSE(rows[502].flags & kFlagReadMissed);  // two misses: below the watchdog's three
+  // A missed reading is recorded as the last one, never as nan.
+  EXPECT_EQ(rows[500].step.p_meas_pa, rows[499].step.p_meas_pa);
+  EXPECT_EQ(rows[501].step.theta_motor_rad, rows[499].step.theta_motor_rad);
+  EXPECT_EQ(rows[501].step.theta_valve_rad, rows[499].step.theta_valve_rad);
   EXPECT_EQ(h.loop->trip(), Trip::none);
   EXPECT_EQ(rows[501].step.theta_cmd_rad, rows[499].step.theta_cmd_rad);  // held while blind
 }

@@ -6,6 +6,7 @@
 #include <spdlog/pattern_formatter.h>
 #include <spdlog/sinks/basic_file_sink.h>
 
+#include "hil/bench/rt_thread.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -80,12 +81,14 @@ nlohmann::json event_json(const LoopEvent& e) {
 }
 
 Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair<std::string, std::string>>& csv_metadata,
-                   std::size_t ring_rows, RowSink on_row, std::chrono::milliseconds flush_period)
+                   std::size_t ring_rows, RowSink on_row, std::chrono::milliseconds flush_period, bool with_truth,
+                   int avoid_cpu)
     : telemetry_(ring_rows),
       events_(4096),
-      csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv", loop_telemetry_columns(), csv_metadata)),
+      csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv", loop_telemetry_columns(with_truth), csv_metadata)),
       on_row_(std::move(on_row)),
       flush_period_(flush_period),
+      with_truth_(with_truth),
       batch_(4096) {
   csv_->flush();  // the header is on disk before the first row
   auto sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((dir / "events.jsonl").string(), true);
@@ -94,7 +97,7 @@ Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair
   log_->set_formatter(std::make_unique<spdlog::pattern_formatter>("{\"utc\":\"%Y-%m-%dT%H:%M:%S.%fZ\",%v",
                                                                   spdlog::pattern_time_type::utc));
   log_->flush_on(spdlog::level::trace);
-  thread_ = std::thread([this] { writer(); });
+  thread_ = std::thread([this, avoid_cpu] { writer(avoid_cpu); });
 }
 
 Recorder::~Recorder() { finish(); }
@@ -117,7 +120,9 @@ bool Recorder::drain() {
     for (std::size_t i = 0; i < n; ++i) {
       if (error_.empty()) {
         try {
-          csv_->row(loop_telemetry_row(batch_[i]));
+          std::array<double, kLoopColumns> row;
+          const std::size_t n = loop_telemetry_row(batch_[i], with_truth_, row);
+          csv_->row(std::span<const double>(row.data(), n));
           rows_written_.fetch_add(1, std::memory_order_relaxed);
         } catch (const std::exception& e) {
           error_ = e.what();
@@ -130,7 +135,8 @@ bool Recorder::drain() {
   return any;
 }
 
-void Recorder::writer() {
+void Recorder::writer(int avoid_cpu) {
+  keep_off_cpu(avoid_cpu);  // the writer's I/O stays off the loop's CPU
   auto last_flush = std::chrono::steady_clock::now();
   for (;;) {
     bool stopping;

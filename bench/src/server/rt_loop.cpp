@@ -18,7 +18,7 @@ double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t
 }  // namespace
 
 LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"priority", "cpu", "overrun", "ring_rows"});
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us"});
   LoopConfig c;
   c.priority = static_cast<int>(n.integer("priority", 80));
   if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
@@ -37,30 +37,51 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
     c.overrun_abort_after = static_cast<int>(o->integer("abort_after", 10));
     if (o->has("abort_after")) o->at("abort_after").require(c.overrun_abort_after >= 1, "must be >= 1");
   }
+  c.cpu_dma_latency_us = static_cast<int>(n.integer("cpu_dma_latency_us", 0));
+  if (n.has("cpu_dma_latency_us")) n.at("cpu_dma_latency_us").require(c.cpu_dma_latency_us >= -1, "must be >= 0, or -1 for none");
   c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
   if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
   return c;
 }
 
-const std::vector<CsvColumn>& loop_telemetry_columns() {
-  static const std::vector<CsvColumn> columns = [] {
-    std::vector<CsvColumn> c = sim_telemetry_columns();
+namespace {
+// Indices of the truth-only columns in hilbench sim's order.
+constexpr std::size_t kTruthColumns[] = {5, 6, 11};  // theta_valve_deg, gap_true_deg, p_chamber_mpa
+bool is_truth(std::size_t i) { return i == kTruthColumns[0] || i == kTruthColumns[1] || i == kTruthColumns[2]; }
+}  // namespace
+
+const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth) {
+  static const auto make = [](bool truth) {
+    std::vector<CsvColumn> c;
+    const auto& sim = sim_telemetry_columns();
+    for (std::size_t i = 0; i < sim.size(); ++i) {
+      if (truth || !is_truth(i)) c.push_back(sim[i]);
+    }
     c.push_back({"wake_latency_us", 2});
     c.push_back({"compute_us", 2});
     c.push_back({"loop_flags", 0});
     return c;
-  }();
-  return columns;
+  };
+  static const std::vector<CsvColumn> all = make(true), measured = make(false);
+  return with_truth ? all : measured;
 }
 
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r) {
   std::array<double, kLoopColumns> row{};
-  const auto sim = telemetry_row(r.step);
-  for (std::size_t i = 0; i < kSimColumns; ++i) row[i] = sim[i];
-  row[kSimColumns] = r.wake_latency_us;
-  row[kSimColumns + 1] = r.compute_us;
-  row[kSimColumns + 2] = static_cast<double>(r.flags);
+  loop_telemetry_row(r, true, row);
   return row;
+}
+
+std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::array<double, kLoopColumns>& out) {
+  const auto sim = telemetry_row(r.step);
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < kSimColumns; ++i) {
+    if (with_truth || !is_truth(i)) out[n++] = sim[i];
+  }
+  out[n++] = r.wake_latency_us;
+  out[n++] = r.compute_us;
+  out[n++] = static_cast<double>(r.flags);
+  return n;
 }
 
 std::string_view to_string(SensorFault f) noexcept {
@@ -110,6 +131,7 @@ void RunLoop::begin(Clock::time_point now) {
   cs_ = controller_.initial_state(theta0, rd.p_meas_pa, run_.initial_touch);
   last_sent_rad_ = theta0;
   last_p_meas_pa_ = rd.p_meas_pa;
+  last_shown_ = rd;
   LoopSnapshot snap;
   snap.total_periods = n_;
   snap.p_meas_pa = rd.p_meas_pa;
@@ -195,7 +217,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   RigReading rd;
   const RigStatus status = rig_.read(woke, wall_period_, rd);
   bool missed = status != RigStatus::ok || !std::isfinite(rd.p_meas_pa);
-  if (!missed) last_p_meas_pa_ = rd.p_meas_pa;
+  if (!missed) last_p_meas_pa_ = rd.p_meas_pa;  // what a stuck sensor freezes
   if (!missed && sensor_ != SensorFault::none) {
     switch (sensor_) {
       case SensorFault::stuck: rd.p_meas_pa = sensor_value_; break;
@@ -204,6 +226,11 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
       case SensorFault::noise: rd.p_meas_pa += sensor_value_ * rng_.gaussian(); break;
       case SensorFault::none: break;
     }
+  }
+  if (missed) {
+    rd = last_shown_;  // recorded as held; loop_flags says the reading was missed
+  } else {
+    last_shown_ = rd;
   }
   const double p_ref = c_.reference_pa.at(t, ref_cursor_);
   const double programmed_gap = c_.gap_rad.at(t, gap_cursor_);
@@ -321,6 +348,7 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   snap.sensor_until_s = sensor_until_s_;
   snap.drive_until_s = drive_fault_ ? drive_until_s_ : 0;
   snap.overruns = overruns_;
+  snap.skipped_deadlines = skipped_;
   snap.missed_reads = missed_reads_;
   snap.limited_periods = limited_periods_;
   snap.rows_lost = rows_lost_;

@@ -1,9 +1,11 @@
 #include "hil/bench/rt_thread.hpp"
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
@@ -54,6 +56,30 @@ std::string lock_memory() {
          "; raise RLIMIT_MEMLOCK or run as root): page faults may delay the loop";
 }
 
+CpuLatencyRequest::CpuLatencyRequest(int max_us) {
+  fd_ = ::open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+  const std::int32_t value = max_us;
+  if (fd_ < 0 || ::write(fd_, &value, sizeof value) != static_cast<ssize_t>(sizeof value)) {
+    warning_ = std::string("/dev/cpu_dma_latency refused (") + std::strerror(errno) +
+               "): CPUs may sleep in deep idle states, adding wake-up latency";
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+}
+
+CpuLatencyRequest::~CpuLatencyRequest() {
+  if (fd_ >= 0) ::close(fd_);  // closing ends the request
+}
+
+void keep_off_cpu(int cpu) noexcept {
+  if (cpu < 0) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (pthread_getaffinity_np(pthread_self(), sizeof set, &set) != 0 || !CPU_ISSET(cpu, &set) || CPU_COUNT(&set) < 2) return;
+  CPU_CLR(static_cast<unsigned>(cpu), &set);
+  pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+}
+
 void prefault_stack(std::size_t bytes) noexcept {
   volatile unsigned char* p = static_cast<unsigned char*>(__builtin_alloca(bytes));
   for (std::size_t i = 0; i < bytes; i += 4096) p[i] = 0;
@@ -72,9 +98,23 @@ void run_paced(RunLoop& loop, Clock::time_point start) noexcept {
     sleep_until(deadline);
     const auto woke = Clock::now();
     loop.cycle(deadline, woke);
-    if (!loop.finish_cycle(Clock::now())) return;
-    deadline += loop.wall_period();
+    const auto end = Clock::now();
+    if (!loop.finish_cycle(end)) return;
+    std::int64_t skipped = 0;
+    deadline = next_deadline(deadline, loop.wall_period(), end, skipped);
+    if (skipped > 0) loop.skipped(skipped);
   }
+}
+
+Clock::time_point next_deadline(Clock::time_point deadline, Clock::duration period, Clock::time_point end,
+                                std::int64_t& skipped) noexcept {
+  deadline += period;
+  skipped = 0;
+  if (deadline < end) {
+    skipped = (end - deadline) / period + 1;
+    deadline += skipped * period;
+  }
+  return deadline;
 }
 
 }  // namespace hil::bench

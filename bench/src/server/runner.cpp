@@ -6,6 +6,7 @@
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <optional>
 #include <semaphore>
 
 #include <spdlog/spdlog.h>
@@ -93,6 +94,7 @@ std::string describe_trip(const RunLoop& loop, const Rig& rig) {
 json loop_stats_json(const RunLoop& loop) {
   return {{"periods", loop.snapshot().periods},
           {"overruns", loop.snapshot().overruns},
+          {"skipped_deadlines", loop.snapshot().skipped_deadlines},
           {"missed_reads", loop.snapshot().missed_reads},
           {"limited_periods", loop.snapshot().limited_periods},
           {"wake_latency_us", loop.wake_latency().summary().to_json()},
@@ -123,6 +125,7 @@ int outcome_rank(const std::string& o) { return o == "completed" ? 0 : o == "sto
 
 struct CampaignRunner::Active {
   StartRequest req;
+  bool simulated = true;
   std::vector<const RunSpec*> runs;
   Clock::time_point started;
   SysClock::time_point started_utc;
@@ -178,10 +181,10 @@ void CampaignRunner::start(StartRequest request) {
     }
   }
   if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
-  if (request.rig.kind != "sim" && request.speed != 1.0) {
+  const bool simulated = make_rig(request.rig)->simulated();
+  if (!simulated && request.speed != 1.0) {
     throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
   }
-  make_rig(request.rig);  // the kind exists
   {
     std::lock_guard lock(mutex_);
     if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
@@ -190,6 +193,7 @@ void CampaignRunner::start(StartRequest request) {
   std::lock_guard lock(mutex_);
   if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
   a->req = std::move(request);
+  a->simulated = simulated;
   for (const auto& r : a->req.campaign.runs) {
     if (a->req.runs.empty() || std::find(a->req.runs.begin(), a->req.runs.end(), r.name) != a->req.runs.end()) {
       a->runs.push_back(&r);
@@ -224,7 +228,7 @@ void CampaignRunner::inject(const LoopRequest& request) {
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
   if (!active_->requests) throw Conflict("no run is in its loop right now (between runs); try again");
-  const bool simulated = active_->req.rig.kind == "sim";
+  const bool simulated = active_->simulated;
   using K = LoopRequest::Kind;
   if (!simulated && (request.kind == K::set_gap || request.kind == K::programme_gap || request.kind == K::rig_fault)) {
     throw std::invalid_argument("rig '" + active_->req.rig.name + "' is hardware: gap changes and rig faults need a simulated rig");
@@ -261,6 +265,7 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
 }
 
 void CampaignRunner::run_one(Active& a, std::size_t index) {
+  keep_off_cpu(a.req.rig.loop.cpu);  // this thread only waits, but keeps the loop's CPU to the loop
   const Campaign& c = a.req.campaign;
   const RunSpec& run = *a.runs[index];
   const RigConfig& rc = a.req.rig;
@@ -288,10 +293,12 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                  {"rig_yaml", rc.yaml_text}}}};
   write_json_atomically(dir / "run.json", info);
 
+  std::unique_ptr<Rig> rig = make_rig(rc);
   Recorder rec(dir,
                {{"source", "hilbench serve"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
                 {"start_utc", utc_iso(start_utc)}},
-               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row);
+               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->simulated(),
+               rc.loop.cpu);
   rec.log({{"kind", "run_start"}, {"source", "bench"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
            {"speed", a.req.speed}});
   {
@@ -300,7 +307,6 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.recorder = &rec;
   }
 
-  std::unique_ptr<Rig> rig = make_rig(rc);
   SpscRing<LoopRequest> requests(64);
   std::unique_ptr<RunLoop> loop;
   std::string outcome, reason;
@@ -320,6 +326,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   }
 
   RtSetup rt;
+  std::optional<CpuLatencyRequest> cpu_latency;
+  if (loop && rc.loop.cpu_dma_latency_us >= 0) {
+    cpu_latency.emplace(rc.loop.cpu_dma_latency_us);
+    if (!cpu_latency->warning().empty()) spdlog::warn("{}", cpu_latency->warning());
+  }
   if (loop) {
     std::binary_semaphore go(0);
     std::thread t([&] {
@@ -330,7 +341,9 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     rt = make_realtime(t, rc.loop.priority, rc.loop.cpu);
     if (!rt.warning.empty()) spdlog::warn("loop thread: {}", rt.warning);
     rec.log({{"kind", "loop_start"}, {"source", "bench"}, {"sched", rt.describe()}, {"warning", rt.warning},
-             {"mlock_warning", o_.mlock_warning}});
+             {"mlock_warning", o_.mlock_warning},
+             {"cpu_dma_latency", cpu_latency ? (cpu_latency->warning().empty() ? json(rc.loop.cpu_dma_latency_us) : json(cpu_latency->warning()))
+                                             : json(nullptr)}});
     {
       std::lock_guard lock(mutex_);
       a.loop = loop.get();
@@ -357,6 +370,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.periods_done += loop->periods_run();
   }
   if (loop) rig->deactivate();
+  cpu_latency.reset();
 
   const std::string write_error = rec.finish();
   {
@@ -382,6 +396,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     stats["sched"] = rt.describe();
     stats["rt_warning"] = rt.warning;
     stats["memory_locked"] = o_.mlock_warning.empty();
+    stats["cpu_dma_latency_us"] = rc.loop.cpu_dma_latency_us;
     stats["overrun_policy"] = rc.loop.overrun_policy == OverrunPolicy::abort ? "abort" : "count";
     stats["wall_period_us"] = std::chrono::duration<double, std::micro>(loop->wall_period()).count();
     info["loop"] = stats;

@@ -34,10 +34,11 @@ class Recorder {
   using RowSink = std::function<void(const TelemetryRecord&)>;
 
   // Creates dir/telemetry.csv and dir/events.jsonl and starts the writer thread. Throws naming
-  // the file when it cannot.
+  // the file when it cannot. with_truth: the rig is simulated (see loop_telemetry_columns).
   Recorder(const std::filesystem::path& dir, const std::vector<std::pair<std::string, std::string>>& csv_metadata,
            std::size_t ring_rows, RowSink on_row = {},
-           std::chrono::milliseconds flush_period = std::chrono::milliseconds(100));
+           std::chrono::milliseconds flush_period = std::chrono::milliseconds(100), bool with_truth = true,
+           int avoid_cpu = -1);
   ~Recorder();
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
@@ -57,7 +58,7 @@ class Recorder {
   std::uint64_t events_written() const noexcept { return events_written_.load(); }
 
  private:
-  void writer();
+  void writer(int avoid_cpu);
   bool drain();  // one pass; true when it found anything
 
   SpscRing<TelemetryRecord> telemetry_;
@@ -66,6 +67,7 @@ class Recorder {
   std::shared_ptr<spdlog::logger> log_;
   RowSink on_row_;
   std::chrono::milliseconds flush_period_;
+  bool with_truth_;
   std::vector<TelemetryRecord> batch_;
   std::string error_;
   std::atomic<std::uint64_t> rows_written_{0}, rows_unwritten_{0}, events_written_{0};

@@ -38,6 +38,7 @@ struct LoopConfig {
   OverrunPolicy overrun_policy = OverrunPolicy::count;
   int overrun_abort_after = 10; // policy abort: this many overruns in a row trip the run
   int ring_rows = 65536;        // telemetry ring capacity (rows); the loss counter reports overflow
+  int cpu_dma_latency_us = 0;   // PM QoS request while a loop runs; -1 = none
   static LoopConfig from_yaml(const cfg::Node& node);
 };
 
@@ -60,10 +61,15 @@ struct TelemetryRecord {
   std::uint32_t flags = 0;
 };
 
-// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags.
+// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags. A hardware rig has no
+// truth: its files leave out theta_valve_deg, gap_true_deg and p_chamber_mpa (with_truth false)
+// rather than fill them with nan. A period without a reading repeats the last one recorded, with
+// kFlagReadMissed set, so every row parses.
 inline constexpr std::size_t kLoopColumns = kSimColumns + 3;
-const std::vector<CsvColumn>& loop_telemetry_columns();
+const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
+// The row for the columns of loop_telemetry_columns(with_truth); returns how many values.
+std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::array<double, kLoopColumns>& out);
 
 enum class SensorFault : std::uint8_t { none, stuck, dropout, bias, noise };
 std::string_view to_string(SensorFault f) noexcept;
@@ -114,7 +120,7 @@ struct LoopSnapshot {
   double gap_rad = kNaN, gap_override_rad = kNaN;
   SensorFault sensor = SensorFault::none;
   double sensor_value = 0, sensor_until_s = 0, drive_until_s = 0;  // until: +inf = until cleared
-  std::int64_t overruns = 0, missed_reads = 0, limited_periods = 0;
+  std::int64_t overruns = 0, skipped_deadlines = 0, missed_reads = 0, limited_periods = 0;
   std::uint64_t rows_lost = 0, events_lost = 0;
   double p_meas_pa = kNaN, p_ref_pa = kNaN, theta_cmd_rad = kNaN;
 };
@@ -138,6 +144,9 @@ class RunLoop {
   // Closes the period: compute time (end - woke), overrun check, telemetry row, snapshot.
   // Returns false once the run is over. Real-time safe.
   bool finish_cycle(Clock::time_point end) noexcept;
+  // The pacer skipped n deadlines that had passed before the loop could wake for them (after
+  // an overrun, like cyclictest: no burst of late periods). Real-time safe.
+  void skipped(std::int64_t n) noexcept { skipped_ += n; }
 
   Clock::duration wall_period() const noexcept { return wall_period_; }
   std::int64_t total_periods() const noexcept { return n_; }
@@ -153,6 +162,7 @@ class RunLoop {
   std::uint64_t rows_lost() const noexcept { return rows_lost_; }
   std::uint64_t events_lost() const noexcept { return events_lost_; }
   std::int64_t overruns() const noexcept { return overruns_; }
+  std::int64_t skipped_deadlines() const noexcept { return skipped_; }
   std::int64_t periods_run() const noexcept { return k_; }
   // Any thread (status):
   const LatencyHistogram& wake_latency() const noexcept { return wake_latency_; }
@@ -185,6 +195,7 @@ class RunLoop {
   std::int64_t k_ = 0;
   double last_sent_rad_ = 0;    // the last command the bench sent
   double last_p_meas_pa_ = kNaN;
+  RigReading last_shown_;       // recorded again in periods without a reading
   bool limited_ = false;
   // Faults and overrides.
   double gap_override_rad_ = kNaN;
@@ -202,7 +213,7 @@ class RunLoop {
   LoopEnd end_ = LoopEnd::running;
   // Statistics and the period in progress.
   LatencyHistogram wake_latency_, compute_;
-  std::int64_t overruns_ = 0, overruns_in_a_row_ = 0, missed_reads_ = 0, limited_periods_ = 0;
+  std::int64_t overruns_ = 0, overruns_in_a_row_ = 0, skipped_ = 0, missed_reads_ = 0, limited_periods_ = 0;
   std::uint64_t rows_pushed_ = 0, rows_lost_ = 0, events_lost_ = 0;
   Clock::time_point deadline_{}, woke_{};
   TelemetryRecord rec_;

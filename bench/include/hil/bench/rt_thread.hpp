@@ -29,14 +29,41 @@ RtSetup make_realtime(std::thread& thread, int priority, int cpu);
 // empty string when granted, else the warning.
 std::string lock_memory();
 
+// A PM QoS request on /dev/cpu_dma_latency, held while the object lives: CPUs stay out of idle
+// states slower to leave than `max_us` (cyclictest makes the same request). Refused (not root):
+// a warning, nothing else.
+class CpuLatencyRequest {
+ public:
+  explicit CpuLatencyRequest(int max_us);
+  ~CpuLatencyRequest();
+  CpuLatencyRequest(const CpuLatencyRequest&) = delete;
+  CpuLatencyRequest& operator=(const CpuLatencyRequest&) = delete;
+  const std::string& warning() const { return warning_; }
+
+ private:
+  int fd_ = -1;
+  std::string warning_;
+};
+
+// Takes `cpu` out of the calling thread's affinity when other CPUs remain (helper threads keep
+// off the loop's CPU). -1: nothing. Setup; never throws.
+void keep_off_cpu(int cpu) noexcept;
+
 // Touches `bytes` of stack so the loop never faults a stack page in. Real-time safe.
 void prefault_stack(std::size_t bytes = 256 * 1024) noexcept;
 
 // Sleeps until `deadline` on CLOCK_MONOTONIC (absolute, so errors do not accumulate). Real-time safe.
 void sleep_until(Clock::time_point deadline) noexcept;
 
-// Runs `loop` until the run ends: wakes at start, start + period, ... (never skipping a deadline:
-// a late period is followed at once by the next), calls cycle/finish_cycle. Real-time safe.
+// Runs `loop` until the run ends: wakes at start, start + period, ..., calls cycle/finish_cycle.
+// A deadline that has passed when a period ends is skipped (counted), as cyclictest does: after
+// a stall the loop resumes on the period grid instead of running late periods back to back.
+// Real-time safe.
 void run_paced(RunLoop& loop, Clock::time_point start) noexcept;
+
+// The pacer's step: the first deadline on the grid after `deadline` that has not passed at
+// `end`; `skipped` counts the ones passed over. Real-time safe.
+Clock::time_point next_deadline(Clock::time_point deadline, Clock::duration period, Clock::time_point end,
+                                std::int64_t& skipped) noexcept;
 
 }  // namespace hil::bench

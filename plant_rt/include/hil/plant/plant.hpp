@@ -46,6 +46,12 @@ class Plant {
   // gap_rad: a programmed gap at t0 (NaN: the model's own).
   void settle(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN, double t0_s = 0,
               double gap_rad = kNaN) const;
+  // As settle(), but when no valve angle reaches p_meas_pa the valve rests where the pressure
+  // comes closest (with theta_cmd_rad given: on the nearer flank of the gap). Returns the
+  // noise-free reading reached. For replaying measurements through a model that disagrees with
+  // them (analysis/): the motor angle is measured, the pressure is what the model makes of it.
+  double settle_nearest(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN, double t0_s = 0,
+                        double gap_rad = kNaN) const;
 
   // Advances state.s from t to t + dt_s with inputs held. Real-time safe: noexcept, no
   // allocation, no locking, no I/O.
@@ -63,6 +69,8 @@ class Plant {
  private:
   // Runs every effect's settle once; returns the noise-free p_meas.
   double settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s, double gap_rad) const;
+  double settle_impl(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad,
+                     bool nearest) const;
 
   std::vector<std::shared_ptr<const Effect>> effects_;
   std::vector<std::size_t> offsets_;  // start of each effect's state slice

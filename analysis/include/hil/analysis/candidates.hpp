@@ -1,0 +1,63 @@
+// Candidate missing effects for `hilbench diagnose`: each is a physical effect of plant_rt (a new
+// block, or new values in an existing block) with the parameters a fit may move, their physical
+// ranges and starting points. A candidate may have variants (sub-models with fewer free
+// parameters, e.g. a constant gap, a drifting gap, a gap that steps once); the information
+// criterion picks among them, so a parameter the data does not need is not counted.
+//
+// Built in: backlash_change, valve_offset, throat_erosion, sensor_lag, transport_delay,
+// sensor_bias, motor_dynamics (refits motor_servo), burn_rate (refits gas_generator).
+// User effects: any effect registered with HIL_REGISTER_EFFECT that the model does not use,
+// whose parameters all have defaults (the defaults meaning "effect absent"), and that is not
+// sensor noise, becomes a candidate by itself: all its parameters free, started at the
+// defaults, fitted inside its specs() ranges.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "hil/analysis/replay.hpp"
+#include "hil/plant/plant.hpp"
+
+namespace hil::analysis {
+
+struct FreeParam {
+  std::string effect;           // kind of the block holding it
+  std::string key;              // its key in that block (carries the unit)
+  double lo = 0, hi = 0;        // fit range, inside the effect's specs
+  double scale = 1;             // typical size: LM scaling and finite-difference step
+  std::vector<double> starts = {};  // tried before LM; the best one starts it
+  bool grid = false;            // discontinuous (a step time): searched on a grid, not by LM
+  // Grid values from the data (grid parameters only), e.g. between successive reversals.
+  std::function<std::vector<double>(const ReplayData&)> grid_values = {};
+};
+
+struct Variant {
+  std::string name;             // "constant", "drift", "step", "offset and gain", ...
+  std::vector<FreeParam> params;
+};
+
+struct Candidate {
+  std::string name;             // effect name as the issue and the report use it
+  std::string description;
+  bool command_side = false;    // acts before the motor: invisible when the encoder is replayed
+  // The base model with this effect at its neutral values (no change to the prediction).
+  std::function<plant::Plant(const plant::Plant&)> attach;
+  std::vector<Variant> variants;
+};
+
+// The built-in candidates, their starting values taken from `base`, plus the registry's user
+// effects (see above). `only`: restrict to these names (empty: all).
+std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only = {});
+std::vector<std::string> builtin_candidate_names();
+
+// `plant` with the free parameters set to `values` (same order). Throws std::invalid_argument for
+// a value outside the effect's specs.
+plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>& params, const std::vector<double>& values);
+// The current value of a parameter in `plant` (NaN when absent).
+double value_of(const plant::Plant& plant, const std::string& effect, const std::string& key);
+
+// Times at which the drive reverses (> 0.1 deg retreat), from the data's encoder or command.
+std::vector<double> drive_reversal_times(const ReplayData& data);
+
+}  // namespace hil::analysis

@@ -1,0 +1,54 @@
+// `hilbench compare`: replay a measurement through a model, open loop, and say where it fails.
+// Streams the file (bounded memory), prints a summary, writes DIR/compare.json and DIR/report.html.
+// Offline code: allocates and throws (CsvError for bad files, cfg::Error for bad models,
+// std::runtime_error for data the model cannot start from).
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include "hil/analysis/measurement.hpp"
+#include "hil/analysis/replay.hpp"
+#include "hil/analysis/residuals.hpp"
+#include "hil/plant/plant.hpp"
+
+namespace hil::report {
+class Document;
+}
+
+namespace hil::analysis {
+
+struct ReplayInfo {
+  std::filesystem::path data_file;
+  bool has_encoder = false, has_reference = false;
+  ReplayStart start;
+  double wall_s = 0;
+};
+
+// progress(fraction 0..1, rows so far) is called about twice a second while streaming.
+using Progress = std::function<void(double fraction, std::size_t rows)>;
+
+// Streams `data_file` through `model` (its sensor noise is ignored) and analyses the residual.
+ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info = nullptr,
+                            const Progress& progress = {});
+// The same on a measurement already in memory (diagnose: before/after).
+ResidualReport compare_measurement(const plant::Plant& model, const Measurement& m, bool keep_series = true);
+
+AnalyzerOptions analyzer_options_for(const plant::Plant& model);
+
+// Report sections for one replay (used by compare and, for the final model, by diagnose).
+// `group` links the time plots' zoom.
+void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
+                           const std::string& model_label);
+std::string residual_json(const ResidualReport& r, int indent = 2);  // the compare.json body
+
+struct CompareOptions {
+  std::filesystem::path model_file, data_file, out_dir;
+  bool progress = true;
+  bool quiet = false;
+};
+// The whole command: prints the summary, writes DIR/compare.json and DIR/report.html.
+ResidualReport run_compare(const CompareOptions& options);
+
+}  // namespace hil::analysis

@@ -1,0 +1,120 @@
+// `hilbench diagnose`: which missing physical effect explains the misfit? Each candidate
+// (candidates.hpp) is fitted to the data and ranked by an information criterion that makes
+// every extra parameter earn its place; the best one that earns it is added to the model, and
+// the search repeats until nothing more earns its place (greedy forward selection).
+//
+// Criterion (per round, against the current model, N rows):
+//   dBIC = N_eff * ln(RSS_candidate / RSS_model) + k * ln(N_eff)
+// with k the candidate's free parameters and N_eff = N / tau_int, tau_int the integrated
+// autocorrelation time of the best-fitting candidate's residual (correlated residuals carry fewer
+// independent samples, so an extra parameter must explain more). A candidate earns its place when
+//   dBIC < -10  (very strong evidence), and
+//   it removes >= 25 % of the model's excess error power (RSS_model - N sigma^2, sigma the
+//   measurement noise), and at least 5 % of N sigma^2 (a real improvement, not noise fitting).
+// When the best single effect of the first round does not reach the noise floor, the search also
+// follows the next two first choices that earn their place (a beam of three paths, each greedy
+// after its first step) and keeps the path with the lowest BIC: a two-effect misfit is often
+// mimicked best by a third effect alone.
+// Offline code: allocates, throws, and uses up to `threads` worker threads.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hil/analysis/candidates.hpp"
+#include "hil/analysis/measurement.hpp"
+#include "hil/analysis/residuals.hpp"
+#include "hil/plant/plant.hpp"
+
+namespace hil::analysis {
+
+struct FittedParam {
+  std::string effect, key;
+  double value = 0;
+  double sigma = 0;        // 1-sigma; NaN when not computed (grid-searched step times)
+  double model_value = 0;  // in the model before the fit (NaN: the block is new)
+  bool grid = false;       // searched on a grid (discontinuous)
+};
+
+struct CandidateResult {
+  std::string effect, variant, description;
+  std::vector<FittedParam> parameters;
+  double rss_pa2 = 0;
+  double fit_before_pct = 0, fit_after_pct = 0;
+  double excess_explained = 0;  // share of the model's excess error power this candidate removes
+  double delta_bic = 0;
+  std::size_t k = 0;            // free parameters counted by the criterion
+  bool earns_place = false;
+  bool refined = false;         // the final fit ran on every row (not only on the decimated copy)
+  std::string why_not;          // when it does not earn its place: which test failed
+  int evaluations = 0;          // replays spent
+};
+
+struct Round {
+  double rss_before_pa2 = 0, fit_before_pct = 0;
+  double n_eff = 0, tau_int_samples = 1;
+  std::vector<CandidateResult> ranking;  // best first (lowest dBIC)
+  std::string added;                     // empty: nothing earned its place
+};
+
+// One path of the search (a first choice followed greedily), for the report.
+struct Alternative {
+  std::vector<std::string> effects;
+  double fit_pct = 0;
+  double bic = 0;  // relative to the chosen path (0 for it)
+  bool chosen = false;
+};
+
+struct NotIdentifiable {
+  std::string effect, reason;
+};
+
+struct Diagnosis {
+  std::size_t rows = 0;
+  bool has_encoder = false;
+  std::size_t decimation = 1;            // rows per row of the copy the coarse fits ran on
+  double noise_sigma_pa = 0, noise_floor_fit_pct = 0;
+  std::vector<Round> rounds;
+  std::vector<CandidateResult> added;    // in the order found, values after the joint refit
+  bool explained = false;               // at least one effect earned its place
+  bool at_noise_floor = false;          // the final model's RMSE is within 10 % of the noise
+  std::string verdict;                  // explained | partly_explained | unexplained | nothing_missing
+  std::vector<Alternative> paths;       // when the search followed several first choices
+  std::vector<NotIdentifiable> not_identifiable;
+  std::vector<std::string> summary;      // plain-language verdict
+  ResidualReport before, after;
+  std::shared_ptr<const plant::Plant> fitted;  // the input model (noise included) with the found effects
+  double wall_s = 0;
+  int evaluations = 0;
+};
+
+struct DiagnoseSettings {
+  std::vector<std::string> candidates;   // empty: all (built in + user effects)
+  unsigned threads = 0;                  // 0: min(2, hardware)
+  int max_rounds = 4;
+  std::size_t coarse_rows = 50000;       // coarse fits run on a decimated copy about this long
+  bool keep_series = true;               // plots for the report
+  bool progress = false;                 // one line per round on stderr
+};
+
+Diagnosis diagnose(const plant::Plant& model, const Measurement& data, const DiagnoseSettings& settings = {});
+
+std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file,
+                           const std::filesystem::path& data_file);
+void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
+                            const std::filesystem::path& data_file, const std::filesystem::path& html);
+// The fitted model as YAML, with a header naming what was added.
+std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file,
+                              const std::filesystem::path& data_file);
+
+struct DiagnoseOptions {
+  std::filesystem::path model_file, data_file, out_dir, write_model;  // write_model empty: none
+  DiagnoseSettings settings;
+  bool quiet = false;
+};
+// The whole command: prints the verdict, writes DIR/diagnosis.json, DIR/report.html and the model.
+Diagnosis run_diagnose(const DiagnoseOptions& options);
+
+}  // namespace hil::analysis

@@ -1,0 +1,80 @@
+// Open-loop replay of a measurement through a model: the measured command (and the motor encoder
+// when the file has it) drives the plant from a state estimated from the first samples; the
+// model's noise-free pressure reading is the prediction.
+//
+// Time convention (plant_rt): row k holds theta_cmd(k) and p_meas(k); p_meas(k+1) results from
+// stepping t(k) -> t(k+1) with theta_cmd(k) held, and the encoder replaces the motor model with
+// theta_motor(k+1), the angle at the end of that step. Each step uses its own row's dt, so
+// non-uniform sampling is replayed as sampled.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "hil/analysis/measurement.hpp"
+#include "hil/plant/plant.hpp"
+
+namespace hil::analysis {
+
+// Where the replay starts: steady state at the mean pressure of the first settle_s of data, the
+// motor at the first encoder angle (or the first command), the valve inside the gap where that
+// pressure fits.
+struct ReplayStart {
+  double t0_s = 0;
+  double p0_pa = 0;
+  double motor0_rad = 0;
+  std::size_t rows_averaged = 0;
+};
+inline constexpr double kSettleWindowS = 0.05;
+ReplayStart estimate_start(const MeasurementRows& first_rows, double settle_s = kSettleWindowS);
+
+// The model as used for prediction: the same effects without the sensor's random noise.
+plant::Plant noise_free(const plant::Plant& model);
+
+// Streaming replay, row by row (compare on hour-long files).
+class Replayer {
+ public:
+  explicit Replayer(const plant::Plant& model) : model_(model), state_(model.make_state(1)) {}
+  // Steady state at the measured start; when the model cannot reach p0 with the measured motor
+  // angle, the valve rests where it comes closest. Returns the prediction for row 0.
+  double start(const ReplayStart& s);
+  // Prediction at row time t_s; cmd_held_rad: the command in force since the previous row;
+  // motor_rad: the encoder at t_s (NaN: the motor model acts). Real-time safe.
+  double advance(double t_s, double cmd_held_rad, double motor_rad) noexcept {
+    const double dt = t_s - state_.s.t_s;
+    model_.step(state_, {cmd_held_rad, motor_rad, plant::kNaN}, dt);
+    burned_kg_ += state_.s.mdot_gen_kg_s * dt;
+    return state_.s.p_meas_pa;
+  }
+  const plant::Signals& signals() const { return state_.s; }
+  double burned_kg() const { return burned_kg_; }  // propellant burned since the start (model)
+
+ private:
+  const plant::Plant& model_;
+  plant::PlantState state_;
+  double burned_kg_ = 0;
+};
+
+// A whole series prepared for repeated replays (fitting): inputs in "held" form so that a
+// decimated copy replays with the same code.
+struct ReplayData {
+  std::vector<double> t_s;          // row times
+  std::vector<double> cmd_held_rad; // [k]: command in force over (t[k-1], t[k]]; [0] unused
+  std::vector<double> motor_rad;    // [k]: encoder at t[k]; empty: no encoder
+  std::vector<double> y_pa;         // measured pressure at t[k]
+  ReplayStart start;
+  std::size_t decimation = 1;       // rows of the original per row here
+  std::size_t size() const { return t_s.size(); }
+};
+
+ReplayData replay_data(const Measurement& m);
+// Every m-th row; the held command is the mean over the rows it replaces (preserves the command's
+// integral over each step), the encoder is taken at the end of the step.
+ReplayData decimate(const ReplayData& full, std::size_t m);
+
+// Predictions for every row into yhat (size data.size()); returns false if the model cannot
+// start there (settle out of range) or the prediction is not finite.
+bool replay(const plant::Plant& model, const ReplayData& data, std::span<double> yhat);
+
+}  // namespace hil::analysis

@@ -1,0 +1,143 @@
+// Where and how a model fails: the error metrics, the error by regime and by time window, and
+// the residual diagnostics of one replay (measured minus predicted pressure), computed in one
+// streaming pass with bounded memory (an hour at 1 kHz keeps a few hundred kB of state).
+//
+// Regimes are classified from the data only (the drive angle and the measured pressure), never
+// from the model, so two models compared on the same file see the same regimes.
+// Offline code: allocates and throws.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hil::analysis {
+
+// Error statistics of a set of samples; e = measured - model, in Pa.
+struct ErrorStats {
+  std::size_t samples = 0;
+  double rmse_pa = 0, bias_pa = 0, max_abs_pa = 0, t_at_max_s = 0;
+};
+
+struct Regime {
+  std::string name;         // holding, opening, closing, after_reversal, low_pressure, ...
+  std::string description;  // how it is defined, one line
+  ErrorStats error;
+  double share = 0;         // fraction of all samples in this regime
+};
+
+struct TimeWindow {
+  double t0_s = 0, t1_s = 0;
+  ErrorStats error;
+  std::string regime;       // the motion regime most of its samples are in
+  double burned_kg = 0;     // model's burned propellant at the window's end
+};
+
+// Mean and RMS of the residual in bins of some quantity.
+struct Binned {
+  std::string quantity, unit;
+  std::vector<double> x, mean_pa, rms_pa;
+  std::vector<std::size_t> samples;
+};
+
+struct SpectrumPeak {
+  double hz = 0;
+  double power_share = 0;  // of the residual's total power
+  std::string name;        // what it most likely is
+};
+
+struct Diagnostics {
+  double dt_s = 0;  // nominal sample period the correlations and spectrum assume (median dt)
+  // Whiteness: normalised autocorrelation of the residual with the 99 % bounds of white noise.
+  std::vector<double> acf_lag_s, acf;
+  double acf_bound = 0;
+  double acf_outside_share = 0;  // of lags 1..whiteness_lags outside the bounds
+  bool white = false;
+  double tau_int_samples = 1;    // integrated autocorrelation time (Geyer's initial positive sequence)
+  double n_eff = 0;              // effective sample size N / tau_int
+  // Input-residual cross-correlation (input: drive-angle increments), Bartlett 99 % bound.
+  std::vector<double> xcf_lag_s, xcf;
+  double xcf_bound = 0, xcf_max_abs = 0, xcf_max_lag_s = 0;
+  bool input_correlated = false;
+  // Welch spectrum of the residual (Hann, 50 % overlap), kPa^2/Hz.
+  std::vector<double> psd_hz, psd_kpa2_per_hz;
+  std::vector<SpectrumPeak> peaks;
+  double low_frequency_share = 0;  // power below 0.5 Hz (offsets, drifts, slow errors)
+  // Event-locked mean residual after motion reversals, separately for reversals into opening
+  // and into closing.
+  std::vector<double> since_reversal_s, after_opening_mean_pa, after_closing_mean_pa;
+  Binned vs_pressure, vs_dpdt, vs_burned, vs_time;
+};
+
+struct TimeSeries {  // min/max-decimated for plots (each bucket keeps its extremes, in time order)
+  std::vector<double> t_s, value;
+};
+struct ReportSeries {
+  TimeSeries measured_mpa, model_mpa, residual_kpa, drive_deg, reference_mpa;
+};
+
+struct ResidualReport {
+  std::size_t rows = 0;
+  double t0_s = 0, duration_s = 0;
+  double fit_pct = 0;              // 100 (1 - |y - yhat| / |y - mean(y)|)
+  double noise_sigma_pa = 0;       // measurement noise, from the data (see noise_method)
+  std::string noise_method;
+  double noise_floor_fit_pct = 0;  // the fit a perfect model would reach with that noise
+  double y_spread_pa = 0;          // |y - mean(y)| / sqrt(N)
+  ErrorStats error;
+  double rss_pa2 = 0;              // sum of squared residuals
+  std::vector<Regime> regimes;
+  double window_width_s = 0;
+  std::vector<TimeWindow> windows;       // in time order
+  std::vector<std::size_t> worst;        // indices into windows, worst first
+  std::vector<std::pair<double, double>> failing;  // merged failing spans [t0, t1]
+  std::size_t reversals = 0;
+  double motion_cycle_hz = 0;      // reversals / (2 * duration): the fundamental of the motion
+  double reference_cycle_hz = 0;   // same for p_ref when present
+  Diagnostics diagnostics;
+  std::vector<std::string> signature;  // plain-language description of the residual
+  ReportSeries series;
+};
+
+// One row as the analyzer sees it, SI units.
+struct ResidualSample {
+  double t_s, y_pa, yhat_pa;
+  double drive_rad;        // encoder when present, else the command
+  double p_ref_pa;         // NaN when absent
+  double burned_kg;        // model's burned propellant since the start
+};
+
+struct AnalyzerOptions {
+  double pressure_lo_pa = 0.2e6, pressure_hi_pa = 5e6;  // histogram range (the model's reach)
+  double expected_duration_s = 0;   // 0: unknown (windows adapt as data arrives)
+  std::size_t expected_rows = 0;    // 0: unknown (sizes the spectrum segments)
+  bool keep_series = true;          // decimated series for plots
+};
+
+class ResidualAnalyzer {
+ public:
+  explicit ResidualAnalyzer(const AnalyzerOptions& options);
+  ~ResidualAnalyzer();
+  ResidualAnalyzer(const ResidualAnalyzer&) = delete;
+  ResidualAnalyzer& operator=(const ResidualAnalyzer&) = delete;
+
+  void add(const ResidualSample& s);
+  ResidualReport finish();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Fit % of a residual: 100 (1 - sqrt(rss) / |y - mean(y)|).
+double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n);
+
+// Measurement noise from the measured pressure alone: 1.4826 * median|second difference| / sqrt(6)
+// (the second difference of white noise has variance 6 sigma^2; the median ignores transients).
+double noise_sigma_from_data(const std::vector<double>& y_pa);
+
+// Integrated autocorrelation time (samples) of a residual, by FFT, for the selection criterion.
+double integrated_autocorrelation_time(const std::vector<double>& e, std::size_t max_lag = 2000);
+
+}  // namespace hil::analysis

@@ -1,0 +1,274 @@
+#include "hil/analysis/candidates.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+#include "hil/config.hpp"
+#include "hil/plant/registry.hpp"
+#include "hil/units.hpp"
+
+namespace hil::analysis {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Adds a block of `kind` with the given parameter values (all others at their defaults).
+plant::Plant add_block(const plant::Plant& base, const std::string& kind, const std::string& yaml_params) {
+  if (base.find(kind)) return base;
+  const plant::EffectInfo* info = plant::find_effect(kind);
+  if (info == nullptr) throw std::logic_error("candidate effect '" + kind + "' is not registered");
+  const auto node = cfg::Node::load_string(yaml_params.empty() ? "{}" : yaml_params, kind + " (candidate)");
+  return base.with(info->from_yaml(node));
+}
+
+std::string num(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.10g", v);
+  return b;
+}
+
+double gap_of(const plant::Plant& base) {
+  const double g = value_of(base, "backlash_change", "gap_deg");
+  return std::isfinite(g) ? g : value_of(base, "backlash", "gap_deg");
+}
+
+std::vector<double> step_times(const ReplayData& data) {
+  const auto rev = drive_reversal_times(data);
+  // A gap only shows when the drive crosses it, so every time between two reversals is as good
+  // as any other: one candidate per interval.
+  std::vector<double> mids;
+  for (std::size_t i = 0; i + 1 < rev.size(); ++i) mids.push_back(0.5 * (rev[i] + rev[i + 1]));
+  return mids;
+}
+
+Candidate backlash_change(const plant::Plant& base) {
+  const double gap = gap_of(base);
+  Candidate c;
+  c.name = "backlash_change";
+  c.description = "the gap differs from the model's: constant, drifting, or stepping once at an unknown time";
+  c.attach = [gap](const plant::Plant& p) { return add_block(p, "backlash_change", "gap_deg: " + num(gap)); };
+  const FreeParam g{"backlash_change", "gap_deg", 0.0, 10.0, 0.2, {gap, 0.5 * gap, 2 * gap}};
+  const FreeParam drift{"backlash_change", "drift_deg_per_s", -0.5, 0.5, 0.005, {0.0}};
+  const FreeParam size{"backlash_change", "step_deg", -5.0, 5.0, 0.2, {0.5, -0.5}};
+  FreeParam when{"backlash_change", "step_time_s", 0.0, 1e7, 1.0, {}, true, step_times};
+  c.variants = {{"constant gap", {g}}, {"drifting gap", {g, drift}}, {"gap step", {g, size, when}}};
+  return c;
+}
+
+Candidate valve_offset(const plant::Plant& base) {
+  const double v = value_of(base, "valve_offset", "offset_deg");
+  Candidate c;
+  c.name = "valve_offset";
+  c.description = "the valve's zero differs from the motor's, so the throat sees a shifted angle";
+  c.attach = [](const plant::Plant& p) { return add_block(p, "valve_offset", "offset_deg: 0"); };
+  c.variants = {{"offset", {{"valve_offset", "offset_deg", -10.0, 10.0, 0.2, {std::isfinite(v) ? v : 0.0, -1.0, 1.0}}}}};
+  return c;
+}
+
+Candidate throat_erosion(const plant::Plant& base) {
+  const double v = value_of(base, "throat_erosion", "rate_mm2_per_s");
+  Candidate c;
+  c.name = "throat_erosion";
+  c.description = "the throat area grows (or shrinks, deposits) linearly over the run";
+  c.attach = [](const plant::Plant& p) { return add_block(p, "throat_erosion", "rate_mm2_per_s: 0"); };
+  c.variants = {{"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}}};
+  return c;
+}
+
+Candidate sensor_lag(const plant::Plant& base) {
+  const double v = value_of(base, "sensor_lag", "time_constant_s");
+  Candidate c;
+  c.name = "sensor_lag";
+  c.description = "the pressure transducer (or its tubing) responds with a first-order lag";
+  c.attach = [](const plant::Plant& p) { return add_block(p, "sensor_lag", "time_constant_s: 0"); };
+  std::vector<double> starts = {0.003, 0.01, 0.03, 0.1};
+  if (std::isfinite(v)) starts.insert(starts.begin(), v);
+  c.variants = {{"time constant", {{"sensor_lag", "time_constant_s", 0.0, 0.5, 0.005, starts}}}};
+  return c;
+}
+
+Candidate transport_delay(const plant::Plant& base) {
+  const double v = value_of(base, "transport_delay", "delay_s");
+  Candidate c;
+  c.name = "transport_delay";
+  c.description = "a pure delay between the command and the drive acting on it";
+  c.command_side = true;
+  c.attach = [](const plant::Plant& p) { return add_block(p, "transport_delay", "delay_s: 0"); };
+  std::vector<double> starts = {0.005, 0.02, 0.05, 0.1};
+  if (std::isfinite(v)) starts.insert(starts.begin(), v);
+  c.variants = {{"delay", {{"transport_delay", "delay_s", 0.0, 0.5, 0.005, starts}}}};
+  return c;
+}
+
+Candidate sensor_bias(const plant::Plant& base) {
+  const double o = value_of(base, "sensor_bias", "offset_kpa"), g = value_of(base, "sensor_bias", "gain");
+  Candidate c;
+  c.name = "sensor_bias";
+  c.description = "the pressure reading has an offset and/or a gain error";
+  c.attach = [](const plant::Plant& p) { return add_block(p, "sensor_bias", ""); };
+  const FreeParam off{"sensor_bias", "offset_kpa", -500.0, 500.0, 5.0, {std::isfinite(o) ? o : 0.0}};
+  const FreeParam gain{"sensor_bias", "gain", 0.5, 2.0, 0.01, {std::isfinite(g) ? g : 1.0}};
+  c.variants = {{"offset", {off}}, {"gain", {gain}}, {"offset and gain", {off, gain}}};
+  return c;
+}
+
+Candidate motor_dynamics(const plant::Plant& base) {
+  const double tau = value_of(base, "motor_servo", "time_constant_s");
+  const double rate = value_of(base, "motor_servo", "rate_limit_deg_s");
+  Candidate c;
+  c.name = "motor_dynamics";
+  c.description = "the servo's lag or rate limit differs from the model's (refits motor_servo)";
+  c.command_side = true;
+  c.attach = [](const plant::Plant& p) { return p; };
+  const FreeParam t{"motor_servo", "time_constant_s", 1e-4, 0.5, 0.002, {tau, 3 * tau, 8 * tau}};
+  const FreeParam r{"motor_servo", "rate_limit_deg_s", 1.0, 1000.0, 1.0, {rate, 0.5 * rate, 0.25 * rate}};
+  c.variants = {{"lag", {t}}, {"rate limit", {r}}, {"lag and rate limit", {t, r}}};
+  return c;
+}
+
+Candidate burn_rate(const plant::Plant& base) {
+  const double a = value_of(base, "gas_generator", "burn_rate_mm_s_at_1mpa");
+  const double n = value_of(base, "gas_generator", "pressure_exponent");
+  Candidate c;
+  c.name = "burn_rate";
+  c.description = "the propellant's burn-rate coefficient a or exponent n differs (refits gas_generator)";
+  c.attach = [](const plant::Plant& p) { return p; };
+  const FreeParam pa{"gas_generator", "burn_rate_mm_s_at_1mpa", 0.5 * a, 2.0 * a, 0.01 * a, {a}};
+  const FreeParam pn{"gas_generator", "pressure_exponent", 0.05, 0.9, 0.005, {n}};
+  c.variants = {{"coefficient a", {pa}}, {"exponent n", {pn}}, {"a and n", {pa, pn}}};
+  return c;
+}
+
+const std::vector<std::string> kBuiltin = {"backlash_change", "valve_offset",    "throat_erosion", "sensor_lag",
+                                           "transport_delay", "sensor_bias",     "motor_dynamics", "burn_rate"};
+
+// A registered effect the model lacks, whose defaults all exist: a candidate by itself.
+bool user_candidate(const plant::Plant& base, const std::string& kind, const plant::EffectInfo& info) {
+  if (base.find(kind)) return false;
+  if (std::find(kBuiltin.begin(), kBuiltin.end(), kind) != kBuiltin.end()) return false;
+  switch (info.stage) {
+    case plant::Stage::motor:
+    case plant::Stage::transmission:
+    case plant::Stage::throat:
+    case plant::Stage::chamber:
+    case plant::Stage::sensor_noise:
+      return false;
+    default:
+      break;
+  }
+  try {
+    const auto e = info.from_yaml(cfg::Node::load_string("{}", kind));
+    return !e->specs().empty();
+  } catch (const std::exception&) {
+    return false;  // a required parameter: no neutral default to start from
+  }
+}
+
+Candidate from_registry(const std::string& kind, const plant::EffectInfo& info) {
+  const auto neutral = info.from_yaml(cfg::Node::load_string("{}", kind));
+  Candidate c;
+  c.name = kind;
+  c.description = std::string(info.doc) + " (user effect)";
+  c.command_side = info.stage == plant::Stage::command;
+  c.attach = [neutral](const plant::Plant& p) { return p.with(neutral); };
+  Variant v{"all parameters", {}};
+  const auto params = neutral->params();
+  const auto specs = neutral->specs();
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    const auto& s = specs[i];
+    const double width = s.hi - s.lo;
+    double lo = s.lo, hi = s.hi;
+    // Open bounds: stay a hair inside; huge ranges: keep the fit near the default.
+    const double pad = std::isfinite(width) && width > 0 ? 1e-9 * width : 1e-9;
+    if (s.lo_open) lo += pad;
+    if (s.hi_open) hi -= pad;
+    const double start = params[i].value;
+    const double scale = start != 0 ? std::abs(start) * 0.1 : (width < 1e3 ? width / 100 : 1.0);
+    v.params.push_back({kind, std::string(s.key), lo, hi, scale, {start}});
+  }
+  c.variants = {v};
+  return c;
+}
+
+}  // namespace
+
+std::vector<std::string> builtin_candidate_names() { return kBuiltin; }
+
+double value_of(const plant::Plant& plant, const std::string& effect, const std::string& key) {
+  const plant::Effect* e = plant.find(effect);
+  if (e == nullptr) return kNaN;
+  for (const auto& p : e->params())
+    if (p.key == key) return p.value;
+  return kNaN;
+}
+
+plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>& params, const std::vector<double>& values) {
+  std::map<std::string, std::vector<std::pair<std::string, double>>> by_effect;
+  for (std::size_t i = 0; i < params.size(); ++i) by_effect[params[i].effect].push_back({params[i].key, values[i]});
+  plant::Plant out = plant;
+  for (const auto& [kind, kv] : by_effect) {
+    const plant::Effect* e = out.find(kind);
+    if (e == nullptr) throw std::invalid_argument("the model has no '" + kind + "' block to fit");
+    auto current = e->params();
+    std::vector<double> v;
+    for (auto& p : current) {
+      for (const auto& [k, x] : kv)
+        if (p.key == k) p.value = x;
+      v.push_back(p.value);
+    }
+    out = out.with(e->with_params(v));
+  }
+  return out;
+}
+
+std::vector<double> drive_reversal_times(const ReplayData& data) {
+  const auto& a = data.motor_rad.empty() ? data.cmd_held_rad : data.motor_rad;
+  const std::size_t shift = data.motor_rad.empty() ? 1 : 0;  // cmd_held[k] is the command of row k-1
+  std::vector<double> out;
+  const double h = 0.1 * units::kRadPerDeg;
+  int dir = 0;
+  double ext = 0, amin = 0, amax = 0;
+  for (std::size_t k = shift; k < data.size(); ++k) {
+    const double v = a[k];
+    const double t = data.t_s[k - shift];
+    if (k == shift) amin = amax = v;
+    if (dir == 0) {
+      amin = std::min(amin, v), amax = std::max(amax, v);
+      if (v - amin > h) dir = 1, ext = v;
+      else if (amax - v > h) dir = -1, ext = v;
+    } else if (dir > 0) {
+      ext = std::max(ext, v);
+      if (v < ext - h) dir = -1, ext = v, out.push_back(t);
+    } else {
+      ext = std::min(ext, v);
+      if (v > ext + h) dir = 1, ext = v, out.push_back(t);
+    }
+  }
+  return out;
+}
+
+std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only) {
+  std::vector<Candidate> all = {backlash_change(base), valve_offset(base),  throat_erosion(base), sensor_lag(base),
+                                transport_delay(base), sensor_bias(base),   motor_dynamics(base), burn_rate(base)};
+  for (const auto& kind : plant::effect_names()) {
+    const plant::EffectInfo* info = plant::find_effect(kind);
+    if (info && user_candidate(base, kind, *info)) all.push_back(from_registry(kind, *info));
+  }
+  if (only.empty()) return all;
+  std::vector<Candidate> out;
+  for (const auto& name : only) {
+    const auto it = std::find_if(all.begin(), all.end(), [&](const Candidate& c) { return c.name == name; });
+    if (it == all.end()) {
+      std::string known;
+      for (const auto& c : all) known += (known.empty() ? "" : ", ") + c.name;
+      throw std::invalid_argument("unknown candidate '" + name + "'; known: " + known);
+    }
+    out.push_back(*it);
+  }
+  return out;
+}
+
+}  // namespace hil::analysis

@@ -1,0 +1,285 @@
+#include "hil/analysis/compare.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+
+#include "hil/report/report.hpp"
+#include "hil/units.hpp"
+#include "json_out.hpp"
+#include "text.hpp"
+
+namespace hil::analysis {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using units::kPaPerKpa;
+
+// Replays row by row and feeds the analyzer. `next` yields chunks of rows in file order.
+template <class NextChunk>
+ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRows& first, NextChunk&& next,
+                                  AnalyzerOptions opt, ReplayInfo* info, const std::filesystem::path& file,
+                                  std::size_t first_line) {
+  const plant::Plant quiet = noise_free(model);
+  const ReplayStart start = estimate_start(first);
+  Replayer rep(quiet);
+  double yhat0 = 0;
+  try {
+    yhat0 = rep.start(start);
+  } catch (const std::out_of_range& e) {
+    throw std::runtime_error(file.string() + ":" + std::to_string(first_line) + ": cannot start the model there: the " +
+                             "mean measured pressure of the first " + std::to_string(start.rows_averaged) + " rows, " +
+                             e.what());
+  }
+  if (info) info->start = start;
+  ResidualAnalyzer an(opt);
+  const bool enc = !first.theta_motor_rad.empty();
+  const bool ref = !first.p_ref_pa.empty();
+  double cmd_prev = first.theta_cmd_rad[0];
+  bool first_row = true;
+  const MeasurementRows* rows = &first;
+  MeasurementRows buffer;
+  while (rows != nullptr) {
+    for (std::size_t k = 0; k < rows->size(); ++k) {
+      const double motor = enc ? rows->theta_motor_rad[k] : plant::kNaN;
+      const double yhat = first_row ? yhat0 : rep.advance(rows->t_s[k], cmd_prev, motor);
+      first_row = false;
+      cmd_prev = rows->theta_cmd_rad[k];
+      an.add({rows->t_s[k], rows->p_meas_pa[k], yhat, enc ? motor : rows->theta_cmd_rad[k],
+              ref ? rows->p_ref_pa[k] : plant::kNaN, rep.burned_kg()});
+    }
+    rows = next(buffer) ? &buffer : nullptr;
+  }
+  return an.finish();
+}
+
+}  // namespace
+
+AnalyzerOptions analyzer_options_for(const plant::Plant& model) {
+  AnalyzerOptions o;
+  try {
+    const auto [lo, hi] = noise_free(model).pressure_range_pa();
+    if (lo > 0 && hi > lo) o.pressure_lo_pa = 0.5 * lo, o.pressure_hi_pa = 1.5 * hi;
+  } catch (const std::exception&) {
+    // keep the defaults: the histogram range only shapes a plot
+  }
+  return o;
+}
+
+ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info,
+                            const Progress& progress) {
+  const auto t0 = Clock::now();
+  MeasurementReader reader(data_file);
+  MeasurementRows first;
+  constexpr std::size_t kChunk = 65536;
+  if (!reader.next(first, kChunk) || first.size() < kMinRows) {
+    MeasurementRows more;
+    const bool has_more = first.size() > 0 && reader.next(more, kMinRows);
+    if (!has_more) {
+      const std::size_t line = first.size() == 0 ? header_line(data_file) + 1 : reader.first_line() + first.size() - 1;
+      fail_too_short(data_file, line, first.size());
+    }
+    first.append(more);
+    if (first.size() < kMinRows) fail_too_short(data_file, reader.first_line() + more.size() - 1, first.size());
+  }
+  if (info) {
+    info->data_file = data_file;
+    info->has_encoder = reader.has_encoder();
+    info->has_reference = reader.has_reference();
+  }
+  AnalyzerOptions opt = analyzer_options_for(model);
+  // Size windows and spectrum segments from the file size and the first chunk's row density.
+  const double frac = reader.progress();
+  if (frac > 0) {
+    opt.expected_rows = static_cast<std::size_t>(static_cast<double>(reader.rows_read()) / frac);
+    const double span = first.t_s.back() - first.t_s.front();
+    opt.expected_duration_s = span / std::max<double>(1.0, static_cast<double>(first.size() - 1)) *
+                              static_cast<double>(opt.expected_rows);
+  }
+  auto last_report = Clock::now();
+  auto next = [&](MeasurementRows& rows) {
+    if (progress && Clock::now() - last_report > std::chrono::milliseconds(500)) {
+      progress(reader.progress(), reader.rows_read());
+      last_report = Clock::now();
+    }
+    return reader.next(rows, kChunk);
+  };
+  ResidualReport r = replay_and_analyze(model, first, next, opt, info, data_file, reader.first_data_line());
+  if (progress) progress(1.0, reader.rows_read());
+  if (info) info->wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return r;
+}
+
+ResidualReport compare_measurement(const plant::Plant& model, const Measurement& m, bool keep_series) {
+  AnalyzerOptions opt = analyzer_options_for(model);
+  opt.expected_rows = m.rows.size();
+  opt.expected_duration_s = m.rows.t_s.back() - m.rows.t_s.front();
+  opt.keep_series = keep_series;
+  auto none = [](MeasurementRows&) { return false; };
+  return replay_and_analyze(model, m.rows, none, opt, nullptr, m.file, m.first_data_line);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Report
+
+void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
+                           const std::string& model_label) {
+  using report::Band;
+  using report::Figure;
+  using report::HLine;
+  using report::Series;
+  const double kpa = kPaPerKpa;
+  std::vector<Band> bands;
+  for (std::size_t i = 0; i < r.failing.size(); ++i) {
+    bands.push_back({r.failing[i].first, r.failing[i].second, "model fails", ""});
+  }
+  std::vector<Series> pressure = {
+      Series{.name = "measured", .x = r.series.measured_mpa.t_s, .y = r.series.measured_mpa.value, .color = "#1f77b4"},
+      Series{.name = model_label, .x = r.series.model_mpa.t_s, .y = r.series.model_mpa.value, .color = "#d62728"}};
+  if (!r.series.reference_mpa.t_s.empty()) {
+    pressure.push_back(Series{.name = "reference", .x = r.series.reference_mpa.t_s, .y = r.series.reference_mpa.value,
+                              .color = "#7f7f7f", .style = Series::Style::step, .dashed = true});
+  }
+  doc.figure(Figure{.title = "Pressure: measured vs " + model_label + " (shaded: where the model fails)",
+                    .x_label = "time [s]", .y_label = "pressure [MPa]", .series = pressure, .bands = bands,
+                    .group = group, .height_px = 300});
+  const double s3 = 3 * r.noise_sigma_pa / kpa;
+  doc.figure(Figure{.title = "Residual: measured - " + model_label, .x_label = "time [s]", .y_label = "residual [kPa]",
+                    .series = {Series{.name = "residual", .x = r.series.residual_kpa.t_s, .y = r.series.residual_kpa.value,
+                                      .color = "#9467bd"}},
+                    .bands = bands,
+                    .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}, {0, "", false}},
+                    .group = group, .height_px = 220});
+  doc.figure(Figure{.title = "Drive angle (encoder if logged, else command)", .x_label = "time [s]",
+                    .y_label = "angle [deg]",
+                    .series = {Series{.name = "drive", .x = r.series.drive_deg.t_s, .y = r.series.drive_deg.value,
+                                      .color = "#2ca02c"}},
+                    .bands = bands, .group = group, .height_px = 160});
+
+  // Error by regime.
+  report::Bars bars{.title = "Error by regime", .y_label = "error [kPa]", .categories = {}, .groups = {}};
+  std::vector<double> rms, bias;
+  for (const auto& g : r.regimes) {
+    bars.categories.push_back(g.name + " (" + text::num(100 * g.share, 2) + " %)");
+    rms.push_back(g.error.rmse_pa / kpa);
+    bias.push_back(g.error.bias_pa / kpa);
+  }
+  bars.groups = {{"RMS", rms}, {"bias", bias}};
+  doc.heading("Error by regime; the worst time windows (" + text::num(r.window_width_s, 3) + " s each)", 3);
+  doc.columns_begin(2);
+  doc.bars(bars);
+  {
+    std::vector<std::vector<std::string>> rows;
+    for (std::size_t i = 0; i < r.worst.size(); ++i) {
+      const auto& w = r.windows[r.worst[i]];
+      rows.push_back({std::to_string(i + 1), text::num(w.t0_s, 4), text::num(w.t1_s, 4), text::num(w.error.rmse_pa / kpa, 3),
+                      text::num(w.error.bias_pa / kpa, 3), text::num(w.error.max_abs_pa / kpa, 3), w.regime});
+    }
+    doc.table({"rank", "from [s]", "to [s]", "RMS [kPa]", "bias [kPa]", "max [kPa]", "motion"}, rows);
+  }
+  doc.columns_end();
+
+  const Diagnostics& d = r.diagnostics;
+  doc.heading("Residual diagnostics", 3);
+  doc.columns_begin(2);
+  doc.figure(Figure{.title = "Autocorrelation of the residual (99 % bounds of white noise)",
+                    .x_label = "lag [s]", .y_label = "autocorrelation [-]",
+                    .series = {Series{.name = "residual ACF", .x = d.acf_lag_s, .y = d.acf, .color = "#9467bd"}},
+                    .hlines = {{d.acf_bound, "+99 %", true}, {-d.acf_bound, "-99 %", true}}, .height_px = 220});
+  doc.figure(Figure{.title = "Cross-correlation: drive increments -> residual (99 % bounds)",
+                    .x_label = "lag [s] (positive: input leads)", .y_label = "cross-correlation [-]",
+                    .series = {Series{.name = "input-residual", .x = d.xcf_lag_s, .y = d.xcf, .color = "#8c564b"}},
+                    .hlines = {{d.xcf_bound, "+99 %", true}, {-d.xcf_bound, "-99 %", true}}, .height_px = 220});
+  {
+    std::vector<Band> peak_bands;
+    for (const auto& pk : d.peaks) peak_bands.push_back({pk.hz * 0.97, pk.hz * 1.03, text::num(pk.hz, 3) + " Hz", "rgba(255,160,0,0.35)"});
+    doc.figure(Figure{.title = "Residual spectrum (Welch, Hann); peaks marked", .x_label = "frequency [Hz]",
+                      .y_label = "PSD [kPa^2/Hz]",
+                      .series = {Series{.name = "residual PSD", .x = d.psd_hz, .y = d.psd_kpa2_per_hz, .color = "#17becf"}},
+                      .bands = peak_bands, .x_log = true, .y_log = true, .height_px = 220});
+  }
+  {
+    std::vector<double> open_kpa, close_kpa;
+    for (double v : d.after_opening_mean_pa) open_kpa.push_back(v / kpa);
+    for (double v : d.after_closing_mean_pa) close_kpa.push_back(v / kpa);
+    doc.figure(Figure{.title = "Mean residual after motion reversals (" + std::to_string(r.reversals) + " reversals)",
+                      .x_label = "time since reversal [s]", .y_label = "mean residual [kPa]",
+                      .series = {Series{.name = "into opening", .x = d.since_reversal_s, .y = open_kpa, .color = "#2ca02c"},
+                                 Series{.name = "into closing", .x = d.since_reversal_s, .y = close_kpa, .color = "#d62728"}},
+                      .hlines = {{0, "", false}}, .height_px = 220});
+  }
+  auto binned = [&](const Binned& b, const std::string& title) {
+    std::vector<double> mean, rmsv;
+    for (double v : b.mean_pa) mean.push_back(v / kpa);
+    for (double v : b.rms_pa) rmsv.push_back(v / kpa);
+    doc.figure(Figure{.title = title, .x_label = b.quantity + " [" + b.unit + "]", .y_label = "residual [kPa]",
+                      .series = {Series{.name = "mean", .x = b.x, .y = mean, .color = "#1f77b4"},
+                                 Series{.name = "RMS", .x = b.x, .y = rmsv, .color = "#ff7f0e", .dashed = true}},
+                      .hlines = {{0, "", false}}, .height_px = 220});
+  };
+  binned(d.vs_time, "Residual against time (per window)");
+  binned(d.vs_burned, "Residual against burned propellant (model)");
+  binned(d.vs_dpdt, "Residual against dPg/dt (model)");
+  binned(d.vs_pressure, "Residual against measured pressure");
+  doc.columns_end();
+  if (!d.peaks.empty()) {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& pk : d.peaks)
+      rows.push_back({text::num(pk.hz, 4), text::num(100 * pk.power_share, 3), pk.name});
+    doc.table({"peak [Hz]", "share of residual power [%]", "most likely"}, rows);
+  }
+}
+
+std::string residual_json(const ResidualReport& r, int indent) { return detail::residual_to_json(r).dump(indent); }
+
+ResidualReport run_compare(const CompareOptions& o) {
+  const plant::Plant model = plant::Plant::load(o.model_file);
+  const bool tty = ::isatty(STDERR_FILENO);
+  int last_decile = -1;
+  Progress progress;
+  if (o.progress && !o.quiet) {
+    progress = [&](double f, std::size_t rows) {
+      const int decile = static_cast<int>(f * 10);
+      if (!tty && decile == last_decile) return;
+      last_decile = decile;
+      std::fprintf(stderr, "%scompare: %3.0f%% (%zu rows)%s", tty ? "\r" : "", 100 * f, rows, tty ? "" : "\n");
+      if (tty && f >= 1) std::fprintf(stderr, "\n");
+    };
+  }
+  ReplayInfo info;
+  const ResidualReport r = compare_file(model, o.data_file, &info, progress);
+
+  std::filesystem::create_directories(o.out_dir);
+  auto j = detail::residual_to_json(r);
+  j["command"] = "compare";
+  j["model_file"] = o.model_file.string();
+  j["data_file"] = o.data_file.string();
+  j["encoder"] = info.has_encoder;
+  j["reference"] = info.has_reference;
+  j["start"] = {{"t0_s", info.start.t0_s}, {"p0_mpa", units::pa_to_mpa(info.start.p0_pa)},
+                {"motor0_deg", units::rad_to_deg(info.start.motor0_rad)}, {"rows_averaged", info.start.rows_averaged}};
+  j["wall_s"] = info.wall_s;
+  detail::write_text(o.out_dir / "compare.json", j.dump(2) + "\n");
+
+  report::Document doc("Model validation: " + o.data_file.filename().string());
+  doc.paragraph("Model " + o.model_file.string() + " replayed open loop on " + o.data_file.string() + " (" +
+                std::to_string(r.rows) + " rows, " + text::num(r.duration_s, 4) + " s, " +
+                (info.has_encoder ? "motor encoder replayed" : "no encoder: the motor model acts on the command") + ").");
+  detail::add_summary_table(doc, r);
+  doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
+  add_residual_sections(doc, r, "time", "model");
+  doc.write(o.out_dir / "report.html");
+
+  if (!o.quiet) {
+    std::printf("%s", detail::summary_text(r, o.model_file.filename().string()).c_str());
+    std::printf("  wrote %s and %s (%.2f s)\n", (o.out_dir / "compare.json").c_str(), (o.out_dir / "report.html").c_str(),
+                info.wall_s);
+  }
+  return r;
+}
+
+}  // namespace hil::analysis

@@ -1,0 +1,550 @@
+#include "hil/analysis/diagnose.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <limits>
+#include <thread>
+
+#include "fit.hpp"
+#include "hil/analysis/compare.hpp"
+#include "hil/analysis/replay.hpp"
+#include "hil/units.hpp"
+#include "text.hpp"
+
+namespace hil::analysis {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Selection thresholds (see diagnose.hpp).
+constexpr double kBicMargin = -10;          // very strong evidence (Kass & Raftery)
+constexpr double kMinExcessShare = 0.25;    // of the model's excess error power
+constexpr double kMinNoiseShare = 0.05;     // of N sigma^2
+constexpr std::size_t kRefineTop = 3;       // candidates refined on every row per round
+constexpr int kCoarseIter = 12, kGridIter = 3, kRefineIter = 4, kJointIter = 8;
+constexpr std::size_t kGridCoarse = 16;      // grid values tried before the local refinement
+constexpr std::size_t kBeam = 3;            // first choices followed when the best one is not enough
+constexpr double kFloorTolerance = 1.1;     // RSS within 10 % of N sigma^2: at the noise floor
+constexpr double kFloorRmsRatio = 1.1;      // RMSE within 10 % of sigma: at the noise floor
+
+// Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
+template <class Fn>
+void parallel_for(std::size_t n, unsigned threads, Fn&& fn) {
+  std::atomic<std::size_t> next{0};
+  std::vector<std::exception_ptr> errors(n);
+  auto worker = [&] {
+    for (std::size_t i; (i = next.fetch_add(1)) < n;) {
+      try {
+        fn(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < std::min<std::size_t>(threads, n); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  for (auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+double rss_of(const plant::Plant& model, const ReplayData& data, std::vector<double>* residual) {
+  std::vector<double> yhat(data.size());
+  if (!replay(model, data, yhat)) return kInf;
+  double rss = 0;
+  if (residual) residual->resize(data.size());
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    const double e = data.y_pa[k] - yhat[k];
+    rss += e * e;
+    if (residual) (*residual)[k] = e;
+  }
+  return rss;
+}
+
+// One variant's fit: continuous parameters by LM, at most one grid parameter by search.
+struct VariantFit {
+  std::size_t candidate = 0, variant = 0;
+  std::vector<FreeParam> continuous;
+  const FreeParam* grid = nullptr;
+  double grid_value = kNaN;
+  std::vector<double> values, sigma;  // continuous
+  double rss_full = kInf;
+  bool refined = false;
+  int evaluations = 0;
+  std::string note;
+  std::size_t k() const { return continuous.size() + (grid ? 1 : 0); }
+};
+
+struct Context {
+  const ReplayData& full;
+  const ReplayData& coarse;
+  unsigned threads;
+};
+
+plant::Plant model_for(const plant::Plant& attached, const VariantFit& v, double grid_value) {
+  if (v.grid == nullptr) return attached;
+  return with_values(attached, {*v.grid}, {grid_value});
+}
+
+void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  const Variant& var = cand.variants[vf.variant];
+  const plant::Plant attached = cand.attach(base);
+  for (const auto& p : var.params) {
+    if (p.grid) vf.grid = &p;
+    else vf.continuous.push_back(p);
+  }
+  const bool same = &ctx.coarse == &ctx.full || ctx.coarse.size() == ctx.full.size();
+  if (vf.grid) {
+    const auto values = vf.grid->grid_values ? vf.grid->grid_values(ctx.coarse) : std::vector<double>{};
+    if (values.empty()) {
+      vf.note = "no place for it in the data (e.g. fewer than two motion reversals)";
+      return;
+    }
+    // Coarse pass over at most kGridCoarse evenly spread values, then every value between the
+    // best one's neighbours.
+    double best = kInf;
+    std::size_t best_i = 0;
+    auto try_value = [&](std::size_t i) {
+      const plant::Plant m = with_values(attached, {*vf.grid}, {values[i]});
+      detail::Fitter f(m, vf.continuous, ctx.coarse);
+      const auto x0 = f.best_start(nullptr);
+      const auto r = f.levenberg_marquardt(x0, kGridIter);
+      vf.evaluations += f.evaluations();
+      if (r.rss < best) best = r.rss, best_i = i, vf.grid_value = values[i], vf.values = r.values;
+    };
+    const std::size_t n = values.size();
+    const std::size_t stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
+    std::vector<bool> tried(n, false);
+    for (std::size_t i = stride / 2; i < n; i += stride) try_value(i), tried[i] = true;
+    if (stride > 1 && std::isfinite(best)) {
+      const std::size_t lo = best_i >= stride ? best_i - stride + 1 : 0, hi = std::min(n - 1, best_i + stride - 1);
+      for (std::size_t i = lo; i <= hi; ++i)
+        if (!tried[i]) try_value(i);
+    }
+    if (!std::isfinite(best)) {
+      vf.note = "the model cannot be replayed with this effect";
+      return;
+    }
+  }
+  const plant::Plant m = model_for(attached, vf, vf.grid_value);
+  detail::Fitter f(m, vf.continuous, ctx.coarse);
+  std::vector<double> x0 = vf.values;
+  if (x0.empty()) x0 = f.best_start(nullptr);
+  const auto r = f.levenberg_marquardt(x0, kCoarseIter);
+  vf.values = r.values;
+  vf.sigma = f.uncertainty(vf.values);
+  vf.evaluations += f.evaluations();
+  if (!r.ok) {
+    vf.note = "the model cannot be replayed with this effect";
+    return;
+  }
+  if (same) {
+    vf.rss_full = r.rss;
+    vf.refined = true;
+  } else {
+    vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
+    ++vf.evaluations;
+  }
+}
+
+void refine_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  if (vf.refined || !std::isfinite(vf.rss_full)) return;
+  const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
+  detail::Fitter f(m, vf.continuous, ctx.full);
+  const auto r = f.levenberg_marquardt(vf.values, kRefineIter);
+  if (r.ok && r.rss <= vf.rss_full) vf.values = r.values, vf.rss_full = r.rss;
+  vf.sigma = f.uncertainty(vf.values);
+  vf.evaluations += f.evaluations();
+  vf.refined = true;
+}
+
+CandidateResult describe(const Candidate& cand, const VariantFit& vf, const plant::Plant& base) {
+  CandidateResult c;
+  c.effect = cand.name;
+  c.variant = cand.variants[vf.variant].name;
+  c.description = cand.description;
+  c.rss_pa2 = vf.rss_full;
+  c.k = vf.k();
+  c.refined = vf.refined;
+  c.evaluations = vf.evaluations;
+  for (std::size_t i = 0; i < vf.continuous.size(); ++i) {
+    const auto& p = vf.continuous[i];
+    c.parameters.push_back({p.effect, p.key, vf.values.empty() ? kNaN : vf.values[i],
+                            i < vf.sigma.size() ? vf.sigma[i] : kNaN, value_of(base, p.effect, p.key), false});
+  }
+  if (vf.grid) {
+    c.parameters.push_back({vf.grid->effect, vf.grid->key, vf.grid_value, kNaN, value_of(base, vf.grid->effect, vf.grid->key), true});
+  }
+  c.why_not = vf.note;
+  return c;
+}
+
+// An added effect, kept so that the fitted model can be rebuilt on the noise-including model.
+struct Added {
+  const Candidate* cand;  // points into `all_candidates` (stable for the run)
+  VariantFit fit;
+};
+
+plant::Plant apply_added(const plant::Plant& model, const std::vector<Added>& added) {
+  plant::Plant p = model;
+  for (const auto& a : added) {
+    p = a.cand->attach(p);
+    if (a.fit.grid) p = with_values(p, {*a.fit.grid}, {a.fit.grid_value});
+    p = with_values(p, a.fit.continuous, a.fit.values);
+  }
+  return p;
+}
+
+// Jointly refits every added effect's continuous parameters (the first fit of an effect absorbed
+// part of the ones found after it).
+void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Added>& added, int& evaluations) {
+  std::vector<FreeParam> params;
+  std::vector<double> x;
+  for (const auto& a : added) {
+    params.insert(params.end(), a.fit.continuous.begin(), a.fit.continuous.end());
+    x.insert(x.end(), a.fit.values.begin(), a.fit.values.end());
+  }
+  if (params.empty()) return;
+  const plant::Plant m = apply_added(base0, added);  // values are overwritten by the fitter
+  auto run = [&](const ReplayData& data, int iter) {
+    detail::Fitter f(m, params, data);
+    const auto r = f.levenberg_marquardt(x, iter);
+    evaluations += f.evaluations();
+    if (r.ok) x = r.values;
+    return f;
+  };
+  if (ctx.coarse.size() != ctx.full.size()) run(ctx.coarse, kJointIter);
+  detail::Fitter f = run(ctx.full, ctx.coarse.size() != ctx.full.size() ? kRefineIter : kJointIter);
+  const auto sigma = f.uncertainty(x);
+  evaluations += f.evaluations();
+  std::size_t i = 0;
+  for (auto& a : added) {
+    for (std::size_t j = 0; j < a.fit.values.size(); ++j, ++i) {
+      a.fit.values[j] = x[i];
+      if (i < sigma.size()) a.fit.sigma[j] = sigma[i];
+    }
+  }
+}
+
+std::string param_text(const FittedParam& p) {
+  std::string s = p.key + " = " + text::num(p.value, 4);
+  if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
+  return s;
+}
+
+// --- one round, a path of rounds -----------------------------------------------------------------
+
+struct Setup {
+  Context ctx;
+  double noise_rss = 0;  // N sigma^2
+  double spread = 0;     // |y - mean(y)| / sqrt(N)
+  bool progress = false;
+  Clock::time_point t_start;
+};
+
+struct RoundOutcome {
+  Round round;
+  std::vector<Added> earning;  // candidates that earn their place, best first
+};
+
+RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::vector<const Candidate*>& pool,
+                       int& evaluations) {
+  const Context& ctx = su.ctx;
+  const ReplayData& full = ctx.full;
+  const double N = static_cast<double>(full.size());
+  RoundOutcome out;
+  Round& rd = out.round;
+  rd.rss_before_pa2 = rss_of(current, full, nullptr);
+  rd.fit_before_pct = fit_percent(rd.rss_before_pa2, su.spread, full.size());
+  evaluations += 1;
+
+  std::vector<VariantFit> jobs;
+  for (std::size_t ci = 0; ci < pool.size(); ++ci)
+    for (std::size_t vi = 0; vi < pool[ci]->variants.size(); ++vi) {
+      VariantFit v;
+      v.candidate = ci;
+      v.variant = vi;
+      jobs.push_back(std::move(v));
+    }
+  // Grid variants are the longest: start them first so the threads finish together.
+  auto has_grid = [&](const VariantFit& v) {
+    for (const auto& p : pool[v.candidate]->variants[v.variant].params)
+      if (p.grid) return true;
+    return false;
+  };
+  std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
+  parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
+
+  // N_eff from the best-fitting variant's residual (the most whitened one).
+  const VariantFit* best_fit = nullptr;
+  for (const auto& j : jobs)
+    if (std::isfinite(j.rss_full) && (!best_fit || j.rss_full < best_fit->rss_full)) best_fit = &j;
+  rd.tau_int_samples = 1;
+  if (best_fit) {
+    std::vector<double> res;
+    const plant::Plant bm = with_values(model_for(pool[best_fit->candidate]->attach(current), *best_fit, best_fit->grid_value),
+                                        best_fit->continuous, best_fit->values);
+    rss_of(bm, full, &res);
+    rd.tau_int_samples = integrated_autocorrelation_time(res);
+    evaluations += 1;
+  }
+  rd.n_eff = N / rd.tau_int_samples;
+  auto dbic = [&](const VariantFit& v) {
+    return std::isfinite(v.rss_full)
+               ? rd.n_eff * std::log(v.rss_full / rd.rss_before_pa2) + static_cast<double>(v.k()) * std::log(rd.n_eff)
+               : kInf;
+  };
+  // Best variant per candidate; refine the most promising on every row.
+  std::vector<std::size_t> best_variant(pool.size(), jobs.size());
+  for (std::size_t i = 0; i < jobs.size(); ++i) {
+    auto& b = best_variant[jobs[i].candidate];
+    if (b == jobs.size() || dbic(jobs[i]) < dbic(jobs[b])) b = i;
+  }
+  std::vector<std::size_t> order;
+  for (std::size_t ci = 0; ci < pool.size(); ++ci)
+    if (best_variant[ci] < jobs.size()) order.push_back(best_variant[ci]);
+  auto by_bic = [&](std::size_t a, std::size_t b) { return dbic(jobs[a]) < dbic(jobs[b]); };
+  std::sort(order.begin(), order.end(), by_bic);
+  const std::size_t refine_n = std::min(kRefineTop, order.size());
+  parallel_for(refine_n, ctx.threads, [&](std::size_t i) {
+    VariantFit& v = jobs[order[i]];
+    refine_variant(ctx, current, *pool[v.candidate], v);
+  });
+  for (const auto& j : jobs) evaluations += j.evaluations;
+  std::sort(order.begin(), order.end(), by_bic);
+
+  const double excess = std::max(rd.rss_before_pa2 - su.noise_rss, 0.0);
+  for (std::size_t i : order) {
+    const VariantFit& v = jobs[i];
+    CandidateResult c = describe(*pool[v.candidate], v, current);
+    c.fit_before_pct = rd.fit_before_pct;
+    c.fit_after_pct = fit_percent(v.rss_full, su.spread, full.size());
+    c.delta_bic = dbic(v);
+    const double gain = rd.rss_before_pa2 - v.rss_full;
+    c.excess_explained = excess > 0 ? gain / excess : 0;
+    if (!std::isfinite(v.rss_full)) {
+      if (c.why_not.empty()) c.why_not = "could not be fitted";
+    } else if (!(c.delta_bic < kBicMargin)) {
+      c.why_not = "information criterion: dBIC " + text::num(c.delta_bic, 3) + " is not below " + text::num(kBicMargin, 2);
+    } else if (gain < kMinExcessShare * excess) {
+      c.why_not = "explains only " + text::num(100 * c.excess_explained, 2) + " % of the excess error (needs 25 %)";
+    } else if (gain < kMinNoiseShare * su.noise_rss) {
+      c.why_not = "improvement below 5 % of the noise power (the model is at the noise floor)";
+    } else {
+      c.earns_place = true;
+      out.earning.push_back({pool[v.candidate], v});
+    }
+    rd.ranking.push_back(c);
+  }
+  return out;
+}
+
+// A sequence of added effects and the rounds that chose them.
+struct Path {
+  std::vector<Added> added;
+  std::vector<Round> rounds;
+  double rss = kInf;  // of the path's final model, every row
+};
+
+std::vector<const Candidate*> remaining(const std::vector<const Candidate*>& pool, const std::vector<Added>& added) {
+  std::vector<const Candidate*> out;
+  for (const Candidate* c : pool) {
+    bool used = false;
+    for (const auto& a : added) used |= a.cand == c;
+    if (!used) out.push_back(c);
+  }
+  return out;
+}
+
+// Adds the chosen effect, refits jointly, and continues greedily until nothing earns its place.
+void continue_path(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
+                   int max_rounds, int& evaluations) {
+  for (;;) {
+    if (path.added.size() >= 2) joint_refit(su.ctx, base0, path.added, evaluations);
+    const plant::Plant current = apply_added(base0, path.added);
+    const auto left = remaining(pool, path.added);
+    if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) {
+      path.rss = rss_of(current, su.ctx.full, nullptr);
+      ++evaluations;
+      return;
+    }
+    RoundOutcome r = run_round(su, current, left, evaluations);
+    if (su.progress) {
+      std::fprintf(stderr, "diagnose: round %zu after %s: %s (%.1f s)\n", path.rounds.size() + 1,
+                   path.added.back().cand->name.c_str(),
+                   r.earning.empty() ? "nothing more earns its place" : ("adds " + r.earning.front().cand->name).c_str(),
+                   std::chrono::duration<double>(Clock::now() - su.t_start).count());
+    }
+    if (r.earning.empty()) {
+      path.rss = r.round.rss_before_pa2;
+      path.rounds.push_back(std::move(r.round));
+      return;
+    }
+    r.round.added = r.earning.front().cand->name;
+    path.added.push_back(r.earning.front());
+    path.rounds.push_back(std::move(r.round));
+  }
+}
+
+}  // namespace
+
+Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const DiagnoseSettings& s) {
+  const auto t_start = Clock::now();
+  Diagnosis d;
+  d.rows = m.rows.size();
+  d.has_encoder = m.has_encoder;
+  const unsigned threads = s.threads ? s.threads : std::max(1u, std::min(2u, std::thread::hardware_concurrency()));
+
+  const plant::Plant base0 = noise_free(model);
+  const ReplayData full = replay_data(m);
+  const std::size_t dec = std::max<std::size_t>(1, (full.size() + s.coarse_rows - 1) / s.coarse_rows);
+  const ReplayData coarse = decimate(full, dec);
+  d.decimation = dec;
+
+  d.before = compare_measurement(base0, m, s.keep_series);
+  d.noise_sigma_pa = d.before.noise_sigma_pa;
+  d.noise_floor_fit_pct = d.before.noise_floor_fit_pct;
+  const double N = static_cast<double>(full.size());
+  const Setup su{{full, dec > 1 ? coarse : full, threads},
+                 N * d.noise_sigma_pa * d.noise_sigma_pa,
+                 d.before.y_spread_pa,
+                 s.progress,
+                 t_start};
+
+  const std::vector<Candidate> all = candidates_for(base0, s.candidates);
+  std::vector<const Candidate*> pool;
+  for (const auto& c : all) {
+    if (c.command_side && m.has_encoder) {
+      d.not_identifiable.push_back(
+          {c.name, "the file has the motor encoder, which the replay uses in place of the motor model: whatever happens "
+                   "between the command and the motor never reaches the predicted pressure. Compare theta_cmd_deg "
+                   "with theta_motor_deg to see it."});
+    } else {
+      pool.push_back(&c);
+    }
+  }
+
+  // Round 1 against the model as given.
+  Path root;
+  RoundOutcome first = run_round(su, base0, pool, d.evaluations);
+  root.rss = first.round.rss_before_pa2;
+  Path chosen;
+  if (first.earning.empty() || s.max_rounds < 1) {
+    root.rounds.push_back(std::move(first.round));
+    chosen = std::move(root);
+    if (s.progress) std::fprintf(stderr, "diagnose: round 1: nothing earns its place\n");
+  } else {
+    // When the best single effect leaves the fit above the noise floor, the misfit may be two
+    // effects, and the best single one may be a third that mimics both: follow the top few
+    // first choices (a beam of kBeam paths) and keep the path the criterion prefers.
+    const double best_rss = first.round.ranking.front().rss_pa2;
+    const bool at_floor = best_rss <= kFloorTolerance * su.noise_rss;
+    const std::size_t branches = at_floor ? 1 : std::min(kBeam, first.earning.size());
+    std::vector<Path> paths;
+    for (std::size_t b = 0; b < branches; ++b) {
+      Path p;
+      p.rounds.push_back(first.round);
+      p.rounds.back().added = first.earning[b].cand->name;
+      p.added.push_back(first.earning[b]);
+      if (s.progress) {
+        std::fprintf(stderr, "diagnose: round 1: %s %s (%.1f s)\n", b == 0 ? "adds" : "also tries", first.earning[b].cand->name.c_str(),
+                     std::chrono::duration<double>(Clock::now() - t_start).count());
+      }
+      continue_path(su, base0, pool, p, s.max_rounds, d.evaluations);
+      paths.push_back(std::move(p));
+    }
+    // Compare the paths by BIC with N_eff from the best path's residual.
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < paths.size(); ++i)
+      if (paths[i].rss < paths[best].rss) best = i;
+    std::vector<double> res;
+    rss_of(apply_added(base0, paths[best].added), full, &res);
+    const double n_eff = N / integrated_autocorrelation_time(res);
+    auto bic = [&](const Path& p) {
+      std::size_t k = 0;
+      for (const auto& a : p.added) k += a.fit.k();
+      return n_eff * std::log(p.rss) + static_cast<double>(k) * std::log(n_eff);
+    };
+    best = 0;
+    for (std::size_t i = 1; i < paths.size(); ++i)
+      if (bic(paths[i]) < bic(paths[best])) best = i;
+    for (std::size_t i = 0; i < paths.size(); ++i) {
+      Alternative alt;
+      for (const auto& a : paths[i].added) alt.effects.push_back(a.cand->name);
+      alt.fit_pct = fit_percent(paths[i].rss, su.spread, full.size());
+      alt.bic = bic(paths[i]) - bic(paths[best]);
+      alt.chosen = i == best;
+      d.paths.push_back(alt);
+    }
+    chosen = std::move(paths[best]);
+  }
+  d.rounds = chosen.rounds;
+  const std::vector<Added>& added = chosen.added;
+  const plant::Plant current = apply_added(base0, added);
+
+  // Final values (after the joint refit) of the added effects.
+  for (const auto& a : added) {
+    CandidateResult c = describe(*a.cand, a.fit, base0);
+    c.earns_place = true;
+    for (const auto& rd : d.rounds) {
+      if (rd.added != c.effect) continue;
+      for (const auto& r : rd.ranking) {
+        if (r.effect == c.effect) c.fit_before_pct = r.fit_before_pct, c.delta_bic = r.delta_bic, c.excess_explained = r.excess_explained;
+      }
+    }
+    d.added.push_back(c);
+  }
+  d.explained = !added.empty();
+  d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
+  for (auto& c : d.added) c.fit_after_pct = d.after.fit_pct;
+  d.fitted = std::make_shared<const plant::Plant>(apply_added(model, added));
+  d.at_noise_floor = d.after.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa;
+
+  // The verdict in words.
+  auto& out = d.summary;
+  const std::string fit_line = "Fit " + text::fixed(d.before.fit_pct, 2) + " % -> " + text::fixed(d.after.fit_pct, 2) +
+                               " % (noise floor " + text::fixed(d.noise_floor_fit_pct, 2) + " %); RMSE " +
+                               text::num(d.before.error.rmse_pa / units::kPaPerKpa, 3) + " -> " +
+                               text::num(d.after.error.rmse_pa / units::kPaPerKpa, 3) + " kPa (noise " +
+                               text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) + " kPa).";
+  if (d.explained) {
+    std::string list;
+    for (const auto& c : d.added) {
+      std::string ps;
+      for (const auto& p : c.parameters) ps += (ps.empty() ? "" : ", ") + param_text(p);
+      list += (list.empty() ? "" : "; then ") + c.effect + " (" + c.variant + ": " + ps + ")";
+    }
+    out.push_back("Found: " + list + ".");
+    out.push_back(fit_line);
+    if (d.at_noise_floor) {
+      d.verdict = "explained";
+    } else {
+      d.verdict = "partly_explained";
+      out.push_back("Partly explained: each effect above earned its place, but the residual is still " +
+                    text::num(d.after.error.rmse_pa / d.noise_sigma_pa, 3) +
+                    " times the noise, so something else is missing, and the effects found may stand in for it. "
+                    "What remains: " + text::join(d.after.signature, " "));
+    }
+  } else if (d.before.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa) {
+    d.verdict = "nothing_missing";
+    d.at_noise_floor = true;
+    out.push_back("Nothing is missing: the model fits at the noise floor and no candidate earns its place.");
+    out.push_back(fit_line);
+  } else {
+    d.verdict = "unexplained";
+    out.push_back("No candidate explains the residual: none earns its place, so none is named. The missing effect is "
+                  "something else; its signature:");
+    for (const auto& line : d.before.signature) out.push_back(line);
+  }
+  d.wall_s = std::chrono::duration<double>(Clock::now() - t_start).count();
+  return d;
+}
+
+}  // namespace hil::analysis

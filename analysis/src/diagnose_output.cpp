@@ -1,0 +1,269 @@
+// diagnose's outputs: diagnosis.json, report.html, the fitted model, the console verdict.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "hil/analysis/compare.hpp"
+#include "hil/analysis/diagnose.hpp"
+#include "hil/report/report.hpp"
+#include "hil/units.hpp"
+#include "json_out.hpp"
+#include "text.hpp"
+
+namespace hil::analysis {
+namespace {
+
+constexpr double kKpa = units::kPaPerKpa;
+
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
+  nlohmann::json params = nlohmann::json::array();
+  for (const auto& p : c.parameters) {
+    params.push_back({{"block", p.effect},
+                      {"key", p.key},
+                      {"value", number(p.value)},
+                      {"uncertainty", number(p.sigma)},
+                      {"model_value", number(p.model_value)},
+                      {"searched_on_grid", p.grid}});
+  }
+  nlohmann::json j = {{"effect", c.effect},
+                      {"variant", c.variant},
+                      {"description", c.description},
+                      {"parameters", params},
+                      {"fit_before_pct", number(c.fit_before_pct)},
+                      {"fit_after_pct", number(c.fit_after_pct)},
+                      {"excess_explained_pct", number(100 * c.excess_explained)},
+                      {"criterion",
+                       {{"name", "BIC with effective sample size"},
+                        {"delta_bic", number(c.delta_bic)},
+                        {"free_parameters", c.k},
+                        {"effective_samples", number(n_eff)},
+                        {"threshold", -10}}},
+                      {"earns_place", c.earns_place},
+                      {"refined_on_all_rows", c.refined},
+                      {"replays", c.evaluations}};
+  if (!c.why_not.empty()) j["why_not"] = c.why_not;
+  return j;
+}
+
+std::string params_text(const CandidateResult& c) {
+  std::string s;
+  for (const auto& p : c.parameters) {
+    s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
+    if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
+  }
+  return s;
+}
+
+}  // namespace
+
+std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file,
+                           const std::filesystem::path& data_file) {
+  nlohmann::json j;
+  j["command"] = "diagnose";
+  j["model_file"] = model_file.string();
+  j["data_file"] = data_file.string();
+  j["rows"] = d.rows;
+  j["encoder"] = d.has_encoder;
+  j["explained"] = d.explained;
+  j["verdict"] = d.verdict;
+  j["at_noise_floor"] = d.at_noise_floor;
+  j["summary"] = d.summary;
+  j["noise_sigma_kpa"] = number(d.noise_sigma_pa / kKpa);
+  j["noise_floor_fit_pct"] = number(d.noise_floor_fit_pct);
+  j["fit_before_pct"] = number(d.before.fit_pct);
+  j["fit_after_pct"] = number(d.after.fit_pct);
+  const double n_eff0 = d.rounds.empty() ? 0 : d.rounds.front().n_eff;
+  nlohmann::json ranking = nlohmann::json::array();
+  if (!d.rounds.empty())
+    for (const auto& c : d.rounds.front().ranking) ranking.push_back(candidate_json(c, n_eff0));
+  j["ranking"] = ranking;
+  nlohmann::json added = nlohmann::json::array();
+  for (const auto& c : d.added) added.push_back(candidate_json(c, plant::kNaN));
+  j["added"] = added;
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const auto& r : d.rounds) {
+    nlohmann::json rk = nlohmann::json::array();
+    for (const auto& c : r.ranking) rk.push_back(candidate_json(c, r.n_eff));
+    rounds.push_back({{"fit_before_pct", number(r.fit_before_pct)},
+                      {"effective_samples", number(r.n_eff)},
+                      {"correlation_time_samples", number(r.tau_int_samples)},
+                      {"added", r.added.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.added)},
+                      {"ranking", rk}});
+  }
+  j["rounds"] = rounds;
+  nlohmann::json paths = nlohmann::json::array();
+  for (const auto& p : d.paths)
+    paths.push_back({{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)},
+                     {"chosen", p.chosen}});
+  j["paths_followed"] = paths;
+  nlohmann::json ni = nlohmann::json::array();
+  for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
+  j["not_identifiable"] = ni;
+  j["signature"] = d.explained ? d.after.signature : d.before.signature;
+  nlohmann::json peaks = nlohmann::json::array();
+  for (const auto& p : (d.explained ? d.after : d.before).diagnostics.peaks)
+    peaks.push_back({{"hz", p.hz}, {"power_share", p.power_share}, {"name", p.name}});
+  j["signature_peaks"] = peaks;
+  j["before"] = detail::headline_json(d.before);
+  j["after"] = detail::headline_json(d.after);
+  j["before"]["regimes"] = detail::residual_to_json(d.before)["regimes"];
+  j["after"]["regimes"] = detail::residual_to_json(d.after)["regimes"];
+  j["method"] = {{"coarse_decimation", d.decimation},
+                 {"criterion", "dBIC = N_eff ln(RSS_c/RSS_model) + k ln(N_eff); earns its place if dBIC < -10, it "
+                               "removes >= 25 % of the excess error power over N sigma^2 and >= 5 % of N sigma^2"},
+                 {"replays", d.evaluations},
+                 {"wall_s", d.wall_s}};
+  return j.dump(2) + "\n";
+}
+
+std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file,
+                              const std::filesystem::path& data_file) {
+  std::string header = "Fitted by hilbench diagnose: " + model_file.string() + " against " + data_file.string() + ".\n";
+  if (d.added.empty()) {
+    header += "No candidate effect earned its place: the model is unchanged.\n";
+  } else {
+    for (const auto& c : d.added) header += "Added " + c.effect + " (" + c.variant + "): " + params_text(c) + "\n";
+  }
+  header += "Fit " + text::fixed(d.before.fit_pct, 2) + " % -> " + text::fixed(d.after.fit_pct, 2) + " % (noise floor " +
+            text::fixed(d.noise_floor_fit_pct, 2) + " %).";
+  return d.fitted->to_yaml(header);
+}
+
+void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
+                            const std::filesystem::path& data_file, const std::filesystem::path& html) {
+  using report::Figure;
+  using report::Series;
+  report::Document doc("Diagnosis: " + data_file.filename().string());
+  doc.paragraph("Model " + model_file.string() + " against " + data_file.string() + " (" + std::to_string(d.rows) +
+                " rows, " + (d.has_encoder ? "motor encoder replayed" : "no encoder") + "). Each candidate effect was " +
+                "fitted to the data and ranked by an information criterion; the best one that earns its place is added " +
+                "and the search repeats.");
+  doc.note(text::join(d.summary, " "), d.verdict != "explained" && d.verdict != "nothing_missing");
+
+  doc.heading("Before and after");
+  {
+    auto row = [&](const std::string& name, const ResidualReport& r) {
+      return std::vector<std::string>{name,
+                                      text::fixed(r.fit_pct, 2),
+                                      text::fixed(r.noise_floor_fit_pct, 2),
+                                      text::num(r.error.rmse_pa / kKpa, 4),
+                                      text::num(r.error.max_abs_pa / kKpa, 4),
+                                      text::num(r.error.bias_pa / kKpa, 3)};
+    };
+    std::string after_name = "after";
+    for (const auto& c : d.added) after_name += " + " + c.effect;
+    doc.table({"model", "fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "bias [kPa]"},
+              {row("before (as given)", d.before), row(d.explained ? after_name : "after (unchanged)", d.after)});
+  }
+  const auto& b = d.before.series;
+  const auto& a = d.after.series;
+  std::vector<Series> overlay = {Series{.name = "measured", .x = b.measured_mpa.t_s, .y = b.measured_mpa.value, .color = "#1f77b4"},
+                                 Series{.name = "model before", .x = b.model_mpa.t_s, .y = b.model_mpa.value, .color = "#d62728"}};
+  if (d.explained)
+    overlay.push_back(Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
+  std::vector<report::Band> bands;
+  for (const auto& f : d.before.failing) bands.push_back({f.first, f.second, "model before fails", ""});
+  doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
+                    .x_label = "time [s]", .y_label = "pressure [MPa]", .series = overlay, .bands = bands,
+                    .group = "time", .height_px = 300});
+  std::vector<Series> residuals = {Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
+  if (d.explained)
+    residuals.push_back(Series{.name = "residual after", .x = a.residual_kpa.t_s, .y = a.residual_kpa.value, .color = "#2ca02c"});
+  const double s3 = 3 * d.noise_sigma_pa / kKpa;
+  doc.figure(Figure{.title = "Residual before and after", .x_label = "time [s]", .y_label = "residual [kPa]",
+                    .series = residuals, .bands = bands, .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
+                    .group = "time", .height_px = 240});
+  {
+    report::Bars bars{.title = "RMS error by regime, before and after", .y_label = "RMS error [kPa]", .categories = {}, .groups = {}};
+    std::vector<double> before, after;
+    for (std::size_t i = 0; i < d.before.regimes.size(); ++i) {
+      bars.categories.push_back(d.before.regimes[i].name);
+      before.push_back(d.before.regimes[i].error.rmse_pa / kKpa);
+      after.push_back(i < d.after.regimes.size() ? d.after.regimes[i].error.rmse_pa / kKpa : 0.0);
+    }
+    bars.groups = {{"before", before}, {"after", after}};
+    doc.bars(bars);
+  }
+
+  for (std::size_t ri = 0; ri < d.rounds.size(); ++ri) {
+    const Round& r = d.rounds[ri];
+    doc.heading("Round " + std::to_string(ri + 1) + ": candidates ranked against the model" +
+                    (ri == 0 ? " as given" : " with the effects found so far"),
+                3);
+    doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %; effective samples N_eff = " +
+                  text::num(r.n_eff, 4) + " (correlation time " + text::num(r.tau_int_samples, 3) + " samples). " +
+                  (r.added.empty() ? std::string("Nothing earns its place: the search stops.") : "Added: " + r.added + "."));
+    std::vector<std::vector<std::string>> rows;
+    std::vector<std::string> cats;
+    std::vector<double> fits;
+    for (std::size_t i = 0; i < r.ranking.size(); ++i) {
+      const auto& c = r.ranking[i];
+      rows.push_back({std::to_string(i + 1), c.effect, c.variant, params_text(c), text::fixed(c.fit_before_pct, 2),
+                      text::fixed(c.fit_after_pct, 2), text::num(c.delta_bic, 4), text::num(100 * c.excess_explained, 3),
+                      c.earns_place ? "yes" : "no: " + c.why_not});
+      cats.push_back(c.effect);
+      fits.push_back(std::isfinite(c.fit_after_pct) ? c.fit_after_pct : 0.0);
+    }
+    doc.table({"rank", "effect", "variant", "fitted parameters (+- 1 sigma)", "fit before [%]", "fit after [%]", "dBIC",
+               "excess explained [%]", "earns its place"},
+              rows);
+    doc.bars(report::Bars{.title = "Round " + std::to_string(ri + 1) + ": fit after adding each candidate [%] (noise floor " +
+                                   text::fixed(d.noise_floor_fit_pct, 2) + " %)",
+                          .y_label = "fit [%]", .categories = cats, .groups = {{"fit after", fits}}, .height_px = 220});
+  }
+  if (d.paths.size() > 1) {
+    doc.heading("Paths followed", 3);
+    doc.paragraph("The best single effect did not reach the noise floor, so the search followed the top first choices "
+                  "that earn their place, each greedily, and kept the path with the lowest BIC.");
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& p : d.paths)
+      rows.push_back({text::join(p.effects, " + "), text::fixed(p.fit_pct, 2), text::num(p.bic, 4), p.chosen ? "chosen" : ""});
+    doc.table({"effects, in the order added", "fit [%]", "BIC - chosen", ""}, rows);
+  }
+  if (!d.not_identifiable.empty()) {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& n : d.not_identifiable) rows.push_back({n.effect, n.reason});
+    doc.heading("Not identifiable from this file", 3);
+    doc.table({"effect", "why"}, rows);
+  }
+  doc.heading(d.explained ? "Where the fitted model still differs" : "Where the model fails (the residual's signature)");
+  const ResidualReport& last = d.explained ? d.after : d.before;
+  doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
+  add_residual_sections(doc, last, "time", d.explained ? "model after" : "model");
+  doc.write(html);
+}
+
+Diagnosis run_diagnose(const DiagnoseOptions& o) {
+  const plant::Plant model = plant::Plant::load(o.model_file);
+  const Measurement m = load_measurement(o.data_file);
+  DiagnoseSettings s = o.settings;
+  s.progress = s.progress || !o.quiet;
+  const Diagnosis d = diagnose(model, m, s);
+  std::filesystem::create_directories(o.out_dir);
+  detail::write_text(o.out_dir / "diagnosis.json", diagnosis_json(d, o.model_file, o.data_file));
+  write_diagnosis_report(d, o.model_file, o.data_file, o.out_dir / "report.html");
+  if (!o.write_model.empty()) {
+    if (o.write_model.has_parent_path()) std::filesystem::create_directories(o.write_model.parent_path());
+    detail::write_text(o.write_model, fitted_model_yaml(d, o.model_file, o.data_file));
+  }
+  if (!o.quiet) {
+    for (const auto& line : d.summary) std::printf("%s\n", line.c_str());
+    if (!d.rounds.empty()) {
+      std::printf("  round 1 ranking         variant              fit after  dBIC        earns\n");
+      for (const auto& c : d.rounds.front().ranking) {
+        std::printf("  %-22s %-20s %8.2f %% %11.4g  %s\n", c.effect.c_str(), c.variant.c_str(), c.fit_after_pct,
+                    c.delta_bic, c.earns_place ? "yes" : "no");
+      }
+    }
+    for (const auto& n : d.not_identifiable) std::printf("  not identifiable with the encoder: %s\n", n.effect.c_str());
+    std::printf("  wrote %s and %s%s%s (%.1f s, %d replays)\n", (o.out_dir / "diagnosis.json").c_str(),
+                (o.out_dir / "report.html").c_str(), o.write_model.empty() ? "" : " and ", o.write_model.c_str(), d.wall_s,
+                d.evaluations);
+  }
+  return d;
+}
+
+}  // namespace hil::analysis

@@ -1,0 +1,55 @@
+// Bounded Levenberg-Marquardt on replay residuals, with numerical Jacobians (internal).
+// The residual of a parameter vector is measured - predicted over every row of a ReplayData;
+// parameters live in [lo, hi] (steps are projected onto the box) and are scaled by FreeParam::scale.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "hil/analysis/candidates.hpp"
+#include "hil/analysis/replay.hpp"
+
+namespace hil::analysis::detail {
+
+struct FitResult {
+  std::vector<double> values;  // in the order of the problem's params
+  std::vector<double> sigma;   // 1-sigma uncertainty (NaN: not computed / not identifiable)
+  double rss = 0;              // on the data it was fitted on
+  bool ok = false;             // the model could be replayed at `values`
+  int evaluations = 0;         // replays run
+};
+
+class Fitter {
+ public:
+  // `model`: the base with the effect attached (neutral values); params: the free parameters.
+  Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data);
+
+  // RSS at `values` (+inf if the model cannot be replayed there). Also fills `residual` if given.
+  double cost(const std::vector<double>& values, std::vector<double>* residual = nullptr);
+  // The best of the starting points (cartesian product of each param's starts, capped).
+  std::vector<double> best_start(double* rss);
+  // Levenberg-Marquardt from `x0`, at most max_iter Jacobians.
+  FitResult levenberg_marquardt(std::vector<double> x0, int max_iter);
+  // 1-sigma uncertainties at `x`: s^2 (J^T J)^-1 with s^2 = RSS / (N - p), inflated by the
+  // residual's integrated autocorrelation time (correlated residuals carry less information).
+  std::vector<double> uncertainty(const std::vector<double>& x);
+  int evaluations() const { return evaluations_; }
+  const std::vector<FreeParam>& params() const { return params_; }
+
+ private:
+  std::vector<double> clamp(std::vector<double> x) const;
+  bool jacobian(const std::vector<double>& x, const std::vector<double>& r0, std::vector<std::vector<double>>& cols);
+
+  const plant::Plant& model_;
+  std::vector<FreeParam> params_;
+  const ReplayData& data_;
+  std::vector<double> yhat_;
+  int evaluations_ = 0;
+};
+
+// Solves the small symmetric system A x = b (Gaussian elimination with pivoting); false if singular.
+bool solve(std::vector<std::vector<double>> a, std::vector<double> b, std::vector<double>& x);
+// Inverse of a small symmetric positive matrix; false if singular.
+bool invert(const std::vector<std::vector<double>>& a, std::vector<std::vector<double>>& inv);
+
+}  // namespace hil::analysis::detail

@@ -1,0 +1,25 @@
+// JSON, console and report pieces shared by compare and diagnose (internal).
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/analysis/residuals.hpp"
+
+namespace hil::report {
+class Document;
+}
+
+namespace hil::analysis::detail {
+
+nlohmann::json residual_to_json(const ResidualReport& r);
+// The headline numbers as one object (before/after blocks of diagnose).
+nlohmann::json headline_json(const ResidualReport& r);
+void add_summary_table(report::Document& doc, const ResidualReport& r);
+std::string summary_text(const ResidualReport& r, const std::string& model_name);
+// Writes atomically (temp file + rename); throws std::runtime_error naming the file.
+void write_text(const std::filesystem::path& file, const std::string& text);
+
+}  // namespace hil::analysis::detail

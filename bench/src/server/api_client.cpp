@@ -1,0 +1,186 @@
+#include "hil/bench/api_client.hpp"
+
+#include <fstream>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+
+namespace hil::bench {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+
+}  // namespace
+
+nlohmann::json ApiReply::json() const {
+  try {
+    return nlohmann::json::parse(body);
+  } catch (const nlohmann::json::exception&) {
+    throw std::runtime_error("HTTP " + std::to_string(status) + " with a body that is not JSON: " + body.substr(0, 200));
+  }
+}
+
+ApiClient::ApiClient(const std::string& url, std::string token, std::chrono::milliseconds timeout)
+    : token_(std::move(token)), timeout_(timeout) {
+  std::string rest = url;
+  if (rest.rfind("http://", 0) == 0) rest = rest.substr(7);
+  if (rest.rfind("https://", 0) == 0) throw std::invalid_argument("https is not supported: " + url);
+  if (const auto slash = rest.find('/'); slash != std::string::npos) rest = rest.substr(0, slash);
+  const auto colon = rest.rfind(':');
+  if (colon == std::string::npos) {
+    host_ = rest;
+    port_ = "8470";
+  } else {
+    host_ = rest.substr(0, colon);
+    port_ = rest.substr(colon + 1);
+  }
+  if (host_.empty() || port_.empty()) throw std::invalid_argument("server URL '" + url + "' is not http://HOST:PORT");
+}
+
+namespace {
+
+// Runs one asynchronous operation to its end. Beast's tcp_stream timeouts only apply to
+// asynchronous operations, so the client is synchronous on top of them.
+template <class Start>
+void run_op(asio::io_context& io, Start&& start) {
+  beast::error_code result;
+  start([&](beast::error_code ec, auto&&...) { result = ec; });
+  io.restart();
+  io.run();
+  if (result) throw boost::system::system_error(result);
+}
+
+beast::tcp_stream connect(asio::io_context& io, const std::string& host, const std::string& port,
+                          std::chrono::milliseconds timeout) {
+  beast::tcp_stream stream(io);
+  try {
+    tcp::resolver resolver(io);
+    const auto endpoints = resolver.resolve(host, port);
+    stream.expires_after(timeout);
+    run_op(io, [&](auto handler) { stream.async_connect(endpoints, handler); });
+  } catch (const boost::system::system_error& e) {
+    throw ApiUnreachable("cannot reach the bench server at " + host + ":" + port + ": " + e.code().message());
+  }
+  return stream;
+}
+
+template <class Request>
+void authorise(Request& req, const std::string& host, const std::string& token) {
+  req.set(http::field::host, host);
+  req.set(http::field::user_agent, "hilbench-ctl");
+  if (!token.empty()) req.set(http::field::authorization, "Bearer " + token);
+}
+
+}  // namespace
+
+ApiReply ApiClient::request(const std::string& method, const std::string& target, const std::string& body,
+                            const std::string& content_type) const {
+  asio::io_context io;
+  auto stream = connect(io, host_, port_, timeout_);
+  http::request<http::string_body> req(http::string_to_verb(method), target, 11);
+  authorise(req, host_, token_);
+  if (!body.empty() || method == "POST") {
+    req.set(http::field::content_type, content_type);
+    req.body() = body;
+  }
+  req.prepare_payload();
+  ApiReply reply;
+  try {
+    stream.expires_after(timeout_);
+    run_op(io, [&](auto handler) { http::async_write(stream, req, handler); });
+    beast::flat_buffer buffer;
+    http::response_parser<http::string_body> parser;
+    parser.body_limit(1ull << 30);
+    stream.expires_after(timeout_);
+    run_op(io, [&](auto handler) { http::async_read(stream, buffer, parser, handler); });
+    const auto& res = parser.get();
+    reply.status = res.result_int();
+    reply.body = res.body();
+    reply.content_type = std::string(res[http::field::content_type]);
+  } catch (const boost::system::system_error& e) {
+    throw ApiUnreachable(method + " " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());
+  }
+  beast::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_both, ec);
+  return reply;
+}
+
+ApiReply ApiClient::get(const std::string& target) const { return request("GET", target, "", ""); }
+
+ApiReply ApiClient::post(const std::string& target, const nlohmann::json& body) const {
+  return request("POST", target, body.dump(), "application/json");
+}
+
+ApiReply ApiClient::download(const std::string& target, const std::filesystem::path& to) const {
+  asio::io_context io;
+  auto stream = connect(io, host_, port_, timeout_);
+  http::request<http::empty_body> req(http::verb::get, target, 11);
+  authorise(req, host_, token_);
+  ApiReply reply;
+  try {
+    stream.expires_after(timeout_);
+    run_op(io, [&](auto handler) { http::async_write(stream, req, handler); });
+    beast::flat_buffer buffer;
+    http::response_parser<http::file_body> parser;
+    parser.body_limit(boost::none);
+    beast::error_code ec;
+    const auto tmp = to.string() + ".part";
+    parser.get().body().open(tmp.c_str(), beast::file_mode::write, ec);
+    if (ec) throw std::runtime_error("cannot write " + tmp + ": " + ec.message());
+    stream.expires_after(timeout_);
+    run_op(io, [&](auto handler) { http::async_read(stream, buffer, parser, handler); });
+    reply.status = parser.get().result_int();
+    reply.content_type = std::string(parser.get()[http::field::content_type]);
+    parser.get().body().close();
+    if (reply.ok()) {
+      std::filesystem::rename(tmp, to);
+    } else {
+      std::ifstream in(tmp);
+      reply.body.assign(std::istreambuf_iterator<char>(in), {});
+      std::filesystem::remove(tmp);
+    }
+  } catch (const boost::system::system_error& e) {
+    throw ApiUnreachable("GET " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());
+  }
+  return reply;
+}
+
+void ApiClient::stream(const std::string& target, const std::function<bool(const std::string&)>& on_message) const {
+  asio::io_context io;
+  auto tcp_stream = connect(io, host_, port_, timeout_);
+  websocket::stream<beast::tcp_stream> ws(std::move(tcp_stream));
+  ws.set_option(websocket::stream_base::decorator([this](websocket::request_type& req) {
+    req.set(http::field::user_agent, "hilbench-ctl");
+    if (!token_.empty()) req.set(http::field::authorization, "Bearer " + token_);
+  }));
+  try {
+    websocket::response_type res;
+    beast::get_lowest_layer(ws).expires_after(timeout_);
+    run_op(io, [&](auto handler) { ws.async_handshake(res, host_ + ":" + port_, target, handler); });
+    beast::flat_buffer buffer;
+    for (;;) {
+      beast::get_lowest_layer(ws).expires_after(timeout_);
+      run_op(io, [&](auto handler) { ws.async_read(buffer, handler); });
+      const std::string message = beast::buffers_to_string(buffer.data());
+      buffer.consume(buffer.size());
+      if (!on_message(message)) break;
+    }
+    beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(2));
+    try {
+      run_op(io, [&](auto handler) { ws.async_close(websocket::close_code::normal, handler); });
+    } catch (const boost::system::system_error&) {
+    }
+  } catch (const boost::system::system_error& e) {
+    if (e.code() == websocket::error::closed) return;
+    throw ApiUnreachable("WebSocket " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());
+  }
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,806 @@
+#include "api_server.hpp"
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <optional>
+#include <regex>
+#include <sstream>
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <spdlog/spdlog.h>
+
+#include "hil/config.hpp"
+#include "hil/units.hpp"
+
+namespace hil::bench {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using nlohmann::json;
+using Request = http::request<http::string_body>;
+
+constexpr std::size_t kWsQueueLimit = 1024;  // messages per client; beyond: dropped and counted
+
+// An answer: JSON (or text) in memory, or a file streamed from disk.
+struct Reply {
+  http::status status = http::status::ok;
+  std::string body;
+  std::string content_type = "application/json";
+  std::filesystem::path file;  // non-empty: send this file
+  std::string extra_header;    // Content-Disposition for downloads
+};
+
+Reply json_reply(http::status status, const json& j) { return {status, j.dump(2) + "\n", "application/json", {}, {}}; }
+Reply error_reply(http::status status, const std::string& error, const std::string& detail = "") {
+  json j = {{"error", error}};
+  if (!detail.empty()) j["detail"] = detail;
+  return json_reply(status, j);
+}
+
+// Thrown inside a handler: becomes an error reply.
+struct ApiError {
+  http::status status;
+  std::string error, detail;
+};
+
+std::string percent_decode(std::string_view s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
+      out.push_back(static_cast<char>(std::stoi(std::string(s.substr(i + 1, 2)), nullptr, 16)));
+      i += 2;
+    } else {
+      out.push_back(s[i] == '+' ? ' ' : s[i]);
+    }
+  }
+  return out;
+}
+
+struct Target {
+  std::vector<std::string> path;  // "/api/runs/x" -> {"api", "runs", "x"}
+  std::map<std::string, std::string> query;
+};
+
+Target parse_target(std::string_view target) {
+  Target t;
+  const auto q = target.find('?');
+  std::string_view path = target.substr(0, q);
+  std::stringstream ps{std::string(path)};
+  for (std::string part; std::getline(ps, part, '/');) {
+    if (!part.empty()) t.path.push_back(percent_decode(part));
+  }
+  if (q != std::string_view::npos) {
+    std::stringstream qs{std::string(target.substr(q + 1))};
+    for (std::string kv; std::getline(qs, kv, '&');) {
+      const auto eq = kv.find('=');
+      if (eq == std::string::npos) {
+        t.query[percent_decode(kv)] = "";
+      } else {
+        t.query[percent_decode(kv.substr(0, eq))] = percent_decode(kv.substr(eq + 1));
+      }
+    }
+  }
+  return t;
+}
+
+bool constant_time_equal(std::string_view a, std::string_view b) {
+  unsigned char diff = a.size() == b.size() ? 0 : 1;
+  for (std::size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i % std::max<std::size_t>(b.size(), 1)]);
+  return diff == 0;
+}
+
+bool safe_name(const std::string& s) {
+  static const std::regex re("[A-Za-z0-9_.-]+");
+  return !s.empty() && s != "." && s != ".." && std::regex_match(s, re);
+}
+
+std::vector<std::string> yaml_stems(const std::filesystem::path& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    if (e.is_regular_file() && e.path().extension() == ".yaml") out.push_back(e.path().stem().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+json parse_json_body(const Request& req) {
+  if (req.body().empty()) return json::object();
+  try {
+    json j = json::parse(req.body());
+    if (!j.is_object()) throw ApiError{http::status::bad_request, "malformed JSON", "the body must be a JSON object"};
+    return j;
+  } catch (const json::parse_error& e) {
+    throw ApiError{http::status::bad_request, "malformed JSON", e.what()};
+  }
+}
+
+template <class T>
+T field(const json& j, const char* key, T fallback) {
+  if (!j.contains(key) || j[key].is_null()) return fallback;
+  try {
+    return j[key].get<T>();
+  } catch (const json::exception&) {
+    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' has the wrong type"};
+  }
+}
+
+double number_field(const json& j, const char* key) {
+  if (!j.contains(key) || !j[key].is_number()) {
+    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be a number"};
+  }
+  const double v = j[key].get<double>();
+  if (!std::isfinite(v)) throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be finite"};
+  return v;
+}
+
+void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
+  for (const auto& [k, v] : j.items()) {
+    if (std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; }) == allowed.end()) {
+      std::vector<std::string> names(allowed.begin(), allowed.end());
+      const std::string hint = cfg::closest(k, names);
+      throw ApiError{http::status::bad_request, "unknown field",
+                     "'" + k + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+    }
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// WebSocket session: accepts the upgrade, then only writes (reads only to notice the close).
+
+class WsSession : public std::enable_shared_from_this<WsSession> {
+ public:
+  WsSession(tcp::socket&& socket, TelemetryHub& hub) : ws_(std::move(socket)), hub_(hub) {}
+  WsSession(const WsSession&) = delete;
+  WsSession& operator=(const WsSession&) = delete;
+  ~WsSession() { hub_.unsubscribe(this); }
+
+  void run(Request req, double rate_hz) {
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, "hilbench"); }));
+    ws_.async_accept(req, [self = shared_from_this(), rate_hz](beast::error_code ec) {
+      if (ec) return;
+      const json hello = {{"type", "hello"}, {"rate_hz", rate_hz}, {"columns", [] {
+                            json names = json::array();
+                            for (const auto& c : loop_telemetry_columns()) names.push_back(c.name);
+                            return names;
+                          }()}};
+      self->send(std::make_shared<const std::string>(hello.dump()));
+      self->hub_.subscribe(self, rate_hz);
+      self->read();
+    });
+  }
+
+  // Any thread.
+  void send(std::shared_ptr<const std::string> message) {
+    asio::post(ws_.get_executor(), [self = shared_from_this(), message = std::move(message)] {
+      if (self->closed_) return;
+      if (self->queue_.size() >= kWsQueueLimit) {
+        ++self->dropped_;
+        return;
+      }
+      self->queue_.push_back(message);
+      if (self->queue_.size() == 1) self->write();
+    });
+  }
+
+ private:
+  void write() {
+    ws_.text(true);
+    ws_.async_write(asio::buffer(*queue_.front()), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) {
+        self->closed_ = true;
+        self->queue_.clear();
+        self->hub_.unsubscribe(self.get());
+        return;
+      }
+      self->queue_.pop_front();
+      if (!self->queue_.empty()) self->write();
+    });
+  }
+  void read() {
+    ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) {
+        self->closed_ = true;
+        self->hub_.unsubscribe(self.get());
+        return;
+      }
+      self->buffer_.consume(self->buffer_.size());  // clients have nothing to say
+      self->read();
+    });
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  TelemetryHub& hub_;
+  beast::flat_buffer buffer_;
+  std::deque<std::shared_ptr<const std::string>> queue_;
+  std::size_t dropped_ = 0;
+  bool closed_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Telemetry hub.
+
+void TelemetryHub::subscribe(const std::shared_ptr<WsSession>& s, double rate_hz) {
+  std::lock_guard lock(mutex_);
+  subs_.push_back({s, s.get(), 1.0 / rate_hz, -1e300});
+}
+
+void TelemetryHub::unsubscribe(const WsSession* s) {
+  std::lock_guard lock(mutex_);
+  std::erase_if(subs_, [s](const Sub& x) { return x.key == s; });
+}
+
+std::size_t TelemetryHub::subscribers() const {
+  std::lock_guard lock(mutex_);
+  return subs_.size();
+}
+
+void TelemetryHub::publish_row(const TelemetryRecord& r) {
+  // Decide under the lock, send outside it: a session's last reference may die in here, and its
+  // destructor unsubscribes.
+  std::vector<std::shared_ptr<WsSession>> due;
+  {
+    std::lock_guard lock(mutex_);
+    const double t = r.step.t_s;
+    for (auto& s : subs_) {
+      if (t < s.next_t_s - 2 * s.interval_s) s.next_t_s = t;  // time went back: a new run
+      if (t + 1e-9 < s.next_t_s) continue;
+      s.next_t_s = s.next_t_s + s.interval_s > t ? s.next_t_s + s.interval_s : t + s.interval_s;
+      if (auto session = s.session.lock()) due.push_back(std::move(session));
+    }
+  }
+  if (due.empty()) return;
+  json j = {{"type", "row"}};
+  const auto values = loop_telemetry_row(r);
+  const auto& columns = loop_telemetry_columns();
+  for (std::size_t i = 0; i < columns.size(); ++i) j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
+  const auto message = std::make_shared<const std::string>(j.dump());
+  for (const auto& session : due) session->send(message);
+}
+
+void TelemetryHub::publish_notice(const json& j) {
+  auto message = std::make_shared<const std::string>(j.dump());
+  std::vector<std::shared_ptr<WsSession>> all;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& s : subs_) {
+      s.next_t_s = -1e300;
+      if (auto session = s.session.lock()) all.push_back(std::move(session));
+    }
+  }
+  for (const auto& session : all) session->send(message);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The routes.
+
+struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
+  Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
+      : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_) {}
+
+  asio::io_context& io;
+  ApiOptions options;
+  CampaignRunner& runner;
+  TelemetryHub& hub;
+  tcp::acceptor acceptor;
+  std::string refuse_starts;  // io thread only
+
+  void accept();
+  bool authorised(const Request& req, const Target& t) const;
+  Reply handle(const Request& req, const Target& t);
+  Reply campaigns();
+  Reply rigs();
+  Reply start(const Request& req, const Target& t);
+  Reply inject(const std::string& what, const json& body);
+  Reply runs();
+  Reply run(const std::string& id);
+  Reply run_file(const std::string& id, const std::string& file);
+  RigConfig rig_named(const std::string& name) const;
+};
+
+bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
+  if (options.token.empty()) return true;
+  const auto field = req[http::field::authorization];
+  const std::string_view auth(field.data(), field.size());
+  constexpr std::string_view bearer = "Bearer ";
+  if (auth.size() > bearer.size() && auth.substr(0, bearer.size()) == bearer &&
+      constant_time_equal(std::string_view(auth.data() + bearer.size(), auth.size() - bearer.size()), options.token)) {
+    return true;
+  }
+  // Browsers cannot set headers on a WebSocket: the query may carry it.
+  const auto q = t.query.find("token");
+  return q != t.query.end() && constant_time_equal(q->second, options.token);
+}
+
+RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
+  const auto names = yaml_stems(options.rigs_dir);
+  if (!safe_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
+    const std::string hint = cfg::closest(name, names);
+    throw ApiError{http::status::not_found, "unknown rig",
+                   "'" + name + "' is not a rig in " + options.rigs_dir.string() +
+                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+  }
+  try {
+    return load_rig_config(options.rigs_dir / (name + ".yaml"));
+  } catch (const cfg::Error& e) {
+    throw ApiError{http::status::internal_server_error, "invalid rig file", e.what()};
+  }
+}
+
+Reply ApiServer::Impl::campaigns() {
+  json list = json::array();
+  for (const auto& name : yaml_stems(options.campaigns_dir)) {
+    json j = {{"name", name}, {"file", (options.campaigns_dir / (name + ".yaml")).string()}};
+    try {
+      const Campaign c = load_campaign(options.campaigns_dir / (name + ".yaml"));
+      j["description"] = c.description;
+      j["duration_s"] = c.duration_s;
+      j["period_ms"] = c.period_s * 1e3;
+      j["runs"] = json::array();
+      for (const auto& r : c.runs) j["runs"].push_back(r.name);
+    } catch (const std::exception& e) {
+      j["error"] = e.what();
+    }
+    list.push_back(j);
+  }
+  return json_reply(http::status::ok, {{"campaigns", list}});
+}
+
+Reply ApiServer::Impl::rigs() {
+  json list = json::array();
+  for (const auto& name : yaml_stems(options.rigs_dir)) {
+    json j = {{"name", name}, {"file", (options.rigs_dir / (name + ".yaml")).string()}};
+    try {
+      const RigConfig r = load_rig_config(options.rigs_dir / (name + ".yaml"));
+      j["kind"] = r.kind;
+      j["description"] = r.description;
+      j["priority"] = r.loop.priority;
+      j["cpu"] = r.loop.cpu;
+    } catch (const std::exception& e) {
+      j["error"] = e.what();
+    }
+    list.push_back(j);
+  }
+  return json_reply(http::status::ok, {{"rigs", list}});
+}
+
+Reply ApiServer::Impl::start(const Request& req, const Target& t) {
+  if (!refuse_starts.empty()) throw ApiError{http::status::service_unavailable, "not accepting campaigns", refuse_starts};
+  const std::string content_type(req[http::field::content_type]);
+  const bool yaml_body = content_type.find("yaml") != std::string::npos;
+  json body = yaml_body ? json::object() : parse_json_body(req);
+  if (!yaml_body) allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
+  // Options come from the JSON body, or from the query when the body is the YAML itself.
+  auto option = [&](const char* key) -> std::optional<std::string> {
+    if (yaml_body) {
+      const auto q = t.query.find(key);
+      return q == t.query.end() ? std::nullopt : std::optional<std::string>(q->second);
+    }
+    return std::nullopt;
+  };
+
+  StartRequest s;
+  const std::string rig = yaml_body ? option("rig").value_or("sim") : field<std::string>(body, "rig", "sim");
+  s.rig = rig_named(rig);
+  if (yaml_body) {
+    if (const auto runs = option("runs")) {
+      std::stringstream rs(*runs);
+      for (std::string r; std::getline(rs, r, ',');) {
+        if (!r.empty()) s.runs.push_back(r);
+      }
+    }
+    if (const auto speed = option("speed")) {
+      try {
+        s.speed = std::stod(*speed);
+      } catch (const std::exception&) {
+        throw ApiError{http::status::bad_request, "bad field", "'speed' must be a number"};
+      }
+    }
+  } else {
+    s.runs = field<std::vector<std::string>>(body, "runs", {});
+    if (body.contains("speed")) s.speed = number_field(body, "speed");
+  }
+
+  std::string yaml;
+  if (yaml_body) {
+    yaml = req.body();
+  } else if (body.contains("campaign_yaml")) {
+    yaml = field<std::string>(body, "campaign_yaml", "");
+  }
+  try {
+    if (yaml_body || body.contains("campaign_yaml")) {
+      if (body.contains("campaign")) throw ApiError{http::status::bad_request, "bad request", "give 'campaign' or 'campaign_yaml', not both"};
+      s.campaign = load_campaign_text(yaml, "posted campaign", options.campaigns_dir);
+      s.source = "posted";
+    } else {
+      if (!body.contains("campaign")) {
+        throw ApiError{http::status::bad_request, "bad request", "give 'campaign' (a name from GET /api/campaigns) or 'campaign_yaml'"};
+      }
+      const std::string name = field<std::string>(body, "campaign", "");
+      const auto names = yaml_stems(options.campaigns_dir);
+      if (!safe_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
+        const std::string hint = cfg::closest(name, names);
+        throw ApiError{http::status::not_found, "unknown campaign",
+                       "'" + name + "' is not a campaign in " + options.campaigns_dir.string() +
+                           (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+      }
+      const auto file = options.campaigns_dir / (name + ".yaml");
+      s.campaign = load_campaign(file);
+      s.source = file.string();
+    }
+  } catch (const cfg::Error& e) {
+    throw ApiError{http::status::bad_request, "invalid campaign YAML", e.what()};
+  }
+  const std::string name = s.campaign.name;
+  try {
+    runner.start(std::move(s));
+  } catch (const Conflict& e) {
+    throw ApiError{http::status::conflict, "a campaign is running", e.what()};
+  } catch (const std::invalid_argument& e) {
+    throw ApiError{http::status::bad_request, "cannot start", e.what()};
+  }
+  spdlog::info("campaign '{}' started", name);
+  return json_reply(http::status::accepted, {{"started", name}, {"rig", rig}, {"status", runner.status()}});
+}
+
+Reply ApiServer::Impl::inject(const std::string& what, const json& body) {
+  LoopRequest r;
+  using K = LoopRequest::Kind;
+  auto duration = [&] {
+    const double d = body.contains("duration_s") ? number_field(body, "duration_s") : 0.0;
+    if (d < 0 || d > 86400) throw ApiError{http::status::bad_request, "bad field", "'duration_s' must be 0..86400 (0 = until cleared)"};
+    return d;
+  };
+  if (what == "gap") {
+    allow_fields(body, {"gap_deg", "programme"});
+    if (field<bool>(body, "programme", false)) {
+      r.kind = K::programme_gap;
+    } else {
+      const double gap_deg = number_field(body, "gap_deg");
+      if (gap_deg < 0 || gap_deg > 10) throw ApiError{http::status::bad_request, "bad field", "'gap_deg' must be 0..10"};
+      r.kind = K::set_gap;
+      r.value = units::deg_to_rad(gap_deg);
+    }
+  } else if (what == "sensor") {
+    allow_fields(body, {"mode", "bias_kpa", "rms_kpa", "duration_s"});
+    const std::string mode = field<std::string>(body, "mode", "");
+    r.kind = K::sensor_fault;
+    r.duration_s = duration();
+    if (mode == "stuck") {
+      r.sensor = SensorFault::stuck;
+    } else if (mode == "dropout") {
+      r.sensor = SensorFault::dropout;
+    } else if (mode == "bias") {
+      r.sensor = SensorFault::bias;
+      r.value = number_field(body, "bias_kpa") * units::kPaPerKpa;
+    } else if (mode == "noise") {
+      r.sensor = SensorFault::noise;
+      r.value = number_field(body, "rms_kpa") * units::kPaPerKpa;
+      if (r.value < 0) throw ApiError{http::status::bad_request, "bad field", "'rms_kpa' must be >= 0"};
+    } else {
+      throw ApiError{http::status::bad_request, "bad field", "'mode' must be stuck, dropout, bias or noise"};
+    }
+  } else if (what == "drive") {
+    allow_fields(body, {"mode", "on", "duration_s"});
+    const std::string mode = field<std::string>(body, "mode", "ignore_commands");
+    if (mode != "ignore_commands") throw ApiError{http::status::bad_request, "bad field", "'mode' must be ignore_commands"};
+    r.kind = K::drive_fault;
+    r.on = field<bool>(body, "on", true);
+    r.duration_s = duration();
+  } else if (what == "rig") {
+    allow_fields(body, {"mode", "on"});
+    const std::string mode = field<std::string>(body, "mode", "silent");
+    if (mode != "silent") throw ApiError{http::status::bad_request, "bad field", "'mode' must be silent"};
+    r.kind = K::rig_fault;
+    r.on = field<bool>(body, "on", true);
+  } else if (what == "clear") {
+    allow_fields(body, {});
+    r.kind = K::clear_faults;
+  } else {
+    const std::string hint = cfg::closest(what, {"gap", "sensor", "drive", "rig", "clear"});
+    throw ApiError{http::status::not_found, "unknown injection",
+                   "'" + what + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + "; use gap, sensor, drive, rig or clear"};
+  }
+  try {
+    runner.inject(r);
+  } catch (const Conflict& e) {
+    throw ApiError{http::status::conflict, "nothing to inject into", e.what()};
+  } catch (const std::invalid_argument& e) {
+    throw ApiError{http::status::bad_request, "not possible on this rig", e.what()};
+  }
+  return json_reply(http::status::accepted, {{"injected", what}, {"request", body}});
+}
+
+Reply ApiServer::Impl::runs() {
+  json list = json::array();
+  std::vector<std::filesystem::path> dirs;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(options.runs_dir, ec)) {
+    if (e.is_directory() && std::filesystem::exists(e.path() / "run.json")) dirs.push_back(e.path());
+  }
+  std::sort(dirs.rbegin(), dirs.rend());  // newest first: names start with the UTC time
+  for (const auto& d : dirs) {
+    json j = {{"id", d.filename().string()}};
+    try {
+      std::ifstream in(d / "run.json");
+      const json r = json::parse(in);
+      for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r.value(k, json(nullptr));
+    } catch (const std::exception& e) {
+      j["error"] = std::string("run.json: ") + e.what();
+    }
+    list.push_back(j);
+  }
+  return json_reply(http::status::ok, {{"runs", list}});
+}
+
+Reply ApiServer::Impl::run(const std::string& id) {
+  const auto dir = options.runs_dir / id;
+  if (!safe_name(id) || !std::filesystem::exists(dir / "run.json")) {
+    throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
+  }
+  json files = json::array();
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.is_regular_file() && e.path().extension() != ".tmp") {
+      files.push_back({{"name", e.path().filename().string()}, {"bytes", e.file_size()}});
+    }
+  }
+  std::ifstream in(dir / "run.json");
+  json r;
+  try {
+    r = json::parse(in);
+  } catch (const std::exception& e) {
+    throw ApiError{http::status::internal_server_error, "unreadable run.json", e.what()};
+  }
+  return json_reply(http::status::ok, {{"id", id}, {"files", files}, {"run", r}});
+}
+
+Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) {
+  const auto path = options.runs_dir / id / file;
+  if (!safe_name(id) || !safe_name(file) || !std::filesystem::is_regular_file(path)) {
+    throw ApiError{http::status::not_found, "unknown file", "run '" + id + "' has no file '" + file + "'"};
+  }
+  Reply r;
+  r.file = path;
+  const auto ext = path.extension().string();
+  r.content_type = ext == ".csv" ? "text/csv" : ext == ".json" ? "application/json" : ext == ".jsonl" ? "application/x-ndjson" : "application/octet-stream";
+  r.extra_header = "attachment; filename=\"" + file + "\"";
+  return r;
+}
+
+Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
+  const auto& p = t.path;
+  const auto method = req.method();
+  auto need = [&](http::verb v) {
+    if (method != v) {
+      throw ApiError{http::status::method_not_allowed, "method not allowed",
+                     std::string(req.method_string()) + " " + std::string(req.target()) + ": use " + std::string(http::to_string(v))};
+    }
+  };
+  if (p.size() < 2 || p[0] != "api") throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
+  const std::string& what = p[1];
+  if (p.size() == 2 && what == "health") {
+    need(http::verb::get);
+    return json_reply(http::status::ok, {{"ok", true}, {"version", options.version}});
+  }
+  if (p.size() == 2 && what == "campaigns") return need(http::verb::get), campaigns();
+  if (p.size() == 2 && what == "rigs") return need(http::verb::get), rigs();
+  if (p.size() == 2 && what == "status") return need(http::verb::get), json_reply(http::status::ok, runner.status());
+  if (p.size() == 2 && what == "start") return need(http::verb::post), start(req, t);
+  if (p.size() == 2 && what == "stop") {
+    need(http::verb::post);
+    try {
+      runner.stop();
+    } catch (const Conflict& e) {
+      throw ApiError{http::status::conflict, "nothing to stop", e.what()};
+    }
+    return json_reply(http::status::accepted, {{"stopping", true}});
+  }
+  if (p.size() == 2 && what == "abort") {
+    need(http::verb::post);
+    const json body = parse_json_body(req);
+    allow_fields(body, {"reason"});
+    const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
+    try {
+      runner.abort(reason);
+    } catch (const Conflict& e) {
+      throw ApiError{http::status::conflict, "nothing to abort", e.what()};
+    }
+    return json_reply(http::status::accepted, {{"aborting", true}, {"reason", reason}});
+  }
+  if (p.size() == 3 && what == "inject") return need(http::verb::post), inject(p[2], parse_json_body(req));
+  if (what == "runs" && p.size() == 2) return need(http::verb::get), runs();
+  if (what == "runs" && p.size() == 3) return need(http::verb::get), run(p[2]);
+  if (what == "runs" && p.size() == 4) return need(http::verb::get), run_file(p[2], p[3]);
+  if (p.size() == 2 && what == "telemetry") {
+    throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
+  }
+  throw ApiError{http::status::not_found, "not found",
+                 std::string(req.target()) + " is no endpoint; see GET /api/campaigns, /api/rigs, /api/status, /api/runs, "
+                                             "POST /api/start, /api/stop, /api/abort, /api/inject/{gap,sensor,drive,rig,clear}"};
+}
+
+// ---------------------------------------------------------------------------------------------
+// HTTP session.
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(tcp::socket&& socket, std::shared_ptr<ApiServer::Impl> api) : stream_(std::move(socket)), api_(std::move(api)) {}
+  HttpSession(const HttpSession&) = delete;
+  HttpSession& operator=(const HttpSession&) = delete;
+
+  void read() {
+    parser_.emplace();
+    parser_->body_limit(api_->options.max_body_bytes);
+    parser_->header_limit(16 * 1024);
+    stream_.expires_after(std::chrono::seconds(60));
+    http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
+  }
+
+ private:
+  void on_read(beast::error_code ec) {
+    if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::connection_reset) return close();
+    if (ec == http::error::body_limit) {
+      draining_ = true;  // read the rest of the body after answering, so the client sees the 413
+      return send(error_reply(http::status::payload_too_large, "request body too large",
+                              "the limit is " + std::to_string(api_->options.max_body_bytes) + " bytes"),
+                  false);
+    }
+    if (ec == http::error::header_limit) return send(error_reply(http::status::request_header_fields_too_large, "headers too large"), false);
+    if (ec) return send(error_reply(http::status::bad_request, "malformed HTTP request", ec.message()), false);
+
+    Request req = parser_->release();
+    const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
+    if (!api_->authorised(req, target)) {
+      spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), std::string(req.target()));
+      return send(error_reply(http::status::unauthorized, "unauthorized",
+                              "this server requires 'Authorization: Bearer <token>' on every request"),
+                  req.keep_alive());
+    }
+    if (websocket::is_upgrade(req)) {
+      if (target.path != std::vector<std::string>{"api", "telemetry"}) {
+        return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
+      }
+      double rate = 20;
+      if (const auto q = target.query.find("rate_hz"); q != target.query.end()) {
+        try {
+          rate = std::stod(q->second);
+        } catch (const std::exception&) {
+          rate = -1;
+        }
+      }
+      if (!(rate > 0 && rate <= 5000)) return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
+      std::make_shared<WsSession>(stream_.release_socket(), api_->hub)->run(std::move(req), rate);
+      return;
+    }
+    Reply reply;
+    try {
+      reply = api_->handle(req, target);
+    } catch (const ApiError& e) {
+      reply = error_reply(e.status, e.error, e.detail);
+    } catch (const std::exception& e) {
+      spdlog::error("{} {}: {}", std::string(req.method_string()), std::string(req.target()), e.what());
+      reply = error_reply(http::status::internal_server_error, "internal error", e.what());
+    }
+    if (static_cast<int>(reply.status) >= 400) {
+      spdlog::info("{} {} -> {}", std::string(req.method_string()), std::string(req.target()), static_cast<int>(reply.status));
+    }
+    send(std::move(reply), req.keep_alive());
+  }
+
+  void send(Reply reply, bool keep_alive) {
+    if (!reply.file.empty()) {
+      http::file_body::value_type body;
+      beast::error_code ec;
+      body.open(reply.file.c_str(), beast::file_mode::scan, ec);
+      if (ec) return send(error_reply(http::status::internal_server_error, "cannot read file", ec.message()), keep_alive);
+      auto res = std::make_shared<http::response<http::file_body>>(
+          std::piecewise_construct, std::make_tuple(std::move(body)), std::make_tuple(http::status::ok, 11));
+      res->set(http::field::content_type, reply.content_type);
+      res->set(http::field::content_disposition, reply.extra_header);
+      res->keep_alive(keep_alive);
+      res->prepare_payload();
+      return write(res);
+    }
+    auto res = std::make_shared<http::response<http::string_body>>(reply.status, 11);
+    res->set(http::field::server, "hilbench");
+    res->set(http::field::content_type, reply.content_type);
+    res->keep_alive(keep_alive);
+    res->body() = std::move(reply.body);
+    res->prepare_payload();
+    write(res);
+  }
+
+  template <class Response>
+  void write(const std::shared_ptr<Response>& res) {
+    http::async_write(stream_, *res, [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+      if (ec || !res->keep_alive()) return self->close();
+      self->read();
+    });
+  }
+
+  void close() {
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+    if (draining_) drain();
+  }
+
+  // Lingering close: discard what the client still sends (up to 64 MB or 5 s), so that closing
+  // with unread data does not reset the connection before the client has read our answer.
+  void drain() {
+    stream_.expires_after(std::chrono::seconds(5));
+    stream_.async_read_some(asio::buffer(scratch_), [self = shared_from_this()](beast::error_code ec, std::size_t n) {
+      self->drained_ += n;
+      if (!ec && self->drained_ < (64u << 20)) self->drain();
+    });
+  }
+
+  beast::tcp_stream stream_;
+  std::shared_ptr<ApiServer::Impl> api_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  bool draining_ = false;
+  std::size_t drained_ = 0;
+  std::array<char, 16384> scratch_{};
+};
+
+void ApiServer::Impl::accept() {
+  acceptor.async_accept(asio::make_strand(io), [self = shared_from_this()](beast::error_code ec, tcp::socket socket) {
+    if (ec == asio::error::operation_aborted) return;
+    if (!ec) std::make_shared<HttpSession>(std::move(socket), self)->read();
+    self->accept();
+  });
+}
+
+ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& runner, TelemetryHub& hub) {
+  beast::error_code ec;
+  const auto address = asio::ip::make_address(options.address, ec);
+  if (ec) throw std::invalid_argument("--listen: '" + options.address + "' is not an IP address");
+  loopback_ = address.is_loopback();
+  if (!loopback_ && options.token.empty()) {
+    throw std::invalid_argument("listening on " + options.address +
+                                " (not loopback) requires a token: --token T or HILBENCH_TOKEN; every request must then carry "
+                                "'Authorization: Bearer T'");
+  }
+  impl_ = std::make_shared<Impl>(io, std::move(options), runner, hub);
+  const tcp::endpoint endpoint(address, impl_->options.port);
+  auto& a = impl_->acceptor;
+  a.open(endpoint.protocol());
+  a.set_option(asio::socket_base::reuse_address(true));
+  a.bind(endpoint, ec);
+  if (ec) throw std::runtime_error("cannot listen on " + impl_->options.address + ":" + std::to_string(impl_->options.port) + ": " + ec.message());
+  a.listen(asio::socket_base::max_listen_connections);
+  impl_->accept();
+}
+
+ApiServer::~ApiServer() {
+  if (impl_) {
+    beast::error_code ec;
+    impl_->acceptor.close(ec);
+  }
+}
+
+unsigned short ApiServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+void ApiServer::refuse_starts(const std::string& why) {
+  asio::post(impl_->io, [impl = impl_, why] { impl->refuse_starts = why; });
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,75 @@
+// The operator API of `hilbench serve`: HTTP/JSON and a WebSocket telemetry stream on
+// Boost.Beast, served by one io_context thread. Endpoints: see bench/SERVER.md.
+// Requests never wait for the loop: they read the runner's status and hand requests over.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/runner.hpp"
+
+namespace hil::bench {
+
+struct ApiOptions {
+  std::string address = "127.0.0.1";
+  unsigned short port = 8470;            // 0: any free port (see ApiServer::port)
+  std::string token;                     // when set, every request must carry it
+  std::filesystem::path campaigns_dir = "configs/campaigns";
+  std::filesystem::path rigs_dir = "configs/rigs";
+  std::filesystem::path runs_dir = "runs";
+  std::size_t max_body_bytes = 1 << 20;
+  std::string version;
+};
+
+class WsSession;
+
+// Fans telemetry out to WebSocket clients, each decimated to the rate it asked for. publish_*
+// may be called from any thread (the recorder's, the runner's); sends happen on the io thread.
+class TelemetryHub {
+ public:
+  void publish_row(const TelemetryRecord& r);
+  void publish_notice(const nlohmann::json& j);
+  void subscribe(const std::shared_ptr<WsSession>& s, double rate_hz);
+  void unsubscribe(const WsSession* s);
+  std::size_t subscribers() const;
+
+ private:
+  struct Sub {
+    std::weak_ptr<WsSession> session;
+    const WsSession* key;
+    double interval_s;
+    double next_t_s;
+  };
+  mutable std::mutex mutex_;
+  std::vector<Sub> subs_;
+};
+
+class ApiServer {
+ public:
+  // Binds and starts accepting. Throws when the address cannot be bound, or when it is not a
+  // loopback address and no token is set.
+  ApiServer(boost::asio::io_context& io, ApiOptions options, CampaignRunner& runner, TelemetryHub& hub);
+  ~ApiServer();
+  ApiServer(const ApiServer&) = delete;
+  ApiServer& operator=(const ApiServer&) = delete;
+
+  unsigned short port() const;
+  bool loopback() const { return loopback_; }
+  void refuse_starts(const std::string& why);  // shutting down: new campaigns get 503
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<Impl> impl_;
+  bool loopback_ = true;
+};
+
+}  // namespace hil::bench

@@ -1,0 +1,101 @@
+// The real-time loop on the simulated rig, through the campaign runner exactly as `hilbench serve`
+// runs it (loop thread, recorder thread, files), for a fixed time at a chosen rate. Prints the
+// wake-up latency and compute time percentiles, overruns and telemetry loss from run.json.
+//   bench_rt_loop [--hz 1000] [--seconds 60] [--priority 80] [--cpu 1] [--rig configs/rigs/sim.yaml]
+// Compare with cyclictest run the same way: benchmarks/rt/compare.sh.
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/rig_config.hpp"
+#include "hil/bench/rt_thread.hpp"
+#include "hil/bench/runner.hpp"
+
+using namespace hil::bench;
+
+namespace {
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  if (at == std::string::npos) throw std::runtime_error("paper_adaptive.yaml has no '" + from + "'");
+  return text.replace(at, from.size(), to);
+}
+
+}  // namespace
+
+int run(int argc, char** argv) {
+  double hz = 1000, seconds = 60;
+  int priority = 80, cpu = 1;
+  std::string rig_file = HIL_SOURCE_DIR "/configs/rigs/sim.yaml";
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--hz") hz = std::stod(v);
+    else if (a == "--seconds") seconds = std::stod(v);
+    else if (a == "--priority") priority = std::stoi(v);
+    else if (a == "--cpu") cpu = std::stoi(v);
+    else if (a == "--rig") rig_file = v;
+    else {
+      std::fprintf(stderr, "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE]\n");
+      return 2;
+    }
+  }
+  // paper_adaptive, stretched to the benchmark's length and rate.
+  std::ifstream in(HIL_SOURCE_DIR "/configs/campaigns/paper_adaptive.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  char period[32], duration[32];
+  std::snprintf(period, sizeof period, "period_ms: %g", 1000.0 / hz);
+  std::snprintf(duration, sizeof duration, "duration_s: %g", seconds);
+  const std::string yaml = replace(replace(text.str(), "period_ms: 1", period), "duration_s: 18", duration);
+
+  StartRequest req;
+  req.campaign = load_campaign_text(yaml, "paper_adaptive (benchmark)", HIL_SOURCE_DIR "/configs/campaigns");
+  req.rig = load_rig_config(rig_file);
+  req.rig.loop.priority = priority;
+  req.rig.loop.cpu = cpu;
+  req.runs = {"adaptive"};
+  req.source = "benchmark";
+
+  const std::string mlock = lock_memory();
+  const auto runs_dir = std::filesystem::temp_directory_path() / ("hil_bench_rt_" + std::to_string(::getpid()));
+  RunnerOptions ro;
+  ro.runs_dir = runs_dir;
+  ro.version = "benchmark";
+  ro.mlock_warning = mlock;
+  {
+    CampaignRunner runner(ro);
+    runner.start(std::move(req));
+    while (runner.running()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    runner.wait();
+  }
+  std::filesystem::path dir;
+  for (const auto& e : std::filesystem::directory_iterator(runs_dir)) dir = e.path();
+  std::ifstream run_file(dir / "run.json");
+  const nlohmann::json run = nlohmann::json::parse(run_file);
+  const auto& loop = run["loop"];
+  const auto& w = loop["wake_latency_us"];
+  const auto& c = loop["compute_us"];
+  std::printf("hilbench loop  %5.0f Hz %3.0f s  %s%s: wake-up latency us: min %.1f p50 %.1f p99 %.1f p99.9 %.1f max %.1f | "
+              "compute us: p50 %.2f p99 %.2f max %.1f | overruns %lld (deadlines skipped %lld) in %lld periods | rows written %lld lost %lld | %s\n",
+              hz, seconds, loop["sched"].get<std::string>().c_str(), mlock.empty() ? ", mlockall" : "", w["min_us"].get<double>(),
+              w["p50_us"].get<double>(), w["p99_us"].get<double>(), w["p99_9_us"].get<double>(), w["max_us"].get<double>(),
+              c["p50_us"].get<double>(), c["p99_us"].get<double>(), c["max_us"].get<double>(), loop["overruns"].get<long long>(),
+              loop["skipped_deadlines"].get<long long>(),
+              loop["periods"].get<long long>(), run["telemetry"]["rows_written"].get<long long>(),
+              run["telemetry"]["rows_lost"].get<long long>(), run["outcome"].get<std::string>().c_str());
+  std::filesystem::remove_all(runs_dir);
+  return run["telemetry"]["rows_lost"].get<long long>() == 0 && run["outcome"] == "completed" ? 0 : 1;
+}
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_rt_loop: %s\n", e.what());
+    return 1;
+  }
+}
