@@ -40,8 +40,8 @@ std::vector<double> step_times(const ReplayData& data) {
   // A gap only shows when the drive crosses it, so every time between two reversals is as good
   // as any other: one candidate per interval.
   std::vector<double> mids;
-  for (std::size_t i = 0; i + 1 < rev.size(); ++i) mids.push_back(0.5 * (rev[i] + rev[i + 1]));
-  return mids;
+  for (std::size_t i = 0; i + 1 < rev.size(); ++i) mids.push_back(0.5 * (rev[i] + rev[i + 1]) - data.start.t0_s);
+  return mids;  // in the model's clock (replay.hpp)
 }
 
 Candidate backlash_change(const plant::Plant& base) {

@@ -26,12 +26,13 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kBicMargin = -10;          // very strong evidence (Kass & Raftery)
 constexpr double kMinExcessShare = 0.25;    // of the model's excess error power
 constexpr double kMinNoiseShare = 0.05;     // of N sigma^2
-constexpr std::size_t kRefineTop = 3;       // candidates refined on every row per round
-constexpr int kCoarseIter = 12, kGridIter = 3, kRefineIter = 4, kJointIter = 8;
+constexpr std::size_t kRefineTop = 2;       // candidates refined on every row per round
+constexpr int kCoarseIter = 12, kGridIter = 3, kRefineIter = 3, kJointIter = 8;
+constexpr double kCompetitive = 1.2;        // variants within 20 % of their best get a full-data look
 constexpr std::size_t kGridCoarse = 16;      // grid values tried before the local refinement
 constexpr std::size_t kBeam = 3;            // first choices followed when the best one is not enough
 constexpr double kFloorTolerance = 1.1;     // RSS within 10 % of N sigma^2: at the noise floor
-constexpr double kFloorRmsRatio = 1.1;      // RMSE within 10 % of sigma: at the noise floor
+constexpr double kSkipAtFloor = 1.03;       // RSS within 3 %: no candidate can earn its place
 
 // Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
 template <class Fn>
@@ -75,7 +76,8 @@ struct VariantFit {
   const FreeParam* grid = nullptr;
   double grid_value = kNaN;
   std::vector<double> values, sigma;  // continuous
-  double rss_full = kInf;
+  double rss_coarse = kInf;  // on the decimated copy
+  double rss_full = kInf;    // on every row
   bool refined = false;
   int evaluations = 0;
   std::string note;
@@ -145,13 +147,18 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
     vf.note = "the model cannot be replayed with this effect";
     return;
   }
+  vf.rss_coarse = r.rss;
   if (same) {
     vf.rss_full = r.rss;
     vf.refined = true;
-  } else {
-    vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
-    ++vf.evaluations;
   }
+}
+
+// RSS on every row at the coarse fit's values.
+void evaluate_full(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
+  vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
+  ++vf.evaluations;
 }
 
 void refine_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
@@ -281,6 +288,21 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
   };
   std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
   parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
+  // Every row for the variants that are competitive on the decimated copy (within 20 % of their
+  // candidate's best variant there); the others cannot be the candidate's best.
+  {
+    std::vector<double> best_coarse(pool.size(), kInf);
+    for (const auto& j : jobs) best_coarse[j.candidate] = std::min(best_coarse[j.candidate], j.rss_coarse);
+    std::vector<std::size_t> todo;
+    for (std::size_t i = 0; i < jobs.size(); ++i) {
+      VariantFit& j = jobs[i];
+      if (j.refined || !std::isfinite(j.rss_coarse)) continue;
+      if (j.rss_coarse <= kCompetitive * best_coarse[j.candidate]) todo.push_back(i);
+      else j.note = "another variant of this effect fits clearly better";
+    }
+    parallel_for(todo.size(), ctx.threads,
+                 [&](std::size_t i) { evaluate_full(ctx, current, *pool[jobs[todo[i]].candidate], jobs[todo[i]]); });
+  }
 
   // N_eff from the best-fitting variant's residual (the most whitened one).
   const VariantFit* best_fit = nullptr;
@@ -370,9 +392,18 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     if (path.added.size() >= 2) joint_refit(su.ctx, base0, path.added, evaluations);
     const plant::Plant current = apply_added(base0, path.added);
     const auto left = remaining(pool, path.added);
-    if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) {
-      path.rss = rss_of(current, su.ctx.full, nullptr);
-      ++evaluations;
+    path.rss = rss_of(current, su.ctx.full, nullptr);
+    ++evaluations;
+    if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) return;
+    // At the noise floor nothing can earn its place (it would have to remove 5 % of the noise
+    // power): say so instead of fitting every candidate again.
+    if (path.rss <= kSkipAtFloor * su.noise_rss) {
+      Round done;
+      done.rss_before_pa2 = path.rss;
+      done.fit_before_pct = fit_percent(path.rss, su.spread, su.ctx.full.size());
+      done.note = "the model is at the noise floor (RSS within 3 % of N sigma^2): no candidate can remove 5 % of the "
+                  "noise power, so none is fitted";
+      path.rounds.push_back(std::move(done));
       return;
     }
     RoundOutcome r = run_round(su, current, left, evaluations);
@@ -407,6 +438,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   const std::size_t dec = std::max<std::size_t>(1, (full.size() + s.coarse_rows - 1) / s.coarse_rows);
   const ReplayData coarse = decimate(full, dec);
   d.decimation = dec;
+  d.time_origin_s = full.start.t0_s;
 
   d.before = compare_measurement(base0, m, s.keep_series);
   d.noise_sigma_pa = d.before.noise_sigma_pa;
@@ -458,7 +490,9 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
                      std::chrono::duration<double>(Clock::now() - t_start).count());
       }
       continue_path(su, base0, pool, p, s.max_rounds, d.evaluations);
+      const bool done = p.rss <= kFloorTolerance * su.noise_rss;
       paths.push_back(std::move(p));
+      if (done) break;  // this path reaches the noise floor: another cannot beat it without noise fitting
     }
     // Compare the paths by BIC with N_eff from the best path's residual.
     std::size_t best = 0;
@@ -505,7 +539,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
   for (auto& c : d.added) c.fit_after_pct = d.after.fit_pct;
   d.fitted = std::make_shared<const plant::Plant>(apply_added(model, added));
-  d.at_noise_floor = d.after.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa;
+  d.at_noise_floor = at_noise_floor(d.after.error.rmse_pa, d.noise_sigma_pa);
 
   // The verdict in words.
   auto& out = d.summary;
@@ -532,7 +566,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
                     " times the noise, so something else is missing, and the effects found may stand in for it. "
                     "What remains: " + text::join(d.after.signature, " "));
     }
-  } else if (d.before.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa) {
+  } else if (at_noise_floor(d.before.error.rmse_pa, d.noise_sigma_pa)) {
     d.verdict = "nothing_missing";
     d.at_noise_floor = true;
     out.push_back("Nothing is missing: the model fits at the noise floor and no candidate earns its place.");

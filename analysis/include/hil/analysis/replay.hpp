@@ -6,6 +6,11 @@
 // stepping t(k) -> t(k+1) with theta_cmd(k) held, and the encoder replaces the motor model with
 // theta_motor(k+1), the angle at the end of that step. Each step uses its own row's dt, so
 // non-uniform sampling is replayed as sampled.
+//
+// The model's clock starts at the file's first row (model time = t_s - t_s[0]): the replay starts
+// from the model's initial state there (its free volume V(0), say), so time-dependent effects
+// (throat_erosion, backlash_change's step_time_s and drift) count from the same origin. For the
+// bench's own telemetry t_s[0] = 0 and the two clocks agree.
 #pragma once
 
 #include <cstddef>
@@ -42,7 +47,8 @@ class Replayer {
   // Prediction at row time t_s; cmd_held_rad: the command in force since the previous row;
   // motor_rad: the encoder at t_s (NaN: the motor model acts). Real-time safe.
   double advance(double t_s, double cmd_held_rad, double motor_rad) noexcept {
-    const double dt = t_s - state_.s.t_s;
+    const double dt = t_s - last_t_s_;
+    last_t_s_ = t_s;
     model_.step(state_, {cmd_held_rad, motor_rad, plant::kNaN}, dt);
     burned_kg_ += state_.s.mdot_gen_kg_s * dt;
     return state_.s.p_meas_pa;
@@ -53,6 +59,7 @@ class Replayer {
  private:
   const plant::Plant& model_;
   plant::PlantState state_;
+  double last_t_s_ = 0;  // file time of the last row
   double burned_kg_ = 0;
 };
 

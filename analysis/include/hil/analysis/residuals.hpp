@@ -130,6 +130,11 @@ class ResidualAnalyzer {
   std::unique_ptr<Impl> impl_;
 };
 
+// "At the noise floor": the RMS error within 10 % of the measurement noise. Used by the residual's
+// signature and by diagnose's verdict.
+inline constexpr double kNoiseFloorRmsRatio = 1.1;
+inline bool at_noise_floor(double rmse_pa, double noise_sigma_pa) { return rmse_pa <= kNoiseFloorRmsRatio * noise_sigma_pa; }
+
 // Fit % of a residual: 100 (1 - sqrt(rss) / |y - mean(y)|).
 double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n);
 
