@@ -27,9 +27,10 @@ constexpr double kBicMargin = -10;          // very strong evidence (Kass & Raft
 constexpr double kMinExcessShare = 0.25;    // of the model's excess error power
 constexpr double kMinNoiseShare = 0.05;     // of N sigma^2
 constexpr std::size_t kRefineTop = 2;       // candidates refined on every row per round
-constexpr int kCoarseIter = 12, kGridIter = 3, kRefineIter = 3, kJointIter = 8;
+constexpr int kCoarseIter = 12, kGridIter = 2, kRefineIter = 3, kJointIter = 8;
 constexpr double kCompetitive = 1.2;        // variants within 20 % of their best get a full-data look
-constexpr std::size_t kGridCoarse = 16;      // grid values tried before the local refinement
+constexpr std::size_t kGridCoarse = 16;      // grid values of the zoom search's first level
+constexpr std::size_t kGridZoom = 8;         // values per later level
 constexpr std::size_t kBeam = 3;            // first choices followed when the best one is not enough
 constexpr double kFloorTolerance = 1.1;     // RSS within 10 % of N sigma^2: at the noise floor
 constexpr double kSkipAtFloor = 1.03;       // RSS within 3 %: no candidate can earn its place
@@ -109,26 +110,43 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
       vf.note = "no place for it in the data (e.g. fewer than two motion reversals)";
       return;
     }
-    // Coarse pass over at most kGridCoarse evenly spread values, then every value between the
-    // best one's neighbours.
-    double best = kInf;
-    std::size_t best_i = 0;
-    auto try_value = [&](std::size_t i) {
-      const plant::Plant m = with_values(attached, {*vf.grid}, {values[i]});
-      detail::Fitter f(m, vf.continuous, ctx.coarse);
-      const auto x0 = f.best_start(nullptr);
-      const auto r = f.levenberg_marquardt(x0, kGridIter);
-      vf.evaluations += f.evaluations();
-      if (r.rss < best) best = r.rss, best_i = i, vf.grid_value = values[i], vf.values = r.values;
-    };
+    // Zoom search: kGridCoarse evenly spread values, then kGridZoom values around the best one
+    // at a quarter of the spacing, and so on down to neighbouring values. Each value is a short
+    // LM on the continuous parameters, warm-started from the best fit so far; the values of one
+    // level run on all threads (this is the longest job of a round).
     const std::size_t n = values.size();
-    const std::size_t stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
+    std::vector<double> warm;
+    {
+      const plant::Plant m = with_values(attached, {*vf.grid}, {values[n / 2]});
+      detail::Fitter f(m, vf.continuous, ctx.coarse);
+      warm = f.best_start(nullptr);
+      vf.evaluations += f.evaluations();
+    }
+    double best = kInf;
+    std::size_t best_i = n / 2;
     std::vector<bool> tried(n, false);
-    for (std::size_t i = stride / 2; i < n; i += stride) try_value(i), tried[i] = true;
-    if (stride > 1 && std::isfinite(best)) {
-      const std::size_t lo = best_i >= stride ? best_i - stride + 1 : 0, hi = std::min(n - 1, best_i + stride - 1);
-      for (std::size_t i = lo; i <= hi; ++i)
-        if (!tried[i]) try_value(i);
+    std::size_t lo = 0, hi = n - 1, stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
+    for (;;) {
+      std::vector<std::size_t> level;
+      for (std::size_t i = lo + stride / 2; i <= hi; i += stride)
+        if (!tried[i]) level.push_back(i), tried[i] = true;
+      std::vector<detail::FitResult> results(level.size());
+      std::vector<int> evals(level.size(), 0);
+      parallel_for(level.size(), ctx.threads, [&](std::size_t j) {
+        const plant::Plant m = with_values(attached, {*vf.grid}, {values[level[j]]});
+        detail::Fitter f(m, vf.continuous, ctx.coarse);
+        results[j] = f.levenberg_marquardt(warm, kGridIter);
+        evals[j] = f.evaluations();
+      });
+      for (std::size_t j = 0; j < level.size(); ++j) {
+        vf.evaluations += evals[j];
+        if (results[j].rss < best) best = results[j].rss, best_i = level[j], vf.grid_value = values[level[j]], vf.values = results[j].values;
+      }
+      if (std::isfinite(best)) warm = vf.values;
+      if (stride == 1 || !std::isfinite(best)) break;
+      lo = best_i >= stride ? best_i - stride : 0;
+      hi = std::min(n - 1, best_i + stride);
+      stride = std::max<std::size_t>(1, (hi - lo + kGridZoom - 1) / kGridZoom);
     }
     if (!std::isfinite(best)) {
       vf.note = "the model cannot be replayed with this effect";
@@ -287,7 +305,11 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
     return false;
   };
   std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
-  parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
+  parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) {
+    const auto t0 = Clock::now();
+    fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]);
+    if (getenv("HIL_DIAG_TIMING")) std::fprintf(stderr, "  job %s/%s: %.2f s, %d replays\n", pool[jobs[i].candidate]->name.c_str(), pool[jobs[i].candidate]->variants[jobs[i].variant].name.c_str(), std::chrono::duration<double>(Clock::now() - t0).count(), jobs[i].evaluations);
+  });
   // Every row for the variants that are competitive on the decimated copy (within 20 % of their
   // candidate's best variant there); the others cannot be the candidate's best.
   {
