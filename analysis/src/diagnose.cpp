@@ -305,11 +305,7 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
     return false;
   };
   std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
-  parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) {
-    const auto t0 = Clock::now();
-    fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]);
-    if (getenv("HIL_DIAG_TIMING")) std::fprintf(stderr, "  job %s/%s: %.2f s, %d replays\n", pool[jobs[i].candidate]->name.c_str(), pool[jobs[i].candidate]->variants[jobs[i].variant].name.c_str(), std::chrono::duration<double>(Clock::now() - t0).count(), jobs[i].evaluations);
-  });
+  parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
   // Every row for the variants that are competitive on the decimated copy (within 20 % of their
   // candidate's best variant there); the others cannot be the candidate's best.
   {

@@ -135,6 +135,11 @@ int main(int argc, char** argv) {
     bench_diagnose(dir, threads, "two-effects", [](const hil::plant::Plant& p) {
       return with_block(with_block(p, "valve_offset", "offset_deg: 1.2"), "sensor_lag", "time_constant_s: 0.03");
     });
+    // Worst case: a throat map with a kink no candidate has; several candidates mimic part of it,
+    // so the search follows three paths.
+    bench_diagnose(dir, threads, "kinked-map", [](const hil::plant::Plant& p) {
+      return with_block(p, "throat_map", "{angle_deg: [0, 8, 14, 30], area_mm2: [40, 62, 90, 140]}");
+    });
   }
   if (keep.empty()) fs::remove_all(dir);
   return 0;
