@@ -183,6 +183,15 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   }
   doc.columns_end();
 
+  {
+    std::vector<std::vector<std::string>> rows;
+    for (const auto& g : r.regimes) {
+      rows.push_back({g.name, g.description, text::num(100 * g.share, 3), text::num(g.error.rmse_pa / kpa, 3),
+                      text::num(g.error.bias_pa / kpa, 3), text::num(g.error.max_abs_pa / kpa, 3)});
+    }
+    doc.table({"regime", "definition", "share [%]", "RMS [kPa]", "bias [kPa]", "max [kPa]"}, rows);
+  }
+
   const Diagnostics& d = r.diagnostics;
   doc.heading("Residual diagnostics", 3);
   doc.columns_begin(2);

@@ -596,16 +596,9 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
     if (r.windows[i].error.samples * 4 >= max_samples && r.windows[i].error.samples >= 5) order.push_back(i);
   std::sort(order.begin(), order.end(),
             [&](std::size_t a, std::size_t b) { return r.windows[a].error.rmse_pa > r.windows[b].error.rmse_pa; });
-  // The worst windows, skipping the neighbours of one already listed (one failure, one entry).
-  for (std::size_t i : order) {
-    if (r.worst.size() >= 8) break;
-    bool next_to = false;
-    for (std::size_t w : r.worst) next_to |= (i + 1 == w || w + 1 == i);
-    if (!next_to) r.worst.push_back(i);
-  }
+  std::vector<bool> fail(r.windows.size(), false);
   {
     const double floor_rms = 3 * r.noise_sigma_pa;
-    std::vector<bool> fail(r.windows.size(), false);
     for (std::size_t i : order) {
       const double rms = r.windows[i].error.rmse_pa;
       if (rms >= std::max(floor_rms, 1.5 * r.error.rmse_pa)) fail[i] = true;
@@ -622,6 +615,19 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
         r.failing.push_back({r.windows[i].t0_s, r.windows[i].t1_s});
       }
     }
+  }
+  // The worst windows, one per failure: a listed window hides the rest of its failing span (or,
+  // outside any, its two neighbours).
+  std::vector<bool> hidden(r.windows.size(), false);
+  for (std::size_t i : order) {
+    if (r.worst.size() >= 8) break;
+    if (hidden[i]) continue;
+    r.worst.push_back(i);
+    hidden[i] = true;
+    if (i > 0) hidden[i - 1] = true;
+    if (i + 1 < hidden.size()) hidden[i + 1] = true;
+    for (std::size_t j = i; fail[i] && j < fail.size() && fail[j]; ++j) hidden[j] = true;
+    for (std::size_t j = i; fail[i] && j-- > 0 && fail[j];) hidden[j] = true;
   }
   r.reversals = reversals;
   r.motion_cycle_hz = r.duration_s > 0 && reversals >= 2 ? static_cast<double>(reversals) / (2 * r.duration_s) : 0;

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,12 @@ using hil::test::Scenario;
 using hil::test::with_block;
 using hil::test::with_param;
 namespace fs = std::filesystem;
+
+// Soak runs: HIL_ANALYSIS_SEED_OFFSET=N shifts every noise seed and random reference by N.
+std::uint64_t seed_shift() {
+  const char* env = std::getenv("HIL_ANALYSIS_SEED_OFFSET");
+  return env ? std::strtoull(env, nullptr, 10) : 0;
+}
 
 struct Expect {
   std::string key;  // parameter of the top-ranked effect
@@ -39,15 +46,18 @@ void PrintTo(const HiddenCase& c, std::ostream* os) { *os << c.scenario.name << 
 
 std::vector<HiddenCase> cases() {
   using hil::test::reference_ramps;
-  using hil::test::reference_random;
   using hil::test::reference_square;
   std::vector<HiddenCase> out;
+  const std::uint64_t shift = seed_shift();
+  auto reference_random = [shift](std::uint64_t seed, double lo, double hi, double dwell_lo, double dwell_hi) {
+    return hil::test::reference_random(seed + shift, lo, hi, dwell_lo, dwell_hi);
+  };
   auto add = [&](std::string name, std::string effect, std::vector<Expect> params, std::uint64_t seed, std::string ref,
                  bool encoder, double noise_kpa, std::string compensation,
                  std::function<Plant(const Plant&)> truth) {
     Scenario s;
     s.name = std::move(name);
-    s.seed = seed;
+    s.seed = seed + shift;
     s.reference_yaml = std::move(ref);
     s.encoder = encoder;
     s.noise_kpa = noise_kpa;
@@ -72,8 +82,10 @@ std::vector<HiddenCase> cases() {
       "none", [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 30, gain: 1.03}"); });
   add("servo_lag", "motor_dynamics", {{"time_constant_s", 0.035}}, 108, reference_square(1.0, 1.5, 2.0), false, 2.0,
       "adaptive", [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.035); });
-  add("servo_rate", "motor_dynamics", {{"rate_limit_deg_s", 25}}, 109, reference_random(17, 0.9, 1.6, 1.5, 4.0), false, 2.0,
-      "none", [](const Plant& p) { return with_param(p, "motor_servo", "rate_limit_deg_s", 25); });
+  // The rate limit shows only when the drive is asked to move fast: large reference steps, and
+  // the compensator's jumps across the gap.
+  add("servo_rate", "motor_dynamics", {{"rate_limit_deg_s", 25}}, 109, reference_square(0.9, 1.6, 3.0), false, 2.0,
+      "adaptive", [](const Plant& p) { return with_param(p, "motor_servo", "rate_limit_deg_s", 25); });
   add("burn_rate_a", "burn_rate", {{"burn_rate_mm_s_at_1mpa", 5.4}}, 110, reference_square(0.95, 1.35, 3.5), true, 2.0,
       "adaptive", [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.4); });
   add("burn_rate_n", "burn_rate", {{"pressure_exponent", 0.40}}, 111, reference_random(21, 0.9, 1.6, 2.0, 4.0), false, 2.0,
@@ -87,10 +99,17 @@ TEST_P(HiddenEffect, TopRankedIsTheHiddenOneAndTheErrorFalls) {
   const HiddenCase& c = GetParam();
   hil::test::TempDir dir;
   const fs::path data = hil::test::make_measurement(c.scenario, dir.path());
+  if (const char* keep = std::getenv("HIL_ANALYSIS_KEEP")) {  // keep the generated file to look at
+    fs::create_directories(keep);
+    fs::copy_file(data, fs::path(keep) / data.filename(), fs::copy_options::overwrite_existing);
+  }
   const fs::path fitted = dir.path() / "fitted.yaml";
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag", fitted);
   const std::string why = hil::test::brief(d);
 
+  // Precondition: the hidden effect shows in the data (else "nothing missing" would be right).
+  ASSERT_LT(d.at("fit_before_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0)
+      << "the scenario does not exercise the hidden effect; " << why;
   ASSERT_FALSE(d.at("ranking").empty()) << why;
   const auto& top = d.at("ranking")[0];
   EXPECT_EQ(top.at("effect"), c.effect) << why;
@@ -125,8 +144,8 @@ TEST(HiddenEffects, TwoEffectsAreFoundInTurn) {
   hil::test::TempDir dir;
   Scenario s;
   s.name = "offset_and_lag";
-  s.seed = 112;
-  s.reference_yaml = hil::test::reference_random(33, 0.9, 1.5, 1.5, 4.0);
+  s.seed = 112 + seed_shift();
+  s.reference_yaml = hil::test::reference_random(33 + seed_shift(), 0.9, 1.5, 1.5, 4.0);
   s.encoder = false;
   s.truth = [](const Plant& p) {
     return with_block(with_block(p, "valve_offset", "offset_deg: 1.2"), "sensor_lag", "time_constant_s: 0.04");
@@ -162,7 +181,7 @@ TEST(HiddenEffects, AnEffectOutsideTheListIsNotNamed) {
   hil::test::TempDir dir;
   Scenario s;
   s.name = "oscillation";
-  s.seed = 113;
+  s.seed = 113 + seed_shift();
   s.reference_yaml = hil::test::reference_square(1.0, 1.45, 3.0);
   s.truth = [](const Plant& p) {
     return with_block(p, "test_chamber_oscillation", "{amplitude_kpa: 12, frequency_hz: 11.3}");
@@ -197,7 +216,7 @@ TEST(HiddenEffects, NoEffectAddsNothing) {
   hil::test::TempDir dir;
   Scenario s;
   s.name = "nominal_truth";
-  s.seed = 114;
+  s.seed = 114 + seed_shift();
   s.reference_yaml = hil::test::reference_ramps(0.9, 1.5, 4.0);
   s.encoder = false;
   s.noise_kpa = 2.5;
@@ -213,6 +232,7 @@ TEST(HiddenEffects, NoEffectAddsNothing) {
 TEST(HiddenEffects, AnotherLabsLoggerWithJitteredTime) {
   hil::test::TempDir dir;
   hil::test::LabLog lab;
+  lab.seed += seed_shift();
   lab.truth = [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: -1.0"); };
   const fs::path data = hil::test::make_lab_log(lab, dir.path());
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
