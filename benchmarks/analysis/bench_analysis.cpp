@@ -135,6 +135,9 @@ int main(int argc, char** argv) {
     bench_diagnose(dir, threads, "two-effects", [](const hil::plant::Plant& p) {
       return with_block(with_block(p, "valve_offset", "offset_deg: 1.2"), "sensor_lag", "time_constant_s: 0.03");
     });
+    bench_diagnose(dir, threads, "gap-step", [](const hil::plant::Plant& p) {
+      return with_block(p, "backlash_change", "{gap_deg: 1.0, step_time_s: 290, step_deg: 0.8}");
+    });
     // Worst case: a throat map with a kink no candidate has; several candidates mimic part of it,
     // so the search follows three paths.
     bench_diagnose(dir, threads, "kinked-map", [](const hil::plant::Plant& p) {
