@@ -242,6 +242,8 @@ struct ResidualAnalyzer::Impl {
   Acc all;
   double y0 = 0, sy = 0, syy = 0;
   LogHistogram d2;
+  double d2_sum2 = 0;  // for coarsely quantised readings, where the median second difference is 0
+  std::size_t d2_n = 0;
   double y_prev1 = kNaN, y_prev2 = kNaN;
   std::vector<double> first_dts;
 
@@ -462,7 +464,12 @@ struct ResidualAnalyzer::Impl {
     all.add(s.t_s, e);
     sy += s.y_pa - y0;
     syy += (s.y_pa - y0) * (s.y_pa - y0);
-    if (std::isfinite(y_prev2)) d2.add(s.y_pa - 2 * y_prev1 + y_prev2);
+    if (std::isfinite(y_prev2)) {
+      const double v = s.y_pa - 2 * y_prev1 + y_prev2;
+      d2.add(v);
+      d2_sum2 += v * v;
+      ++d2_n;
+    }
     y_prev2 = y_prev1;
     y_prev1 = s.y_pa;
 
@@ -536,6 +543,10 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   r.fit_pct = fit_percent(all.se2, r.y_spread_pa, n);
   r.noise_sigma_pa = 1.4826 * d2.median() / std::sqrt(6.0);
   r.noise_method = "1.4826 * median|second difference of p_meas| / sqrt(6)";
+  if (!(r.noise_sigma_pa > 0) && d2_n > 0) {
+    r.noise_sigma_pa = std::sqrt(d2_sum2 / static_cast<double>(d2_n) / 6.0);
+    r.noise_method = "RMS of the second difference of p_meas / sqrt(6) (the reading is too coarsely quantised for the median)";
+  }
   r.noise_floor_fit_pct = r.y_spread_pa > 0 ? 100.0 * (1.0 - r.noise_sigma_pa / r.y_spread_pa) : kNaN;
 
   // Regimes.

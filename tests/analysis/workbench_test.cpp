@@ -231,6 +231,21 @@ TEST(Statistics, DriftShowsAsLateAndSlow) {
   EXPECT_TRUE(grows);
 }
 
+TEST(Statistics, CoarselyQuantisedReadingsStillHaveANoiseEstimate) {
+  hil::analysis::ResidualAnalyzer an({});
+  std::mt19937 rng(9);
+  std::normal_distribution<double> noise(0, 300);
+  for (int k = 0; k < 20000; ++k) {
+    const double t = k * 1e-3, model = 1.2e6 + 1e5 * std::sin(0.5 * t);
+    const double y = 1e3 * std::round((model + noise(rng)) / 1e3);  // a 1 kPa ADC step
+    an.add({t, y, model, 0.2, NAN, 0.0});
+  }
+  const auto r = an.finish();
+  EXPECT_GT(r.noise_sigma_pa, 100);
+  EXPECT_LT(r.noise_sigma_pa, 600);
+  EXPECT_TRUE(std::isfinite(r.noise_floor_fit_pct));
+}
+
 // --- replay ---------------------------------------------------------------------------------
 
 TEST(Replay, DecimationKeepsTheCommandIntegral) {
