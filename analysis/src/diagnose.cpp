@@ -472,10 +472,13 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   std::vector<const Candidate*> pool;
   for (const auto& c : all) {
     if (c.command_side && m.has_encoder) {
+      char seen[200];
+      std::snprintf(seen, sizeof seen, " Here the drive model fed with the command %s the encoder (%.3g deg RMS).",
+                    d.before.motor.rmse_deg > kMotorChannelTolDeg ? "misses" : "follows", d.before.motor.rmse_deg);
       d.not_identifiable.push_back(
-          {c.name, "the file has the motor encoder, which the replay uses in place of the motor model: whatever happens "
-                   "between the command and the motor never reaches the predicted pressure. Compare theta_cmd_deg "
-                   "with theta_motor_deg to see it."});
+          {c.name, std::string("the file has the motor encoder, which the replay uses in place of the motor model: "
+                               "whatever happens between the command and the motor never reaches the predicted "
+                               "pressure.") + seen});
     } else {
       pool.push_back(&c);
     }

@@ -307,6 +307,36 @@ TEST(Replay, StreamedAndInMemoryAgree) {
   EXPECT_EQ(a.rows, 12000u);
 }
 
+TEST(Replay, WithAnEncoderTheDriveIsCheckedSeparately) {
+  // A transport delay with the encoder logged: invisible to the pressure replay (which uses the
+  // encoder), so compare is at the floor, diagnose names nothing, and both say where it shows.
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.name = "delay_with_encoder";
+  s.duration_s = 15;
+  s.seed = 120;
+  s.reference_yaml = hil::test::reference_square(1.0, 1.4, 2.5);
+  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "transport_delay", "delay_s: 0.03"); };
+  const auto data = hil::test::make_measurement(s, dir.path());
+  const auto c = hil::test::run_compare(hil::test::nominal_model(), data, dir.path() / "cmp");
+  EXPECT_GE(c.at("fit_pct").get<double>(), c.at("noise_floor_fit_pct").get<double>() - 0.2);
+  ASSERT_TRUE(c.contains("motor_channel"));
+  EXPECT_FALSE(c.at("motor_channel").at("matches").get<bool>());
+  EXPECT_GT(c.at("motor_channel").at("rmse_deg").get<double>(), 0.05);
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+  EXPECT_EQ(d.at("verdict"), "nothing_missing");
+  ASSERT_EQ(d.at("not_identifiable").size(), 2u);
+  for (const auto& n : d.at("not_identifiable")) {
+    EXPECT_NE(n.at("reason").get<std::string>().find("misses the encoder"), std::string::npos) << n;
+  }
+  // Without the delay the drive model follows the encoder.
+  s.name = "nominal_with_encoder";
+  s.truth = [](const hil::plant::Plant& p) { return p; };
+  const auto c2 = hil::test::run_compare(hil::test::nominal_model(), hil::test::make_measurement(s, dir.path()),
+                                         dir.path() / "cmp2");
+  EXPECT_TRUE(c2.at("motor_channel").at("matches").get<bool>()) << c2.at("motor_channel");
+}
+
 TEST(Replay, CandidatesAreTheIssuesEightPlusUserEffects) {
   const auto names = hil::analysis::builtin_candidate_names();
   EXPECT_EQ(names, (std::vector<std::string>{"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
