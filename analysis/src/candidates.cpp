@@ -35,13 +35,17 @@ double gap_of(const plant::Plant& base) {
   return std::isfinite(g) ? g : value_of(base, "backlash", "gap_deg");
 }
 
+// Candidate step times: a uniform grid over the run (model clock), 10 ms apart or one coarse row.
+// Not only the reversals matter: a gap that grows while a flank pushes stops the valve until the
+// motor has taken up the extra play, so the cost is roughly V-shaped around the true time, with
+// plateaus where the drive holds; the zoom search in diagnose finds its bottom.
 std::vector<double> step_times(const ReplayData& data) {
-  const auto rev = drive_reversal_times(data);
-  // A gap only shows when the drive crosses it, so every time between two reversals is as good
-  // as any other: one candidate per interval.
-  std::vector<double> mids;
-  for (std::size_t i = 0; i + 1 < rev.size(); ++i) mids.push_back(0.5 * (rev[i] + rev[i + 1]));
-  return mids;
+  if (data.size() < 4) return {};
+  const double t0 = data.t_s.front(), span = data.t_s.back() - t0;
+  const double spacing = std::max(0.01, span / static_cast<double>(data.size() - 1));
+  std::vector<double> out;
+  for (double t = spacing; t < span; t += spacing) out.push_back(t);
+  return out;
 }
 
 Candidate backlash_change(const plant::Plant& base) {
@@ -220,32 +224,6 @@ plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>
       v.push_back(p.value);
     }
     out = out.with(e->with_params(v));
-  }
-  return out;
-}
-
-std::vector<double> drive_reversal_times(const ReplayData& data) {
-  const auto& a = data.motor_rad.empty() ? data.cmd_held_rad : data.motor_rad;
-  const std::size_t shift = data.motor_rad.empty() ? 1 : 0;  // cmd_held[k] is the command of row k-1
-  std::vector<double> out;
-  const double h = 0.1 * units::kRadPerDeg;
-  int dir = 0;
-  double ext = 0, amin = 0, amax = 0;
-  for (std::size_t k = shift; k < data.size(); ++k) {
-    const double v = a[k];
-    const double t = data.t_s[k - shift];
-    if (k == shift) amin = amax = v;
-    if (dir == 0) {
-      amin = std::min(amin, v), amax = std::max(amax, v);
-      if (v - amin > h) dir = 1, ext = v;
-      else if (amax - v > h) dir = -1, ext = v;
-    } else if (dir > 0) {
-      ext = std::max(ext, v);
-      if (v < ext - h) dir = -1, ext = v, out.push_back(t);
-    } else {
-      ext = std::min(ext, v);
-      if (v > ext + h) dir = 1, ext = v, out.push_back(t);
-    }
   }
   return out;
 }

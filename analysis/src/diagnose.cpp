@@ -26,12 +26,14 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kBicMargin = -10;          // very strong evidence (Kass & Raftery)
 constexpr double kMinExcessShare = 0.25;    // of the model's excess error power
 constexpr double kMinNoiseShare = 0.05;     // of N sigma^2
-constexpr std::size_t kRefineTop = 3;       // candidates refined on every row per round
-constexpr int kCoarseIter = 12, kGridIter = 3, kRefineIter = 4, kJointIter = 8;
-constexpr std::size_t kGridCoarse = 16;      // grid values tried before the local refinement
+constexpr std::size_t kRefineTop = 2;       // candidates refined on every row per round
+constexpr int kCoarseIter = 12, kGridIter = 2, kRefineIter = 3, kJointIter = 8;
+constexpr double kCompetitive = 1.2;        // variants within 20 % of their best get a full-data look
+constexpr std::size_t kGridCoarse = 16;      // grid values of the zoom search's first level
+constexpr std::size_t kGridZoom = 8;         // values per later level
 constexpr std::size_t kBeam = 3;            // first choices followed when the best one is not enough
 constexpr double kFloorTolerance = 1.1;     // RSS within 10 % of N sigma^2: at the noise floor
-constexpr double kFloorRmsRatio = 1.1;      // RMSE within 10 % of sigma: at the noise floor
+constexpr double kSkipAtFloor = 1.03;       // RSS within 3 %: no candidate can earn its place
 
 // Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
 template <class Fn>
@@ -75,7 +77,8 @@ struct VariantFit {
   const FreeParam* grid = nullptr;
   double grid_value = kNaN;
   std::vector<double> values, sigma;  // continuous
-  double rss_full = kInf;
+  double rss_coarse = kInf;  // on the decimated copy
+  double rss_full = kInf;    // on every row
   bool refined = false;
   int evaluations = 0;
   std::string note;
@@ -107,26 +110,43 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
       vf.note = "no place for it in the data (e.g. fewer than two motion reversals)";
       return;
     }
-    // Coarse pass over at most kGridCoarse evenly spread values, then every value between the
-    // best one's neighbours.
-    double best = kInf;
-    std::size_t best_i = 0;
-    auto try_value = [&](std::size_t i) {
-      const plant::Plant m = with_values(attached, {*vf.grid}, {values[i]});
-      detail::Fitter f(m, vf.continuous, ctx.coarse);
-      const auto x0 = f.best_start(nullptr);
-      const auto r = f.levenberg_marquardt(x0, kGridIter);
-      vf.evaluations += f.evaluations();
-      if (r.rss < best) best = r.rss, best_i = i, vf.grid_value = values[i], vf.values = r.values;
-    };
+    // Zoom search: kGridCoarse evenly spread values, then kGridZoom values around the best one
+    // at a quarter of the spacing, and so on down to neighbouring values. Each value is a short
+    // LM on the continuous parameters, warm-started from the best fit so far; the values of one
+    // level run on all threads (this is the longest job of a round).
     const std::size_t n = values.size();
-    const std::size_t stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
+    std::vector<double> warm;
+    {
+      const plant::Plant m = with_values(attached, {*vf.grid}, {values[n / 2]});
+      detail::Fitter f(m, vf.continuous, ctx.coarse);
+      warm = f.best_start(nullptr);
+      vf.evaluations += f.evaluations();
+    }
+    double best = kInf;
+    std::size_t best_i = n / 2;
     std::vector<bool> tried(n, false);
-    for (std::size_t i = stride / 2; i < n; i += stride) try_value(i), tried[i] = true;
-    if (stride > 1 && std::isfinite(best)) {
-      const std::size_t lo = best_i >= stride ? best_i - stride + 1 : 0, hi = std::min(n - 1, best_i + stride - 1);
-      for (std::size_t i = lo; i <= hi; ++i)
-        if (!tried[i]) try_value(i);
+    std::size_t lo = 0, hi = n - 1, stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
+    for (;;) {
+      std::vector<std::size_t> level;
+      for (std::size_t i = lo + stride / 2; i <= hi; i += stride)
+        if (!tried[i]) level.push_back(i), tried[i] = true;
+      std::vector<detail::FitResult> results(level.size());
+      std::vector<int> evals(level.size(), 0);
+      parallel_for(level.size(), ctx.threads, [&](std::size_t j) {
+        const plant::Plant m = with_values(attached, {*vf.grid}, {values[level[j]]});
+        detail::Fitter f(m, vf.continuous, ctx.coarse);
+        results[j] = f.levenberg_marquardt(warm, kGridIter);
+        evals[j] = f.evaluations();
+      });
+      for (std::size_t j = 0; j < level.size(); ++j) {
+        vf.evaluations += evals[j];
+        if (results[j].rss < best) best = results[j].rss, best_i = level[j], vf.grid_value = values[level[j]], vf.values = results[j].values;
+      }
+      if (std::isfinite(best)) warm = vf.values;
+      if (stride == 1 || !std::isfinite(best)) break;
+      lo = best_i >= stride ? best_i - stride : 0;
+      hi = std::min(n - 1, best_i + stride);
+      stride = std::max<std::size_t>(1, (hi - lo + kGridZoom - 1) / kGridZoom);
     }
     if (!std::isfinite(best)) {
       vf.note = "the model cannot be replayed with this effect";
@@ -145,13 +165,18 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
     vf.note = "the model cannot be replayed with this effect";
     return;
   }
+  vf.rss_coarse = r.rss;
   if (same) {
     vf.rss_full = r.rss;
     vf.refined = true;
-  } else {
-    vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
-    ++vf.evaluations;
   }
+}
+
+// RSS on every row at the coarse fit's values.
+void evaluate_full(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
+  vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
+  ++vf.evaluations;
 }
 
 void refine_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
@@ -281,6 +306,21 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
   };
   std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
   parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
+  // Every row for the variants that are competitive on the decimated copy (within 20 % of their
+  // candidate's best variant there); the others cannot be the candidate's best.
+  {
+    std::vector<double> best_coarse(pool.size(), kInf);
+    for (const auto& j : jobs) best_coarse[j.candidate] = std::min(best_coarse[j.candidate], j.rss_coarse);
+    std::vector<std::size_t> todo;
+    for (std::size_t i = 0; i < jobs.size(); ++i) {
+      VariantFit& j = jobs[i];
+      if (j.refined || !std::isfinite(j.rss_coarse)) continue;
+      if (j.rss_coarse <= kCompetitive * best_coarse[j.candidate]) todo.push_back(i);
+      else j.note = "another variant of this effect fits clearly better";
+    }
+    parallel_for(todo.size(), ctx.threads,
+                 [&](std::size_t i) { evaluate_full(ctx, current, *pool[jobs[todo[i]].candidate], jobs[todo[i]]); });
+  }
 
   // N_eff from the best-fitting variant's residual (the most whitened one).
   const VariantFit* best_fit = nullptr;
@@ -370,9 +410,18 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     if (path.added.size() >= 2) joint_refit(su.ctx, base0, path.added, evaluations);
     const plant::Plant current = apply_added(base0, path.added);
     const auto left = remaining(pool, path.added);
-    if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) {
-      path.rss = rss_of(current, su.ctx.full, nullptr);
-      ++evaluations;
+    path.rss = rss_of(current, su.ctx.full, nullptr);
+    ++evaluations;
+    if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) return;
+    // At the noise floor nothing can earn its place (it would have to remove 5 % of the noise
+    // power): say so instead of fitting every candidate again.
+    if (path.rss <= kSkipAtFloor * su.noise_rss) {
+      Round done;
+      done.rss_before_pa2 = path.rss;
+      done.fit_before_pct = fit_percent(path.rss, su.spread, su.ctx.full.size());
+      done.note = "the model is at the noise floor (RSS within 3 % of N sigma^2): no candidate can remove 5 % of the "
+                  "noise power, so none is fitted";
+      path.rounds.push_back(std::move(done));
       return;
     }
     RoundOutcome r = run_round(su, current, left, evaluations);
@@ -407,6 +456,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   const std::size_t dec = std::max<std::size_t>(1, (full.size() + s.coarse_rows - 1) / s.coarse_rows);
   const ReplayData coarse = decimate(full, dec);
   d.decimation = dec;
+  d.time_origin_s = full.start.t0_s;
 
   d.before = compare_measurement(base0, m, s.keep_series);
   d.noise_sigma_pa = d.before.noise_sigma_pa;
@@ -422,10 +472,13 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   std::vector<const Candidate*> pool;
   for (const auto& c : all) {
     if (c.command_side && m.has_encoder) {
+      char seen[200];
+      std::snprintf(seen, sizeof seen, " Here the drive model fed with the command %s the encoder (%.3g deg RMS).",
+                    d.before.motor.rmse_deg > kMotorChannelTolDeg ? "misses" : "follows", d.before.motor.rmse_deg);
       d.not_identifiable.push_back(
-          {c.name, "the file has the motor encoder, which the replay uses in place of the motor model: whatever happens "
-                   "between the command and the motor never reaches the predicted pressure. Compare theta_cmd_deg "
-                   "with theta_motor_deg to see it."});
+          {c.name, std::string("the file has the motor encoder, which the replay uses in place of the motor model: "
+                               "whatever happens between the command and the motor never reaches the predicted "
+                               "pressure.") + seen});
     } else {
       pool.push_back(&c);
     }
@@ -458,7 +511,9 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
                      std::chrono::duration<double>(Clock::now() - t_start).count());
       }
       continue_path(su, base0, pool, p, s.max_rounds, d.evaluations);
+      const bool done = p.rss <= kFloorTolerance * su.noise_rss;
       paths.push_back(std::move(p));
+      if (done) break;  // this path reaches the noise floor: another cannot beat it without noise fitting
     }
     // Compare the paths by BIC with N_eff from the best path's residual.
     std::size_t best = 0;
@@ -505,7 +560,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
   d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
   for (auto& c : d.added) c.fit_after_pct = d.after.fit_pct;
   d.fitted = std::make_shared<const plant::Plant>(apply_added(model, added));
-  d.at_noise_floor = d.after.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa;
+  d.at_noise_floor = at_noise_floor(d.after.error.rmse_pa, d.noise_sigma_pa);
 
   // The verdict in words.
   auto& out = d.summary;
@@ -532,7 +587,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
                     " times the noise, so something else is missing, and the effects found may stand in for it. "
                     "What remains: " + text::join(d.after.signature, " "));
     }
-  } else if (d.before.error.rmse_pa <= kFloorRmsRatio * d.noise_sigma_pa) {
+  } else if (at_noise_floor(d.before.error.rmse_pa, d.noise_sigma_pa)) {
     d.verdict = "nothing_missing";
     d.at_noise_floor = true;
     out.push_back("Nothing is missing: the model fits at the noise floor and no candidate earns its place.");

@@ -52,7 +52,7 @@ std::string params_text(const CandidateResult& c) {
   std::string s;
   for (const auto& p : c.parameters) {
     s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
-    if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
+    if (std::isfinite(p.sigma)) s += " \u00b1 " + text::num(p.sigma, 2);
   }
   return s;
 }
@@ -67,6 +67,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["data_file"] = data_file.string();
   j["rows"] = d.rows;
   j["encoder"] = d.has_encoder;
+  j["time_origin_s"] = d.time_origin_s;  // the fitted model's t = 0 is this file time
   j["explained"] = d.explained;
   j["verdict"] = d.verdict;
   j["at_noise_floor"] = d.at_noise_floor;
@@ -91,6 +92,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                       {"effective_samples", number(r.n_eff)},
                       {"correlation_time_samples", number(r.tau_int_samples)},
                       {"added", r.added.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.added)},
+                      {"note", r.note},
                       {"ranking", rk}});
   }
   j["rounds"] = rounds;
@@ -132,17 +134,9 @@ std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& m
   return d.fitted->to_yaml(header);
 }
 
-void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
-                            const std::filesystem::path& data_file, const std::filesystem::path& html) {
+void add_before_after(report::Document& doc, const Diagnosis& d) {
   using report::Figure;
   using report::Series;
-  report::Document doc("Diagnosis: " + data_file.filename().string());
-  doc.paragraph("Model " + model_file.string() + " against " + data_file.string() + " (" + std::to_string(d.rows) +
-                " rows, " + (d.has_encoder ? "motor encoder replayed" : "no encoder") + "). Each candidate effect was " +
-                "fitted to the data and ranked by an information criterion; the best one that earns its place is added " +
-                "and the search repeats.");
-  doc.note(text::join(d.summary, " "), d.verdict != "explained" && d.verdict != "nothing_missing");
-
   doc.heading("Before and after");
   {
     auto row = [&](const std::string& name, const ResidualReport& r) {
@@ -188,31 +182,52 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
     doc.bars(bars);
   }
 
+}
+
+void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
+                            const std::filesystem::path& data_file, const std::filesystem::path& html) {
+  using report::Figure;
+  using report::Series;
+  report::Document doc("Diagnosis: " + data_file.filename().string());
+  doc.paragraph("Model " + model_file.string() + " against " + data_file.string() + " (" + std::to_string(d.rows) +
+                " rows, " + (d.has_encoder ? "motor encoder replayed" : "no encoder") + "). Each candidate effect was " +
+                "fitted to the data and ranked by an information criterion; the best one that earns its place is added " +
+                "and the search repeats.");
+  doc.note(text::join(d.summary, " "), d.verdict != "explained" && d.verdict != "nothing_missing");
+
+  if (d.explained) add_before_after(doc, d);
+
   for (std::size_t ri = 0; ri < d.rounds.size(); ++ri) {
     const Round& r = d.rounds[ri];
     doc.heading("Round " + std::to_string(ri + 1) + ": candidates ranked against the model" +
                     (ri == 0 ? " as given" : " with the effects found so far"),
                 3);
+    if (!r.note.empty()) {
+      doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %. Not run: " + r.note + ".");
+      continue;
+    }
     doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %; effective samples N_eff = " +
                   text::num(r.n_eff, 4) + " (correlation time " + text::num(r.tau_int_samples, 3) + " samples). " +
                   (r.added.empty() ? std::string("Nothing earns its place: the search stops.") : "Added: " + r.added + "."));
     std::vector<std::vector<std::string>> rows;
     std::vector<std::string> cats;
-    std::vector<double> fits;
+    std::vector<double> explained;
     for (std::size_t i = 0; i < r.ranking.size(); ++i) {
       const auto& c = r.ranking[i];
       rows.push_back({std::to_string(i + 1), c.effect, c.variant, params_text(c), text::fixed(c.fit_before_pct, 2),
                       text::fixed(c.fit_after_pct, 2), text::num(c.delta_bic, 4), text::num(100 * c.excess_explained, 3),
                       c.earns_place ? "yes" : "no: " + c.why_not});
       cats.push_back(c.effect);
-      fits.push_back(std::isfinite(c.fit_after_pct) ? c.fit_after_pct : 0.0);
+      explained.push_back(std::isfinite(c.excess_explained) ? 100 * std::max(c.excess_explained, 0.0) : 0.0);
     }
-    doc.table({"rank", "effect", "variant", "fitted parameters (+- 1 sigma)", "fit before [%]", "fit after [%]", "dBIC",
+    doc.table({"rank", "effect", "variant", "fitted parameters (\u00b1 1 sigma)", "fit before [%]", "fit after [%]", "dBIC",
                "excess explained [%]", "earns its place"},
               rows);
-    doc.bars(report::Bars{.title = "Round " + std::to_string(ri + 1) + ": fit after adding each candidate [%] (noise floor " +
-                                   text::fixed(d.noise_floor_fit_pct, 2) + " %)",
-                          .y_label = "fit [%]", .categories = cats, .groups = {{"fit after", fits}}, .height_px = 220});
+    if (ri == 0) {
+      doc.bars(report::Bars{.title = "Round 1: share of the excess error (above the noise) each candidate explains",
+                            .y_label = "excess explained [%]", .categories = cats, .groups = {{"explained", explained}},
+                            .height_px = 220});
+    }
   }
   if (d.paths.size() > 1) {
     doc.heading("Paths followed", 3);

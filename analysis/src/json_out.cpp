@@ -106,6 +106,14 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
       {"vs_dpdt", binned_json(d.vs_dpdt)},
       {"vs_pressure", binned_json(d.vs_pressure)}};
   j["signature"] = r.signature;
+  if (r.motor.present) {
+    j["motor_channel"] = {{"what", "encoder - drive model fed with the command (the pressure replay uses the encoder)"},
+                          {"rmse_deg", number(r.motor.rmse_deg)},
+                          {"bias_deg", number(r.motor.bias_deg)},
+                          {"max_abs_deg", number(r.motor.max_abs_deg)},
+                          {"t_at_max_s", number(r.motor.t_at_max_s)},
+                          {"matches", r.motor.rmse_deg <= kMotorChannelTolDeg}};
+  }
   return j;
 }
 

@@ -96,7 +96,7 @@ Measurement load_measurement(const std::filesystem::path& file) {
   std::size_t last_line = 0;
   while (reader.next(chunk)) {
     m.rows.append(chunk);
-    last_line = reader.first_line() + chunk.size();
+    last_line = reader.first_line() + chunk.size() - 1;  // blank or comment lines in between shift it, rarely
   }
   m.first_data_line = reader.first_data_line();
   if (m.rows.size() < kMinRows) fail_too_short(file, m.rows.size() == 0 ? header_line(file) + 1 : last_line, m.rows.size());

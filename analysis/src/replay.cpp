@@ -26,7 +26,8 @@ plant::Plant noise_free(const plant::Plant& model) {
 double Replayer::start(const ReplayStart& s) {
   // The motor angle is measured; if the model cannot make the measured pressure with it, the
   // valve rests on the flank that comes closest and the misfit shows from the first row on.
-  model_.settle_nearest(state_, s.p0_pa, s.motor0_rad, s.t0_s);
+  model_.settle_nearest(state_, s.p0_pa, s.motor0_rad, 0.0);
+  last_t_s_ = s.t0_s;
   burned_kg_ = 0;
   return state_.s.p_meas_pa;
 }

@@ -242,6 +242,8 @@ struct ResidualAnalyzer::Impl {
   Acc all;
   double y0 = 0, sy = 0, syy = 0;
   LogHistogram d2;
+  double d2_sum2 = 0;  // for coarsely quantised readings, where the median second difference is 0
+  std::size_t d2_n = 0;
   double y_prev1 = kNaN, y_prev2 = kNaN;
   std::vector<double> first_dts;
 
@@ -250,7 +252,10 @@ struct ResidualAnalyzer::Impl {
   std::size_t ring_n = 0, ring_head = 0;
   int dir = 0;             // hysteresis direction: +1 opening, -1 closing, 0 not yet moved
   double ext = 0, amin = 0, amax = 0;
+  double ext_t = 0;        // time of the extreme `ext`
   double last_rev_t = -1e300;
+  std::vector<std::pair<double, double>> recent = std::vector<std::pair<double, double>>(4096);  // (t, e)
+  std::size_t recent_head = 0, recent_n = 0;
   int last_rev_dir = 0;
   std::size_t reversals = 0;
   double drive_prev = kNaN;
@@ -327,16 +332,38 @@ struct ResidualAnalyzer::Impl {
     if (dir == 0) {
       amin = std::min(amin, a);
       amax = std::max(amax, a);
-      if (a - amin > kReversalHysteresisRad) dir = +1, ext = a;
-      else if (amax - a > kReversalHysteresisRad) dir = -1, ext = a;
+      if (a - amin > kReversalHysteresisRad) dir = +1, ext = a, ext_t = t;
+      else if (amax - a > kReversalHysteresisRad) dir = -1, ext = a, ext_t = t;
     } else if (dir > 0) {
-      ext = std::max(ext, a);
-      if (a < ext - kReversalHysteresisRad) dir = -1, ext = a, last_rev_t = t, last_rev_dir = -1, ++reversals;
+      if (a >= ext) ext = a, ext_t = t;
+      if (a < ext - kReversalHysteresisRad) reversal(-1, a, t);
     } else {
-      ext = std::min(ext, a);
-      if (a > ext + kReversalHysteresisRad) dir = +1, ext = a, last_rev_t = t, last_rev_dir = +1, ++reversals;
+      if (a <= ext) ext = a, ext_t = t;
+      if (a > ext + kReversalHysteresisRad) reversal(+1, a, t);
     }
     return v > kMotionThresholdRadS ? 1 : v < -kMotionThresholdRadS ? 2 : 0;
+  }
+
+  // A reversal detected at t_now: the drive left its extreme at ext_t. The rows since then were
+  // seen before the reversal was known; count them into the after-reversal views now.
+  void reversal(int new_dir, double a, double t_now) {
+    const double t_rev = ext_t;
+    dir = new_dir, ext = a, ext_t = t_now;
+    last_rev_t = t_rev, last_rev_dir = new_dir, ++reversals;
+    for (std::size_t back = 0; back < recent_n; ++back) {
+      const auto& [t, e] = recent[(recent_head + recent.size() - 1 - back) % recent.size()];
+      if (t < t_rev) break;
+      add_after_reversal(t, e);
+    }
+  }
+
+  void add_after_reversal(double t, double e) {
+    const double since = t - last_rev_t;
+    if (since < kAfterReversalS) after_rev.add(t, e);
+    if (since < kLockedSpanS) {
+      const auto b = static_cast<std::size_t>(since / kLockedBinS);
+      if (b < locked_open.size()) (last_rev_dir > 0 ? locked_open : locked_close)[b].add(t, e);
+    }
   }
 
   void track_reference(double p) {
@@ -437,19 +464,22 @@ struct ResidualAnalyzer::Impl {
     all.add(s.t_s, e);
     sy += s.y_pa - y0;
     syy += (s.y_pa - y0) * (s.y_pa - y0);
-    if (std::isfinite(y_prev2)) d2.add(s.y_pa - 2 * y_prev1 + y_prev2);
+    if (std::isfinite(y_prev2)) {
+      const double v = s.y_pa - 2 * y_prev1 + y_prev2;
+      d2.add(v);
+      d2_sum2 += v * v;
+      ++d2_n;
+    }
     y_prev2 = y_prev1;
     y_prev1 = s.y_pa;
 
     const int motion_class = classify_motion(s.t_s, s.drive_rad);
     track_reference(s.p_ref_pa);
     motion[static_cast<std::size_t>(motion_class)].add(s.t_s, e);
-    const double since = s.t_s - last_rev_t;
-    if (since < kAfterReversalS) after_rev.add(s.t_s, e);
-    if (since < kLockedSpanS) {
-      const auto b = static_cast<std::size_t>(since / kLockedBinS);
-      if (b < locked_open.size()) (last_rev_dir > 0 ? locked_open : locked_close)[b].add(s.t_s, e);
-    }
+    add_after_reversal(s.t_s, e);
+    recent[recent_head] = {s.t_s, e};
+    recent_head = (recent_head + 1) % recent.size();
+    recent_n = std::min(recent_n + 1, recent.size());
     const double pf = (s.y_pa - opt.pressure_lo_pa) / (opt.pressure_hi_pa - opt.pressure_lo_pa);
     pbins[static_cast<std::size_t>(std::clamp(pf * kPressureBins, 0.0, kPressureBins - 1.0))].add(s.t_s, e);
     if (std::isfinite(yhat_prev) && s.t_s > t_prev) {
@@ -513,6 +543,10 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   r.fit_pct = fit_percent(all.se2, r.y_spread_pa, n);
   r.noise_sigma_pa = 1.4826 * d2.median() / std::sqrt(6.0);
   r.noise_method = "1.4826 * median|second difference of p_meas| / sqrt(6)";
+  if (!(r.noise_sigma_pa > 0) && d2_n > 0) {
+    r.noise_sigma_pa = std::sqrt(d2_sum2 / static_cast<double>(d2_n) / 6.0);
+    r.noise_method = "RMS of the second difference of p_meas / sqrt(6) (the reading is too coarsely quantised for the median)";
+  }
   r.noise_floor_fit_pct = r.y_spread_pa > 0 ? 100.0 * (1.0 - r.noise_sigma_pa / r.y_spread_pa) : kNaN;
 
   // Regimes.
@@ -523,7 +557,7 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   regime("holding", "drive still (|velocity| < 0.5 deg/s over 10 ms)", motion[0]);
   regime("opening", "drive opening the valve (velocity > +0.5 deg/s)", motion[1]);
   regime("closing", "drive closing the valve (velocity < -0.5 deg/s)", motion[2]);
-  regime("after_reversal", "first 0.5 s after a motion reversal (> 0.1 deg retreat)", after_rev);
+  regime("after_reversal", "first 0.5 s after the drive reverses (from its turning point; a reversal retreats > 0.1 deg)", after_rev);
   // Low/high pressure: split at the median measured pressure (from the fine histogram).
   {
     Acc lo, hi;
@@ -573,16 +607,9 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
     if (r.windows[i].error.samples * 4 >= max_samples && r.windows[i].error.samples >= 5) order.push_back(i);
   std::sort(order.begin(), order.end(),
             [&](std::size_t a, std::size_t b) { return r.windows[a].error.rmse_pa > r.windows[b].error.rmse_pa; });
-  // The worst windows, skipping the neighbours of one already listed (one failure, one entry).
-  for (std::size_t i : order) {
-    if (r.worst.size() >= 8) break;
-    bool next_to = false;
-    for (std::size_t w : r.worst) next_to |= (i + 1 == w || w + 1 == i);
-    if (!next_to) r.worst.push_back(i);
-  }
+  std::vector<bool> fail(r.windows.size(), false);
   {
     const double floor_rms = 3 * r.noise_sigma_pa;
-    std::vector<bool> fail(r.windows.size(), false);
     for (std::size_t i : order) {
       const double rms = r.windows[i].error.rmse_pa;
       if (rms >= std::max(floor_rms, 1.5 * r.error.rmse_pa)) fail[i] = true;
@@ -599,6 +626,19 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
         r.failing.push_back({r.windows[i].t0_s, r.windows[i].t1_s});
       }
     }
+  }
+  // The worst windows, one per failure: a listed window hides the rest of its failing span (or,
+  // outside any, its two neighbours).
+  std::vector<bool> hidden(r.windows.size(), false);
+  for (std::size_t i : order) {
+    if (r.worst.size() >= 8) break;
+    if (hidden[i]) continue;
+    r.worst.push_back(i);
+    hidden[i] = true;
+    if (i > 0) hidden[i - 1] = true;
+    if (i + 1 < hidden.size()) hidden[i + 1] = true;
+    for (std::size_t j = i; fail[i] && j < fail.size() && fail[j]; ++j) hidden[j] = true;
+    for (std::size_t j = i; fail[i] && j-- > 0 && fail[j];) hidden[j] = true;
   }
   r.reversals = reversals;
   r.motion_cycle_hz = r.duration_s > 0 && reversals >= 2 ? static_cast<double>(reversals) / (2 * r.duration_s) : 0;
@@ -769,7 +809,7 @@ void ResidualAnalyzer::Impl::name_peaks(ResidualReport& r) {
   auto harmonic = [&](double f, double base_hz) -> int {
     if (!(base_hz > 0)) return 0;
     const double k = std::round(f / base_hz);
-    if (k < 1 || k > 50) return 0;
+    if (k < 1 || k > 10) return 0;  // beyond the 10th harmonic a match is a coincidence
     return std::abs(f - k * base_hz) <= std::max(1.5 * df, 0.03 * f) ? static_cast<int>(k) : 0;
   };
   // Does the drive move at this frequency too (a peak in its increments' spectrum)?
@@ -819,7 +859,7 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   const double kpa = units::kPaPerKpa;
   const double rmse = r.error.rmse_pa, sigma = r.noise_sigma_pa;
   if (r.rows == 0) return;
-  if (rmse <= 1.15 * sigma || r.fit_pct >= r.noise_floor_fit_pct - 0.3) {
+  if (at_noise_floor(rmse, sigma)) {
     out.push_back(fmt("At the noise floor: RMS error %.3g kPa against measurement noise %.3g kPa.", rmse / kpa, sigma / kpa));
   } else {
     out.push_back(fmt("RMS error %.3g kPa is %.3g times the measurement noise (%.3g kPa).", rmse / kpa, rmse / sigma,

@@ -1,7 +1,7 @@
 // The real-time loop on the simulated rig, through the campaign runner exactly as `hilbench serve`
 // runs it (loop thread, recorder thread, files), for a fixed time at a chosen rate. Prints the
 // wake-up latency and compute time percentiles, overruns and telemetry loss from run.json.
-//   bench_rt_loop [--hz 1000] [--seconds 60] [--priority 80] [--cpu 1] [--rig configs/rigs/sim.yaml]
+//   bench_rt_loop [--hz 1000] [--seconds 60] [--priority 80] [--cpu 1] [--rig configs/rigs/sim.yaml] [--keep DIR]
 // Compare with cyclictest run the same way: benchmarks/rt/compare.sh.
 #include <cstdio>
 #include <cstring>
@@ -31,6 +31,7 @@ int run(int argc, char** argv) {
   double hz = 1000, seconds = 60;
   int priority = 80, cpu = 1;
   std::string rig_file = HIL_SOURCE_DIR "/configs/rigs/sim.yaml";
+  std::string keep;  // keep the run folder here (telemetry.csv has every period's wake-up latency)
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--hz") hz = std::stod(v);
@@ -38,8 +39,9 @@ int run(int argc, char** argv) {
     else if (a == "--priority") priority = std::stoi(v);
     else if (a == "--cpu") cpu = std::stoi(v);
     else if (a == "--rig") rig_file = v;
+    else if (a == "--keep") keep = v;
     else {
-      std::fprintf(stderr, "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE]\n");
+      std::fprintf(stderr, "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR]\n");
       return 2;
     }
   }
@@ -61,7 +63,8 @@ int run(int argc, char** argv) {
   req.source = "benchmark";
 
   const std::string mlock = lock_memory();
-  const auto runs_dir = std::filesystem::temp_directory_path() / ("hil_bench_rt_" + std::to_string(::getpid()));
+  const auto runs_dir = keep.empty() ? std::filesystem::temp_directory_path() / ("hil_bench_rt_" + std::to_string(::getpid()))
+                                     : std::filesystem::path(keep);
   RunnerOptions ro;
   ro.runs_dir = runs_dir;
   ro.version = "benchmark";
@@ -87,7 +90,7 @@ int run(int argc, char** argv) {
               loop["skipped_deadlines"].get<long long>(),
               loop["periods"].get<long long>(), run["telemetry"]["rows_written"].get<long long>(),
               run["telemetry"]["rows_lost"].get<long long>(), run["outcome"].get<std::string>().c_str());
-  std::filesystem::remove_all(runs_dir);
+  if (keep.empty()) std::filesystem::remove_all(runs_dir);
   return run["telemetry"]["rows_lost"].get<long long>() == 0 && run["outcome"] == "completed" ? 0 : 1;
 }
 

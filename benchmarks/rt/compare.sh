@@ -2,8 +2,9 @@
 # The loop's wake-up latency next to cyclictest, run the same way: SCHED_FIFO at the same
 # priority, pinned to the same CPU, memory locked, absolute CLOCK_MONOTONIC sleeps, one thread,
 # same period and duration; one after the other, never at the same time.
-#   benchmarks/rt/compare.sh BUILD_DIR [SECONDS] [PRIORITY] [CPU] [RATES...]
-# e.g. benchmarks/rt/compare.sh build-server 60 80 1 1000 5000   (needs root or CAP_SYS_NICE)
+#   [ROUNDS=N] benchmarks/rt/compare.sh BUILD_DIR [SECONDS] [PRIORITY] [CPU] [RATES...]
+# e.g. ROUNDS=3 benchmarks/rt/compare.sh build-server 60 80 1 1000 5000   (needs root or CAP_SYS_NICE)
+# Rounds alternate the two programs, so a neighbour's load that comes and goes hits both.
 set -euo pipefail
 build=${1:?usage: compare.sh BUILD_DIR [SECONDS] [PRIORITY] [CPU] [RATES...]}
 seconds=${2:-60}
@@ -36,7 +37,9 @@ cyclic() {
       }'
 }
 
-for hz in "${rates[@]}"; do
-  "$build/benchmarks/rt/bench_rt_loop" --hz "$hz" --seconds "$seconds" --priority "$prio" --cpu "$cpu"
-  cyclic "$hz"
+for ((round = 1; round <= ${ROUNDS:-1}; round++)); do
+  for hz in "${rates[@]}"; do
+    "$build/benchmarks/rt/bench_rt_loop" --hz "$hz" --seconds "$seconds" --priority "$prio" --cpu "$cpu"
+    cyclic "$hz"
+  done
 done

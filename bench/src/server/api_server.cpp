@@ -169,7 +169,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   WsSession(tcp::socket&& socket, TelemetryHub& hub) : ws_(std::move(socket)), hub_(hub) {}
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
-  ~WsSession() { hub_.unsubscribe(this); }
+  ~WsSession() {
+    hub_.unsubscribe(this);
+    if (dropped_ > 0) spdlog::info("telemetry WebSocket closed; {} messages were dropped for a slow reader", dropped_);
+  }
 
   void run(Request req, double rate_hz) {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));

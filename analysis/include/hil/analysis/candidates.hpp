@@ -28,7 +28,7 @@ struct FreeParam {
   double scale = 1;             // typical size: LM scaling and finite-difference step
   std::vector<double> starts = {};  // tried before LM; the best one starts it
   bool grid = false;            // discontinuous (a step time): searched on a grid, not by LM
-  // Grid values from the data (grid parameters only), e.g. between successive reversals.
+  // Grid values from the data (grid parameters only), e.g. every 10 ms of the run.
   std::function<std::vector<double>(const ReplayData&)> grid_values = {};
 };
 
@@ -56,8 +56,5 @@ std::vector<std::string> builtin_candidate_names();
 plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>& params, const std::vector<double>& values);
 // The current value of a parameter in `plant` (NaN when absent).
 double value_of(const plant::Plant& plant, const std::string& effect, const std::string& key);
-
-// Times at which the drive reverses (> 0.1 deg retreat), from the data's encoder or command.
-std::vector<double> drive_reversal_times(const ReplayData& data);
 
 }  // namespace hil::analysis

@@ -57,6 +57,7 @@ struct Round {
   double n_eff = 0, tau_int_samples = 1;
   std::vector<CandidateResult> ranking;  // best first (lowest dBIC)
   std::string added;                     // empty: nothing earned its place
+  std::string note;                      // why the round did not fit candidates, if it did not
 };
 
 // One path of the search (a first choice followed greedily), for the report.
@@ -75,6 +76,7 @@ struct Diagnosis {
   std::size_t rows = 0;
   bool has_encoder = false;
   std::size_t decimation = 1;            // rows per row of the copy the coarse fits ran on
+  double time_origin_s = 0;              // file time of row 0: the fitted model's t = 0 (replay.hpp)
   double noise_sigma_pa = 0, noise_floor_fit_pct = 0;
   std::vector<Round> rounds;
   std::vector<CandidateResult> added;    // in the order found, values after the joint refit

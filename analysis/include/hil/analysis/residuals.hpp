@@ -77,6 +77,15 @@ struct ReportSeries {
   TimeSeries measured_mpa, model_mpa, residual_kpa, drive_deg, reference_mpa;
 };
 
+// With an encoder the pressure replay uses it, so the drive model never acts; this says how well
+// the drive model (motor_servo, transport_delay, ...) driven by the command predicts the encoder.
+struct MotorChannel {
+  bool present = false;  // the file has the encoder
+  std::size_t samples = 0;
+  double rmse_deg = 0, bias_deg = 0, max_abs_deg = 0, t_at_max_s = 0;  // encoder - model
+};
+inline constexpr double kMotorChannelTolDeg = 0.05;  // below this RMS the drive model matches
+
 struct ResidualReport {
   std::size_t rows = 0;
   double t0_s = 0, duration_s = 0;
@@ -97,6 +106,7 @@ struct ResidualReport {
   double reference_cycle_hz = 0;   // same for p_ref when present
   Diagnostics diagnostics;
   std::vector<std::string> signature;  // plain-language description of the residual
+  MotorChannel motor;                  // filled by the replay (compare.hpp)
   ReportSeries series;
 };
 
@@ -129,6 +139,11 @@ class ResidualAnalyzer {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// "At the noise floor": the RMS error within 10 % of the measurement noise. Used by the residual's
+// signature and by diagnose's verdict.
+inline constexpr double kNoiseFloorRmsRatio = 1.1;
+inline bool at_noise_floor(double rmse_pa, double noise_sigma_pa) { return rmse_pa <= kNoiseFloorRmsRatio * noise_sigma_pa; }
 
 // Fit % of a residual: 100 (1 - sqrt(rss) / |y - mean(y)|).
 double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n);

@@ -8,6 +8,7 @@
 //   write(now, period) real-time safe: hand the command over, never waiting
 //   deactivate()       blocking, never throws: disable the drive; safe to call twice
 //
+// The runner goes through the whole lifecycle once per run (a fresh plant, a fresh enable).
 // configure/activate/deactivate run on the campaign runner's thread; read/write/health run on
 // the loop thread. A hardware rig keeps its own I/O thread and exchanges data with the loop
 // through lock-free mailboxes (drivers/include/hil/drv/io_types.hpp), so read/write only copy.
@@ -50,7 +51,9 @@ struct RigCommand {
 
 enum class RigStatus : std::uint8_t {
   ok,     // fresh data (read) / command handed over (write)
-  stale,  // no news since the last period: the device did not answer in time
+  stale,  // no fresh data: the newest is older than the rig's own freshness limit (a CAN rig:
+          // no TPDO since the last SYNC; a Modbus rig polling every 2 ms: a value older than two
+          // polls). Counts toward the watchdog; the controller holds its command.
   fault,  // the device or its link reports a fault; health().last_error says which
 };
 

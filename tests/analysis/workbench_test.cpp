@@ -1,0 +1,418 @@
+// The workbench's pieces against what they must do: measurement files (bad input named by file,
+// line and column; extra columns ignored; non-uniform time), the noise estimate, the metrics and
+// diagnostics on residuals of known shape, the replay (streamed and in memory agree; the bench's
+// own telemetry round-trips at the noise floor), and the hilbench command line.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <sstream>
+
+#include "hil/analysis/candidates.hpp"
+#include "hil/analysis/compare.hpp"
+#include "hil/analysis/measurement.hpp"
+#include "hil/analysis/replay.hpp"
+#include "hil/analysis/residuals.hpp"
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/sim.hpp"
+#include "hil/config.hpp"
+#include "hil/csv_reader.hpp"
+#include "temp_file.hpp"
+#include "workbench_test_util.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using hil::analysis::compare_file;
+using hil::analysis::load_measurement;
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+hil::plant::Plant nominal() { return hil::plant::Plant::load(hil::test::nominal_model()); }
+
+// A short valid file body: steady 1 MPa, 11.4 deg, n rows at 1 kHz.
+std::string rows(int n, double t0 = 0) {
+  std::string s;
+  char b[120];
+  for (int i = 0; i < n; ++i) {
+    std::snprintf(b, sizeof b, "%.4f,11.41174,%.6f\n", t0 + i * 1e-3, 1.0 + 0.001 * std::sin(i));
+    s += b;
+  }
+  return s;
+}
+
+// --- bad input ------------------------------------------------------------------------------
+
+TEST(MeasurementFile, MissingRequiredColumnNamesFileLineAndColumn) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("run.csv", "# source: lab\nt_s,theta_cmd_deg\n0,1\n");
+  const std::string e = error_of([&] { load_measurement(f); });
+  EXPECT_NE(e.find(f.string() + ":2:1"), std::string::npos) << e;
+  EXPECT_NE(e.find("missing required column 'p_meas_mpa'"), std::string::npos) << e;
+  EXPECT_EQ(error_of([&] { compare_file(nominal(), f); }), e);
+}
+
+TEST(MeasurementFile, NonNumericCellNamesFileLineAndColumn) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("run.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows(3) + "0.0030,11.4,abc\n" + rows(60, 0.004));
+  const std::string e = error_of([&] { compare_file(nominal(), f); });
+  EXPECT_NE(e.find(f.string() + ":5:3"), std::string::npos) << e;
+  EXPECT_NE(e.find("not a number: 'abc'"), std::string::npos) << e;
+}
+
+TEST(MeasurementFile, TimeGoingBackwardsNamesFileLineAndColumn) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("run.csv", "theta_cmd_deg,t_s,p_meas_mpa\n11.4,0.000,1.0\n11.4,0.001,1.0\n11.4,0.0005,1.0\n");
+  const std::string e = error_of([&] { load_measurement(f); });
+  EXPECT_NE(e.find(f.string() + ":4:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("goes backwards"), std::string::npos) << e;
+}
+
+TEST(MeasurementFile, TooShortToFitNamesFileAndLine) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("short.csv", "# a: b\nt_s,theta_cmd_deg,p_meas_mpa\n" + rows(10));
+  for (const std::string& e : {error_of([&] { load_measurement(f); }), error_of([&] { compare_file(nominal(), f); })}) {
+    EXPECT_NE(e.find(f.string() + ":12:1"), std::string::npos) << e;
+    EXPECT_NE(e.find("only 10 data row(s)"), std::string::npos) << e;
+  }
+}
+
+TEST(MeasurementFile, EmptyAndHeaderOnlyFilesAreClearErrors) {
+  hil::test::TempDir dir;
+  const auto empty = dir.write("empty.csv", "");
+  std::string e = error_of([&] { compare_file(nominal(), empty); });
+  EXPECT_NE(e.find(empty.string() + ":1:1"), std::string::npos) << e;
+  EXPECT_NE(e.find("empty"), std::string::npos) << e;
+  const auto header = dir.write("header.csv", "# source: x\n\nt_s,theta_cmd_deg,p_meas_mpa\n");
+  for (const std::string& e2 : {error_of([&] { load_measurement(header); }), error_of([&] { compare_file(nominal(), header); })}) {
+    EXPECT_NE(e2.find(header.string() + ":4:1"), std::string::npos) << e2;
+    EXPECT_NE(e2.find("only 0 data row(s)"), std::string::npos) << e2;
+  }
+  e = error_of([&] { load_measurement(dir.path() / "absent.csv"); });
+  EXPECT_NE(e.find("absent.csv"), std::string::npos) << e;
+}
+
+TEST(MeasurementFile, OtherColumnsAreIgnoredAndUnitsConverted) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("lab.csv",
+                           "# logger: X\r\nstatus,p_meas_mpa,t_s,theta_motor_deg,junk,theta_cmd_deg\r\n"
+                           "OK,1.5,0.0,10,x,11\r\nOK,1.25,0.002,10,y,12\r\n");
+  hil::analysis::MeasurementReader r(f);
+  hil::analysis::MeasurementRows rows;
+  ASSERT_TRUE(r.next(rows));
+  EXPECT_TRUE(r.has_encoder());
+  EXPECT_FALSE(r.has_reference());
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_DOUBLE_EQ(rows.p_meas_pa[1], 1.25e6);
+  EXPECT_DOUBLE_EQ(rows.t_s[1], 0.002);
+  EXPECT_NEAR(rows.theta_cmd_rad[1], 12 * std::numbers::pi / 180, 1e-15);
+  EXPECT_NEAR(rows.theta_motor_rad[0], 10 * std::numbers::pi / 180, 1e-15);
+}
+
+TEST(MeasurementFile, BadModelFileIsALocatedConfigError) {
+  hil::test::TempDir dir;
+  const auto model = dir.write("m.yaml", "effects:\n  motor_servo: {time_constant_s: -1, rate_limit_deg_s: 60}\n");
+  const auto data = dir.write("d.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows(60));
+  hil::analysis::CompareOptions o{model, data, dir.path() / "out", false, true};
+  const std::string e = error_of([&] { hil::analysis::run_compare(o); });
+  EXPECT_NE(e.find("m.yaml:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("time_constant_s"), std::string::npos) << e;
+}
+
+// --- statistics -----------------------------------------------------------------------------
+
+TEST(Statistics, NoiseFromSecondDifferencesIgnoresTheSignal) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0, 2000);
+  std::vector<double> y(60000);
+  for (std::size_t k = 0; k < y.size(); ++k) {
+    const double t = k * 1e-3;
+    y[k] = 1.2e6 + 2e5 * std::sin(2 * std::numbers::pi * 0.3 * t) + (std::fmod(t, 5) < 2.5 ? 1e5 : 0) + noise(rng);
+  }
+  EXPECT_NEAR(hil::analysis::noise_sigma_from_data(y), 2000, 60);
+}
+
+// Feeds a residual of known shape through the analyzer (drive: a triangle, reversing every 2 s).
+hil::analysis::ResidualReport analyze(const std::function<double(double t, double drive_deg)>& residual, double noise_pa,
+                                      std::size_t n = 40000) {
+  hil::analysis::AnalyzerOptions o;
+  o.expected_rows = n;
+  o.expected_duration_s = n * 1e-3;
+  hil::analysis::ResidualAnalyzer an(o);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0, noise_pa);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = k * 1e-3;
+    const double phase = std::fmod(t, 4.0);
+    const double drive_deg = 10 + (phase < 2 ? phase : 4 - phase);
+    const double model = 1.2e6 + 1e5 * std::sin(0.5 * t);
+    const double y = model + residual(t, drive_deg) + noise(rng);
+    an.add({t, y, model, drive_deg * std::numbers::pi / 180, NAN, 0.0});
+  }
+  return an.finish();
+}
+
+const hil::analysis::Regime& regime(const hil::analysis::ResidualReport& r, const std::string& name) {
+  for (const auto& g : r.regimes)
+    if (g.name == name) return g;
+  throw std::runtime_error("no regime " + name);
+}
+
+TEST(Statistics, WhiteResidualIsWhiteAndAtTheFloor) {
+  const auto r = analyze([](double, double) { return 0.0; }, 2000);
+  EXPECT_TRUE(r.diagnostics.white);
+  EXPECT_FALSE(r.diagnostics.input_correlated);
+  EXPECT_NEAR(r.noise_sigma_pa, 2000, 80);
+  EXPECT_NEAR(r.fit_pct, r.noise_floor_fit_pct, 0.3);
+  EXPECT_NEAR(r.diagnostics.tau_int_samples, 1.0, 0.2);
+  EXPECT_TRUE(r.diagnostics.peaks.empty());
+}
+
+TEST(Statistics, FitPercentIsTheDefinition) {
+  // fit = 100 (1 - |e| / |y - mean y|): a constant residual of half the spread gives 50 %.
+  const auto r0 = analyze([](double, double) { return 0.0; }, 0.0);
+  const auto r = analyze([&](double, double) { return 0.5 * r0.y_spread_pa; }, 0.0);
+  EXPECT_NEAR(r.fit_pct, 50.0, 1e-6);
+  EXPECT_NEAR(r.error.bias_pa, 0.5 * r0.y_spread_pa, 1e-6);
+  EXPECT_NEAR(r.error.rmse_pa, 0.5 * r0.y_spread_pa, 1e-6);
+}
+
+TEST(Statistics, ErrorAfterReversalsIsLocalisedAndCorrelatedWithTheInput) {
+  // 30 kPa for 0.3 s after each reversal of the drive (at 2, 4, 6, ... s).
+  const auto r = analyze(
+      [](double t, double) {
+        const double since = std::fmod(t, 2.0);
+        return t > 1 && since < 0.3 ? 3e4 : 0.0;
+      },
+      2000);
+  EXPECT_GT(regime(r, "after_reversal").error.rmse_pa, 2 * r.error.rmse_pa);
+  EXPECT_LT(regime(r, "holding").error.samples, r.rows / 10);  // the drive never holds
+  EXPECT_GE(r.reversals, 18u);
+  EXPECT_FALSE(r.diagnostics.white);
+  // The worst windows all start within 0.3 s after a reversal.
+  ASSERT_FALSE(r.worst.empty());
+  for (std::size_t i : r.worst) EXPECT_LT(std::fmod(r.windows[i].t0_s, 2.0), 0.35) << r.windows[i].t0_s;
+  ASSERT_FALSE(r.failing.empty());
+  // The spectrum's peaks are harmonics of the motion cycle (reversal every 2 s: 0.25 Hz).
+  ASSERT_FALSE(r.diagnostics.peaks.empty());
+  EXPECT_NE(r.diagnostics.peaks[0].name.find("motion cycle"), std::string::npos) << r.diagnostics.peaks[0].name;
+  // Event-locked: the mean residual just after a reversal is the 30 kPa step.
+  EXPECT_NEAR(r.diagnostics.after_opening_mean_pa[5], 3e4, 3e3);
+}
+
+TEST(Statistics, PeriodicDisturbanceIsNamedInTheSpectrum) {
+  const auto r = analyze([](double t, double) { return 1e4 * std::sin(2 * std::numbers::pi * 7.3 * t); }, 2000);
+  ASSERT_FALSE(r.diagnostics.peaks.empty());
+  EXPECT_NEAR(r.diagnostics.peaks[0].hz, 7.3, 0.3);
+  EXPECT_GT(r.diagnostics.peaks[0].power_share, 0.8);
+  EXPECT_NE(r.diagnostics.peaks[0].name.find("periodic component at 7.3"), std::string::npos) << r.diagnostics.peaks[0].name;
+  const auto mains = analyze([](double t, double) { return 5e3 * std::sin(2 * std::numbers::pi * 50 * t); }, 2000);
+  ASSERT_FALSE(mains.diagnostics.peaks.empty());
+  EXPECT_NE(mains.diagnostics.peaks[0].name.find("mains"), std::string::npos) << mains.diagnostics.peaks[0].name;
+}
+
+TEST(Statistics, DriftShowsAsLateAndSlow) {
+  const auto r = analyze([](double t, double) { return 1.5e3 * t; }, 2000);
+  EXPECT_GT(regime(r, "late").error.rmse_pa, 2 * regime(r, "early").error.rmse_pa);
+  EXPECT_GT(r.diagnostics.low_frequency_share, 0.8);
+  bool grows = false;
+  for (const auto& line : r.signature) grows |= line.find("Grows over the run") != std::string::npos;
+  EXPECT_TRUE(grows);
+}
+
+TEST(Statistics, CoarselyQuantisedReadingsStillHaveANoiseEstimate) {
+  hil::analysis::ResidualAnalyzer an({});
+  std::mt19937 rng(9);
+  std::normal_distribution<double> noise(0, 300);
+  for (int k = 0; k < 20000; ++k) {
+    const double t = k * 1e-3, model = 1.2e6 + 1e5 * std::sin(0.5 * t);
+    const double y = 1e3 * std::round((model + noise(rng)) / 1e3);  // a 1 kPa ADC step
+    an.add({t, y, model, 0.2, NAN, 0.0});
+  }
+  const auto r = an.finish();
+  EXPECT_GT(r.noise_sigma_pa, 100);
+  EXPECT_LT(r.noise_sigma_pa, 600);
+  EXPECT_TRUE(std::isfinite(r.noise_floor_fit_pct));
+}
+
+// --- replay ---------------------------------------------------------------------------------
+
+TEST(Replay, DecimationKeepsTheCommandIntegral) {
+  hil::analysis::ReplayData d;
+  for (int k = 0; k < 101; ++k) {
+    d.t_s.push_back(k * 1e-3 * (k % 2 ? 1.2 : 1.0));
+    d.cmd_held_rad.push_back(std::sin(k * 0.1));
+    d.y_pa.push_back(1e6);
+  }
+  for (std::size_t k = 1; k < d.t_s.size(); ++k) d.t_s[k] = d.t_s[k - 1] + (k % 2 ? 1.2e-3 : 0.8e-3);
+  const auto c = hil::analysis::decimate(d, 4);
+  double full = 0, dec = 0;
+  for (std::size_t k = 1; k <= 100; ++k) full += d.cmd_held_rad[k] * (d.t_s[k] - d.t_s[k - 1]);
+  for (std::size_t j = 1; j < c.size(); ++j) dec += c.cmd_held_rad[j] * (c.t_s[j] - c.t_s[j - 1]);
+  EXPECT_NEAR(dec, full, 1e-12);
+  EXPECT_EQ(c.size(), 26u);
+}
+
+// Writes and runs a small campaign with `hilbench sim`'s code path; returns the run's telemetry.
+fs::path sim_telemetry(const fs::path& dir, const std::string& plant_file, double duration_s) {
+  const std::string yaml = "name: roundtrip\nplant: " + plant_file + "\nduration_s: " + std::to_string(duration_s) +
+                           "\nperiod_ms: 1\nseed: 42\nsensor_noise_kpa: 1.5\nreference:\n" +
+                           hil::test::reference_random(8, 0.9, 1.5, 1.0, 3.0) +
+                           "controller:\n  observer: robust\nruns:\n  - name: run\n    compensation: adaptive\n";
+  const auto file = dir / "roundtrip.yaml";
+  std::ofstream(file) << yaml;
+  const auto campaign = hil::bench::load_campaign(file);
+  hil::bench::SimOptions o;
+  o.out_dir = dir / "runs";
+  o.progress = false;
+  hil::bench::run_campaign(campaign, o);
+  return dir / "runs/roundtrip/run/telemetry.csv";
+}
+
+TEST(Replay, BenchTelemetryRoundTripsAtTheNoiseFloor) {
+  hil::test::TempDir dir;
+  const auto telemetry = sim_telemetry(dir.path(), hil::test::nominal_model().string(), 20);
+  const auto j = hil::test::run_compare(hil::test::nominal_model(), telemetry, dir.path() / "cmp");
+  EXPECT_GE(j.at("fit_pct").get<double>(), j.at("noise_floor_fit_pct").get<double>() - 0.1);
+  EXPECT_NEAR(j.at("noise_sigma_kpa").get<double>(), 1.5, 0.1);
+  EXPECT_LT(j.at("rmse_kpa").get<double>(), 1.6);
+  EXPECT_TRUE(j.at("encoder").get<bool>());
+  std::printf("[ round trip ] fit %.3f %% (noise floor %.3f %%), RMSE %.3f kPa\n", j.at("fit_pct").get<double>(),
+              j.at("noise_floor_fit_pct").get<double>(), j.at("rmse_kpa").get<double>());
+}
+
+TEST(Replay, StreamedAndInMemoryAgree) {
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.name = "agree";
+  s.duration_s = 12;
+  s.reference_yaml = hil::test::reference_square(1.0, 1.4, 2.0);
+  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "valve_offset", "offset_deg: 0.7"); };
+  const auto f = hil::test::make_measurement(s, dir.path());
+  const auto a = compare_file(nominal(), f);
+  const auto b = hil::analysis::compare_measurement(nominal(), load_measurement(f));
+  EXPECT_DOUBLE_EQ(a.fit_pct, b.fit_pct);
+  EXPECT_DOUBLE_EQ(a.rss_pa2, b.rss_pa2);
+  EXPECT_EQ(a.rows, 12000u);
+}
+
+TEST(Replay, WithAnEncoderTheDriveIsCheckedSeparately) {
+  // A transport delay with the encoder logged: invisible to the pressure replay (which uses the
+  // encoder), so compare is at the floor, diagnose names nothing, and both say where it shows.
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.name = "delay_with_encoder";
+  s.duration_s = 15;
+  s.seed = 120;
+  s.reference_yaml = hil::test::reference_square(1.0, 1.4, 2.5);
+  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "transport_delay", "delay_s: 0.03"); };
+  const auto data = hil::test::make_measurement(s, dir.path());
+  const auto c = hil::test::run_compare(hil::test::nominal_model(), data, dir.path() / "cmp");
+  EXPECT_GE(c.at("fit_pct").get<double>(), c.at("noise_floor_fit_pct").get<double>() - 0.2);
+  ASSERT_TRUE(c.contains("motor_channel"));
+  EXPECT_FALSE(c.at("motor_channel").at("matches").get<bool>());
+  EXPECT_GT(c.at("motor_channel").at("rmse_deg").get<double>(), 0.05);
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+  EXPECT_EQ(d.at("verdict"), "nothing_missing");
+  ASSERT_EQ(d.at("not_identifiable").size(), 2u);
+  for (const auto& n : d.at("not_identifiable")) {
+    EXPECT_NE(n.at("reason").get<std::string>().find("misses the encoder"), std::string::npos) << n;
+  }
+  // Without the delay the drive model follows the encoder.
+  s.name = "nominal_with_encoder";
+  s.truth = [](const hil::plant::Plant& p) { return p; };
+  const auto c2 = hil::test::run_compare(hil::test::nominal_model(), hil::test::make_measurement(s, dir.path()),
+                                         dir.path() / "cmp2");
+  EXPECT_TRUE(c2.at("motor_channel").at("matches").get<bool>()) << c2.at("motor_channel");
+}
+
+TEST(Replay, CandidatesAreTheIssuesEightPlusUserEffects) {
+  const auto names = hil::analysis::builtin_candidate_names();
+  EXPECT_EQ(names, (std::vector<std::string>{"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
+                                             "transport_delay", "sensor_bias", "motor_dynamics", "burn_rate"}));
+  const auto all = hil::analysis::candidates_for(hil::analysis::noise_free(nominal()));
+  EXPECT_EQ(all.size(), names.size());  // this test binary registers no user effect
+  EXPECT_THROW(hil::analysis::candidates_for(nominal(), {"valve_ofset"}), std::invalid_argument);
+}
+
+// --- the command line -----------------------------------------------------------------------
+
+struct CliRun {
+  int code;
+  std::string out;
+};
+CliRun hilbench(const std::string& args) {
+  const std::string cmd = std::string(HIL_BINARY_DIR) + "/bench/hilbench " + args + " 2>&1";
+  std::FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  const int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+TEST(CommandLine, UsageAndBadFiles) {
+  hil::test::TempDir dir;
+  const std::string model = hil::test::nominal_model().string();
+  CliRun r = hilbench("compare --model " + model);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--data FILE.csv is required"), std::string::npos) << r.out;
+  r = hilbench("diagnose --data x.csv --modle m.yaml");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("did you mean --model"), std::string::npos) << r.out;
+  const auto bad = dir.write("bad.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows(5) + "0.005,1..2,1.0\n");
+  for (const char* cmd : {"compare", "diagnose"}) {
+    r = hilbench(std::string(cmd) + " --model " + model + " --data " + bad.string() + " --out " + (dir.path() / "o").string());
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(bad.string() + ":7:2: column 'theta_cmd_deg': not a number: '1..2'"), std::string::npos) << r.out;
+  }
+  const auto empty = dir.write("empty.csv", "");
+  r = hilbench("compare --model " + model + " --data " + empty.string());
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("empty.csv:1:1"), std::string::npos) << r.out;
+}
+
+TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.name = "cli";
+  s.duration_s = 15;
+  s.seed = 77;
+  s.encoder = false;
+  s.reference_yaml = hil::test::reference_square(1.0, 1.4, 2.5);
+  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "sensor_lag", "time_constant_s: 0.045"); };
+  const auto data = hil::test::make_measurement(s, dir.path());
+  const std::string model = hil::test::nominal_model().string(), out = dir.path().string();
+  CliRun r = hilbench("compare --model " + model + " --data " + data.string() + " --out " + out + "/c1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("fit "), std::string::npos);
+  EXPECT_NE(r.out.find("compare: 100%"), std::string::npos) << r.out;  // the progress line
+  r = hilbench("diagnose --model " + model + " --data " + data.string() + " --out " + out + "/d --write-model " + out +
+               "/fitted.yaml");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("Found: sensor_lag"), std::string::npos) << r.out;
+  r = hilbench("compare --model " + out + "/fitted.yaml --data " + data.string() + " --out " + out + "/c2 --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto before = hil::test::read_json(dir.path() / "c1/compare.json");
+  const auto after = hil::test::read_json(dir.path() / "c2/compare.json");
+  EXPECT_LT(after.at("rmse_kpa").get<double>(), 0.5 * before.at("rmse_kpa").get<double>());
+  EXPECT_GE(after.at("fit_pct").get<double>(), after.at("noise_floor_fit_pct").get<double>() - 1);
+  // The fitted model is a plant file with the effect as a named block.
+  const auto fitted = hil::cfg::Node::load_file(dir.path() / "fitted.yaml");
+  EXPECT_NEAR(fitted.at("effects").at("sensor_lag").number("time_constant_s"), 0.045, 0.045 * 0.15);
+  for (const char* f : {"c1/report.html", "d/report.html", "d/diagnosis.json", "c2/report.html"})
+    EXPECT_TRUE(fs::exists(dir.path() / f)) << f;
+}
+
+}  // namespace
