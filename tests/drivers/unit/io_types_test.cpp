@@ -15,13 +15,16 @@ struct Pair {
 
 TEST(Mailbox, ReaderNeverSeesATornValue) {
   Mailbox<Pair> box;
-  std::atomic<bool> stop{false};
+  std::atomic<bool> reading{false}, stop{false};
   std::thread writer([&] {
+    while (!reading) std::this_thread::yield();  // overlap with the reader, or nothing is tested
     for (std::uint64_t i = 1; i < 200000; ++i) box.store({i, i * 3, i * 7});
     stop = true;
   });
   std::uint64_t last = 0, reads = 0;
-  while (!stop) {
+  reading = true;
+  for (bool done = false; !done;) {
+    done = stop;  // one more load after the writer finished
     const Pair p = box.load();
     ASSERT_EQ(p.b, p.a * 3);
     ASSERT_EQ(p.c, p.a * 7);
