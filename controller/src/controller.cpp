@@ -71,9 +71,9 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   // The play model presumes the motor pushed a flank when it sits within the intention's
   // dead-band of it (a reversal is only seen after that retreat); with no gap known, or while a
   // jump may still be under way in the drive, nothing.
-  const double gap = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;
+  const double gap_before = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;
   const bool gap_known = p_.compensation == Compensation::constant || s.gap_measurements > 0;
-  const double near = gap / 2 - p_.robust.intention_deadband_rad - 1e-12;
+  const double near = gap_before / 2 - p_.robust.intention_deadband_rad - 1e-12;
   if (s.presume_wait > 0) --s.presume_wait;
   const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
   const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad,
@@ -91,13 +91,17 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
       const double innovation = obs.gap_measured_rad - s.gap_est_rad;
       const bool jump = std::abs(innovation) > p_.robust.jump_fraction * s.gap_est_rad;
       const double gain = s.gap_measurements++ == 0 || jump ? 1.0 : p_.robust.learn_gain;
+      const double before = s.gap_est_rad;
       s.gap_est_rad += gain * innovation;
+      // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
+      if (before > 0) s.gap_pos_rad *= s.gap_est_rad / before;
     }
   }
   if (p_.observer == ObserverKind::paper) {
-    // Eq. (7) with sigma (constant) or sigma_r (adaptive).
-    if (p_.compensation != Compensation::none) out.comp_rad = obs.kick * gap;
+    // Eq. (7) with sigma (constant) or sigma_r (adaptive) as it was before this step's law (10).
+    if (p_.compensation != Compensation::none) out.comp_rad = obs.kick * gap_before;
   } else {
+    const double gap = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;  // as updated
     s.gap_pos_rad += cmd_step;
     if (obs.reversed) s.boost_rad = 0;
     if (p_.compensation != Compensation::none && obs.reversed) {

@@ -109,6 +109,27 @@ TEST(RobustObserver, FollowsAShrinkingGap) {
   EXPECT_TRUE(followed);
 }
 
+// When the estimate jumps (the gap grew 1 -> 2 deg), the play model moves to the new flank with
+// it: every later jump is the whole estimated gap, not what the old gap left (a regression: the
+// model was clamped back to the old flank and the next jump fell 0.4 deg short).
+TEST(RobustObserver, JumpsFollowTheEstimateAfterItChanges) {
+  const std::string yaml =
+      "name: regrow\nplant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
+      "\nduration_s: 40\nperiod_ms: 1\nseed: 102\nsensor_noise_kpa: 2.5\nreference:\n  initial_mpa: 1.2\n  profile:\n"
+      "    - random: {seed: 5, from_s: 1.0, min_mpa: 0.9, max_mpa: 1.5, dwell_s: [1.5, 4], ramp_probability: 0.4,"
+      " ramp_s: [0.3, 1.5], min_change_mpa: 0.12}\ngap:\n  initial_deg: 1.0\n  changes:\n"
+      "    - step: {at_s: 14, to_deg: 2.0}\nruns:\n  - name: adaptive\n    compensation: adaptive\n";
+  hil::test::TempDir dir;
+  const Campaign c = load_campaign_text(yaml, "regrow.yaml", dir.path());
+  int checked = 0;
+  simulate_run(c, c.runs.front(), [&](const StepRecord& r) {
+    if (r.comp_rad == 0 || r.t_s < 17) return;  // after the growth has been measured (16.4 s)
+    EXPECT_NEAR(std::abs(r.comp_rad), r.gap_est_rad, 0.05 * r.gap_est_rad) << "jump at " << r.t_s << " s";
+    ++checked;
+  });
+  EXPECT_GE(checked, 5);
+}
+
 // One hour of random steps and ramps with the gap drifting between 0.8 and 2 deg: from the third
 // reversal on, the estimate is within 20 % of the true gap in at least 90 % of reversals, and
 // never above 1.5 x the true gap.
