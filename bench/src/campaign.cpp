@@ -328,7 +328,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   c.duration_s = root.number("duration_s");
   root.at("duration_s").require(c.duration_s > 0, "must be > 0");
   const double period_ms = root.number("period_ms", 1.0);
-  root.at("period_ms").require(period_ms > 0 && period_ms <= 1000, "the control period dT must be > 0 (and <= 1000 ms)");
+  if (auto p = root.find("period_ms")) p->require(period_ms > 0 && period_ms <= 1000, "the control period dT must be > 0 (and <= 1000 ms)");
   c.period_s = period_ms * 1e-3;
   const long long seed = root.integer("seed", 1);
   if (root.has("seed")) root.at("seed").require(seed >= 0, "must be >= 0");

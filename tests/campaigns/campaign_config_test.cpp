@@ -7,6 +7,7 @@
 
 #include "hil/bench/campaign.hpp"
 #include "hil/config.hpp"
+#include "hil/units.hpp"
 #include "support/temp_file.hpp"
 
 namespace {
@@ -108,6 +109,84 @@ TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {
     EXPECT_NE(msg.find("c.yaml:"), std::string::npos) << msg;
     EXPECT_NE(msg.find("bad_plant.yaml:20:"), std::string::npos) << msg;
     EXPECT_NE(msg.find("effects.gas_generator.pressure_exponent"), std::string::npos) << msg;
+  }
+}
+
+}  // namespace
+
+namespace {
+
+using hil::bench::Schedule;
+
+// Every kind of reference item and gap change, from YAML to the schedule the loop evaluates.
+TEST(CampaignProfiles, EveryItemKindBuildsTheScheduleItSays) {
+  hil::test::TempDir dir;
+  dir.write("ref.csv", "# from another test\nt_s,p_ref_mpa,other\n20,1.1,x\n21,1.3,y\n22,1.2,z\n");
+  const std::string yaml = "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
+                           "\nduration_s: 60\nreference:\n  initial_mpa: 1.0\n  profile:\n"
+                           "    - step: {at_s: 1, to_mpa: 1.2}\n"
+                           "    - ramp: {from_s: 2, to_s: 4, to_mpa: 1.4}\n"
+                           "    - points: {t_s: [5, 6, 7], p_mpa: [1.4, 1.0, 1.1]}\n"
+                           "    - sine: {from_s: 10, to_s: 12, amplitude_mpa: 0.05, period_s: 1}\n"
+                           "    - csv: {file: ref.csv}\n"
+                           "    - random: {from_s: 30, to_s: 60, min_mpa: 0.9, max_mpa: 1.5, dwell_s: [1, 2],"
+                           " min_change_mpa: 0.2, directions: alternate}\n"
+                           "gap:\n  initial_deg: 1.0\n  changes:\n"
+                           "    - step: {at_s: 3, to_deg: 1.5}\n"
+                           "    - drift: {from_s: 10, to_s: 20, to_deg: 0.5}\n"
+                           "    - random_drift: {from_s: 30, min_deg: 0.8, max_deg: 2.0, segment_s: [5, 10]}\n"
+                           "runs:\n  - {name: a, compensation: adaptive}\n";
+  const auto c = hil::bench::load_campaign_text(yaml, "profiles.yaml", dir.path());
+  const auto& r = c.reference_pa;
+  EXPECT_DOUBLE_EQ(r.at(0.5), 1.0e6);
+  EXPECT_DOUBLE_EQ(r.at(1.5), 1.2e6);
+  EXPECT_DOUBLE_EQ(r.at(3.0), 1.3e6);              // half way up the ramp
+  EXPECT_DOUBLE_EQ(r.at(5.5), 1.2e6);              // between points
+  EXPECT_NEAR(r.at(10.25), 1.1e6 + 0.05e6, 1e-6);  // the sine on top of the last point
+  EXPECT_DOUBLE_EQ(r.at(20.5), 1.2e6);             // the CSV column, interpolated
+  EXPECT_DOUBLE_EQ(r.at(25), 1.2e6);               // holds after it
+  // The random part alternates direction: every move is a reversal.
+  const auto moves = hil::bench::move_count(r, 60, 1e-3);
+  const auto rev = hil::bench::reversal_times(r, 60, 1e-3, 1e3);
+  long random_moves = 0, random_reversals = 0;
+  for (double t : rev) random_reversals += t > 30;
+  Schedule::Cursor cursor;
+  double prev = r.at(30.0, cursor);
+  int was = 0;
+  for (int k = 30001; k <= 60000; ++k) {
+    const double v = r.at(k * 1e-3, cursor);
+    const int now = v == prev ? 0 : (v > prev ? 1 : -1);
+    random_moves += now != 0 && now != was;
+    was = now, prev = v;
+  }
+  EXPECT_GT(random_moves, 10);
+  EXPECT_GE(random_reversals, random_moves - 1);  // only the first may continue the CSV's last move
+  EXPECT_GT(moves, random_moves);
+  for (double t = 30; t < 60; t += 0.01) ASSERT_TRUE(r.at(t) >= 0.9e6 - 1 && r.at(t) <= 1.5e6 + 1) << t;
+  // Gap: a step, a drift, then random drifts inside their range.
+  const auto& g = c.gap_rad;
+  EXPECT_NEAR(hil::units::rad_to_deg(g.at(2.9)), 1.0, 1e-12);
+  EXPECT_NEAR(hil::units::rad_to_deg(g.at(3.0)), 1.5, 1e-12);
+  EXPECT_NEAR(hil::units::rad_to_deg(g.at(15.0)), 1.0, 1e-12);  // half way from 1.5 down to 0.5
+  for (double t = 30; t < 60; t += 0.5) {
+    const double deg = hil::units::rad_to_deg(g.at(t));
+    ASSERT_TRUE(deg >= 0.5 - 1e-9 && deg <= 2.0 + 1e-9) << t;  // from 0.5 toward [0.8, 2.0]
+  }
+}
+
+TEST(CampaignProfiles, OverlappingItemsAreRefused) {
+  hil::test::TempDir dir;
+  const std::string yaml = "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
+                           "\nduration_s: 10\nreference:\n  initial_mpa: 1.0\n  profile:\n"
+                           "    - ramp: {from_s: 2, to_s: 4, to_mpa: 1.4}\n"
+                           "    - step: {at_s: 3, to_mpa: 1.2}\n"
+                           "runs:\n  - {name: a, compensation: none}\n";
+  try {
+    (void)hil::bench::load_campaign_text(yaml, "overlap.yaml", dir.path());
+    FAIL();
+  } catch (const hil::cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("overlap.yaml:7:14: reference.profile[1].step.at_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("starts before the previous item ends"), std::string::npos) << e.what();
   }
 }
 
