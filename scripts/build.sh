@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Configures and builds hilbench (Release, Ninja) into build/. Safe to re-run.
+#   scripts/build.sh             everything: the hilbench executable, tests, benchmarks
+#   scripts/build.sh hilbench    only the named targets
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j"$(nproc)"
+targets=()
+for t in "$@"; do targets+=(--target "$t"); done
+cmake --build build -j"$(nproc)" "${targets[@]}"
 echo "build: done (build/bench/hilbench)"
