@@ -2,10 +2,19 @@
 // the HIL. Runs the plant in real time behind a CiA 402 drive emulator on a CAN bus and/or a
 // Modbus drive emulator (PORT) and a Modbus pressure transducer emulator (PORT + 1), until
 // SIGINT/SIGTERM or --duration-s. Prints a status line every second.
+// --campaign FILE takes the campaign's plant (with its sensor noise), seed, period, initial
+// reference and gap programme, so the plant is the one `hilbench sim` would run (options given
+// as well win). --port-file F: once every emulator listens and the plant runs, F holds
+// {"modbus_drive_port": N, "transducer_port": M} (0 without --modbus): the ready signal.
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <memory>
+#include <optional>
 #include <thread>
+
+#include <nlohmann/json.hpp>
 
 #include "cli.hpp"
 #include "commands.hpp"
@@ -48,23 +57,41 @@ drv::ModbusLinkConfig tcp_link(const std::string& spec) {
 
 int cmd_plant(const std::vector<std::string>& argv) {
   const Args args = parse_args(argv,
-                               {"plant", "can", "node-id", "can-config", "modbus", "drive-map", "transducer-map",
-                                "period-ms", "initial-mpa", "gap-program", "seed", "duration-s", "rt-priority", "cpu"},
+                               {"plant", "campaign", "can", "node-id", "can-config", "modbus", "drive-map", "transducer-map",
+                                "period-ms", "initial-mpa", "gap-program", "seed", "duration-s", "rt-priority", "cpu",
+                                "port-file"},
                                {"quiet"});
   if (!args.positional.empty()) throw UsageError("plant takes options only");
   if (!args.options.count("can") && !args.options.count("modbus")) throw UsageError("give --can IFACE and/or --modbus tcp:HOST:PORT");
 
+  if (args.options.count("plant") && args.options.count("campaign")) throw UsageError("give --plant or --campaign, not both");
   PlantServiceConfig config;
-  config.plant = std::make_shared<const plant::Plant>(plant::Plant::load(args.option("plant", "configs/plant/nominal.yaml")));
-  config.period_s = number(args, "period-ms", 1.0) * 1e-3;
-  config.p_initial_pa = units::mpa_to_pa(number(args, "initial-mpa", 1.0));
-  config.seed = static_cast<std::uint64_t>(number(args, "seed", 1));
+  std::string plant_name = args.option("plant", "configs/plant/nominal.yaml");
+  if (args.options.count("campaign")) {
+    const Campaign c = load_campaign(args.option("campaign", ""));
+    plant_name = "campaign " + c.name + " (" + c.plant_file.string() + ")";
+    config.plant = c.plant;
+    config.period_s = c.period_s;
+    config.p_initial_pa = c.reference_pa.at(0.0);
+    config.seed = c.seed;
+    config.gap_program = c.gap_rad;
+  } else {
+    config.plant = std::make_shared<const plant::Plant>(plant::Plant::load(plant_name));
+  }
+  config.period_s = number(args, "period-ms", config.period_s * 1e3) * 1e-3;
+  config.p_initial_pa = units::mpa_to_pa(number(args, "initial-mpa", units::pa_to_mpa(config.p_initial_pa)));
+  config.seed = static_cast<std::uint64_t>(number(args, "seed", static_cast<double>(config.seed)));
   config.rt_priority = static_cast<int>(number(args, "rt-priority", 0));
   config.cpu = static_cast<int>(number(args, "cpu", -1));
   if (args.options.count("gap-program")) config.gap_program = load_campaign(args.option("gap-program", "")).gap_rad;
+  const double config_period_ms = config.period_s * 1e3;
   PlantService service(std::move(config));
 
-  // Emulators, each on its own thread, all backed by the one plant.
+  // Emulators, each on its own thread, all backed by the one plant. With --rt-priority their
+  // threads run SCHED_FIFO too (they inherit it from this thread while it lasts), so they answer
+  // at once, as a device would.
+  std::optional<ScopedRealtime> io_sched(std::in_place, static_cast<int>(number(args, "rt-priority", 0)));
+  if (!io_sched->warning().empty()) std::fprintf(stderr, "plant: %s\n", io_sched->warning().c_str());
   std::unique_ptr<drv::Cia402DriveEmulator> can;
   std::unique_ptr<drv::ModbusDriveEmulator> mb_drive;
   std::unique_ptr<drv::ModbusTransducerEmulator> mb_pressure;
@@ -87,10 +114,19 @@ int cmd_plant(const std::vector<std::string>& argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   service.start();
-  std::printf("plant: %s, period %.3g ms, %s\n", args.option("plant", "configs/plant/nominal.yaml").c_str(),
-              number(args, "period-ms", 1.0), service.rt().describe().c_str());
+  io_sched.reset();
+  std::printf("plant: %s, period %.3g ms, %s\n", plant_name.c_str(), config_period_ms, service.rt().describe().c_str());
   if (can) std::printf("plant: CiA 402 drive on %s\n", args.option("can", "").c_str());
   if (mb_drive) std::printf("plant: Modbus drive on tcp port %d, transducer on tcp port %d\n", mb_drive->port(), mb_pressure->port());
+  if (args.options.count("port-file")) {
+    const std::filesystem::path file = args.option("port-file", "");
+    const auto tmp = file.string() + ".tmp";
+    std::ofstream(tmp) << nlohmann::json{{"modbus_drive_port", mb_drive ? mb_drive->port() : 0},
+                                         {"transducer_port", mb_pressure ? mb_pressure->port() : 0}}.dump()
+                       << "\n";
+    std::filesystem::rename(tmp, file);  // appears complete or not at all
+  }
+  std::printf("plant: ready\n");
   std::fflush(stdout);
 
   const double duration_s = number(args, "duration-s", 0);

@@ -36,8 +36,8 @@ const Command kCommands[] = {
      "         [--threads N] [--quiet]\n"
      "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place"},
     {"plant", hil::bench::cmd_plant,
-     "plant [--plant FILE] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml] [--period-ms 1]\n"
-     "      [--initial-mpa 1.0] [--duration-s S] [--rt-priority P]\n"
+     "plant [--plant FILE | --campaign CAMPAIGN.yaml] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml]\n"
+     "      [--period-ms 1] [--initial-mpa 1.0] [--duration-s S] [--rt-priority P] [--port-file F]\n"
      "      the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices"},
     {"characterise", hil::bench::cmd_characterise,
      "characterise [--readme README.md] [--campaigns DIR]\n"

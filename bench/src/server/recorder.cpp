@@ -62,6 +62,7 @@ nlohmann::json event_json(const LoopEvent& e) {
       } else if (e.trip == Trip::overruns) {
         j["overruns_in_a_row"] = num(e.a), j["limit"] = num(e.b);
       }
+      if (e.detail[0] != '\0') j["detail"] = std::string(e.detail.data());
       break;
     case K::safe_state:
       j["kind"] = "safe_state", j["source"] = "safety", j["theta_cmd_deg"] = num(rad_to_deg(e.a));

@@ -3,16 +3,65 @@
 #include <fstream>
 #include <sstream>
 
+#include "hil/bench/device_rig.hpp"
 #include "hil/bench/sim_rig.hpp"
 #include "hil/config.hpp"
 
 namespace hil::bench {
 namespace {
 
-const std::vector<std::string> kKinds = {"sim"};
+const std::vector<std::string> kKinds = {"sim", "can", "modbus", "hybrid"};
+
+// `{cia402: FILE | {...}}` and the like: a device's client configuration from its file (paths
+// relative to the rig file) or inline.
+template <class Config>
+Config device_config(const cfg::Node& n) {
+  if (n.is_scalar()) return Config::load(n.resolve_path(n.text()));
+  return Config::from_yaml(n);
+}
+
+std::chrono::microseconds max_age(const cfg::Node& device, std::chrono::milliseconds poll_period) {
+  const auto key = device.find("max_age_ms");
+  if (!key) return 2 * poll_period;  // two polls
+  key->require(key->number() > 0 && key->number() <= 60000, "must be > 0 and <= 60000 ms");
+  return std::chrono::microseconds(std::lround(key->number() * 1000));
+}
+
+RigDevices devices_from(const cfg::Node& root, const std::string& kind) {
+  RigDevices d;
+  if (kind == "sim") {
+    if (root.has("devices")) root.at("devices").fail("the sim rig has no devices (it simulates the drive and the transducer)");
+    return d;
+  }
+  const cfg::Node devices = root.at("devices");
+  devices.allow_keys({"drive", "transducer"});
+  const cfg::Node drive = devices.at("drive");
+  drive.allow_keys({"cia402", "modbus", "max_age_ms"});
+  if (drive.has("cia402") == drive.has("modbus")) drive.fail("needs one of cia402 (a CiA 402 drive on CAN) or modbus");
+  if (drive.has("cia402")) {
+    if (kind == "modbus") drive.at("cia402").fail("the modbus rig needs a Modbus drive (drive: {modbus: ...})");
+    if (drive.has("max_age_ms")) {
+      drive.at("max_age_ms").fail("a CAN drive's feedback is stale when no TPDO arrived since the last SYNC; no age limit to set");
+    }
+    d.can_drive = device_config<drv::Cia402Config>(drive.at("cia402"));
+  } else {
+    if (kind == "can") drive.at("modbus").fail("the can rig needs a CiA 402 drive (drive: {cia402: ...})");
+    d.modbus_drive = device_config<drv::ModbusDriveConfig>(drive.at("modbus"));
+    d.drive_max_age = max_age(drive, d.modbus_drive->link.poll_period);
+  }
+  if (kind == "hybrid") {
+    if (devices.has("transducer")) devices.at("transducer").fail("the hybrid rig simulates the chamber: its pressure comes from the plant, not a transducer");
+    return d;
+  }
+  const cfg::Node transducer = devices.at("transducer");
+  transducer.allow_keys({"modbus", "max_age_ms"});
+  d.transducer = device_config<drv::ModbusTransducerConfig>(transducer.at("modbus"));
+  d.transducer_max_age = max_age(transducer, d.transducer->link.poll_period);
+  return d;
+}
 
 RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
-  root.allow_keys({"kind", "description", "loop", "safety"});
+  root.allow_keys({"kind", "description", "devices", "loop", "safety"});
   RigConfig c;
   c.name = std::move(name);
   c.file = root.file();
@@ -21,9 +70,10 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
   if (std::find(kKinds.begin(), kKinds.end(), c.kind) == kKinds.end()) {
     const std::string hint = cfg::closest(c.kind, kKinds);
     root.at("kind").fail("unknown rig kind '" + c.kind + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
-                         "; this build knows: sim");
+                         "; this build knows: sim, can, modbus, hybrid");
   }
   c.description = root.text("description", "");
+  c.devices = devices_from(root, c.kind);
   if (const auto loop = root.find("loop")) c.loop = LoopConfig::from_yaml(*loop);
   c.safety = SafetyConfig::from_yaml(root.at("safety"));
   return c;
@@ -43,8 +93,11 @@ RigConfig load_rig_config_text(const std::string& yaml, const std::string& origi
   return from_node(cfg::Node::load_string(yaml, origin), std::filesystem::path(origin).stem().string(), yaml);
 }
 
-std::unique_ptr<Rig> make_rig(const RigConfig& config) {
+std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport) {
   if (config.kind == "sim") return std::make_unique<SimRig>();
+  if (config.kind == "can" || config.kind == "modbus" || config.kind == "hybrid") {
+    return std::make_unique<DeviceRig>(config, can_transport);
+  }
   throw std::invalid_argument(config.file.string() + ": rig kind '" + config.kind + "' is not built in");
 }
 

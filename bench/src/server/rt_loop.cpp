@@ -18,10 +18,12 @@ double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t
 }  // namespace
 
 LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us"});
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority"});
   LoopConfig c;
   c.priority = static_cast<int>(n.integer("priority", 80));
   if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
+  c.io_priority = static_cast<int>(n.integer("io_priority", 0));
+  if (n.has("io_priority")) n.at("io_priority").require(c.io_priority >= 0 && c.io_priority <= 99, "must be 0..99 (0 = normal scheduling)");
   c.cpu = static_cast<int>(n.integer("cpu", -1));
   if (n.has("cpu")) n.at("cpu").require(c.cpu >= -1 && c.cpu < 1024, "must be a CPU number, or -1 for no pinning");
   if (const auto o = n.find("overrun")) {
@@ -102,7 +104,7 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
       run_(run),
       controller_(run.controller),
       rig_(rig, now),
-      simulated_(rig.simulated()),
+      gap_to_rig_(rig.programmable_gap()),
       safety_(safety),
       loop_(loop),
       wall_period_(wall_period),
@@ -192,7 +194,14 @@ void RunLoop::enter_safe(Trip trip, double value, double limit, double t_s) noex
   trip_t_s_ = t_s;
   trip_value_ = value;
   trip_limit_ = limit;
-  emit({.kind = LoopEvent::Kind::trip, .trip = trip, .t_s = t_s, .a = value, .b = limit});
+  LoopEvent e{.kind = LoopEvent::Kind::trip, .trip = trip, .t_s = t_s, .a = value, .b = limit};
+  if (trip == Trip::rig_fault || trip == Trip::watchdog) {
+    const RigHealth h = rig_.rig().health();  // what the device says went wrong, for the event
+    static_assert(sizeof e.detail == sizeof h.last_error);
+    e.detail = h.last_error;
+    trip_detail_ = h.last_error;
+  }
+  emit(e);
 }
 
 void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept {
@@ -273,13 +282,14 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   }
 
   // Write (a drive that ignores commands keeps the one it had).
-  rig_.write(woke, wall_period_, {drive_fault_ ? drive_frozen_rad_ : cmd, true, simulated_ ? gap : kNaN});
+  rig_.write(woke, wall_period_, {drive_fault_ ? drive_frozen_rad_ : cmd, true, gap_to_rig_ ? gap : kNaN});
   last_sent_rad_ = cmd;
 
   if (missed) {
     flags |= kFlagReadMissed;
     ++missed_reads_;
   }
+  if (status == RigStatus::fault) flags |= kFlagDeviceFault;
   if (sensor_ != SensorFault::none) flags |= kFlagSensorFault;
   if (drive_fault_) flags |= kFlagDriveFault;
   if (rig_silent_) flags |= kFlagRigFault;
@@ -293,7 +303,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   r.theta_cmd_rad = cmd;
   r.theta_motor_rad = rd.theta_motor_rad;
   r.theta_valve_rad = rd.theta_valve_rad;
-  r.gap_true_rad = simulated_ ? gap : kNaN;
+  r.gap_true_rad = gap_to_rig_ ? gap : kNaN;
   r.gap_est_rad = out_.gap_est_rad;
   r.comp_rad = out_.comp_rad;
   r.touch = out_.touch_state;

@@ -71,6 +71,29 @@ CpuLatencyRequest::~CpuLatencyRequest() {
   if (fd_ >= 0) ::close(fd_);  // closing ends the request
 }
 
+ScopedRealtime::ScopedRealtime(int priority) {
+  if (priority <= 0) return;
+  sched_param old{};
+  pthread_getschedparam(pthread_self(), &policy_, &old);
+  priority_ = old.sched_priority;
+  sched_param sp{};
+  sp.sched_priority = priority;
+  const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  if (err == 0) {
+    changed_ = true;
+  } else {
+    warning_ = "SCHED_FIFO " + std::to_string(priority) + " for the I/O threads refused (" + std::strerror(err) +
+               "): they run on the normal scheduler";
+  }
+}
+
+ScopedRealtime::~ScopedRealtime() {
+  if (!changed_) return;
+  sched_param sp{};
+  sp.sched_priority = priority_;
+  pthread_setschedparam(pthread_self(), policy_, &sp);
+}
+
 void keep_off_cpu(int cpu) noexcept {
   if (cpu < 0) return;
   cpu_set_t set;

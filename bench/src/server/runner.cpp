@@ -68,7 +68,7 @@ std::string fmt(const char* format, double a, double b = 0, double c = 0) {
 }
 
 // The reason of a trip in the operator's words.
-std::string describe_trip(const RunLoop& loop, const Rig& rig) {
+std::string describe_trip(const RunLoop& loop) {
   const double t = loop.trip_t_s();
   switch (loop.trip()) {
     case Trip::overpressure:
@@ -80,7 +80,7 @@ std::string describe_trip(const RunLoop& loop, const Rig& rig) {
     case Trip::watchdog:
       return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t);
     case Trip::rig_fault:
-      return fmt("rig fault at t = %.3f s: ", t) + std::string(rig.health().last_error_text());
+      return fmt("rig fault at t = %.3f s: ", t) + std::string(loop.trip_detail());
     case Trip::overruns:
       return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
     case Trip::operator_abort:
@@ -125,7 +125,7 @@ int outcome_rank(const std::string& o) { return o == "completed" ? 0 : o == "sto
 
 struct CampaignRunner::Active {
   StartRequest req;
-  bool simulated = true;
+  bool simulated = true, programmable_gap = true;
   std::vector<const RunSpec*> runs;
   Clock::time_point started;
   SysClock::time_point started_utc;
@@ -181,7 +181,8 @@ void CampaignRunner::start(StartRequest request) {
     }
   }
   if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
-  const bool simulated = make_rig(request.rig)->simulated();
+  const auto probe = make_rig(request.rig, o_.can_transport);  // opens nothing: asks what the rig can do
+  const bool simulated = probe->simulated(), programmable_gap = probe->programmable_gap();
   if (!simulated && request.speed != 1.0) {
     throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
   }
@@ -194,6 +195,7 @@ void CampaignRunner::start(StartRequest request) {
   if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
   a->req = std::move(request);
   a->simulated = simulated;
+  a->programmable_gap = programmable_gap;
   for (const auto& r : a->req.campaign.runs) {
     if (a->req.runs.empty() || std::find(a->req.runs.begin(), a->req.runs.end(), r.name) != a->req.runs.end()) {
       a->runs.push_back(&r);
@@ -228,10 +230,14 @@ void CampaignRunner::inject(const LoopRequest& request) {
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
   if (!active_->requests) throw Conflict("no run is in its loop right now (between runs); try again");
-  const bool simulated = active_->simulated;
   using K = LoopRequest::Kind;
-  if (!simulated && (request.kind == K::set_gap || request.kind == K::programme_gap || request.kind == K::rig_fault)) {
-    throw std::invalid_argument("rig '" + active_->req.rig.name + "' is hardware: gap changes and rig faults need a simulated rig");
+  if (!active_->programmable_gap && (request.kind == K::set_gap || request.kind == K::programme_gap)) {
+    throw std::invalid_argument("rig '" + active_->req.rig.name + "' is hardware (" + active_->req.rig.kind +
+                                "): gap changes need a rig with a simulated valve (sim or hybrid)");
+  }
+  if (!active_->simulated && request.kind == K::rig_fault) {
+    throw std::invalid_argument("rig '" + active_->req.rig.name + "' has hardware (" + active_->req.rig.kind +
+                                "): rig faults are faked by the simulated rig only");
   }
   if (!active_->requests->try_push(request)) throw Conflict("the loop has not taken the previous requests yet; try again");
 }
@@ -293,11 +299,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                  {"rig_yaml", rc.yaml_text}}}};
   write_json_atomically(dir / "run.json", info);
 
-  std::unique_ptr<Rig> rig = make_rig(rc);
+  std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
   Recorder rec(dir,
                {{"source", "hilbench serve"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
                 {"start_utc", utc_iso(start_utc)}},
-               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->simulated(),
+               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->knows_truth(),
                rc.loop.cpu);
   rec.log({{"kind", "run_start"}, {"source", "bench"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
            {"speed", a.req.speed}});
@@ -364,12 +370,18 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       case LoopEnd::running:
         outcome = "aborted";
         reason = loop->trip() == Trip::operator_abort ? (a.abort_reason.empty() ? "operator abort" : a.abort_reason)
-                                                       : describe_trip(*loop, *rig);
+                                                       : describe_trip(*loop);
         break;
     }
     a.periods_done += loop->periods_run();
   }
-  if (loop) rig->deactivate();
+  json rig_health = nullptr;  // how the rig's devices ended the run (before they are switched off)
+  if (loop) {
+    const RigHealth h = rig->health();
+    rig_health = {{"connected", h.connected}, {"fault", h.fault}, {"reads", h.reads}, {"stale_reads", h.stale_reads},
+                  {"fault_reads", h.fault_reads}, {"reconnects", h.reconnects}, {"last_error", std::string(h.last_error_text())}};
+    rig->deactivate();
+  }
   cpu_latency.reset();
 
   const std::string write_error = rec.finish();
@@ -385,6 +397,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   info["outcome"] = outcome;
   info["reason"] = reason.empty() ? json(nullptr) : json(reason);
   info["trip"] = nullptr;
+  info["rig_health"] = rig_health;
   if (loop) {
     if (loop->trip() != Trip::none) {
       info["trip"] = {{"reason", to_string(loop->trip())}, {"t_s", loop->trip_t_s()},

@@ -45,8 +45,8 @@ struct RigReading {
 struct RigCommand {
   double theta_cmd_rad = 0;
   bool enable = true;
-  double gap_rad = kNaN;  // simulated rigs: the true backlash over this period (campaign
-                          // programme or operator override); hardware ignores it
+  double gap_rad = kNaN;  // rigs with programmable_gap(): the true backlash over this period
+                          // (campaign programme or operator override); NaN for the others
 };
 
 enum class RigStatus : std::uint8_t {
@@ -62,7 +62,8 @@ struct RigHealth {
   bool connected = false;
   bool fault = false;
   std::uint64_t reads = 0, stale_reads = 0, fault_reads = 0;
-  std::array<char, 160> last_error{};  // NUL-terminated
+  std::uint64_t reconnects = 0;  // links the clients reopened (Modbus reconnects, CAN bus-off recoveries)
+  std::array<char, 256> last_error{};  // NUL-terminated
 
   std::string_view last_error_text() const noexcept { return last_error.data(); }
   void set_last_error(std::string_view text) noexcept {
@@ -80,7 +81,7 @@ struct RigSetup {
   double gap_initial_rad = kNaN;       // the programmed gap at t = 0
 };
 
-// Faults a rig can fake on purpose (emulated rigs; hardware rigs refuse them).
+// Faults a rig can fake on purpose (simulated rigs; hardware rigs refuse them).
 enum class RigFault : std::uint8_t {
   silent,  // stop answering: reads are stale, commands are not received
 };
@@ -92,8 +93,15 @@ class Rig {
   Rig(const Rig&) = delete;
   Rig& operator=(const Rig&) = delete;
 
-  virtual std::string_view kind() const noexcept = 0;  // "sim", "cia402", "modbus"
+  virtual std::string_view kind() const noexcept = 0;  // "sim", "can", "modbus", "hybrid"
+  // What a rig can do, each on its own (a hybrid rig has real hardware, so it runs in real time,
+  // but a simulated valve, so it takes a programmed gap and knows the truth):
+  // no hardware in the loop: any speed, faults faked on purpose (RigFault).
   virtual bool simulated() const noexcept { return false; }
+  // RigCommand::gap_rad sets the true backlash (campaign programme, operator gap changes).
+  virtual bool programmable_gap() const noexcept { return false; }
+  // RigReading has the valve angle and the chamber pressure (the telemetry's truth columns).
+  virtual bool knows_truth() const noexcept { return false; }
 
   // Setup; may block and throw messages that name the device, key or register.
   virtual void configure(const RigSetup& setup) = 0;

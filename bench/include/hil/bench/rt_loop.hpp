@@ -39,6 +39,7 @@ struct LoopConfig {
   int overrun_abort_after = 10; // policy abort: this many overruns in a row trip the run
   int ring_rows = 65536;        // telemetry ring capacity (rows); the loss counter reports overflow
   int cpu_dma_latency_us = 0;   // PM QoS request while a loop runs; -1 = none
+  int io_priority = 0;          // SCHED_FIFO priority of the device clients' I/O threads; 0 = the normal scheduler
   static LoopConfig from_yaml(const cfg::Node& node);
 };
 
@@ -52,6 +53,7 @@ enum LoopFlag : std::uint32_t {
   kFlagCmdLimited = 1u << 5,    // an angle or rate limit changed the command
   kFlagSafeState = 1u << 6,
   kFlagOverrun = 1u << 7,       // this period ended after the next deadline
+  kFlagDeviceFault = 1u << 8,   // the rig reported a device or link fault (RigStatus::fault)
 };
 
 struct TelemetryRecord {
@@ -61,9 +63,9 @@ struct TelemetryRecord {
   std::uint32_t flags = 0;
 };
 
-// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags. A hardware rig has no
-// truth: its files leave out theta_valve_deg, gap_true_deg and p_chamber_mpa (with_truth false)
-// rather than fill them with nan. A period without a reading repeats the last one recorded, with
+// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags. A rig without the truth
+// (Rig::knows_truth false: the CAN and Modbus rigs) leaves out theta_valve_deg, gap_true_deg and
+// p_chamber_mpa (with_truth false) rather than fill them with nan. A period without a reading repeats the last one recorded, with
 // kFlagReadMissed set, so every row parses.
 inline constexpr std::size_t kLoopColumns = kSimColumns + 3;
 const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
@@ -106,6 +108,7 @@ struct LoopEvent {
   std::int64_t period = 0;
   double t_s = 0;
   double a = kNaN, b = kNaN;
+  std::array<char, 256> detail{};  // trip on a rig fault or the watchdog: the rig's last error (NUL-terminated)
 };
 
 enum class LoopEnd : std::uint8_t { running, completed, stopped, tripped };
@@ -158,6 +161,8 @@ class RunLoop {
   double trip_t_s() const noexcept { return trip_t_s_; }
   double trip_value() const noexcept { return trip_value_; }
   double trip_limit() const noexcept { return trip_limit_; }
+  // The rig's last error when a rig fault or the watchdog tripped ("" otherwise).
+  std::string_view trip_detail() const noexcept { return trip_detail_.data(); }
   std::uint64_t rows_pushed() const noexcept { return rows_pushed_; }
   std::uint64_t rows_lost() const noexcept { return rows_lost_; }
   std::uint64_t events_lost() const noexcept { return events_lost_; }
@@ -178,7 +183,7 @@ class RunLoop {
   const RunSpec& run_;
   const ctl::Controller controller_;
   TimedRig rig_;
-  const bool simulated_;
+  const bool gap_to_rig_;  // the rig takes the programmed gap (Rig::programmable_gap)
   Safety safety_;
   const LoopConfig loop_;
   const Clock::duration wall_period_;
@@ -210,6 +215,7 @@ class RunLoop {
   bool abort_requested_ = false, stop_requested_ = false, overrun_trip_ = false;
   Trip trip_ = Trip::none;
   double trip_t_s_ = kNaN, trip_value_ = kNaN, trip_limit_ = kNaN;
+  std::array<char, 256> trip_detail_{};
   LoopEnd end_ = LoopEnd::running;
   // Statistics and the period in progress.
   LatencyHistogram wake_latency_, compute_;

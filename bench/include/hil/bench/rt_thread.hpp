@@ -45,6 +45,24 @@ class CpuLatencyRequest {
   std::string warning_;
 };
 
+// While it lives, the calling thread runs SCHED_FIFO at `priority` (0: unchanged), so threads it
+// starts inherit that (the device clients' and emulators' I/O threads, which the library creates
+// without asking); the destructor restores the thread's own policy. Refused: a warning.
+class ScopedRealtime {
+ public:
+  explicit ScopedRealtime(int priority);
+  ~ScopedRealtime();
+  ScopedRealtime(const ScopedRealtime&) = delete;
+  ScopedRealtime& operator=(const ScopedRealtime&) = delete;
+  const std::string& warning() const { return warning_; }
+
+ private:
+  bool changed_ = false;
+  int policy_ = 0;
+  int priority_ = 0;
+  std::string warning_;
+};
+
 // Takes `cpu` out of the calling thread's affinity when other CPUs remain (helper threads keep
 // off the loop's CPU). -1: nothing. Setup; never throws.
 void keep_off_cpu(int cpu) noexcept;

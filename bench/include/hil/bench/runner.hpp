@@ -33,7 +33,7 @@ struct StartRequest {
   Campaign campaign;
   RigConfig rig;
   std::vector<std::string> runs;  // empty: all, in the campaign's order
-  double speed = 1.0;             // loop periods per dT of wall time; simulated rigs only
+  double speed = 1.0;             // loop periods per dT of wall time; simulated rigs (Rig::simulated) only
   std::string source;             // where the campaign came from ("configs/campaigns/x.yaml", "posted")
 };
 
@@ -43,6 +43,7 @@ struct RunnerOptions {
   std::string mlock_warning;      // what lock_memory() said at start ("" = memory locked)
   std::function<void(const TelemetryRecord&)> on_row;   // recorder thread, every row
   std::function<void(const nlohmann::json&)> on_notice; // run started / finished; any thread
+  drv::CanTransportFactory can_transport;  // the CAN rigs' bus; empty: SocketCAN (tests: a loopback bus)
 };
 
 class CampaignRunner {

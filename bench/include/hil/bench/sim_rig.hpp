@@ -17,6 +17,8 @@ class SimRig final : public Rig {
 
   std::string_view kind() const noexcept override { return "sim"; }
   bool simulated() const noexcept override { return true; }
+  bool programmable_gap() const noexcept override { return true; }
+  bool knows_truth() const noexcept override { return true; }
 
   // Builds the plant state from the campaign's seed and settles it at the reference and gap of t = 0.
   void configure(const RigSetup& setup) override;

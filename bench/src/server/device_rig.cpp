@@ -1,0 +1,229 @@
+#include "hil/bench/device_rig.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+#include <spdlog/spdlog.h>
+
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/rt_thread.hpp"
+#include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/modbus.hpp"
+
+namespace hil::bench {
+
+// The calls the rig makes of a drive client; Cia402Drive and ModbusDrive have them all.
+struct DeviceRig::DriveClient {
+  virtual ~DriveClient() = default;
+  virtual void configure() = 0;
+  virtual void activate() = 0;
+  virtual void deactivate() = 0;
+  virtual drv::DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept = 0;
+  virtual void write(Clock::time_point now, Clock::duration period, const drv::DriveCommand& command) noexcept = 0;
+  virtual drv::DeviceHealth health() const noexcept = 0;
+};
+
+template <class Client>
+struct DeviceRig::DriveClientOf final : DriveClient {
+  template <class... Args>
+  explicit DriveClientOf(Args&&... args) : client(std::forward<Args>(args)...) {}
+  void configure() override { client.configure(); }
+  void activate() override { client.activate(); }
+  void deactivate() override { client.deactivate(); }
+  drv::DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override { return client.read(now, period); }
+  void write(Clock::time_point now, Clock::duration period, const drv::DriveCommand& command) noexcept override {
+    client.write(now, period, command);
+  }
+  drv::DeviceHealth health() const noexcept override { return client.health(); }
+  Client client;
+};
+
+namespace {
+double ms(Clock::duration d) noexcept { return std::chrono::duration<double, std::milli>(d).count(); }
+}  // namespace
+
+DeviceRig::DeviceRig(const RigConfig& config, drv::CanTransportFactory can_transport)
+    : config_(config), can_transport_(std::move(can_transport)), kind_(config.kind), hybrid_(config.kind == "hybrid") {
+  if (!config_.devices.can_drive && !config_.devices.modbus_drive) {
+    throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no drive");
+  }
+  if (!hybrid_ && !config_.devices.transducer) {
+    throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no pressure transducer");
+  }
+}
+
+DeviceRig::~DeviceRig() = default;
+
+void DeviceRig::configure(const RigSetup& setup) {
+  if (!(setup.period_s > 0)) throw std::invalid_argument(kind_ + " rig: the period must be > 0");
+  active_ = false;
+  drive_.reset();
+  transducer_.reset();
+  period_s_ = setup.period_s;
+  const RigDevices& d = config_.devices;
+  // The clients' I/O threads answer the loop every period: they inherit this priority (and the
+  // runner thread's affinity, which keeps off the loop's CPU).
+  const ScopedRealtime io_sched(config_.loop.io_priority);
+  if (!io_sched.warning().empty()) spdlog::warn("{} rig '{}': {}", kind_, config_.name, io_sched.warning());
+  if (d.can_drive) {
+    // One SYNC per period, sent right after the loop's command: the TPDO that answers it is the
+    // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
+    drv::Cia402Config c = *d.can_drive;
+    c.sync_source = drv::Cia402Config::SyncSource::loop;
+    c.sync_period = std::chrono::microseconds(std::clamp<long>(std::lround(setup.period_s * 1e6), 100, 100000));
+    drive_ = std::make_unique<DriveClientOf<drv::Cia402Drive>>(std::move(c), can_transport_);
+  } else {
+    drive_ = std::make_unique<DriveClientOf<drv::ModbusDrive>>(*d.modbus_drive);
+  }
+  drive_->configure();
+  if (d.transducer) {
+    transducer_ = std::make_unique<drv::ModbusTransducer>(*d.transducer);
+    transducer_->configure();
+  }
+  offset_rad_ = 0;
+  if (hybrid_) {
+    if (setup.campaign == nullptr || !setup.campaign->plant) throw std::invalid_argument("hybrid rig: configure needs a campaign with a plant");
+    const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
+    if (!fb.valid || !std::isfinite(fb.position_rad)) throw std::runtime_error("hybrid rig: the drive reports no position after configure");
+    plant_ = setup.campaign->plant;
+    state_ = plant_->make_state(setup.campaign->seed);
+    plant_->settle(state_, setup.p_initial_pa, plant::kNaN, 0.0, setup.gap_initial_rad);
+    offset_rad_ = fb.position_rad - state_.s.theta_motor_rad;
+    motor_sim_rad_ = state_.s.theta_motor_rad;
+    cmd_sim_rad_ = state_.s.theta_cmd_rad;
+    gap_rad_ = setup.gap_initial_rad;
+    step_pending_ = false;
+  }
+  last_sync_ = {};
+  stale_ = Stale::none;
+  reads_ = stale_reads_ = fault_reads_ = 0;
+  deactivate_error_[0] = '\0';
+}
+
+void DeviceRig::activate() {
+  if (!drive_) throw std::logic_error(kind_ + " rig: activate before configure");
+  drive_->activate();
+  active_ = true;
+}
+
+void DeviceRig::deactivate() noexcept {
+  if (!active_ || !drive_) return;
+  active_ = false;
+  const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
+  if (fb.valid && !fb.enabled) return;  // already off (a drive in fault): nothing to wait for
+  try {
+    drive_->deactivate();
+  } catch (const std::exception& e) {
+    std::snprintf(deactivate_error_.data(), deactivate_error_.size(), "drive: deactivate: %s", e.what());
+  }
+}
+
+RigStatus DeviceRig::read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept {
+  fb = drive_->read(now, Clock::duration::zero());
+  if (fb.fault) return RigStatus::fault;
+  const bool fresh = config_.devices.can_drive ? fb.valid && (last_sync_ == Clock::time_point{} || fb.rx_time > last_sync_)
+                                               : fb.valid && now - fb.rx_time <= config_.devices.drive_max_age;
+  if (fresh) return RigStatus::ok;
+  stale_ = Stale::drive;
+  stale_age_ms_ = fb.valid ? ms(now - fb.rx_time) : -1;
+  return RigStatus::stale;
+}
+
+RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigReading& out) noexcept {
+  ++reads_;
+  if (!active_ || !drive_) {
+    ++fault_reads_;
+    return RigStatus::fault;
+  }
+  drv::DriveFeedback fb;
+  RigStatus status = read_drive(now, fb);
+  if (fb.valid) motor_sim_rad_ = fb.position_rad - offset_rad_;
+  out.theta_motor_rad = motor_sim_rad_;
+  if (hybrid_) {
+    // The physics goes on with the newest encoder angle whether or not it is fresh.
+    if (step_pending_) plant_->step(state_, {cmd_sim_rad_, motor_sim_rad_, gap_rad_}, period_s_);
+    step_pending_ = false;
+    out.p_meas_pa = state_.s.p_meas_pa;
+    out.theta_valve_rad = state_.s.theta_valve_rad;
+    out.p_chamber_pa = state_.s.p_chamber_pa;
+  } else {
+    const drv::PressureReading p = transducer_->read(now, period);
+    out.p_meas_pa = p.pressure_pa;
+    RigStatus ps = RigStatus::ok;
+    if (p.fault) {
+      ps = RigStatus::fault;
+    } else if (!p.valid || now - p.rx_time > config_.devices.transducer_max_age) {
+      ps = RigStatus::stale;
+      if (status == RigStatus::ok) {
+        stale_ = Stale::transducer;
+        stale_age_ms_ = p.valid ? ms(now - p.rx_time) : -1;
+      }
+    }
+    status = std::max(status, ps);  // ok < stale < fault
+  }
+  if (status == RigStatus::ok) stale_ = Stale::none;
+  if (status == RigStatus::stale) ++stale_reads_;
+  if (status == RigStatus::fault) ++fault_reads_;
+  return status;
+}
+
+RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const RigCommand& command) noexcept {
+  if (!active_ || !drive_) return RigStatus::fault;
+  if (hybrid_) {
+    cmd_sim_rad_ = command.theta_cmd_rad;
+    gap_rad_ = command.gap_rad;
+    step_pending_ = true;
+  }
+  if (config_.devices.can_drive) last_sync_ = Clock::now();  // before the SYNC this write triggers
+  drive_->write(now, period, {command.theta_cmd_rad + offset_rad_, command.enable, false});
+  return RigStatus::ok;
+}
+
+RigHealth DeviceRig::health() const noexcept {
+  RigHealth h;
+  h.reads = reads_;
+  h.stale_reads = stale_reads_;
+  h.fault_reads = fault_reads_;
+  if (!drive_) {
+    h.fault = true;
+    char text[64];
+    std::snprintf(text, sizeof text, "%s rig: not configured", kind_.c_str());
+    h.set_last_error(text);
+    return h;
+  }
+  const drv::DeviceHealth d = drive_->health();
+  drv::DeviceHealth t;
+  if (transducer_) t = transducer_->health();
+  h.connected = active_ && d.connected && (!transducer_ || t.connected);
+  h.reconnects = d.reconnects + t.reconnects;
+  h.fault = !active_ || d.fault || (transducer_ && t.fault);
+  char text[256];
+  text[0] = '\0';
+  if (d.fault && d.last_emcy_code != 0) {  // the newest error may be "drive entered fault": name the EMCY too
+    std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
+  } else if (d.fault) {
+    std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+  } else if (transducer_ && t.fault) {
+    std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
+  } else if (stale_ == Stale::drive && config_.devices.can_drive) {
+    std::snprintf(text, sizeof text, "drive: no TPDO since the last SYNC (newest %.1f ms old)", stale_age_ms_);
+  } else if (stale_ == Stale::drive) {
+    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)", stale_age_ms_,
+                  ms(config_.devices.drive_max_age));
+  } else if (stale_ == Stale::transducer) {
+    std::snprintf(text, sizeof text, "transducer: newest reading %.1f ms old (limit %.1f ms)", stale_age_ms_,
+                  ms(config_.devices.transducer_max_age));
+  } else if (deactivate_error_[0] != '\0') {
+    std::snprintf(text, sizeof text, "%s", deactivate_error_.data());
+  } else if (d.last_error[0] != '\0') {
+    std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+  } else if (transducer_ && t.last_error[0] != '\0') {
+    std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
+  }
+  h.set_last_error(text);
+  return h;
+}
+
+}  // namespace hil::bench
