@@ -8,11 +8,14 @@
 
 namespace hil::test {
 inline std::atomic<long> g_allocations{0};
+inline thread_local long t_allocations = 0;  // this thread's: other threads (I/O, emulators) may allocate
 inline long allocations() { return g_allocations.load(); }
+inline long thread_allocations() { return t_allocations; }
 }  // namespace hil::test
 
 void* operator new(std::size_t n) {
   hil::test::g_allocations.fetch_add(1, std::memory_order_relaxed);
+  ++hil::test::t_allocations;
   if (void* p = std::malloc(n ? n : 1)) return p;
   throw std::bad_alloc();
 }

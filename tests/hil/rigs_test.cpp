@@ -1,0 +1,235 @@
+// The CAN, Modbus and hybrid rigs against the simulator side in this process: the CAN drive on
+// the in-process loopback bus, the Modbus drive and transducer over TCP on 127.0.0.1. Rig files,
+// the capability split, freshness, no allocation in read/write, and paper_adaptive at 1 kHz
+// through the CAN rig next to the pure simulation. The fault tests are in rig_faults_test.cpp,
+// the same on a real vcan0 in vcan_rigs_test.cpp.
+#include <gtest/gtest.h>
+
+#include "alloc_counter.hpp"
+#include "hil/bench/device_rig.hpp"
+#include "hil/bench/sim_rig.hpp"
+#include "hil/drv/can_loopback.hpp"
+#include "hil/drv/servo_test_model.hpp"
+#include "hil/units.hpp"
+#include "hil_chain.hpp"
+
+using namespace hil;
+using namespace hil::test;
+using bench::Clock;
+
+namespace {
+
+std::string config_error(const std::string& yaml) {
+  TempDir dir;
+  try {
+    bench::load_rig_config(dir.write("rigs/bad.yaml", yaml));
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+const std::string kSafety = "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 100, p_max_mpa: 2.5, p_min_mpa: 0.2}\n";
+
+}  // namespace
+
+TEST(RigConfig, ShippedRigFilesLoad) {
+  for (const char* name : {"sim", "can", "modbus", "hybrid"}) {
+    const auto rc = bench::load_rig_config(source_path(std::string("configs/rigs/") + name + ".yaml"));
+    EXPECT_EQ(rc.kind, name);
+    EXPECT_FALSE(rc.description.empty());
+  }
+  const auto can = bench::load_rig_config(source_path("configs/rigs/can.yaml"));
+  ASSERT_TRUE(can.devices.can_drive && can.devices.transducer);
+  EXPECT_EQ(can.devices.can_drive->node_id, 5);
+  EXPECT_EQ(can.devices.transducer->link.port, 1503);
+  EXPECT_EQ(can.devices.transducer_max_age, std::chrono::milliseconds(4));
+  const auto modbus = bench::load_rig_config(source_path("configs/rigs/modbus.yaml"));
+  ASSERT_TRUE(modbus.devices.modbus_drive && modbus.devices.transducer);
+  EXPECT_EQ(modbus.devices.modbus_drive->link.port, 1502);
+  const auto hybrid = bench::load_rig_config(source_path("configs/rigs/hybrid.yaml"));
+  EXPECT_TRUE(hybrid.devices.can_drive && !hybrid.devices.transducer);
+}
+
+TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
+  TempDir dir;
+  const auto rc = bench::load_rig_config(dir.write("rigs/m.yaml",
+      "kind: modbus\ndevices:\n  drive:\n    modbus: " + source_path("drivers/configs/modbus_drive.yaml").string() +
+      "\n  transducer:\n    modbus: " + source_path("drivers/configs/modbus_transducer.yaml").string() + "\n" + kSafety));
+  EXPECT_EQ(rc.devices.drive_max_age, std::chrono::milliseconds(4));       // polls every 2 ms
+  EXPECT_EQ(rc.devices.transducer_max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
+}
+
+TEST(RigConfig, ErrorsNameFileLineAndKey) {
+  const std::string drive = source_path("drivers/configs/cia402_drive.yaml").string();
+  const std::string mdrive = source_path("drivers/configs/modbus_drive.yaml").string();
+  const std::string pg = source_path("drivers/configs/modbus_transducer.yaml").string();
+  auto has = [](const std::string& what, const std::string& part) {
+    EXPECT_NE(what.find(part), std::string::npos) << what;
+  };
+  std::string e = config_error("kind: cann\n" + kSafety);
+  has(e, "bad.yaml:1:");
+  has(e, "did you mean 'can'");
+  e = config_error("kind: can\n" + kSafety);
+  has(e, "devices");
+  e = config_error("kind: modbus\ndevices:\n  drive:\n    cia402: " + drive + "\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  has(e, "bad.yaml:4:");
+  has(e, "devices.drive.cia402");
+  has(e, "needs a Modbus drive");
+  e = config_error("kind: can\ndevices:\n  drive:\n    cia402: " + drive + "\n    max_age_ms: 3\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  has(e, "bad.yaml:5:");
+  has(e, "no TPDO arrived since the last SYNC");
+  e = config_error("kind: hybrid\ndevices:\n  drive:\n    modbus: " + mdrive + "\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  has(e, "devices.transducer");
+  has(e, "simulates the chamber");
+  e = config_error("kind: can\ndevices:\n  drive:\n    cia402: " + drive + "\n  transducr:\n    modbus: " + pg + "\n" + kSafety);
+  has(e, "did you mean 'transducer'");
+  e = config_error("kind: sim\ndevices: {}\n" + kSafety);
+  has(e, "the sim rig has no devices");
+  // An error inside an inline client configuration names the rig file and the key path.
+  e = config_error("kind: hybrid\ndevices:\n  drive:\n    cia402: {interface: vcan0, node_id: 300}\n" + kSafety);
+  has(e, "bad.yaml:4:");
+  has(e, "node_id");
+  // ... and inside a client's own file, that file.
+  TempDir dir;
+  const auto bad_drive = dir.write("drive.yaml", "cia402_drive:\n  interface: vcan0\n  node_id: 5\n  sync_source: bus\n");
+  e = config_error("kind: hybrid\ndevices:\n  drive:\n    cia402: " + bad_drive.string() + "\n" + kSafety);
+  has(e, "drive.yaml:4:");
+  has(e, "sync_source");
+}
+
+// The capabilities each rig kind has, and what the runner refuses because of them.
+TEST(RigCapabilities, SplitByWhatTheRigHas) {
+  bench::SimRig sim;
+  EXPECT_TRUE(sim.simulated() && sim.programmable_gap() && sim.knows_truth());
+  for (const char* kind : {"can", "modbus", "hybrid"}) {
+    const auto rig = bench::make_rig(bench::load_rig_config(source_path(std::string("configs/rigs/") + kind + ".yaml")));
+    const bool hybrid = std::string(kind) == "hybrid";
+    EXPECT_EQ(rig->kind(), kind);
+    EXPECT_FALSE(rig->simulated()) << kind;  // real hardware: real time only
+    EXPECT_EQ(rig->programmable_gap(), hybrid) << kind;
+    EXPECT_EQ(rig->knows_truth(), hybrid) << kind;
+    bench::RigReading rd;
+    EXPECT_EQ(rig->read(Clock::now(), 1ms, rd), bench::RigStatus::fault);  // not configured: opens nothing before
+    EXPECT_NE(rig->health().last_error_text().find("not configured"), std::string_view::npos);
+  }
+  bench::CampaignRunner runner({.runs_dir = TempDir().path()});
+  bench::StartRequest r;
+  r.campaign = short_paper_campaign(1);
+  r.rig = bench::load_rig_config(source_path("configs/rigs/hybrid.yaml"));
+  r.speed = 2;
+  try {
+    runner.start(r);
+    ADD_FAILURE() << "speed 2 on a hybrid rig";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("speed other than 1 needs a simulated rig"), std::string::npos) << e.what();
+  }
+}
+
+// No allocation in read/write/health on the loop's thread, for each kind (the clients' I/O
+// threads and the emulators allocate on their own threads, so the count is this thread's).
+TEST(DeviceRig, ReadWriteHealthDoNotAllocate) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  for (const std::string kind : {"can", "modbus", "hybrid"}) {
+    const std::string text = kind == "can" ? can_rig_yaml(side)
+                             : kind == "modbus" ? modbus_rig_yaml(side)
+                                                : rig_yaml("hybrid", can_drive_yaml(), "");
+    TempDir dir;
+    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/r.yaml", text)), bus.factory());
+    rig.configure({&campaign, campaign.period_s, campaign.reference_pa.at(0.0), campaign.gap_rad.at(0.0)});
+    rig.activate();
+    bench::RigReading rd;
+    long ok = 0;
+    const long before = thread_allocations();
+    auto next = Clock::now();
+    for (int k = 0; k < 300; ++k) {
+      next += 1ms;
+      std::this_thread::sleep_until(next);
+      const auto now = Clock::now();
+      ok += rig.read(now, 1ms, rd) == bench::RigStatus::ok;
+      rig.write(now, 1ms, {rd.theta_motor_rad + (k % 2 ? 1e-3 : -1e-3), true, kind == "hybrid" ? 0.02 : bench::kNaN});
+      (void)rig.health();
+    }
+    EXPECT_EQ(thread_allocations() - before, 0) << kind;
+    EXPECT_GT(ok, 200) << kind << ": " << rig.health().last_error_text();
+    EXPECT_TRUE(std::isfinite(rd.p_meas_pa)) << kind;
+    EXPECT_EQ(std::isfinite(rd.theta_valve_rad), kind == "hybrid") << kind;
+    rig.deactivate();
+  }
+}
+
+// Freshness as each rig defines it: CAN, no TPDO since the last SYNC; Modbus, older than the limit.
+TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, int periods) {
+    bench::RigReading rd;
+    for (int k = 0; k < periods; ++k) {
+      std::this_thread::sleep_for(1ms);
+      const auto s = rig.read(Clock::now(), 1ms, rd);
+      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad, true, bench::kNaN});
+      if (s == want) return true;
+    }
+    return false;
+  };
+  {
+    TempDir dir;
+    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
+    rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+    rig.activate();
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 100));
+    side.can.set_silent(true);
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale, 50));
+    EXPECT_NE(rig.health().last_error_text().find("drive: no TPDO since the last SYNC"), std::string_view::npos)
+        << rig.health().last_error_text();
+    side.can.set_silent(false);
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 2000)) << rig.health().last_error_text();
+  }
+  {
+    TempDir dir;
+    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+    rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+    rig.activate();
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 100));
+    side.transducer.set_response_delay(20ms);  // answers, but late: every reading is too old
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale, 200));
+    EXPECT_NE(rig.health().last_error_text().find("transducer: newest reading"), std::string_view::npos)
+        << rig.health().last_error_text();
+    EXPECT_NE(rig.health().last_error_text().find("(limit 4.0 ms)"), std::string_view::npos) << rig.health().last_error_text();
+    side.transducer.set_response_delay(0us);
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 2000)) << rig.health().last_error_text();
+    rig.deactivate();
+  }
+}
+
+// The acceptance run on the CAN rig at 1 kHz, in this process on the loopback bus: paper_adaptive's
+// adaptive run (18 s) through CampaignRunner, with the plant behind the CiA 402 emulator and the
+// Modbus transducer, gives the pure simulation's pressure trace within 2 % of the pressure range
+// RMS. (The same through `hilbench serve` on a real vcan0 is in vcan_rigs_test.cpp.)
+TEST(CanRig, PaperAdaptiveAt1kHzMatchesTheSimulation) {
+  const auto& campaign = paper_adaptive_campaign();
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  Bench b(bus.factory());
+  b.start(campaign, can_rig_yaml(side));
+  const json last = b.finish(60s);
+  const auto runs = b.runs();
+  ASSERT_EQ(runs.size(), 1u);
+  const RunFiles f(runs[0]);
+  EXPECT_EQ(last["outcome"], "completed") << last.dump(2) << "\n" << f.run.dump(2);
+  ASSERT_EQ(f.csv.rows(), 18000u);
+  EXPECT_FALSE(f.has_column("gap_true_deg"));  // no truth on a hardware rig
+  EXPECT_EQ(f.run["telemetry"]["rows_lost"], 0);
+  long missed = 0;
+  for (std::size_t i = 0; i < f.csv.rows(); ++i) missed += (f.flags(i) & kFlagReadMissed) != 0;
+  const TraceDiff d = compare_with_simulation(campaign, "adaptive", f.csv);
+  std::printf("CAN rig (loopback, 1 kHz): pressure RMS difference to the simulation %.2f kPa = %.2f %% of the %.2f MPa range "
+              "(max %.1f kPa); stale periods %ld of %zu; wake p99 %.1f us; rig read p99 %.2f us\n",
+              d.rms_mpa * 1e3, d.percent, d.range_mpa, d.max_abs_mpa * 1e3, missed, f.csv.rows(),
+              f.run["loop"]["wake_latency_us"]["p99_us"].get<double>(), f.run["loop"]["rig_read_us"]["p99_us"].get<double>());
+  EXPECT_LT(d.percent, 2.0);
+  EXPECT_EQ(f.run["rig"]["kind"], "can");
+}
