@@ -208,7 +208,7 @@ class Bench {
 // What a run left on disk, every telemetry row parsed strictly.
 struct RunFiles {
   explicit RunFiles(const std::filesystem::path& d, bool truth = false) : dir(d) {
-    if (getenv("HIL_KEEP_RUN")) std::filesystem::copy(d, getenv("HIL_KEEP_RUN"), std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
+    if (getenv("HIL_KEEP_RUN")) std::filesystem::copy(d, std::filesystem::path(getenv("HIL_KEEP_RUN")) / d.filename(), std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
     std::ifstream in(d / "run.json");
     run = json::parse(in);
     std::ifstream ev(d / "events.jsonl");
