@@ -72,7 +72,7 @@ class ServerProcess {
     for (auto& a : extra) argv.push_back(std::move(a));
     if (!token_.empty()) argv.insert(argv.end(), {"--token", token_});
     pid_ = spawn(argv, log_);
-    for (int i = 0; i < 1000 && !std::filesystem::exists(dir_.path() / "port"); ++i) {
+    for (int i = 0; i < 6000 && !std::filesystem::exists(dir_.path() / "port"); ++i) {  // 60 s: the vcan VM is slow to start
       if (const auto rc = wait_exit(pid_, std::chrono::milliseconds(10))) {
         pid_ = 0;
         throw std::runtime_error("hilbench serve exited with " + std::to_string(*rc) + ":\n" + slurp(log_));
