@@ -23,7 +23,10 @@ class PlantProcess {
     log_ = dir / "plant.log";
     port_file_ = dir / "plant_ports.json";
     std::vector<std::string> argv = {hilbench_exe(), "plant", "--campaign", campaign.string(), "--port-file",
-                                     port_file_.string(), "--rt-priority", "75", "--quiet"};
+                                     port_file_.string(), "--rt-priority", "75", "--quiet",
+                                     "--can-config", source_path("drivers/configs/cia402_emulator.yaml").string(),
+                                     "--drive-map", source_path("drivers/configs/modbus_drive_map.yaml").string(),
+                                     "--transducer-map", source_path("drivers/configs/modbus_transducer_map.yaml").string()};
     argv.insert(argv.end(), devices.begin(), devices.end());
     pid_ = spawn(argv, log_);
     for (int i = 0; i < 6000 && !std::filesystem::exists(port_file_); ++i) {  // 60 s: the VM is slow to start
@@ -83,8 +86,13 @@ inline ServeResult serve_paper_adaptive(double period_ms, const std::vector<std:
   const auto api = server.client();
   const auto started = api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "e2e"}, {"runs", {"adaptive"}}});
   EXPECT_EQ(started.status, 202) << started.body;
-  const auto s = wait_status(api, [](const nlohmann::json& x) { return x["state"] == "idle"; },
-                             std::chrono::seconds(static_cast<long>(campaign.duration_s * 3 + 60)));
+  // Polled slowly: in the VM every status request costs the loop's CPUs milliseconds.
+  nlohmann::json s;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(static_cast<long>(campaign.duration_s * 3 + 60));
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    s = api.get("/api/status").json();
+  } while (s["state"] != "idle" && std::chrono::steady_clock::now() < until);
   EXPECT_EQ(s["state"], "idle") << s.dump(2);
   EXPECT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
   const RunFiles f(only_run(server.runs_dir()));

@@ -2,11 +2,12 @@
 # Runs a test binary on a real vcan0. Where the kernel has CAN and we are root, directly on the
 # host; otherwise inside a small qemu VM booted from Debian's own kernel (shared/docs/vcan-in-qemu.md).
 #
-#   run-on-vcan.sh [--cache DIR] [--file PATH]... [--timeout S] [--mode auto|host|vm] -- BINARY [ARGS...]
+#   run-on-vcan.sh [--cache DIR] [--file PATH]... [--binary PATH]... [--timeout S] [--mode auto|host|vm] -- BINARY [ARGS...]
 #
 # --cache   where the Debian kernel and CAN modules are kept between runs (under the build dir;
 #           never committed). Default: $HIL_VCAN_CACHE or ./vcan-cache.
 # --file    an extra file or folder packed into the VM at the same absolute path (configs, scripts).
+# --binary  an extra program the test starts (e.g. hilbench), packed with every library ldd lists.
 # --timeout seconds before the VM is killed (default 600).
 # The binary's exit code decides on the host; in the VM the marker line "HIL-VCAN-RESULT rc=N"
 # printed by /init decides, and the inner output is printed as it comes.
@@ -16,10 +17,12 @@ cache="${HIL_VCAN_CACHE:-$PWD/vcan-cache}"
 mode="${HIL_VCAN_MODE:-auto}"
 timeout_s=600
 extra=()
+binaries=()
 while (($#)); do
   case "$1" in
     --cache) cache="$2"; shift 2 ;;
     --file) extra+=("$2"); shift 2 ;;
+    --binary) binaries+=("$(readlink -f "$2")"); shift 2 ;;
     --timeout) timeout_s="$2"; shift 2 ;;
     --mode) mode="$2"; shift 2 ;;
     --) shift; break ;;
@@ -92,7 +95,7 @@ add_binary() {
   while read -r lib; do add_file "$lib"; done < <(ldd "$1" 2>/dev/null | grep -o '/[^ ]*' || true)
 }
 cp /bin/busybox "$root/bin/busybox"
-for b in "$binary" "$(command -v ip)" "$(command -v candump)" "$(command -v cansend)" "$(command -v cangen)"; do
+for b in "$binary" "${binaries[@]}" "$(command -v ip)" "$(command -v candump)" "$(command -v cansend)" "$(command -v cangen)"; do
   add_binary "$b"
 done
 for f in "${extra[@]}"; do
