@@ -1,6 +1,6 @@
 // An hour at 1 kHz (3.6 M rows, ~160 MB): compare streams it with bounded memory and a progress
 // line, and a dropout in a log does not break the replay. Timing is asserted loosely (the machine
-// is shared); analysis/BENCHMARKS.md has the measured numbers.
+// is shared); docs/benchmarks.md has the measured numbers.
 #include <gtest/gtest.h>
 
 #include <chrono>
