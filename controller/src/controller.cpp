@@ -42,8 +42,7 @@ ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa
   s.motor_model_rad = theta_cmd_rad;
   s.gap_pos_rad = touch * s.gap_est_rad / 2;
   s.paper = paper_.initial_state(touch, p_meas_pa);
-  s.robust = robust_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad,
-                                   p_.chamber.time_constant_s(p_meas_pa, s.volume_m3));
+  s.robust = robust_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad);
   return s;
 }
 

@@ -98,34 +98,30 @@ double RobustObserver::p_eq_noise_pa(double tau_s) const noexcept {
 }
 
 RobustObserverState RobustObserver::initial_state(int touch, double theta_cmd_rad, double p_meas_pa,
-                                                  double theta_motor_rad, double tau_s) const noexcept {
+                                                  double theta_motor_rad) const noexcept {
   RobustObserverState s;
   s.int_cmd_rad = s.int_extreme_rad = theta_cmd_rad;
   s.intention = touch;
   s.p_prev_pa = s.p_lp1 = s.p_lp2 = p_meas_pa;
-  s.m_lp1 = s.m_lp2 = theta_motor_rad;
   s.p_eq_pa = s.p_eq_slow_pa = p_meas_pa;
   s.err_lp = 0;
   s.touch = touch;
   s.extreme_flank = touch;
   s.motor_extreme_valid = touch != 0;
   s.motor_extreme_rad = theta_motor_rad;
-  (void)tau_s;
   return s;
 }
 
 ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInputs& in) const noexcept {
   ObserverOutputs out;
-  // Filters: pressure, its derivative and the motor angle through the same two stages.
+  // Filters: pressure and its derivative through the same two stages.
   const double dpdt = (in.p_meas_pa - s.p_prev_pa) / p_.period_s;
   s.p_prev_pa = in.p_meas_pa;
   s.p_lp1 += alpha_ * (in.p_meas_pa - s.p_lp1);
   s.p_lp2 += alpha_ * (s.p_lp1 - s.p_lp2);
   s.d_lp1 += alpha_ * (dpdt - s.d_lp1);
   s.d_lp2 += alpha_ * (s.d_lp1 - s.d_lp2);
-  s.m_lp1 += alpha_ * (in.theta_motor_rad - s.m_lp1);
   s.err_lp += alpha_ * (in.error_pa - s.err_lp);
-  s.m_lp2 += alpha_ * (s.m_lp1 - s.m_lp2);
   const double tau = in.tau_s * p_.time_constant_scale;
   s.p_eq_pa = s.p_lp2 + tau * s.d_lp2;
   // The fit's valve angle: the chamber equation inverted for the throat area (no linearisation).

@@ -17,7 +17,7 @@ struct Rig {
   RobustObserverState s;
   std::mt19937 rng{42};
   std::normal_distribution<double> noise{0, 2000};  // the nominal transducer
-  Rig(int touch, double p0) { s = obs.initial_state(touch, 0.2, p0, 0.2, kTau); }
+  Rig(int touch, double p0) { s = obs.initial_state(touch, 0.2, p0, 0.2); }
   ObserverOutputs step(double p_true, double p_ref, double motor = 0.2) {
     const double p = p_true + noise(rng);
     const double ki = 1.29e-6;  // rad/(Pa s), ~74 deg/(MPa s)

@@ -114,7 +114,6 @@ struct RobustObserverState {
   double p_prev_pa = 0;
   double p_lp1 = 0, p_lp2 = 0;  // pressure
   double d_lp1 = 0, d_lp2 = 0;  // pressure derivative, Pa/s
-  double m_lp1 = 0, m_lp2 = 0;  // motor angle, filtered like the pressure so both lag alike
   double err_lp = 0;            // low-passed pressure error, Pa
   double p_eq_pa = 0;
   double p_eq_slow_pa = 0;      // P_eq smoothed further: the hold level tracks its extreme
@@ -140,7 +139,7 @@ class RobustObserver {
  public:
   RobustObserver(const RobustObserverParams& params, const ChamberModel& chamber);
   RobustObserverState initial_state(int touch, double theta_cmd_rad, double p_meas_pa,
-                                    double theta_motor_rad, double tau_s) const noexcept;
+                                    double theta_motor_rad) const noexcept;
   ObserverOutputs step(RobustObserverState& s, const ObserverInputs& in) const noexcept;
   // Standard deviation of P_eq caused by the transducer noise, for a given tau.
   double p_eq_noise_pa(double tau_s) const noexcept;
