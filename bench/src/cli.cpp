@@ -1,10 +1,26 @@
 #include "cli.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 
 #include "hil/config.hpp"
 
 namespace hil::bench {
+
+double parse_number(const std::string& text, const std::string& what) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) {
+    throw UsageError(what + " needs a number, got '" + text + "'");
+  }
+  return v;
+}
+
+double Args::number(const std::string& name, double fallback) const {
+  const auto it = options.find(name);
+  return it == options.end() ? fallback : parse_number(it->second, "--" + name);
+}
 
 Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
                 const std::vector<std::string>& switch_options) {

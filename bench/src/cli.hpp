@@ -24,7 +24,12 @@ struct Args {
     const auto it = options.find(name);
     return it == options.end() ? fallback : it->second;
   }
+  // Option --name as a number, or `fallback` when absent.
+  double number(const std::string& name, double fallback) const;
 };
+
+// `text` as a number; a UsageError naming `what` ("--period-ms", "gap") when it is not one.
+double parse_number(const std::string& text, const std::string& what);
 
 Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
                 const std::vector<std::string>& switch_options);

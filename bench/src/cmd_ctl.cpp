@@ -174,17 +174,6 @@ std::string read_file(const std::string& path) {
   return ss.str();
 }
 
-double parse_number(const std::string& s, const char* what) {
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(s, &used);
-    if (used != s.size()) throw std::invalid_argument(s);
-    return v;
-  } catch (const std::exception&) {
-    throw UsageError(std::string(what) + " must be a number, got '" + s + "'");
-  }
-}
-
 }  // namespace
 
 int cmd_ctl(const std::vector<std::string>& argv) {

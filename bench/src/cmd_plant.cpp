@@ -30,15 +30,6 @@ namespace {
 std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) { g_stop = true; }
 
-double number(const Args& args, const std::string& name, double fallback) {
-  const std::string v = args.option(name, "");
-  if (v.empty()) return fallback;
-  char* end = nullptr;
-  const double d = std::strtod(v.c_str(), &end);
-  if (end == v.c_str() || *end != '\0') throw UsageError("--" + name + " needs a number, got '" + v + "'");
-  return d;
-}
-
 // "tcp:HOST:PORT" -> link config.
 drv::ModbusLinkConfig tcp_link(const std::string& spec) {
   const auto a = spec.find(':'), b = spec.rfind(':');
@@ -78,11 +69,11 @@ int cmd_plant(const std::vector<std::string>& argv) {
   } else {
     config.plant = std::make_shared<const plant::Plant>(plant::Plant::load(plant_name));
   }
-  config.period_s = number(args, "period-ms", config.period_s * 1e3) * 1e-3;
-  config.p_initial_pa = units::mpa_to_pa(number(args, "initial-mpa", units::pa_to_mpa(config.p_initial_pa)));
-  config.seed = static_cast<std::uint64_t>(number(args, "seed", static_cast<double>(config.seed)));
-  config.rt_priority = static_cast<int>(number(args, "rt-priority", 0));
-  config.cpu = static_cast<int>(number(args, "cpu", -1));
+  config.period_s = args.number("period-ms", config.period_s * 1e3) * 1e-3;
+  config.p_initial_pa = units::mpa_to_pa(args.number("initial-mpa", units::pa_to_mpa(config.p_initial_pa)));
+  config.seed = static_cast<std::uint64_t>(args.number("seed", static_cast<double>(config.seed)));
+  config.rt_priority = static_cast<int>(args.number("rt-priority", 0));
+  config.cpu = static_cast<int>(args.number("cpu", -1));
   if (args.options.count("gap-program")) config.gap_program = load_campaign(args.option("gap-program", "")).gap_rad;
   const double config_period_ms = config.period_s * 1e3;
   PlantService service(std::move(config));
@@ -90,7 +81,7 @@ int cmd_plant(const std::vector<std::string>& argv) {
   // Emulators, each on its own thread, all backed by the one plant. With --rt-priority their
   // threads run SCHED_FIFO too (they inherit it from this thread while it lasts), so they answer
   // at once, as a device would.
-  std::optional<ScopedRealtime> io_sched(std::in_place, static_cast<int>(number(args, "rt-priority", 0)));
+  std::optional<ScopedRealtime> io_sched(std::in_place, static_cast<int>(args.number("rt-priority", 0)));
   if (!io_sched->warning().empty()) std::fprintf(stderr, "plant: %s\n", io_sched->warning().c_str());
   std::unique_ptr<drv::Cia402DriveEmulator> can;
   std::unique_ptr<drv::ModbusDriveEmulator> mb_drive;
@@ -98,7 +89,7 @@ int cmd_plant(const std::vector<std::string>& argv) {
   if (args.options.count("can")) {
     auto cfg = drv::Cia402EmulatorConfig::load(args.option("can-config", "drivers/configs/cia402_emulator.yaml"));
     cfg.interface = args.option("can", "vcan0");
-    if (args.options.count("node-id")) cfg.node_id = static_cast<std::uint8_t>(number(args, "node-id", 1));
+    if (args.options.count("node-id")) cfg.node_id = static_cast<std::uint8_t>(args.number("node-id", 1));
     can = std::make_unique<drv::Cia402DriveEmulator>(cfg, service.add_drive());
   }
   if (args.options.count("modbus")) {
@@ -129,7 +120,7 @@ int cmd_plant(const std::vector<std::string>& argv) {
   std::printf("plant: ready\n");
   std::fflush(stdout);
 
-  const double duration_s = number(args, "duration-s", 0);
+  const double duration_s = args.number("duration-s", 0);
   const auto t0 = Clock::now();
   while (!g_stop) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));

@@ -1,6 +1,5 @@
 // hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]
 #include <cstdio>
-#include <cstdlib>
 #include <sstream>
 
 #include "cli.hpp"
@@ -16,10 +15,8 @@ int cmd_sim(const std::vector<std::string>& argv) {
   // Load and validate everything before anything is written.
   Campaign campaign = load_campaign(args.positional[0]);
   if (args.options.count("sensor-noise-kpa")) {
-    const std::string v = args.option("sensor-noise-kpa", "");
-    char* end = nullptr;
-    const double kpa = std::strtod(v.c_str(), &end);
-    if (end == v.c_str() || *end != '\0' || !(kpa >= 0)) throw UsageError("--sensor-noise-kpa needs a number >= 0, got '" + v + "'");
+    const double kpa = args.number("sensor-noise-kpa", 0);
+    if (!(kpa >= 0)) throw UsageError("--sensor-noise-kpa cannot be negative, got " + args.option("sensor-noise-kpa", ""));
     campaign = with_sensor_noise(std::move(campaign), kpa);
   }
   SimOptions options;
