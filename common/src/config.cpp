@@ -49,12 +49,52 @@ std::string closest(std::string_view word, const std::vector<std::string>& candi
   return best;
 }
 
+namespace {
+
+// yaml-cpp keeps the first of two equal keys and says nothing; a config whose author wrote a key
+// twice meant one of them, so it is refused. Also bounds the walk: aliases can make a small file
+// a huge tree ("billion laughs").
+void check_tree(const YAML::Node& node, const std::string& origin, std::size_t& visited) {
+  if (++visited > 1'000'000) throw Error(origin + ": more than a million YAML nodes (aliases?); refused");
+  if (node.IsSequence()) {
+    for (const auto& item : node) check_tree(item, origin, visited);
+  } else if (node.IsMap()) {
+    std::vector<std::pair<std::string, YAML::Mark>> seen;
+    for (const auto& kv : node) {
+      if (kv.first.IsScalar()) {
+        const std::string& key = kv.first.Scalar();
+        for (const auto& [k, mark] : seen) {
+          if (k != key) continue;
+          const YAML::Mark at = kv.first.Mark();
+          throw Error(origin + ":" + std::to_string(at.line + 1) + ":" + std::to_string(at.column + 1) + ": duplicate key '" +
+                      key + "' (first at line " + std::to_string(mark.line + 1) + ")");
+        }
+        seen.emplace_back(key, kv.first.Mark());
+      }
+      check_tree(kv.second, origin, visited);
+    }
+  }
+}
+
+YAML::Node checked(YAML::Node node, const std::string& origin) {
+  std::size_t visited = 0;
+  check_tree(node, origin, visited);
+  return node;
+}
+
+}  // namespace
+
 Node Node::load_file(const std::filesystem::path& file) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
+  // A folder, a FIFO or a device is no config: opening a FIFO would wait for a writer forever.
+  std::error_code ec;
+  const auto status = std::filesystem::status(file, ec);
+  if (ec || !std::filesystem::exists(status)) throw Error(file.string() + ": cannot open the file (no such file)");
+  if (!std::filesystem::is_regular_file(status)) throw Error(file.string() + ": not a regular file");
   std::ifstream in(file);
   if (!in) throw Error(file.string() + ": cannot open the file");
   try {
-    return Node(YAML::Load(in), shared, "", YAML::Mark());
+    return Node(checked(YAML::Load(in), file.string()), shared, "", YAML::Mark());
   } catch (const YAML::Exception& e) {
     throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" +
                 std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
@@ -64,7 +104,7 @@ Node Node::load_file(const std::filesystem::path& file) {
 Node Node::load_string(std::string_view text, const std::string& origin) {
   auto shared = std::make_shared<const std::filesystem::path>(origin);
   try {
-    return Node(YAML::Load(std::string(text)), shared, "", YAML::Mark());
+    return Node(checked(YAML::Load(std::string(text)), origin), shared, "", YAML::Mark());
   } catch (const YAML::Exception& e) {
     throw Error(origin + ":" + std::to_string(e.mark.line + 1) + ":" +
                 std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
@@ -207,6 +247,13 @@ std::filesystem::path Node::resolve_path(const std::string& relative) const {
   std::filesystem::path p(relative);
   if (p.is_absolute()) return p;
   return file_->parent_path() / p;
+}
+
+bool plain_name(std::string_view name) {
+  if (name.empty() || name.size() > 100 || name.front() == '.') return false;
+  return std::all_of(name.begin(), name.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-' || ch == '.';
+  });
 }
 
 }  // namespace hil::cfg

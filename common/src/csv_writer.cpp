@@ -3,7 +3,6 @@
 #include <charconv>
 #include <cmath>
 #include <stdexcept>
-#include <system_error>
 
 namespace hil {
 namespace {
@@ -34,11 +33,7 @@ char* format_fixed(char* out, char* end, double v, int decimals) {
 
 CsvWriter::CsvWriter(const std::filesystem::path& file, std::vector<CsvColumn> columns,
                      const std::vector<std::pair<std::string, std::string>>& metadata)
-    : path_(file), columns_(std::move(columns)) {
-  file_ = std::fopen(file.c_str(), "wb");
-  if (file_ == nullptr) {
-    throw std::system_error(errno, std::generic_category(), "cannot write " + file.string());
-  }
+    : file_(std::make_unique<LineFile>(file)), columns_(std::move(columns)) {
   buffer_.reserve(2 * kFlushBytes);
   for (const auto& [key, value] : metadata) put("# " + key + ": " + value + "\n");
   for (std::size_t i = 0; i < columns_.size(); ++i) {
@@ -48,9 +43,10 @@ CsvWriter::CsvWriter(const std::filesystem::path& file, std::vector<CsvColumn> c
 }
 
 CsvWriter::~CsvWriter() {
-  if (file_ == nullptr) return;
-  std::fwrite(buffer_.data(), 1, buffer_.size(), file_);
-  std::fclose(file_);
+  try {
+    flush();
+  } catch (const std::exception&) {  // a destructor cannot report it; close() does
+  }
 }
 
 void CsvWriter::put(std::string_view text) { buffer_.append(text); }
@@ -67,23 +63,28 @@ void CsvWriter::row(std::span<const double> values) {
     buffer_.push_back(i + 1 < columns_.size() ? ',' : '\n');
   }
   ++rows_;
+  ++rows_buffered_;
   if (buffer_.size() >= kFlushBytes) flush();
 }
 
 void CsvWriter::flush() {
-  if (file_ == nullptr || buffer_.empty()) return;
-  const std::size_t n = std::fwrite(buffer_.data(), 1, buffer_.size(), file_);
-  const bool ok = n == buffer_.size() && std::fflush(file_) == 0;
+  if (!file_ || buffer_.empty()) return;
+  const std::size_t rows = rows_buffered_;
+  rows_buffered_ = 0;
+  try {
+    file_->append(buffer_);
+  } catch (...) {
+    rows_dropped_ += rows;
+    buffer_.clear();
+    throw;
+  }
   buffer_.clear();
-  if (!ok) throw std::system_error(errno, std::generic_category(), "writing " + path_.string());
 }
 
 void CsvWriter::close() {
-  if (file_ == nullptr) return;
+  if (!file_) return;
   flush();
-  const int rc = std::fclose(file_);
-  file_ = nullptr;
-  if (rc != 0) throw std::system_error(errno, std::generic_category(), "closing " + path_.string());
+  file_.reset();
 }
 
 }  // namespace hil

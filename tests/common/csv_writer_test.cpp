@@ -2,10 +2,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
-#include <string>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <system_error>
+
+#include "hil/line_file.hpp"
+#include "small_disk.hpp"
+#include "temp_file.hpp"
 
 TEST(CsvWriter, FixedDecimalsRoundLikeToChars) {
   const auto file = std::filesystem::temp_directory_path() / "hil_csv_fixed_test.csv";
@@ -53,4 +59,53 @@ TEST(CsvWriter, WritesMetadataHeaderAndFixedDecimals) {
   ss << in.rdbuf();
   EXPECT_EQ(ss.str(), "# source: test\nt_s,p_meas_mpa\n0.001,1.234568\n0.002,nan\n");
   std::filesystem::remove(file);
+}
+
+// On a full disk the file keeps whole lines only, and the writer says how many rows it lost.
+TEST(CsvWriter, AFullDiskLeavesWholeRowsAndCountsTheRest) {
+  hil::test::TempDir dir;
+  hil::test::SmallDisk disk(dir.path() / "disk", "64k");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?)";
+  const auto file = dir.path() / "disk" / "t.csv";
+  hil::CsvWriter w(file, {{"t_s", 3}, {"p_meas_mpa", 6}, {"padding", 6}});
+  std::size_t handed = 0;
+  bool refused = false;
+  try {
+    for (; handed < 100000; ++handed) {
+      const double row[] = {handed * 1e-3, 1.234567, 123456.654321};
+      w.row(row);
+      if (handed % 100 == 99) w.flush();
+    }
+  } catch (const std::system_error& e) {
+    refused = true;
+    ++handed;  // the row whose flush failed was handed in
+    EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("t.csv"), std::string::npos) << e.what();
+  }
+  ASSERT_TRUE(refused);
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string s = text.str();
+  ASSERT_FALSE(s.empty());
+  EXPECT_EQ(s.back(), '\n');
+  const auto lines = static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n'));
+  EXPECT_EQ(lines - 1, w.rows_on_disk());  // the header, then every row on disk
+  EXPECT_EQ(w.rows_on_disk() + w.rows_dropped(), handed);
+  EXPECT_EQ(w.rows_written(), handed);
+  EXPECT_GT(w.rows_dropped(), 0u);
+}
+
+TEST(LineFile, TrimsAHalfWrittenLastLine) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("x.jsonl", "{\"a\":1}\n{\"b\":2}\n{\"c\":");
+  EXPECT_EQ(hil::trim_to_whole_lines(file), 5u);
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str(), "{\"a\":1}\n{\"b\":2}\n");
+  EXPECT_EQ(hil::trim_to_whole_lines(file), 0u);
+  hil::LineFile f(file, /*append=*/true);
+  f.append("{\"d\":4}\n");
+  EXPECT_EQ(f.bytes(), 24u);
 }

@@ -84,6 +84,10 @@ class Node {
   YAML::Mark mark_;
 };
 
+// A name that may become a file or folder name: 1-100 of [A-Za-z0-9_.-], not starting with '.'
+// (so never ".", "..", or a hidden name). Campaign and run names, run ids, file names in requests.
+bool plain_name(std::string_view name);
+
 // "did you mean" helper, also used for sub-command and effect names.
 std::string closest(std::string_view word, const std::vector<std::string>& candidates);
 

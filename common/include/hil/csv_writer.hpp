@@ -3,12 +3,14 @@
 // writing an hour at 1 kHz to a few seconds. Not real-time safe: it does file I/O.
 #pragma once
 
-#include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "hil/line_file.hpp"
 
 namespace hil {
 
@@ -27,21 +29,25 @@ class CsvWriter {
   CsvWriter& operator=(const CsvWriter&) = delete;
 
   // One value per column, in column order. A non-finite value is written as "nan" so that a
-  // reader rejects it loudly instead of the writer hiding it.
+  // reader rejects it loudly instead of the writer hiding it. May flush (and so throw, see flush).
   void row(std::span<const double> values);
-  void flush();  // pushes buffered rows to the OS (so a crash after this loses nothing)
-  void close();  // flushes and closes; throws if the disk refused anything
-  std::size_t rows_written() const { return rows_; }
+  // Pushes buffered rows to the OS (so a crash of this process after it loses nothing). When the
+  // disk refuses them, the file keeps only whole rows, the buffered rows are dropped (counted in
+  // rows_dropped) and this throws std::system_error naming the file.
+  void flush();
+  void close();  // flushes and closes; throws as flush does
+  std::size_t rows_written() const { return rows_; }  // handed in by row()
+  std::size_t rows_on_disk() const { return rows_ - rows_buffered_ - rows_dropped_; }
+  std::size_t rows_dropped() const { return rows_dropped_; }  // handed in, refused by the disk
   const std::vector<CsvColumn>& columns() const { return columns_; }
 
  private:
   void put(std::string_view text);
 
-  std::filesystem::path path_;
-  std::FILE* file_ = nullptr;
+  std::unique_ptr<LineFile> file_;
   std::vector<CsvColumn> columns_;
   std::string buffer_;
-  std::size_t rows_ = 0;
+  std::size_t rows_ = 0, rows_buffered_ = 0, rows_dropped_ = 0;
 };
 
 }  // namespace hil
