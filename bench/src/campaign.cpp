@@ -306,17 +306,43 @@ void read_controller(const Node& n, ctl::ControllerParams& p) {
   if (auto v = n.find("robust")) read_robust(*v, p.robust);
 }
 
-Campaign load(const Node& root, const std::filesystem::path& file, const std::string& text) {
+// The longest campaign a run may last: a week at the bench, also what bounds the memory of a
+// random profile's items and of a simulation's report.
+constexpr double kMaxDurationS = 7 * 86400.0;
+
+// A name that becomes a folder: plain, and never "." or ".." (they would name the parent).
+void require_plain_name(const Node& where, const std::string& name) {
+  where.require(cfg::plain_name(name),
+                "must be a plain name (letters, digits, '_', '-', '.'; not starting with '.'; at most 100 characters), it names a folder");
+}
+
+Campaign load(const Node& root, const std::filesystem::path& file, const std::string& text,
+              const std::filesystem::path& plants_root) {
   root.allow_keys({"name", "description", "plant", "duration_s", "period_ms", "seed", "sensor_noise_kpa", "reference",
                    "gap", "controller", "runs"});
   Campaign c;
   c.file = file;
   c.yaml_text = text;
   c.name = root.text("name", file.stem().string());
-  root.require(!c.name.empty() && c.name.find('/') == std::string::npos, "name must be a plain word");
+  if (root.has("name")) {
+    require_plain_name(root.at("name"), c.name);
+  } else if (!cfg::plain_name(c.name)) {
+    root.fail("the file name '" + c.name + "' is no plain name; give the campaign a 'name:'");
+  }
   c.description = root.text("description", "");
 
   c.plant_file = root.resolve_path(root.text("plant"));
+  if (!plants_root.empty()) {
+    // A campaign from outside (posted over the API) may read plant files of this bench only:
+    // never /etc/shadow, whose first line a YAML error would quote back.
+    std::error_code ec;
+    const auto real = std::filesystem::weakly_canonical(c.plant_file, ec);
+    const auto root_real = std::filesystem::weakly_canonical(plants_root, ec);
+    const auto rel = real.lexically_relative(root_real);
+    if (ec || rel.empty() || *rel.begin() == "..") {
+      root.at("plant").fail("a posted campaign may only name a plant file inside " + plants_root.string());
+    }
+  }
   plant::Plant truth = [&] {
     try {
       return plant::Plant::load(c.plant_file);
@@ -326,7 +352,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   }();
 
   c.duration_s = root.number("duration_s");
-  root.at("duration_s").require(c.duration_s > 0, "must be > 0");
+  root.at("duration_s").require(c.duration_s > 0 && c.duration_s <= kMaxDurationS, "must be > 0 and at most 604800 s (7 days)");
   const double period_ms = root.number("period_ms", 1.0);
   if (auto p = root.find("period_ms")) p->require(period_ms > 0 && period_ms <= 1000, "the control period dT must be > 0 (and <= 1000 ms)");
   c.period_s = period_ms * 1e-3;
@@ -376,6 +402,16 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     add_items(b, gap->find("changes"), [&](ScheduleBuilder& sb, const Node& item, const std::string& type, const Node& body) {
       add_gap_item(sb, item, type, body, c.duration_s, c.seed);
     });
+    const plant::Effect* backlash = truth.find("backlash");
+    for (const auto& spec : backlash->specs()) {
+      if (spec.key != "gap_deg") continue;
+      for (const auto& o : b.origins()) {
+        if (o.value <= deg_to_rad(spec.hi)) continue;
+        char msg[160];
+        std::snprintf(msg, sizeof msg, "a gap of %.4g deg is more than the backlash effect allows (%.4g deg)", units::rad_to_deg(o.value), spec.hi);
+        o.node.fail(msg);
+      }
+    }
     c.gap_rad = b.take();
   } else {
     c.gap_rad = Schedule(deg_to_rad(plant_gap_deg));
@@ -409,7 +445,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     run.allow_keys(keys);
     RunSpec spec;
     spec.name = run.text("name");
-    run.at("name").require(!spec.name.empty() && spec.name.find('/') == std::string::npos, "must be a plain word");
+    require_plain_name(run.at("name"), spec.name);
     for (const auto& other : c.runs) run.at("name").require(other.name != spec.name, "two runs have this name");
     spec.controller = base;
     read_controller(run, spec.controller);
@@ -471,13 +507,14 @@ Campaign load_campaign(const std::filesystem::path& file) {
   std::ifstream in(file);
   std::stringstream text;
   text << in.rdbuf();
-  return load(root, file, text.str());
+  return load(root, file, text.str(), {});
 }
 
-Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir) {
+Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
+                            const std::filesystem::path& plants_root) {
   const std::filesystem::path pseudo = base_dir / origin;
   const Node root = Node::load_string(yaml, pseudo.string());
-  return load(root, pseudo, yaml);
+  return load(root, pseudo, yaml, plants_root);
 }
 
 }  // namespace hil::bench

@@ -1,4 +1,5 @@
 // hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--no-telemetry] [--quiet]
+#include <csignal>
 #include <cstdio>
 #include <sstream>
 
@@ -8,6 +9,14 @@
 #include "hil/bench/sim.hpp"
 
 namespace hil::bench {
+namespace {
+std::atomic<bool> g_cancel{false};
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void on_cancel_signal(int sig) {
+  g_signal = sig;
+  g_cancel.store(true);
+}
+}  // namespace
 
 int cmd_sim(const std::vector<std::string>& argv) {
   const Args args = parse_args(argv, {"out", "runs", "sensor-noise-kpa"}, {"no-telemetry", "quiet"});
@@ -23,11 +32,22 @@ int cmd_sim(const std::vector<std::string>& argv) {
   options.out_dir = args.option("out", "out");
   options.telemetry = !args.has("no-telemetry");
   options.progress = !args.has("quiet");
+  options.cancel = &g_cancel;
+  // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
+  std::signal(SIGINT, on_cancel_signal);
+  std::signal(SIGTERM, on_cancel_signal);
   std::stringstream runs(args.option("runs", ""));
   for (std::string name; std::getline(runs, name, ',');) {
     if (!name.empty()) options.only_runs.push_back(name);
   }
-  const CampaignOutcome out = run_campaign(campaign, options);
+  CampaignOutcome out;
+  try {
+    out = run_campaign(campaign, options);
+  } catch (const Cancelled&) {
+    std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(),
+                 g_signal == SIGTERM ? "SIGTERM" : "SIGINT", options.out_dir.c_str());
+    return 128 + static_cast<int>(g_signal);
+  }
   if (!args.has("quiet")) {
     std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
                 out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);

@@ -1,6 +1,10 @@
 #include "hil/bench/sim.hpp"
 
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
 
 #include <algorithm>
 #include <chrono>
@@ -9,6 +13,7 @@
 #include <thread>
 
 #include "hil/bench/sim_report.hpp"
+#include "hil/config.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -73,7 +78,7 @@ void write_text(const std::filesystem::path& file, const std::string& text) {
 }
 
 RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
-                   std::atomic<long>& steps_done) {
+                   std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
   const long n = std::lround(c.duration_s / c.period_s);
   RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
@@ -95,6 +100,7 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
                                  rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad)};
         report.add(r.t_s, values);
         if (csv) csv->row(telemetry_row(r));
+        if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw Cancelled("cancelled");
       },
       &steps_done);
   if (csv) csv->close();
@@ -111,6 +117,22 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   summary["wall_s"] = out.wall_s;
   write_text(dir / "summary.json", summary.dump(2) + "\n");
   return out;
+}
+
+// ".NAME.tmp-PID" folders whose process is gone (killed before it could clean up).
+void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::string& name) {
+  const std::string prefix = "." + name + ".tmp-";
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+    const std::string f = e.path().filename().string();
+    if (!e.is_directory() || f.rfind(prefix, 0) != 0) continue;
+    const std::string pid_text = f.substr(prefix.size());
+    char* end = nullptr;
+    const long pid = std::strtol(pid_text.c_str(), &end, 10);
+    if (pid_text.empty() || *end != '\0' || pid <= 0) continue;
+    if (pid == ::getpid() || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    std::filesystem::remove_all(e.path(), ec);
+  }
 }
 
 }  // namespace
@@ -154,11 +176,22 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   }
   if (runs.empty()) throw std::runtime_error("no run of campaign '" + c.name + "' matches --runs");
 
-  // Everything goes into a hidden folder first and is renamed into place at the end.
+  // Everything goes into a hidden folder first and is renamed into place at the end; the folder
+  // goes again on any failure or cancel, and leftovers of processes that died are cleared.
+  if (!cfg::plain_name(c.name)) throw std::invalid_argument("campaign name '" + c.name + "' is no plain name");
   const auto t0 = Clock::now();
   std::filesystem::create_directories(options.out_dir);
+  remove_dead_tmp_dirs(options.out_dir, c.name);
   const auto final_dir = options.out_dir / c.name;
   const auto tmp_dir = options.out_dir / ("." + c.name + ".tmp-" + std::to_string(::getpid()));
+  struct RemoveUnlessKept {
+    std::filesystem::path dir;
+    bool keep = false;
+    ~RemoveUnlessKept() {
+      std::error_code ec;
+      if (!keep) std::filesystem::remove_all(dir, ec);
+    }
+  } tmp_guard{tmp_dir};
   std::filesystem::remove_all(tmp_dir);
   for (const auto* r : runs) std::filesystem::create_directories(tmp_dir / r->name);
   write_text(tmp_dir / "campaign.yaml", c.yaml_text);
@@ -172,7 +205,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   auto worker = [&] {
     for (std::size_t i; (i = next.fetch_add(1)) < runs.size();) {
       try {
-        outcome.runs[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done);
+        outcome.runs[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
       } catch (...) {
         errors[i] = std::current_exception();
       }
@@ -210,15 +243,13 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
     for (auto& t : pool) t.join();
   }
   for (auto& e : errors) {
-    if (e) {
-      std::filesystem::remove_all(tmp_dir);
-      std::rethrow_exception(e);
-    }
+    if (e) std::rethrow_exception(e);
   }
   for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
   write_sim_report(c, outcome.runs, tmp_dir / "report.html");
   std::filesystem::remove_all(final_dir);
   std::filesystem::rename(tmp_dir, final_dir);
+  tmp_guard.keep = true;
   outcome.dir = final_dir;
   outcome.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return outcome;

@@ -14,7 +14,7 @@ class MotorServo final : public ScalarEffect<MotorServo> {
   static constexpr Stage kStage = Stage::motor;
   static constexpr ParamSpec kSpecs[] = {
       {"time_constant_s", 0, 10, true, false, kNaN, "first-order lag of the position servo"},
-      {"rate_limit_deg_s", 0, 1e6, true, false, kNaN, "slew-rate limit of the motor"},
+      {"rate_limit_deg_s", 1e-3, 1e6, false, false, kNaN, "slew-rate limit of the motor (a slower one would never move)"},
   };
   using ScalarEffect::ScalarEffect;
 

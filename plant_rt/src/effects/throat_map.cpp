@@ -28,6 +28,9 @@ class ThroatMap final : public Effect {
       area.require(b[i] >= b[i - 1], "area must not fall as the valve opens (the map is monotone)");
     }
     area.require(b.front() > 0, "areas must be positive (a closed throat has no steady state)");
+    // Beyond these a number is a typo, not a valve: a full turn each way, a throat 35 cm across.
+    angle.require(a.front() >= -360 && a.back() <= 360, "angles must lie within -360..360 deg");
+    area.require(b.back() <= 1e5, "areas must be at most 100000 mm^2");
     return std::make_shared<ThroatMap>(std::move(a), std::move(b));
   }
 

@@ -47,7 +47,9 @@ struct Campaign {
 
 Campaign load_campaign(const std::filesystem::path& file);
 // For YAML posted over the API: `origin` names it in errors; relative paths resolve from `base_dir`.
-Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir);
+// A non-empty `plants_root` confines the plant file to that folder (the bench's configs).
+Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
+                            const std::filesystem::path& plants_root = {});
 
 // The same campaign with another transducer noise (0 reproduces the paper's noise-free
 // simulation). The controllers keep what they were told of the transducer.

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -83,6 +84,12 @@ struct SimOptions {
   bool telemetry = true;
   bool progress = true;
   std::vector<std::string> only_runs;  // empty: all
+  // Set (by a signal handler, say) to stop: the campaign throws Cancelled and leaves nothing.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+struct Cancelled : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 struct CampaignOutcome {

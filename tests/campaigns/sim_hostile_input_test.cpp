@@ -1,0 +1,153 @@
+// `hilbench sim` with input a careless or hostile user gives it: names that would point outside
+// --out, absurd numbers, duplicate keys, a plant path that is no file; and a sim that fails or is
+// killed. Each must end in a clear error naming where, and touch nothing outside --out.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "support/run_command.hpp"
+#include "support/temp_file.hpp"
+
+using hil::test::hilbench;
+using hil::test::run_command;
+using hil::test::source_path;
+
+namespace {
+
+// A short valid campaign with the given lines replacing its defaults (the plant is the shipped one).
+std::string campaign_yaml(const std::string& name_line, const std::string& extra = "", const std::string& runs = "") {
+  return name_line + "\n"
+         "plant: " + source_path("configs/plant/nominal.yaml").string() + "\n"
+         "duration_s: 1\n"
+         "reference: {initial_mpa: 1.0, profile: [{step: {at_s: 0.3, to_mpa: 1.2}}]}\n" +
+         extra + "runs:\n" + (runs.empty() ? "  - {name: none, compensation: none}\n" : runs);
+}
+
+// Every path below `dir`, to compare a tree before and after.
+std::set<std::string> tree(const std::filesystem::path& dir) {
+  std::set<std::string> out;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) out.insert(e.path().string());
+  return out;
+}
+
+struct Sandbox {
+  hil::test::TempDir root;
+  std::filesystem::path out = root.path() / "out";
+  Sandbox() {
+    std::filesystem::create_directories(out);
+    root.write("precious.txt", "must survive\n");
+    root.write("out/old/keep.txt", "must survive too\n");
+  }
+  hil::test::CommandResult sim(const std::string& yaml, const std::string& file = "c.yaml") const {
+    const auto path = root.write("cfg/" + file, yaml);
+    return run_command(hilbench() + " sim " + path.string() + " --out " + out.string() + " --quiet");
+  }
+};
+
+TEST(SimHostileInput, CampaignNamesThatWouldLeaveOutAreRefusedNamingTheKey) {
+  for (const char* bad : {"..", ".", "../x", "a/b", "''", ".hidden", "x y"}) {
+    Sandbox s;
+    const auto before = tree(s.out);
+    const auto r = s.sim(campaign_yaml(std::string("name: ") + bad));
+    EXPECT_EQ(r.status, 1) << bad << "\n" << r.output;
+    EXPECT_NE(r.output.find("c.yaml:1:1: name: must be a plain name"), std::string::npos) << bad << "\n" << r.output;
+    EXPECT_EQ(r.output.find("got a mapping"), std::string::npos) << r.output;
+    EXPECT_EQ(tree(s.out), before) << bad;
+    EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
+  }
+}
+
+TEST(SimHostileInput, RunNamesThatWouldLeaveTheCampaignFolderAreRefused) {
+  for (const char* bad : {"..", ".", "a/b", "''"}) {
+    Sandbox s;
+    const auto before = tree(s.out);
+    const auto r = s.sim(campaign_yaml("name: ok", "", std::string("  - {name: ") + bad + ", compensation: none}\n"));
+    EXPECT_EQ(r.status, 1) << bad << "\n" << r.output;
+    EXPECT_NE(r.output.find("runs[0].name: must be a plain name"), std::string::npos) << bad << "\n" << r.output;
+    EXPECT_EQ(tree(s.out), before) << bad;
+    EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
+  }
+}
+
+TEST(SimHostileInput, AbsurdNumbersAreRefusedBeforeAnythingRuns) {
+  struct Case {
+    std::string yaml, expect;
+  };
+  const Case cases[] = {
+      {campaign_yaml("name: x").replace(campaign_yaml("name: x").find("duration_s: 1"), 13, "duration_s: 1e308"),
+       "duration_s: must be > 0 and at most 604800 s"},
+      {campaign_yaml("name: x", "gap: {initial_deg: 1e308}\n"), "gap.initial_deg: a gap of 1e+308 deg is more than the backlash effect allows"},
+      {campaign_yaml("name: x", "gap: {changes: [{step: {at_s: 0.5, to_deg: 500}}]}\n"), "a gap of 500 deg is more than"},
+      {campaign_yaml("name: x", "seed: 1\nseed: 2\n"), "duplicate key 'seed'"},
+  };
+  for (const auto& c : cases) {
+    Sandbox s;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto r = s.sim(c.yaml);
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << "want: " << c.expect << "\ngot: " << r.output;
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(60));  // a refusal, not a run
+    EXPECT_TRUE(std::filesystem::is_empty(s.out / "old") == false);
+    EXPECT_EQ(tree(s.out).size(), 2u);  // old/ and old/keep.txt: nothing new
+  }
+}
+
+TEST(SimHostileInput, PlantPathThatIsAFifoOrAFolderIsAClearErrorNotAHang) {
+  Sandbox s;
+  const auto fifo = s.root.path() / "plant.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const auto& plant : {fifo, s.root.path()}) {
+    std::string yaml = campaign_yaml("name: x");
+    yaml.replace(yaml.find("plant: "), yaml.find('\n', yaml.find("plant: ")) - yaml.find("plant: "), "plant: " + plant.string());
+    const auto r = run_command("timeout 30 " + hilbench() + " sim " + s.root.write("cfg/c.yaml", yaml).string() + " --out " +
+                               s.out.string() + " --quiet");
+    EXPECT_EQ(r.status, 1) << plant << "\n" << r.output;  // 124 would be the timeout: a hang
+    EXPECT_NE(r.output.find("c.yaml:2:1: plant:"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("not a regular file"), std::string::npos) << r.output;
+  }
+}
+
+TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
+  Sandbox s;
+  // A long campaign, killed with SIGTERM while it runs: nothing of it stays.
+  std::string yaml = campaign_yaml("name: long");
+  yaml.replace(yaml.find("duration_s: 1"), 13, "duration_s: 3000");
+  const auto file = s.root.write("cfg/long.yaml", yaml);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    execl(hilbench().c_str(), hilbench().c_str(), "sim", file.c_str(), "--out", s.out.c_str(), "--quiet", nullptr);
+    _exit(127);
+  }
+  const auto tmp = s.out / (".long.tmp-" + std::to_string(pid));
+  for (int i = 0; i < 3000 && !std::filesystem::exists(tmp / "none" / "telemetry.csv"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(std::filesystem::exists(tmp / "none" / "telemetry.csv")) << "the sim did not start writing";
+  kill(pid, SIGTERM);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM) << status;
+  EXPECT_FALSE(std::filesystem::exists(tmp));
+  EXPECT_FALSE(std::filesystem::exists(s.out / "long"));
+
+  // A folder left by a process that no longer exists (kill -9) is cleared by the next sim.
+  const auto stale = s.out / ".x.tmp-999999999";
+  std::filesystem::create_directories(stale / "none");
+  const auto r = s.sim(campaign_yaml("name: x"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(stale));
+  EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "report.html"));
+  EXPECT_TRUE(std::filesystem::exists(s.out / "old" / "keep.txt"));
+  EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
+}
+
+}  // namespace
