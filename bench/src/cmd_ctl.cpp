@@ -118,7 +118,10 @@ void print_status(const json& s) {
                 number(n["gap_true_deg"], "%.3f").c_str());
   }
   if (s.contains("telemetry")) {
-    std::printf("  telemetry lost: %llu rows, %llu events\n", s["telemetry"].value("rows_lost", 0ULL), s["telemetry"].value("events_lost", 0ULL));
+    const json& t = s["telemetry"];
+    std::printf("  telemetry: %llu rows on disk; not recorded: %llu rows (ring full), %llu rows (disk), %llu events%s\n",
+                t.value("rows_written", 0ULL), t.value("rows_lost", 0ULL), t.value("rows_unwritten", 0ULL), t.value("events_lost", 0ULL),
+                t.value("write_error", json(nullptr)).is_string() ? "  DISK REFUSED TELEMETRY" : "");
   }
   if (s.contains("safety") && s["safety"].value("safe_state", false)) {
     std::printf("  SAFE STATE (trip: %s)\n", s["safety"]["trip"].is_string() ? s["safety"]["trip"].get<std::string>().c_str() : "?");
@@ -153,7 +156,8 @@ int watch(const ApiClient& api) {
                   bar.c_str(), f * 100, s.value("campaign", "?").c_str(), run.c_str(), s.value("run_index", 0) + 1,
                   s.value("runs_total", 0), p.value("t_s", 0.0), p.value("duration_s", 0.0), clock(p.value("elapsed_s", 0.0)).c_str(),
                   clock(p.value("remaining_s", 0.0)).c_str(),
-                  s.contains("telemetry") ? s["telemetry"].value("rows_lost", 0ULL) : 0ULL, faults.c_str(), safe.c_str());
+                  s.contains("telemetry") ? s["telemetry"].value("rows_lost", 0ULL) + s["telemetry"].value("rows_unwritten", 0ULL) : 0ULL,
+                  faults.c_str(), safe.c_str());
     const int decile = static_cast<int>(f * 10);
     if (tty) {
       std::fprintf(stderr, "\r%s\033[K", line);

@@ -65,6 +65,10 @@ int cmd_serve(const std::vector<std::string>& argv) {
     }
   }
   std::filesystem::create_directories(api.runs_dir);
+  // Runs a dead server left "running" get their honest end before anyone lists them.
+  for (const auto& dir : mark_interrupted_runs(api.runs_dir)) {
+    spdlog::warn("run {}: its server ended during the run; marked interrupted", dir.filename().string());
+  }
 
   std::string mlock_warning = "not requested (--no-mlock)";
   if (!args.has("no-mlock")) {
@@ -124,7 +128,17 @@ int cmd_serve(const std::vector<std::string>& argv) {
     signals.async_wait(on_signal);
   };
   signals.async_wait(on_signal);
-  io.run();
+  // A handler that throws ends that handler's work, never the server: a campaign may be running.
+  for (;;) {
+    try {
+      io.run();
+      break;
+    } catch (const std::exception& e) {
+      spdlog::error("request handling: {} (the server goes on)", e.what());
+    } catch (...) {
+      spdlog::error("request handling: unknown exception (the server goes on)");
+    }
+  }
   if (waiter.joinable()) waiter.join();
   spdlog::info("hilbench serve: stopped");
   return 0;

@@ -239,12 +239,51 @@ TEST(RunLoop, OverrunPolicyCountNeverTrips) {
 }
 
 TEST(RunLoop, FullRingCountsTheLossAndNeverBlocks) {
-  LoopHarness h(short_campaign(1.0), "adaptive", {}, {}, 64);
+  LoopConfig run_on;
+  run_on.recording_fault = RecordingFaultPolicy::count;
+  LoopHarness h(short_campaign(1.0), "adaptive", {}, run_on, 64);
   while (h.step()) {
   }
+  EXPECT_EQ(h.loop->end(), LoopEnd::completed);
   EXPECT_EQ(h.loop->rows_pushed(), 64u);
   EXPECT_EQ(h.loop->rows_lost(), 1000u - 64u);
   EXPECT_EQ(h.loop->snapshot().rows_lost, 1000u - 64u);
+}
+
+// By default a run that cannot be recorded does not go on: the full ring trips the next period.
+TEST(RunLoop, FullRingTripsToTheSafeStateByDefault) {
+  LoopHarness h(short_campaign(1.0), "adaptive", {}, {}, 64);
+  while (h.step()) {
+  }
+  EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
+  EXPECT_EQ(h.loop->trip(), Trip::recording);
+  EXPECT_NEAR(h.loop->trip_t_s(), 0.065, 1e-9);  // row 64 (t = 0.064 s) found the ring full
+  EXPECT_EQ(h.loop->rows_pushed(), 64u);
+  EXPECT_EQ(h.loop->rows_lost() + 64u, static_cast<std::uint64_t>(h.loop->periods_run()));
+  EXPECT_LT(h.loop->periods_run(), 1000);  // safe state, its hold, the end
+}
+
+TEST(RunLoop, ARecorderThatCannotWriteTripsOrIsCountedAsConfigured) {
+  for (const auto policy : {RecordingFaultPolicy::safe_state, RecordingFaultPolicy::count}) {
+    LoopConfig cfg;
+    cfg.recording_fault = policy;
+    LoopHarness h(short_campaign(1.0), "adaptive", {}, cfg);
+    std::atomic<bool> failed{false};
+    h.loop->watch_recording(&failed);
+    for (int i = 0; i < 100; ++i) ASSERT_TRUE(h.step());
+    failed = true;  // the recorder's disk is full
+    while (h.step()) {
+    }
+    if (policy == RecordingFaultPolicy::safe_state) {
+      EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
+      EXPECT_EQ(h.loop->trip(), Trip::recording);
+      EXPECT_NEAR(h.loop->trip_t_s(), 0.1, 1e-9);
+      EXPECT_TRUE(h.loop->snapshot().flags & kFlagSafeState);
+    } else {
+      EXPECT_EQ(h.loop->end(), LoopEnd::completed);
+      EXPECT_EQ(h.loop->trip(), Trip::none);
+    }
+  }
 }
 
 TEST(RunLoop, StopEndsAtTheNextPeriod) {

@@ -2,9 +2,7 @@
 
 #include <cmath>
 
-#include <spdlog/logger.h>
-#include <spdlog/pattern_formatter.h>
-#include <spdlog/sinks/basic_file_sink.h>
+#include <ctime>
 
 #include "hil/bench/rt_thread.hpp"
 #include "hil/units.hpp"
@@ -87,26 +85,50 @@ Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair
     : telemetry_(ring_rows),
       events_(4096),
       csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv", loop_telemetry_columns(with_truth), csv_metadata)),
+      events_file_(std::make_unique<LineFile>(dir / "events.jsonl")),
       on_row_(std::move(on_row)),
       flush_period_(flush_period),
       with_truth_(with_truth),
       batch_(4096) {
   csv_->flush();  // the header is on disk before the first row
-  auto sink = std::make_shared<spdlog::sinks::basic_file_sink_mt>((dir / "events.jsonl").string(), true);
-  log_ = std::make_shared<spdlog::logger>("events", std::move(sink));
-  // The log record's own time becomes the "utc" field; the message is the rest of the object.
-  log_->set_formatter(std::make_unique<spdlog::pattern_formatter>("{\"utc\":\"%Y-%m-%dT%H:%M:%S.%fZ\",%v",
-                                                                  spdlog::pattern_time_type::utc));
-  log_->flush_on(spdlog::level::trace);
   thread_ = std::thread([this, avoid_cpu] { writer(avoid_cpu); });
 }
 
 Recorder::~Recorder() { finish(); }
 
+void Recorder::fail(const std::exception& e) {
+  bool first = false;
+  {
+    std::lock_guard lock(events_mutex_);
+    if (error_.empty()) error_ = e.what(), first = true;
+  }
+  if (first) failed_.store(true);
+}
+
 void Recorder::log(const nlohmann::json& event) {
-  const std::string text = event.dump();  // "{...}": the formatter supplies the opening brace
-  log_->info(std::string_view(text).substr(1));
-  events_written_.fetch_add(1);
+  // {"utc":"2026-11-23T17:20:09.123456Z", then the event's own fields: the time it was written.
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  std::tm tm{};
+  gmtime_r(&now.tv_sec, &tm);
+  char utc[48];
+  const std::size_t n = std::strftime(utc, sizeof utc, "{\"utc\":\"%Y-%m-%dT%H:%M:%S", &tm);
+  std::snprintf(utc + n, sizeof utc - n, ".%06ldZ\",", now.tv_nsec / 1000);
+  const std::string text = event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  std::string line = utc;
+  line.append(text, 1);  // "{...}": the opening brace is the prefix's
+  line.push_back('\n');
+  try {
+    std::lock_guard lock(events_mutex_);
+    if (!failed_.load()) {
+      events_file_->append(line);
+      events_written_.fetch_add(1);
+      return;
+    }
+  } catch (const std::exception& e) {
+    fail(e);
+  }
+  events_unwritten_.fetch_add(1);
 }
 
 bool Recorder::drain() {
@@ -119,21 +141,28 @@ bool Recorder::drain() {
   for (std::size_t n; (n = telemetry_.pop(batch_.data(), batch_.size())) > 0;) {
     any = true;
     for (std::size_t i = 0; i < n; ++i) {
-      if (error_.empty()) {
+      if (!failed_.load(std::memory_order_relaxed)) {
         try {
           std::array<double, kLoopColumns> row;
           const std::size_t n = loop_telemetry_row(batch_[i], with_truth_, row);
           csv_->row(std::span<const double>(row.data(), n));
-          rows_written_.fetch_add(1, std::memory_order_relaxed);
         } catch (const std::exception& e) {
-          error_ = e.what();
+          fail(e);
         }
+      } else {
+        rows_unwritten_.fetch_add(1, std::memory_order_relaxed);
       }
-      if (!error_.empty()) rows_unwritten_.fetch_add(1, std::memory_order_relaxed);
       if (on_row_) on_row_(batch_[i]);
     }
+    count_rows();
   }
   return any;
+}
+
+// What is on disk and what the disk refused, from the CSV writer's own count.
+void Recorder::count_rows() noexcept {
+  rows_written_.store(csv_->rows_on_disk(), std::memory_order_relaxed);
+  dropped_rows_.store(csv_->rows_dropped(), std::memory_order_relaxed);
 }
 
 void Recorder::writer(int avoid_cpu) {
@@ -148,12 +177,13 @@ void Recorder::writer(int avoid_cpu) {
     }
     drain();
     const auto now = std::chrono::steady_clock::now();
-    if (now - last_flush >= flush_period_ && error_.empty()) {
+    if (now - last_flush >= flush_period_ && !failed_.load()) {
       try {
         csv_->flush();
       } catch (const std::exception& e) {
-        error_ = e.what();
+        fail(e);
       }
+      count_rows();
       last_flush = now;
     }
     if (stopping) break;
@@ -161,11 +191,11 @@ void Recorder::writer(int avoid_cpu) {
   while (drain()) {
   }
   try {
-    csv_->close();
+    csv_->close();  // after a failure its buffer holds only rows from before it, if any
   } catch (const std::exception& e) {
-    if (error_.empty()) error_ = e.what();
+    fail(e);
   }
-  log_->flush();
+  count_rows();
 }
 
 std::string Recorder::finish() {

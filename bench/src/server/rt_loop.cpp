@@ -18,7 +18,7 @@ double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t
 }  // namespace
 
 LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority"});
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority", "recording_fault"});
   LoopConfig c;
   c.priority = static_cast<int>(n.integer("priority", 80));
   if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
@@ -41,6 +41,14 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
   }
   c.cpu_dma_latency_us = static_cast<int>(n.integer("cpu_dma_latency_us", 0));
   if (n.has("cpu_dma_latency_us")) n.at("cpu_dma_latency_us").require(c.cpu_dma_latency_us >= -1, "must be >= 0, or -1 for none");
+  const std::string recording = n.text("recording_fault", "safe_state");
+  if (recording == "safe_state") {
+    c.recording_fault = RecordingFaultPolicy::safe_state;
+  } else if (recording == "count") {
+    c.recording_fault = RecordingFaultPolicy::count;
+  } else {
+    n.at("recording_fault").fail("must be 'safe_state' or 'count', got '" + recording + "'");
+  }
   c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
   if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
   return c;
@@ -258,6 +266,11 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
       value = static_cast<double>(overruns_in_a_row_);
       limit = loop_.overrun_abort_after;
     }
+    if (trip == Trip::none && loop_.recording_fault == RecordingFaultPolicy::safe_state &&
+        (ring_full_ || (recording_failed_ != nullptr && recording_failed_->load(std::memory_order_relaxed)))) {
+      trip = Trip::recording;
+      value = static_cast<double>(rows_lost_);
+    }
     if (trip != Trip::none) {
       enter_safe(trip, value, limit, t);
     } else if (!missed) {
@@ -332,6 +345,7 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
     ++rows_pushed_;
   } else {
     ++rows_lost_;
+    ring_full_ = true;
   }
   const double t = rec_.step.t_s;
   ++k_;

@@ -1,9 +1,12 @@
 #include "hil/bench/runner.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <optional>
@@ -14,6 +17,7 @@
 #include "hil/bench/recorder.hpp"
 #include "hil/bench/rt_thread.hpp"
 #include "hil/config.hpp"
+#include "hil/line_file.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -43,15 +47,74 @@ std::string hostname() {
   return buf;
 }
 
+// The whole file or the old one, never a half-written one; no .tmp is left behind on failure.
 void write_json_atomically(const std::filesystem::path& file, const json& j) {
   const auto tmp = file.parent_path() / (file.filename().string() + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << j.dump(2) << "\n";
-    out.close();
-    if (!out) throw std::runtime_error("cannot write " + tmp.string());
+  try {
+    {
+      LineFile out(tmp);
+      out.append(j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+    }
+    std::filesystem::rename(tmp, file);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
   }
-  std::filesystem::rename(tmp, file);
+}
+
+// Space kept free in each run folder while the run lasts, and given back just before the final
+// run.json is written: so a disk that the telemetry filled still takes the run's honest record.
+constexpr std::uintmax_t kReserveBytes = 1u << 20;
+constexpr double kBytesPerRow = 160;  // a loop telemetry row is about 110-140 characters
+
+// Held (flock) by the process running a run, released when it ends or dies: what tells a run
+// that is running from one whose server is gone.
+class RunLock {
+ public:
+  explicit RunLock(const std::filesystem::path& dir) : file_(dir / ".lock") {
+    fd_ = ::open(file_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0 || ::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      if (fd_ >= 0) ::close(fd_);
+      throw std::runtime_error("cannot lock " + file_.string());
+    }
+  }
+  ~RunLock() {
+    std::error_code ec;
+    std::filesystem::remove(file_, ec);
+    ::close(fd_);
+  }
+  RunLock(const RunLock&) = delete;
+  RunLock& operator=(const RunLock&) = delete;
+
+ private:
+  std::filesystem::path file_;
+  int fd_ = -1;
+};
+
+// True when no live process holds the run's lock.
+bool run_abandoned(const std::filesystem::path& dir) {
+  const int fd = ::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC);
+  if (fd < 0) return true;  // never locked, or the lock file is gone: nobody holds it
+  const bool free = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+  ::close(fd);  // also releases it
+  return free;
+}
+
+// Telemetry rows in a CSV on disk: lines that are neither metadata (#) nor the header.
+std::uint64_t csv_rows(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::uint64_t rows = 0;
+  bool header = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      header = true;
+      continue;
+    }
+    ++rows;
+  }
+  return rows;
 }
 
 std::filesystem::path unique_dir(const std::filesystem::path& base) {
@@ -85,6 +148,8 @@ std::string describe_trip(const RunLoop& loop) {
       return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
     case Trip::operator_abort:
       return "operator abort";
+    case Trip::recording:
+      return fmt("recording: telemetry could not be recorded at t = %.3f s", t);
     case Trip::none:
       break;
   }
@@ -190,6 +255,21 @@ void CampaignRunner::start(StartRequest request) {
     std::lock_guard lock(mutex_);
     if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
   }
+  {
+    // Refused now rather than tripped later: the record of every run must fit.
+    const std::size_t run_count = request.runs.empty() ? request.campaign.runs.size() : request.runs.size();
+    const double rows = std::ceil(request.campaign.duration_s / request.campaign.period_s) * static_cast<double>(run_count);
+    const double need = rows * kBytesPerRow + static_cast<double>(run_count) * 2.0 * kReserveBytes;
+    std::error_code ec;
+    std::filesystem::create_directories(o_.runs_dir, ec);
+    const auto space = std::filesystem::space(o_.runs_dir, ec);
+    if (ec) throw InsufficientStorage("cannot use the runs folder " + o_.runs_dir.string() + ": " + ec.message());
+    if (static_cast<double>(space.available) < need) {
+      throw InsufficientStorage(fmt("the runs folder has %.1f MB free; this campaign's record needs about %.1f MB (%.0f telemetry rows)",
+                                    static_cast<double>(space.available) / 1e6, need / 1e6, rows) +
+                                " in " + o_.runs_dir.string());
+    }
+  }
   if (thread_.joinable()) thread_.join();  // the previous campaign's thread, already finishing
   std::lock_guard lock(mutex_);
   if (active_) throw Conflict("campaign '" + active_->req.campaign.name + "' is running; stop or abort it first");
@@ -215,15 +295,21 @@ void CampaignRunner::stop() {
   if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::stop});
 }
 
-void CampaignRunner::abort(const std::string& reason) {
+std::string CampaignRunner::abort(const std::string& reason) {
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
-  if (!active_->abort) {
+  const bool first = !active_->abort;
+  if (first) {
     active_->abort = true;
     active_->abort_reason = reason;
   }
-  if (active_->recorder) active_->recorder->log({{"kind", "abort_request"}, {"source", "operator"}, {"reason", reason}});
+  if (active_->recorder) {
+    json e = {{"kind", "abort_request"}, {"source", "operator"}, {"reason", reason}};
+    if (!first) e["ends_with"] = active_->abort_reason;  // an abort was under way: its reason stands
+    active_->recorder->log(e);
+  }
   if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::abort});
+  return active_->abort_reason;
 }
 
 void CampaignRunner::inject(const LoopRequest& request) {
@@ -277,8 +363,23 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const RigConfig& rc = a.req.rig;
   const auto start_utc = SysClock::now();
   const auto dir = unique_dir(o_.runs_dir / (utc(start_utc, "%Y%m%dT%H%M%SZ") + "_" + c.name + "_" + run.name));
+  std::optional<RunLock> run_lock;
+  try {
+    run_lock.emplace(dir);
+    // The reserve is taken first: a disk without room for it would not take the run's record.
+    const int fd = ::open((dir / ".reserve").c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+    const int rc = fd < 0 ? errno : ::posix_fallocate(fd, 0, static_cast<off_t>(kReserveBytes));
+    if (fd >= 0) ::close(fd);
+    if (rc != 0) throw InsufficientStorage(std::string("cannot reserve space in ") + dir.string() + ": " + std::strerror(rc));
+  } catch (...) {
+    run_lock.reset();
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+    throw;
+  }
   json info = {{"version", o_.version},
                {"host", hostname()},
+               {"pid", ::getpid()},
                {"campaign", c.name},
                {"run", run.name},
                {"run_index", index},
@@ -297,7 +398,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                  {"campaign_yaml", c.yaml_text},
                  {"rig_file", rc.file.string()},
                  {"rig_yaml", rc.yaml_text}}}};
-  write_json_atomically(dir / "run.json", info);
+  try {
+    write_json_atomically(dir / "run.json", info);
+  } catch (...) {
+    run_lock.reset();
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);  // a folder without run.json would be no run at all
+    throw;
+  }
 
   std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
   Recorder rec(dir,
@@ -322,6 +430,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     rig->activate();
     const auto wall = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s / a.req.speed));
     loop = std::make_unique<RunLoop>(c, run, *rig, rc.safety, rc.loop, wall, rec.telemetry(), rec.events(), requests);
+    loop->watch_recording(&rec.failed());
     loop->begin(Clock::now());
   } catch (const std::exception& e) {
     outcome = "error";
@@ -391,7 +500,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.requests = nullptr;
     a.recorder = nullptr;
   }
-  if (!write_error.empty() && outcome == "completed") outcome = "error", reason = "telemetry: " + write_error;
+  if (loop && loop->trip() == Trip::recording) {
+    reason += write_error.empty() ? fmt(": the telemetry ring was full (%.0f rows lost)", static_cast<double>(loop->rows_lost()))
+                                  : ": " + write_error;
+  } else if (!write_error.empty() && outcome == "completed") {
+    outcome = "error", reason = "telemetry: " + write_error;
+  }
+  const std::uint64_t rows_not_recorded = rec.rows_unwritten() + (loop ? loop->rows_lost() : 0);
+  if (rows_not_recorded > 0 && !reason.empty()) reason += fmt("; %.0f rows not recorded", static_cast<double>(rows_not_recorded));
   const auto stop_utc = SysClock::now();
   info["stop_utc"] = utc_iso(stop_utc);
   info["outcome"] = outcome;
@@ -419,9 +535,19 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                        {"rows_lost", loop ? loop->rows_lost() : 0},
                        {"rows_unwritten", rec.rows_unwritten()},
                        {"events_lost", loop ? loop->events_lost() : 0},
+                       {"events_unwritten", rec.events_unwritten()},
                        {"ring_rows", rec.telemetry().capacity()},
                        {"write_error", write_error.empty() ? json(nullptr) : json(write_error)}};
-  write_json_atomically(dir / "run.json", info);
+  {
+    std::error_code ec;
+    std::filesystem::remove(dir / ".reserve", ec);  // its room is for this last write
+  }
+  try {
+    write_json_atomically(dir / "run.json", info);
+  } catch (const std::exception& e) {
+    spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), outcome, reason);
+  }
+  run_lock.reset();
   const json summary = {{"run", run.name}, {"dir", dir.filename().string()}, {"outcome", outcome},
                         {"reason", info["reason"]}};
   notice({{"type", "run_end"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
@@ -463,7 +589,11 @@ json CampaignRunner::status() const {
     s["faults"] = faults_json(snap);
     s["safety"] = {{"safe_state", (snap.flags & kFlagSafeState) != 0},
                    {"trip", snap.trip == Trip::none ? json(nullptr) : json(to_string(snap.trip))}};
-    s["telemetry"] = {{"rows_lost", snap.rows_lost}, {"events_lost", snap.events_lost}};
+    s["telemetry"] = {{"rows_lost", snap.rows_lost},
+                      {"rows_unwritten", a.recorder ? a.recorder->rows_unwritten() : 0},
+                      {"rows_written", a.recorder ? a.recorder->rows_written() : 0},
+                      {"write_error", a.recorder && a.recorder->failed().load() ? json("the disk refused telemetry") : json(nullptr)},
+                      {"events_lost", snap.events_lost}};
     s["now"] = {{"t_s", snap.t_s}, {"p_meas_mpa", std::isfinite(snap.p_meas_pa) ? json(units::pa_to_mpa(snap.p_meas_pa)) : json(nullptr)},
                 {"p_ref_mpa", units::pa_to_mpa(snap.p_ref_pa)}, {"theta_cmd_deg", units::rad_to_deg(snap.theta_cmd_rad)},
                 {"gap_true_deg", std::isfinite(snap.gap_rad) ? json(units::rad_to_deg(snap.gap_rad)) : json(nullptr)}};
@@ -480,6 +610,61 @@ json CampaignRunner::status() const {
                    {"elapsed_s", elapsed},
                    {"remaining_s", (total - done) / a.req.speed}};
   return s;
+}
+
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
+  std::vector<std::filesystem::path> marked;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
+    const auto dir = e.path();
+    if (!e.is_directory() || !std::filesystem::is_regular_file(dir / "run.json")) continue;
+    json info;
+    try {
+      std::ifstream in(dir / "run.json");
+      info = json::parse(in);
+    } catch (const std::exception& ex) {
+      spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
+      continue;
+    }
+    if (!info.is_object() || info.value("outcome", json(nullptr)) != "running" || !run_abandoned(dir)) continue;
+    try {
+      // What is on disk is the record: a line cut by the crash is removed and counted.
+      json trimmed = json::object();
+      for (const char* file : {"telemetry.csv", "events.jsonl"}) {
+        if (std::filesystem::is_regular_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
+      }
+      const auto csv = dir / "telemetry.csv";
+      const std::uint64_t rows = std::filesystem::is_regular_file(csv) ? csv_rows(csv) : 0;
+      const auto last_write = std::filesystem::is_regular_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
+      const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
+      const std::string found = utc_iso(SysClock::now());
+      info["outcome"] = "interrupted";
+      info["reason"] = "the server process (pid " + info.value("pid", json("?")).dump() +
+                       ") ended during the run; found by a server started at " + found;
+      info["stop_utc"] = utc_iso(last_utc);
+      info["interrupted"] = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
+      json& t = info["telemetry"];
+      if (!t.is_object()) t = json::object();
+      t["file"] = "telemetry.csv";
+      t["rows_written"] = rows;
+      if (info.contains("duration_s") && info.contains("period_s") && info["period_s"].is_number() &&
+          info["duration_s"].is_number() && info["period_s"].get<double>() > 0) {
+        t["rows_expected"] = std::llround(info["duration_s"].get<double>() / info["period_s"].get<double>());
+      }
+      if (std::filesystem::is_regular_file(dir / "events.jsonl")) {
+        LineFile events(dir / "events.jsonl", /*append=*/true);
+        events.append(json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", info["reason"]},
+                           {"rows_on_disk", rows}}.dump() + "\n");
+      }
+      std::filesystem::remove(dir / ".reserve", ec);
+      write_json_atomically(dir / "run.json", info);
+      marked.push_back(dir);
+    } catch (const std::exception& ex) {
+      spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());
+    }
+  }
+  std::sort(marked.begin(), marked.end());
+  return marked;
 }
 
 }  // namespace hil::bench

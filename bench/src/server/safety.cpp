@@ -20,6 +20,7 @@ std::string_view to_string(Trip trip) noexcept {
     case Trip::rig_fault: return "rig fault";
     case Trip::overruns: return "overruns";
     case Trip::operator_abort: return "operator abort";
+    case Trip::recording: return "recording";
   }
   return "?";
 }

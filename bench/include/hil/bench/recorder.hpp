@@ -1,7 +1,9 @@
 // The telemetry recorder of one run: a writer thread drains the loop's telemetry and event rings
 // into telemetry.csv (flushed every flush period, so a crash loses at most that much) and
-// events.jsonl (spdlog, one JSON object a line, flushed per event), and hands every row to a
-// sink (the WebSocket stream). Memory is bounded by the rings; the loop counts what does not fit.
+// events.jsonl (one JSON object a line, written per event), and hands every row to a sink (the
+// WebSocket stream). Memory is bounded by the rings; the loop counts what does not fit. Both
+// files only ever hold whole lines (LineFile). The first write error stops the writing, sets
+// failed() for the loop to see, and every row after it is counted as not written.
 #pragma once
 
 #include <atomic>
@@ -19,10 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hil/bench/rt_loop.hpp"
-
-namespace spdlog {
-class logger;
-}
+#include "hil/line_file.hpp"
 
 namespace hil::bench {
 
@@ -53,24 +52,35 @@ class Recorder {
   // has ended. Returns the first write error ("" when none); never throws.
   std::string finish();
 
-  std::uint64_t rows_written() const noexcept { return rows_written_.load(); }
-  std::uint64_t rows_unwritten() const noexcept { return rows_unwritten_.load(); }  // after a disk error
+  std::uint64_t rows_written() const noexcept { return rows_written_.load(); }      // on disk
+  // Taken from the ring but not on disk: refused by the disk, or arrived after the first failure.
+  std::uint64_t rows_unwritten() const noexcept { return rows_unwritten_.load() + dropped_rows_.load(); }
   std::uint64_t events_written() const noexcept { return events_written_.load(); }
+  std::uint64_t events_unwritten() const noexcept { return events_unwritten_.load(); }
+  // Set once a write failed; the loop reads it every period (real-time safe to read).
+  const std::atomic<bool>& failed() const noexcept { return failed_; }
+  // The first write error ("" when none); from the thread that called finish().
+  const std::string& error() const noexcept { return error_; }
 
  private:
   void writer(int avoid_cpu);
   bool drain();  // one pass; true when it found anything
+  void fail(const std::exception& e);  // the first write error
+  void count_rows() noexcept;
 
   SpscRing<TelemetryRecord> telemetry_;
   SpscRing<LoopEvent> events_;
   std::unique_ptr<CsvWriter> csv_;
-  std::shared_ptr<spdlog::logger> log_;
+  std::unique_ptr<LineFile> events_file_;
+  std::mutex events_mutex_;  // log() is called from any thread
   RowSink on_row_;
   std::chrono::milliseconds flush_period_;
   bool with_truth_;
   std::vector<TelemetryRecord> batch_;
   std::string error_;
-  std::atomic<std::uint64_t> rows_written_{0}, rows_unwritten_{0}, events_written_{0};
+  std::atomic<bool> failed_{false};
+  std::atomic<std::uint64_t> rows_written_{0}, rows_unwritten_{0}, dropped_rows_{0}, events_written_{0},
+      events_unwritten_{0};
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stop_ = false;

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <vector>
@@ -30,6 +31,9 @@ class Node;
 namespace hil::bench {
 
 enum class OverrunPolicy : std::uint8_t { count, abort };
+// What the loop does when telemetry cannot be recorded: go to the safe state and end the run
+// (a run without its record cannot be reviewed), or run on and count the rows not written.
+enum class RecordingFaultPolicy : std::uint8_t { safe_state, count };
 
 // The `loop` block of a rig file.
 struct LoopConfig {
@@ -40,6 +44,7 @@ struct LoopConfig {
   int ring_rows = 65536;        // telemetry ring capacity (rows); the loss counter reports overflow
   int cpu_dma_latency_us = 0;   // PM QoS request while a loop runs; -1 = none
   int io_priority = 0;          // SCHED_FIFO priority of the device clients' I/O threads; 0 = the normal scheduler
+  RecordingFaultPolicy recording_fault = RecordingFaultPolicy::safe_state;
   static LoopConfig from_yaml(const cfg::Node& node);
 };
 
@@ -144,6 +149,9 @@ class RunLoop {
 
   // One period: requests, read, controller, safety, write. Real-time safe.
   void cycle(Clock::time_point deadline, Clock::time_point woke) noexcept;
+  // The recorder's "cannot write" flag (Recorder::failed), checked every period; a set flag is a
+  // fault like a full ring (see RecordingFaultPolicy). Setup, before the first cycle.
+  void watch_recording(const std::atomic<bool>* failed) noexcept { recording_failed_ = failed; }
   // Closes the period: compute time (end - woke), overrun check, telemetry row, snapshot.
   // Returns false once the run is over. Real-time safe.
   bool finish_cycle(Clock::time_point end) noexcept;
@@ -212,7 +220,8 @@ class RunLoop {
   // Safety and ending.
   bool safe_ = false;
   double safe_since_s_ = 0;
-  bool abort_requested_ = false, stop_requested_ = false, overrun_trip_ = false;
+  bool abort_requested_ = false, stop_requested_ = false, overrun_trip_ = false, ring_full_ = false;
+  const std::atomic<bool>* recording_failed_ = nullptr;
   Trip trip_ = Trip::none;
   double trip_t_s_ = kNaN, trip_value_ = kNaN, trip_limit_ = kNaN;
   std::array<char, 256> trip_detail_{};

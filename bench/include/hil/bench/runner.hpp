@@ -28,6 +28,17 @@ class Conflict : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// The runs folder has no room for the run's record (API: 507).
+class InsufficientStorage : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A run folder's run.json says "running" but no live process holds the run's lock: the server
+// died during it (kill -9, a crash, power). Rewrites run.json to outcome "interrupted" with what
+// is really on disk (a half-written last line is cut off and counted) and appends an event.
+// Returns the folders it marked. Safe while another server runs on the same folder.
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
 
 struct StartRequest {
   Campaign campaign;
@@ -54,12 +65,14 @@ class CampaignRunner {
   CampaignRunner& operator=(const CampaignRunner&) = delete;
 
   // Validates and starts; returns at once. Throws Conflict when a campaign runs, std::invalid_argument
-  // for a request that cannot run (unknown run name, speed on a hardware rig).
+  // for a request that cannot run (unknown run name, speed on a hardware rig), InsufficientStorage
+  // when the runs folder cannot hold the campaign's telemetry.
   void start(StartRequest request);
   // Ends the campaign after the current period (outcome "stopped"). Throws Conflict when idle.
   void stop();
-  // Safety abort: safe state, then the end (outcome "aborted", reason as given). Throws Conflict when idle.
-  void abort(const std::string& reason);
+  // Safety abort: safe state, then the end (outcome "aborted"). Throws Conflict when idle.
+  // Returns the reason the campaign will end with: the first abort's, when one is under way.
+  std::string abort(const std::string& reason);
   // An injection for the running loop. Throws Conflict when no loop runs, invalid_argument when
   // the rig cannot do it.
   void inject(const LoopRequest& request);

@@ -34,7 +34,9 @@ struct SafetyConfig {
   static SafetyConfig from_yaml(const cfg::Node& node);
 };
 
-enum class Trip : std::uint8_t { none, overpressure, underpressure, watchdog, rig_fault, overruns, operator_abort };
+// recording: telemetry could not be recorded (a write error, a full disk, a full ring), and the
+// rig's loop.recording_fault policy says a run without its record must not go on.
+enum class Trip : std::uint8_t { none, overpressure, underpressure, watchdog, rig_fault, overruns, operator_abort, recording };
 std::string_view to_string(Trip trip) noexcept;
 
 // The interlocks' memory between periods. One per run, used by the loop thread only.
