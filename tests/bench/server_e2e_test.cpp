@@ -281,10 +281,10 @@ TEST(ServerEndToEnd, TokenRequiredOffLoopback) {
   EXPECT_NE(hil::test::slurp(dir.path() / "log").find("requires a token"), std::string::npos);
 
   // With one, every request must carry it (reached here through 127.0.0.1).
-  ServerProcess server({"--listen", "0.0.0.0:0"}, "s3cret");
+  ServerProcess server({"--listen", "0.0.0.0:0"}, "s3cret-token");
   const auto anonymous = server.client("");
   const auto wrong = server.client("guess");
-  const auto right = server.client("s3cret");
+  const auto right = server.client("s3cret-token");
   for (const auto* target : {"/api/status", "/api/campaigns", "/api/runs"}) {
     EXPECT_EQ(anonymous.get(target).status, 401) << target;
     EXPECT_EQ(wrong.get(target).status, 401) << target;

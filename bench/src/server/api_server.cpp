@@ -7,7 +7,6 @@
 #include <deque>
 #include <fstream>
 #include <optional>
-#include <regex>
 #include <sstream>
 
 #include <boost/asio/dispatch.hpp>
@@ -43,7 +42,11 @@ struct Reply {
   std::string extra_header;    // Content-Disposition for downloads
 };
 
-Reply json_reply(http::status status, const json& j) { return {status, j.dump(2) + "\n", "application/json", {}, {}}; }
+// Text from a request (a path, a query, a parser's message quoting the body) may hold bytes
+// that are not UTF-8; dumping them must not throw, so they become U+FFFD.
+std::string dump_json(const json& j, int indent = -1) { return j.dump(indent, ' ', false, json::error_handler_t::replace); }
+
+Reply json_reply(http::status status, const json& j) { return {status, dump_json(j, 2) + "\n", "application/json", {}, {}}; }
 Reply error_reply(http::status status, const std::string& error, const std::string& detail = "") {
   json j = {{"error", error}};
   if (!detail.empty()) j["detail"] = detail;
@@ -97,16 +100,48 @@ Target parse_target(std::string_view target) {
   return t;
 }
 
+// A request target as it may appear in the server log: a token in the query is replaced, and
+// bytes outside printable ASCII are escaped, so the log neither leaks a secret nor holds raw
+// control characters from a client.
+std::string loggable_target(beast::string_view raw) {
+  const std::string_view target(raw.data(), raw.size());
+  std::string out;
+  const auto q = target.find('?');
+  auto escape = [&out](std::string_view part) {
+    for (const char ch : part) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c >= 0x20 && c < 0x7f) {
+        out.push_back(ch);
+      } else {
+        static constexpr char kHex[] = "0123456789ABCDEF";
+        out += {'%', kHex[c >> 4], kHex[c & 15]};
+      }
+    }
+  };
+  escape(target.substr(0, q));
+  if (q == std::string_view::npos) return out;
+  out.push_back('?');
+  for (std::size_t from = q + 1;;) {
+    const auto amp = target.find('&', from);
+    const std::string_view kv = target.substr(from, amp == std::string_view::npos ? amp : amp - from);
+    if (percent_decode(kv.substr(0, kv.find('='))) == "token") {
+      out += "token=<redacted>";
+    } else {
+      escape(kv);
+    }
+    if (amp == std::string_view::npos) break;
+    out.push_back('&');
+    from = amp + 1;
+  }
+  return out;
+}
+
 bool constant_time_equal(std::string_view a, std::string_view b) {
   unsigned char diff = a.size() == b.size() ? 0 : 1;
   for (std::size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i % std::max<std::size_t>(b.size(), 1)]);
   return diff == 0;
 }
 
-bool safe_name(const std::string& s) {
-  static const std::regex re("[A-Za-z0-9_.-]+");
-  return !s.empty() && s != "." && s != ".." && std::regex_match(s, re);
-}
 
 std::vector<std::string> yaml_stems(const std::filesystem::path& dir) {
   std::vector<std::string> out;
@@ -124,7 +159,7 @@ json parse_json_body(const Request& req) {
     json j = json::parse(req.body());
     if (!j.is_object()) throw ApiError{http::status::bad_request, "malformed JSON", "the body must be a JSON object"};
     return j;
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e400
     throw ApiError{http::status::bad_request, "malformed JSON", e.what()};
   }
 }
@@ -185,7 +220,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
                             for (const auto& c : loop_telemetry_columns()) names.push_back(c.name);
                             return names;
                           }()}};
-      self->send(std::make_shared<const std::string>(hello.dump()));
+      self->send(std::make_shared<const std::string>(dump_json(hello)));
       self->hub_.subscribe(self, rate_hz);
       self->read();
     });
@@ -197,6 +232,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       if (self->closed_) return;
       if (self->queue_.size() >= kWsQueueLimit) {
         ++self->dropped_;
+        ++self->dropped_unreported_;
         return;
       }
       self->queue_.push_back(message);
@@ -215,6 +251,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         return;
       }
       self->queue_.pop_front();
+      // The client learns in-band what it missed, once there is room to tell it.
+      if (self->dropped_unreported_ > 0 && self->queue_.size() < kWsQueueLimit / 2) {
+        self->queue_.push_back(std::make_shared<const std::string>(
+            dump_json({{"type", "dropped"}, {"messages", self->dropped_unreported_}, {"total", self->dropped_},
+                       {"why", "this client read slower than the telemetry was sent; telemetry.csv is the lossless record"}})));
+        self->dropped_unreported_ = 0;
+      }
       if (!self->queue_.empty()) self->write();
     });
   }
@@ -234,7 +277,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   TelemetryHub& hub_;
   beast::flat_buffer buffer_;
   std::deque<std::shared_ptr<const std::string>> queue_;
-  std::size_t dropped_ = 0;
+  std::size_t dropped_ = 0, dropped_unreported_ = 0;
   bool closed_ = false;
 };
 
@@ -275,12 +318,12 @@ void TelemetryHub::publish_row(const TelemetryRecord& r) {
   const auto values = loop_telemetry_row(r);
   const auto& columns = loop_telemetry_columns();
   for (std::size_t i = 0; i < columns.size(); ++i) j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
-  const auto message = std::make_shared<const std::string>(j.dump());
+  const auto message = std::make_shared<const std::string>(dump_json(j));
   for (const auto& session : due) session->send(message);
 }
 
 void TelemetryHub::publish_notice(const json& j) {
-  auto message = std::make_shared<const std::string>(j.dump());
+  auto message = std::make_shared<const std::string>(dump_json(j));
   std::vector<std::shared_ptr<WsSession>> all;
   {
     std::lock_guard lock(mutex_);
@@ -308,6 +351,10 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
 
   void accept();
   bool authorised(const Request& req, const Target& t) const;
+  // A parsed request's answer: authorisation, the route, errors as replies, the log line.
+  Reply answer(const Request& req, const Target& t);
+  // The answer to a request the HTTP parser refused.
+  Reply parse_failure(const beast::error_code& ec) const;
   Reply handle(const Request& req, const Target& t);
   Reply campaigns();
   Reply rigs();
@@ -335,7 +382,7 @@ bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
 
 RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
   const auto names = yaml_stems(options.rigs_dir);
-  if (!safe_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
+  if (!cfg::plain_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
     const std::string hint = cfg::closest(name, names);
     throw ApiError{http::status::not_found, "unknown rig",
                    "'" + name + "' is not a rig in " + options.rigs_dir.string() +
@@ -431,7 +478,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   try {
     if (yaml_body || body.contains("campaign_yaml")) {
       if (body.contains("campaign")) throw ApiError{http::status::bad_request, "bad request", "give 'campaign' or 'campaign_yaml', not both"};
-      s.campaign = load_campaign_text(yaml, "posted campaign", options.campaigns_dir);
+      s.campaign = load_campaign_text(yaml, "posted campaign", options.campaigns_dir, options.campaigns_dir.parent_path());
       s.source = "posted";
     } else {
       if (!body.contains("campaign")) {
@@ -439,7 +486,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
       }
       const std::string name = field<std::string>(body, "campaign", "");
       const auto names = yaml_stems(options.campaigns_dir);
-      if (!safe_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
+      if (!cfg::plain_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
         const std::string hint = cfg::closest(name, names);
         throw ApiError{http::status::not_found, "unknown campaign",
                        "'" + name + "' is not a campaign in " + options.campaigns_dir.string() +
@@ -449,7 +496,9 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
       s.campaign = load_campaign(file);
       s.source = file.string();
     }
-  } catch (const cfg::Error& e) {
+  } catch (const ApiError&) {
+    throw;
+  } catch (const std::exception& e) {  // cfg::Error, and anything a malformed file makes a loader throw
     throw ApiError{http::status::bad_request, "invalid campaign YAML", e.what()};
   }
   const std::string name = s.campaign.name;
@@ -457,6 +506,8 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     runner.start(std::move(s));
   } catch (const Conflict& e) {
     throw ApiError{http::status::conflict, "a campaign is running", e.what()};
+  } catch (const InsufficientStorage& e) {
+    throw ApiError{http::status::insufficient_storage, "no room for the record", e.what()};
   } catch (const std::invalid_argument& e) {
     throw ApiError{http::status::bad_request, "cannot start", e.what()};
   }
@@ -556,12 +607,12 @@ Reply ApiServer::Impl::runs() {
 
 Reply ApiServer::Impl::run(const std::string& id) {
   const auto dir = options.runs_dir / id;
-  if (!safe_name(id) || !std::filesystem::exists(dir / "run.json")) {
+  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
     throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
   }
   json files = json::array();
   for (const auto& e : std::filesystem::directory_iterator(dir)) {
-    if (e.is_regular_file() && e.path().extension() != ".tmp") {
+    if (e.is_regular_file() && cfg::plain_name(e.path().filename().string()) && e.path().extension() != ".tmp") {
       files.push_back({{"name", e.path().filename().string()}, {"bytes", e.file_size()}});
     }
   }
@@ -577,7 +628,7 @@ Reply ApiServer::Impl::run(const std::string& id) {
 
 Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) {
   const auto path = options.runs_dir / id / file;
-  if (!safe_name(id) || !safe_name(file) || !std::filesystem::is_regular_file(path)) {
+  if (!cfg::plain_name(id) || !cfg::plain_name(file) || !std::filesystem::is_regular_file(path)) {
     throw ApiError{http::status::not_found, "unknown file", "run '" + id + "' has no file '" + file + "'"};
   }
   Reply r;
@@ -621,12 +672,15 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
     const json body = parse_json_body(req);
     allow_fields(body, {"reason"});
     const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
+    std::string ends_with;
     try {
-      runner.abort(reason);
+      ends_with = runner.abort(reason);
     } catch (const Conflict& e) {
       throw ApiError{http::status::conflict, "nothing to abort", e.what()};
     }
-    return json_reply(http::status::accepted, {{"aborting", true}, {"reason", reason}});
+    json answer = {{"aborting", true}, {"reason", ends_with}};
+    if (ends_with != reason) answer["note"] = "an abort was already under way; the campaign ends with its reason";
+    return json_reply(http::status::accepted, answer);
   }
   if (p.size() == 3 && what == "inject") return need(http::verb::post), inject(p[2], parse_json_body(req));
   if (what == "runs" && p.size() == 2) return need(http::verb::get), runs();
@@ -638,6 +692,39 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   throw ApiError{http::status::not_found, "not found",
                  std::string(req.target()) + " is no endpoint; see GET /api/campaigns, /api/rigs, /api/status, /api/runs, "
                                              "POST /api/start, /api/stop, /api/abort, /api/inject/{gap,sensor,drive,rig,clear}"};
+}
+
+Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
+  Reply reply;
+  if (!authorised(req, t)) {
+    spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
+    return error_reply(http::status::unauthorized, "unauthorized", "this server requires 'Authorization: Bearer <token>' on every request");
+  }
+  if (websocket::is_upgrade(req)) {
+    reply = error_reply(http::status::bad_request, "WebSocket upgrade not possible here", "connect to /api/telemetry over TCP");
+  } else {
+    try {
+      reply = handle(req, t);
+    } catch (const ApiError& e) {
+      reply = error_reply(e.status, e.error, e.detail);
+    } catch (const std::exception& e) {
+      spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
+      reply = error_reply(http::status::internal_server_error, "internal error", e.what());
+    }
+  }
+  if (static_cast<int>(reply.status) >= 400) {
+    spdlog::info("{} {} -> {}", std::string(req.method_string()), loggable_target(req.target()), static_cast<int>(reply.status));
+  }
+  return reply;
+}
+
+Reply ApiServer::Impl::parse_failure(const beast::error_code& ec) const {
+  if (ec == http::error::body_limit) {
+    return error_reply(http::status::payload_too_large, "request body too large",
+                       "the limit is " + std::to_string(options.max_body_bytes) + " bytes");
+  }
+  if (ec == http::error::header_limit) return error_reply(http::status::request_header_fields_too_large, "headers too large");
+  return error_reply(http::status::bad_request, "malformed HTTP request", ec.message());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -660,52 +747,41 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
  private:
   void on_read(beast::error_code ec) {
     if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::connection_reset) return close();
-    if (ec == http::error::body_limit) {
-      draining_ = true;  // read the rest of the body after answering, so the client sees the 413
-      return send(error_reply(http::status::payload_too_large, "request body too large",
-                              "the limit is " + std::to_string(api_->options.max_body_bytes) + " bytes"),
-                  false);
+    if (ec) {
+      draining_ = ec == http::error::body_limit;  // read the rest of the body after answering, so the client sees the 413
+      return send(api_->parse_failure(ec), false);
     }
-    if (ec == http::error::header_limit) return send(error_reply(http::status::request_header_fields_too_large, "headers too large"), false);
-    if (ec) return send(error_reply(http::status::bad_request, "malformed HTTP request", ec.message()), false);
-
     Request req = parser_->release();
-    const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
-    if (!api_->authorised(req, target)) {
-      spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), std::string(req.target()));
-      return send(error_reply(http::status::unauthorized, "unauthorized",
-                              "this server requires 'Authorization: Bearer <token>' on every request"),
-                  req.keep_alive());
-    }
-    if (websocket::is_upgrade(req)) {
-      if (target.path != std::vector<std::string>{"api", "telemetry"}) {
-        return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
-      }
-      double rate = 20;
-      if (const auto q = target.query.find("rate_hz"); q != target.query.end()) {
-        try {
-          rate = std::stod(q->second);
-        } catch (const std::exception&) {
-          rate = -1;
-        }
-      }
-      if (!(rate > 0 && rate <= 5000)) return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
-      std::make_shared<WsSession>(stream_.release_socket(), api_->hub)->run(std::move(req), rate);
-      return;
-    }
-    Reply reply;
+    // One request's failure is that request's answer, never the server's end: a handler that
+    // throws anything gets a 500 for this request, and a running campaign goes on.
     try {
-      reply = api_->handle(req, target);
-    } catch (const ApiError& e) {
-      reply = error_reply(e.status, e.error, e.detail);
+      const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
+      if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
+      Reply reply = api_->answer(req, target);
+      send(std::move(reply), req.keep_alive());
     } catch (const std::exception& e) {
-      spdlog::error("{} {}: {}", std::string(req.method_string()), std::string(req.target()), e.what());
-      reply = error_reply(http::status::internal_server_error, "internal error", e.what());
+      spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
+      send(error_reply(http::status::internal_server_error, "internal error", e.what()), false);
+    } catch (...) {
+      spdlog::error("{} {}: unknown exception", std::string(req.method_string()), loggable_target(req.target()));
+      send(error_reply(http::status::internal_server_error, "internal error"), false);
     }
-    if (static_cast<int>(reply.status) >= 400) {
-      spdlog::info("{} {} -> {}", std::string(req.method_string()), std::string(req.target()), static_cast<int>(reply.status));
+  }
+
+  void upgrade(Request req, const Target& target) {
+    if (target.path != std::vector<std::string>{"api", "telemetry"}) {
+      return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
     }
-    send(std::move(reply), req.keep_alive());
+    double rate = 20;
+    if (const auto q = target.query.find("rate_hz"); q != target.query.end()) {
+      try {
+        rate = std::stod(q->second);
+      } catch (const std::exception&) {
+        rate = -1;
+      }
+    }
+    if (!(rate > 0 && rate <= 5000)) return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
+    std::make_shared<WsSession>(stream_.release_socket(), api_->hub)->run(std::move(req), rate);
   }
 
   void send(Reply reply, bool keep_alive) {
@@ -777,6 +853,17 @@ ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& r
   const auto address = asio::ip::make_address(options.address, ec);
   if (ec) throw std::invalid_argument("--listen: '" + options.address + "' is not an IP address");
   loopback_ = address.is_loopback();
+  if (!options.token.empty()) {
+    // A token is one printable word: a blank one would let '?token=%20' in, and one with spaces
+    // or control characters cannot travel in a header intact.
+    const bool printable = std::all_of(options.token.begin(), options.token.end(),
+                                       [](char ch) { return ch > 0x20 && ch < 0x7f; });
+    if (!printable) {
+      throw std::invalid_argument("the token must be printable ASCII without spaces (got " +
+                                  std::to_string(options.token.size()) + " characters that are not)");
+    }
+    if (options.token.size() < 8) throw std::invalid_argument("the token must have at least 8 characters");
+  }
   if (!loopback_ && options.token.empty()) {
     throw std::invalid_argument("listening on " + options.address +
                                 " (not loopback) requires a token: --token T or HILBENCH_TOKEN; every request must then carry "
@@ -801,6 +888,30 @@ ApiServer::~ApiServer() {
 }
 
 unsigned short ApiServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+ApiServer::RawAnswer ApiServer::answer_raw(std::string_view bytes) {
+  // The session's parser with the session's limits, fed from memory instead of a socket.
+  http::request_parser<http::string_body> parser;
+  parser.body_limit(impl_->options.max_body_bytes);
+  parser.header_limit(16 * 1024);
+  parser.eager(true);
+  beast::error_code ec;
+  std::size_t used = 0;
+  while (!ec && used < bytes.size() && !parser.is_done()) {
+    const std::size_t n = parser.put(asio::buffer(bytes.data() + used, bytes.size() - used), ec);
+    if (n == 0 && !ec) break;
+    used += n;
+  }
+  if (!ec && !parser.is_done()) ec = http::error::partial_message;
+  Reply reply;
+  if (ec) {
+    reply = impl_->parse_failure(ec);
+  } else {
+    const Request req = parser.release();
+    reply = impl_->answer(req, parse_target(std::string_view(req.target().data(), req.target().size())));
+  }
+  return {static_cast<int>(reply.status), reply.file.empty() ? reply.body : "file: " + reply.file.string()};
+}
 
 void ApiServer::refuse_starts(const std::string& why) {
   asio::post(impl_->io, [impl = impl_, why] { impl->refuse_starts = why; });

@@ -8,6 +8,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <boost/asio/io_context.hpp>
@@ -64,6 +65,15 @@ class ApiServer {
   unsigned short port() const;
   bool loopback() const { return loopback_; }
   void refuse_starts(const std::string& why);  // shutting down: new campaigns get 503
+
+  // One raw HTTP/1.1 request answered as a connection would answer it (parser limits, token,
+  // routes, errors), without a socket: for the fuzz target. Call on the io thread, or with the
+  // io_context not running. A WebSocket upgrade is answered 400.
+  struct RawAnswer {
+    int status;
+    std::string body;
+  };
+  RawAnswer answer_raw(std::string_view bytes);
 
   struct Impl;
 

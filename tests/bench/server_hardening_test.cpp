@@ -1,0 +1,251 @@
+// The real `hilbench serve` against careless and hostile use: malformed requests mid-run, a
+// posted campaign reaching for files outside the bench, a disk that fills during a run, a server
+// killed with -9, tokens and logs, a second abort, a WebSocket reader too slow for the stream.
+// Every case ends in a clear answer, the safe state where a run was under way, and records that
+// say what happened.
+#include <gtest/gtest.h>
+
+
+#include <fstream>
+#include <thread>
+
+#include "server_process.hpp"
+#include "small_disk.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using hil::test::ServerProcess;
+using nlohmann::json;
+
+std::string campaign_request(double duration_s, const std::string& name = "short_adaptive", double speed = 1,
+                             const std::string& runs = "adaptive") {
+  return json{{"campaign_yaml", hil::test::short_campaign_yaml(duration_s, name)}, {"runs", {runs}}, {"speed", speed}}.dump();
+}
+
+bool ends_with_newline(const std::filesystem::path& file) {
+  const std::string text = hil::test::slurp(file);
+  return !text.empty() && text.back() == '\n';
+}
+
+std::size_t data_rows(const std::filesystem::path& csv) {
+  std::ifstream in(csv);
+  std::size_t rows = 0;
+  bool header = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      header = true;
+    } else {
+      ++rows;
+    }
+  }
+  return rows;
+}
+
+TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3), "application/json").status, 202);
+  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 0.3; }, 20s);
+
+  struct Bad {
+    std::string method, target, body;
+    int status;
+  };
+  const Bad bad[] = {
+      {"POST", "/api/start", "{\"campaign\": \"\xff\xfe\"}", 400},    // invalid UTF-8 in a string value
+      {"POST", "/api/start", "{\"\xff\": 1}", 400},                    // ... in a key
+      {"POST", "/api/start", "{\"campaign\": \"x\", \"speed\": 1e400}", 400},
+      {"GET", "/api/runs?runs=%ff", "", 200},                          // an unknown query key is ignored
+      {"GET", "/api/runs/%ff", "", 404},
+      {"GET", "/api/runs/%ff/%fe", "", 404},
+      {"GET", "/api/\xff\xfe", "", 404},                               // raw bytes in the path
+      {"POST", "/api/abort", "{\"reason\": \"\xc3\"}", 400},           // truncated UTF-8
+      {"POST", "/api/inject/\xff", "{}", 404},
+  };
+  for (const auto& b : bad) {
+    const auto reply = api.request(b.method, b.target, b.body, "application/json");
+    EXPECT_EQ(reply.status, b.status) << b.target << " " << reply.body;
+    EXPECT_NO_THROW((void)reply.json()) << reply.body;  // always a JSON answer
+  }
+  EXPECT_EQ(api.get("/api/health").status, 200);
+  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+  EXPECT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
+  const auto run = json::parse(hil::test::slurp(hil::test::only_run(server.runs_dir()) / "run.json"));
+  EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
+}
+
+TEST(ServerHardening, APostedCampaignCannotReadFilesOutsideTheBench) {
+  ServerProcess server;
+  const auto api = server.client();
+  const auto secret = server.dir() / "secret.yaml";
+  std::ofstream(secret) << "TOP-SECRET-LINE: do not show\n";
+  for (const std::string& plant : {secret.string(), std::string("/etc/shadow"), std::string("../../../../../../etc/passwd")}) {
+    std::string yaml = hil::test::short_campaign_yaml(1);
+    yaml.replace(yaml.find("../plant/nominal.yaml"), std::string("../plant/nominal.yaml").size(), plant);
+    const auto reply = api.post("/api/start", {{"campaign_yaml", yaml}});
+    EXPECT_EQ(reply.status, 400) << reply.body;
+    EXPECT_NE(reply.body.find("may only name a plant file inside"), std::string::npos) << reply.body;
+    for (const char* leak : {"TOP-SECRET", "root:", "do not show"}) EXPECT_EQ(reply.body.find(leak), std::string::npos) << reply.body;
+  }
+  // A plant path that is a folder is the client's mistake: 400, not 500.
+  std::string yaml = hil::test::short_campaign_yaml(1);
+  yaml.replace(yaml.find("../plant/nominal.yaml"), std::string("../plant/nominal.yaml").size(), "../plant");
+  const auto folder = api.post("/api/start", {{"campaign_yaml", yaml}});
+  EXPECT_EQ(folder.status, 400) << folder.body;
+  EXPECT_NE(folder.body.find("not a regular file"), std::string::npos) << folder.body;
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
+TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
+  hil::test::TempDir base;
+  hil::test::SmallDisk disk(base.path() / "runs", "8m");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?): the full-disk case needs its own small disk";
+  ServerProcess server({"--runs-dir", (base.path() / "runs").string()});
+  const auto api = server.client();
+
+  // A campaign whose record cannot fit is refused before it starts.
+  const auto too_big = api.request("POST", "/api/start", campaign_request(600, "ten_minutes"), "application/json");
+  EXPECT_EQ(too_big.status, 507) << too_big.body;
+  EXPECT_NE(too_big.body.find("MB free"), std::string::npos) << too_big.body;
+
+  // The disk fills up while a run is under way: the loop trips to its safe state and ends.
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(20), "application/json").status, 202);
+  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+  disk.fill();
+  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+  ASSERT_EQ(s["state"], "idle") << s.dump(2);
+  EXPECT_EQ(s["last"]["outcome"], "aborted") << s.dump(2);
+  const std::string reason = s["last"]["reason"];
+  EXPECT_NE(reason.find("recording: telemetry could not be recorded"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("No space left on device"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("rows not recorded"), std::string::npos) << reason;
+
+  std::filesystem::path dir;
+  for (const auto& e : std::filesystem::directory_iterator(base.path() / "runs")) {
+    if (e.is_directory()) dir = e.path();
+  }
+  ASSERT_FALSE(dir.empty());
+  const json run = json::parse(hil::test::slurp(dir / "run.json"));
+  EXPECT_EQ(run["outcome"], "aborted");
+  EXPECT_EQ(run["trip"]["reason"], "recording");
+  EXPECT_FALSE(std::filesystem::exists(dir / "run.json.tmp"));
+  EXPECT_FALSE(std::filesystem::exists(dir / ".reserve"));
+  // What is on disk ends on a whole line, and the counts add up to the periods the loop ran.
+  EXPECT_TRUE(ends_with_newline(dir / "telemetry.csv"));
+  EXPECT_TRUE(ends_with_newline(dir / "events.jsonl"));
+  const std::size_t rows = data_rows(dir / "telemetry.csv");
+  EXPECT_EQ(run["telemetry"]["rows_written"], rows);
+  EXPECT_GT(run["telemetry"]["rows_unwritten"].get<std::size_t>(), 0u);
+  EXPECT_EQ(rows + run["telemetry"]["rows_unwritten"].get<std::size_t>() + run["telemetry"]["rows_lost"].get<std::size_t>(),
+            run["periods_run"].get<std::size_t>());
+  EXPECT_LT(rows, 20000u);
+
+  // A start on a disk that is still full is refused, not accepted and then lost.
+  const auto on_full = api.request("POST", "/api/start", campaign_request(1), "application/json");
+  EXPECT_EQ(on_full.status, 507) << on_full.body;
+  disk.unfill();
+  EXPECT_EQ(api.request("POST", "/api/start", campaign_request(1), "application/json").status, 202);
+  EXPECT_EQ(hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s)["last"]["outcome"], "completed");
+}
+
+TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDisk) {
+  hil::test::TempDir base;
+  const auto runs = base.path() / "runs";
+  {
+    ServerProcess first({"--runs-dir", runs.string()});
+    const auto api = first.client();
+    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(60), "application/json").status, 202);
+    hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+    ASSERT_EQ(::kill(first.pid(), SIGKILL), 0);
+    ASSERT_TRUE(hil::test::wait_exit(first.pid(), 10s).has_value());
+  }
+  const auto dir = hil::test::only_run(runs);
+  EXPECT_EQ(json::parse(hil::test::slurp(dir / "run.json"))["outcome"], "running");  // the lie a crash leaves
+
+  ServerProcess second({"--runs-dir", runs.string()});
+  const auto listed = second.client().get("/api/runs").json()["runs"];
+  ASSERT_EQ(listed.size(), 1u) << listed.dump(2);
+  EXPECT_EQ(listed[0]["outcome"], "interrupted");
+  const json run = json::parse(hil::test::slurp(dir / "run.json"));
+  EXPECT_EQ(run["outcome"], "interrupted");
+  EXPECT_NE(run["reason"].get<std::string>().find("ended during the run"), std::string::npos);
+  EXPECT_TRUE(ends_with_newline(dir / "telemetry.csv"));
+  const std::size_t rows = data_rows(dir / "telemetry.csv");
+  EXPECT_GT(rows, 500u);
+  EXPECT_EQ(run["telemetry"]["rows_written"], rows);
+  EXPECT_EQ(run["telemetry"]["rows_expected"], 60000);
+  const auto events = hil::test::read_jsonl(dir / "events.jsonl");
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back()["kind"], "interrupted");
+  EXPECT_NE(second.log().find("marked interrupted"), std::string::npos);
+}
+
+TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {
+  hil::test::TempDir dir;
+  for (const char* blank : {"   ", "short", "has space inside"}) {
+    const pid_t pid = hil::test::spawn({hil::test::hilbench_exe(), "serve", "--listen", "127.0.0.1:0", "--token", blank, "--configs",
+                                        hil::test::source_path("configs").string(), "--runs-dir", (dir.path() / "runs").string()},
+                                       dir.path() / "log");
+    const auto rc = hil::test::wait_exit(pid, 10s);
+    ASSERT_TRUE(rc.has_value());
+    EXPECT_EQ(*rc, 1) << blank;
+  }
+  EXPECT_NE(hil::test::slurp(dir.path() / "log").find("the token must be printable ASCII without spaces"), std::string::npos);
+
+  ServerProcess server({}, "right-token-123");
+  const auto anonymous = server.client("");
+  EXPECT_EQ(anonymous.get("/api/status?token=%20").status, 401);
+  EXPECT_EQ(anonymous.get("/api/status?token=wrong-token-456").status, 401);
+  EXPECT_EQ(anonymous.get("/api/status?token=right-token-123").status, 200);
+  EXPECT_EQ(anonymous.get("/api/nothing?a=1&token=right-token-123").status, 404);  // logged: an error
+  const std::string log = server.log();
+  EXPECT_EQ(log.find("wrong-token-456"), std::string::npos) << log;
+  EXPECT_EQ(log.find("right-token-123"), std::string::npos) << log;
+  EXPECT_NE(log.find("token=<redacted>"), std::string::npos) << log;
+}
+
+TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
+  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  const auto first = api.post("/api/abort", {{"reason", "first"}}).json();
+  const auto second = api.post("/api/abort", {{"reason", "second"}}).json();
+  EXPECT_EQ(first["reason"], "operator abort: first");
+  EXPECT_EQ(second["reason"], "operator abort: first");
+  EXPECT_TRUE(second.contains("note"));
+  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  EXPECT_EQ(s["last"]["reason"], "operator abort: first");
+}
+
+TEST(ServerHardening, ASlowWebSocketReaderIsToldInBandWhatItMissed) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(200, "fast", 20), "application/json").status, 202);
+  bool stalled = false;
+  json dropped;
+  std::size_t rows = 0;
+  api.stream("/api/telemetry?rate_hz=5000", [&](const std::string& text) {
+    const json m = json::parse(text);
+    if (m["type"] == "row") ++rows;
+    if (!stalled && m["type"] == "row") {
+      stalled = true;
+      std::this_thread::sleep_for(4s);  // a reader that stops reading: the server's queue fills
+    }
+    if (m["type"] == "dropped") {
+      dropped = m;
+      return false;
+    }
+    return true;
+  });
+  ASSERT_FALSE(dropped.is_null()) << rows << " rows and no 'dropped' notice";
+  EXPECT_GT(dropped["messages"].get<long>(), 0);
+  EXPECT_GE(dropped["total"].get<long>(), dropped["messages"].get<long>());
+  EXPECT_NE(dropped["why"].get<std::string>().find("telemetry.csv is the lossless record"), std::string::npos);
+  api.post("/api/abort", {{"reason", "test done"}});
+  hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+}
+
+}  // namespace
