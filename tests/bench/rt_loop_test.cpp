@@ -305,3 +305,48 @@ TEST(RunLoop, TimingStatisticsComeFromTheGivenTimes) {
   EXPECT_NEAR(s.max_us, 37, 1e-9);
   EXPECT_EQ(h.loop->wake_latency().summary().max_us, 0);
 }
+
+// With a drive's limits set, the rig gets targets within them while the controller's command
+// keeps its compensation jumps; without, the target is the command.
+TEST(RunLoop, ShapedTargetsStayWithinTheDriveLimits) {
+  LoopConfig cfg;
+  cfg.target_shaping = {deg_to_rad(60), deg_to_rad(3000)};
+  LoopHarness h(short_campaign(6.0), "adaptive", {}, cfg);
+  std::vector<TelemetryRecord> rows;
+  while (h.step()) {
+    for (const auto& r : h.rows()) rows.push_back(r);
+  }
+  for (const auto& r : h.rows()) rows.push_back(r);
+  ASSERT_EQ(rows.size(), 6000u);
+  const double dt = 1e-3;
+  double largest_cmd_step = 0, largest_gap = 0;
+  for (std::size_t i = 2; i < rows.size(); ++i) {
+    const double v = (rows[i].theta_target_rad - rows[i - 1].theta_target_rad) / dt;
+    const double v_prev = (rows[i - 1].theta_target_rad - rows[i - 2].theta_target_rad) / dt;
+    ASSERT_LE(std::abs(v), deg_to_rad(60) * (1 + 1e-9)) << i;
+    ASSERT_LE(std::abs(v - v_prev) / dt, deg_to_rad(3000) * (1 + 1e-6)) << i;
+    largest_cmd_step = std::max(largest_cmd_step, std::abs(rows[i].step.theta_cmd_rad - rows[i - 1].step.theta_cmd_rad));
+    largest_gap = std::max(largest_gap, std::abs(rows[i].theta_target_rad - rows[i].step.theta_cmd_rad));
+  }
+  EXPECT_GT(largest_cmd_step, deg_to_rad(0.5));  // the compensator still jumps...
+  EXPECT_GT(largest_gap, deg_to_rad(0.2));       // ...and the drive is led there within its limits
+  // 100 ms after the last jump faster than the drive, the target follows the command within
+  // what braking at the limit from the command's own speed c costs: c^2 / 2a (plus two periods).
+  const double amax = deg_to_rad(3000);
+  std::size_t last_jump = 0, checked = 0;
+  for (std::size_t i = 10; i < rows.size(); ++i) {
+    if (std::abs(rows[i].step.theta_cmd_rad - rows[i - 1].step.theta_cmd_rad) > deg_to_rad(60) * dt) last_jump = i;
+    if (i < last_jump + 100) continue;
+    double c = 0;  // the command's fastest speed over the last 100 ms
+    for (std::size_t j = i - 99; j <= i; ++j) c = std::max(c, std::abs(rows[j].step.theta_cmd_rad - rows[j - 1].step.theta_cmd_rad) / dt);
+    ASSERT_LE(std::abs(rows[i].theta_target_rad - rows[i].step.theta_cmd_rad), c * c / (2 * amax) + 2 * c * dt + deg_to_rad(1e-3))
+        << i << " c " << c;
+    ++checked;
+  }
+  EXPECT_GT(checked, 3500u);  // most of the run: jumps come only at reversals
+
+  LoopHarness plain(short_campaign(0.5), "adaptive");
+  while (plain.step()) {
+  }
+  for (const auto& r : plain.rows()) ASSERT_EQ(r.theta_target_rad, r.step.theta_cmd_rad);
+}

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "hil/config.hpp"
+#include "hil/units.hpp"
 
 namespace hil::bench {
 namespace {
@@ -18,7 +19,7 @@ double until(double t_s, double duration_s) noexcept { return duration_s > 0 ? t
 }  // namespace
 
 LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority", "recording_fault"});
+  n.allow_keys({"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority", "recording_fault", "target_shaping"});
   LoopConfig c;
   c.priority = static_cast<int>(n.integer("priority", 80));
   if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
@@ -49,6 +50,13 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
   } else {
     n.at("recording_fault").fail("must be 'safe_state' or 'count', got '" + recording + "'");
   }
+  if (const auto s = n.find("target_shaping")) {
+    s->allow_keys({"max_velocity_deg_s", "max_acceleration_deg_s2"});
+    const double v = s->number("max_velocity_deg_s"), a = s->number("max_acceleration_deg_s2");
+    s->at("max_velocity_deg_s").require(v > 0 && v <= 1e5, "must be in (0, 100000] deg/s");
+    s->at("max_acceleration_deg_s2").require(a > 0 && a <= 1e7, "must be in (0, 1e7] deg/s^2");
+    c.target_shaping = {units::deg_to_rad(v), units::deg_to_rad(a)};
+  }
   c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
   if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
   return c;
@@ -67,6 +75,7 @@ const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth) {
     for (std::size_t i = 0; i < sim.size(); ++i) {
       if (truth || !is_truth(i)) c.push_back(sim[i]);
     }
+    c.push_back({"theta_target_deg", 5});
     c.push_back({"wake_latency_us", 2});
     c.push_back({"compute_us", 2});
     c.push_back({"loop_flags", 0});
@@ -88,6 +97,7 @@ std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::a
   for (std::size_t i = 0; i < kSimColumns; ++i) {
     if (with_truth || !is_truth(i)) out[n++] = sim[i];
   }
+  out[n++] = units::rad_to_deg(std::isfinite(r.theta_target_rad) ? r.theta_target_rad : r.step.theta_cmd_rad);
   out[n++] = r.wake_latency_us;
   out[n++] = r.compute_us;
   out[n++] = static_cast<double>(r.flags);
@@ -115,6 +125,7 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
       gap_to_rig_(rig.programmable_gap()),
       safety_(safety),
       loop_(loop),
+      shaper_(loop.target_shaping),
       wall_period_(wall_period),
       n_(std::lround(campaign.duration_s / campaign.period_s)),
       telemetry_(telemetry),
@@ -140,6 +151,7 @@ void RunLoop::begin(Clock::time_point now) {
   }
   cs_ = controller_.initial_state(theta0, rd.p_meas_pa, run_.initial_touch);
   last_sent_rad_ = theta0;
+  shaper_.reset(theta0);
   last_p_meas_pa_ = rd.p_meas_pa;
   last_shown_ = rd;
   LoopSnapshot snap;
@@ -294,8 +306,9 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
     limited_ = limited;
   }
 
-  // Write (a drive that ignores commands keeps the one it had).
-  rig_.write(woke, wall_period_, {drive_fault_ ? drive_frozen_rad_ : cmd, true, gap_to_rig_ ? gap : kNaN});
+  // Write (a drive that ignores commands keeps the one it had), within the drive's limits.
+  const double target = shaper_.step(drive_fault_ ? drive_frozen_rad_ : cmd, dt);
+  rig_.write(woke, wall_period_, {target, true, gap_to_rig_ ? gap : kNaN});
   last_sent_rad_ = cmd;
 
   if (missed) {
@@ -314,6 +327,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   r.p_chamber_pa = rd.p_chamber_pa;
   r.p_meas_pa = rd.p_meas_pa;
   r.theta_cmd_rad = cmd;
+  rec_.theta_target_rad = target;
   r.theta_motor_rad = rd.theta_motor_rad;
   r.theta_valve_rad = rd.theta_valve_rad;
   r.gap_true_rad = gap_to_rig_ ? gap : kNaN;

@@ -21,6 +21,7 @@
 #include "hil/bench/safety.hpp"
 #include "hil/bench/sim.hpp"
 #include "hil/bench/spsc_ring.hpp"
+#include "hil/bench/target_shaper.hpp"
 #include "hil/drv/io_types.hpp"
 #include "hil/plant/rng.hpp"
 
@@ -45,6 +46,9 @@ struct LoopConfig {
   int cpu_dma_latency_us = 0;   // PM QoS request while a loop runs; -1 = none
   int io_priority = 0;          // SCHED_FIFO priority of the device clients' I/O threads; 0 = the normal scheduler
   RecordingFaultPolicy recording_fault = RecordingFaultPolicy::safe_state;
+  // A real drive's velocity and acceleration limits: the rig is sent targets within them (see
+  // target_shaper.hpp). Off (zero) for the simulated rig, whose servo model has its own limits.
+  ShapingLimits target_shaping;
   static LoopConfig from_yaml(const cfg::Node& node);
 };
 
@@ -63,16 +67,18 @@ enum LoopFlag : std::uint32_t {
 
 struct TelemetryRecord {
   StepRecord step;
+  double theta_target_rad = kNaN;  // what the rig was sent (the command, shaped for a real drive)
   double wake_latency_us = 0;
   double compute_us = 0;
   std::uint32_t flags = 0;
 };
 
-// hilbench sim's columns, then wake_latency_us, compute_us, loop_flags. A rig without the truth
+// hilbench sim's columns, then theta_target_deg (what the rig was sent), wake_latency_us,
+// compute_us, loop_flags. A rig without the truth
 // (Rig::knows_truth false: the CAN and Modbus rigs) leaves out theta_valve_deg, gap_true_deg and
 // p_chamber_mpa (with_truth false) rather than fill them with nan. A period without a reading repeats the last one recorded, with
 // kFlagReadMissed set, so every row parses.
-inline constexpr std::size_t kLoopColumns = kSimColumns + 3;
+inline constexpr std::size_t kLoopColumns = kSimColumns + 4;
 const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
 // The row for the columns of loop_telemetry_columns(with_truth); returns how many values.
@@ -194,6 +200,7 @@ class RunLoop {
   const bool gap_to_rig_;  // the rig takes the programmed gap (Rig::programmable_gap)
   Safety safety_;
   const LoopConfig loop_;
+  TargetShaper shaper_;
   const Clock::duration wall_period_;
   const std::int64_t n_;
   SpscRing<TelemetryRecord>& telemetry_;
