@@ -1,4 +1,5 @@
 // hilbench: one executable, one sub-command per job.
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <string>
@@ -66,6 +67,12 @@ int main(int argc, char** argv) {
   for (const auto& c : kCommands) {
     names.emplace_back(c.name);
     if (name != c.name) continue;
+    // `hilbench X --help`: X's usage on stdout, exit 0 (ctl has sub-commands and its own help).
+    if (name == "ctl" && !args.empty() && args[0] == "-h") args[0] = "--help";
+    if (name != "ctl" && std::any_of(args.begin(), args.end(), [](const std::string& a) { return a == "--help" || a == "-h"; })) {
+      std::printf("usage: hilbench %s\n", c.usage);
+      return 0;
+    }
     try {
       return c.run(args);
     } catch (const hil::bench::UsageError& e) {

@@ -97,3 +97,23 @@ TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
 }
 
 }  // namespace
+
+namespace {
+// Every sub-command answers --help with its usage on stdout and exit 0; the top level lists them all.
+TEST(Cli, EverySubCommandAnswersHelp) {
+  const auto top = run_command(hilbench() + " --help");
+  ASSERT_EQ(top.status, 0) << top.output;
+  for (const char* cmd : {"sim", "effects", "serve", "ctl", "compare", "diagnose", "plant", "characterise"}) {
+    EXPECT_NE(top.output.find(std::string("\n  ") + cmd), std::string::npos) << cmd << "\n" << top.output;
+    for (const char* flag : {"--help", "-h"}) {
+      const auto r = run_command(hilbench() + " " + cmd + " " + flag);
+      EXPECT_EQ(r.status, 0) << cmd << " " << flag << "\n" << r.output;
+      EXPECT_NE(r.output.find(std::string("hilbench ") + cmd), std::string::npos) << cmd << "\n" << r.output;
+      EXPECT_EQ(r.output.find("unknown option"), std::string::npos) << cmd << "\n" << r.output;
+    }
+  }
+  const auto typo = run_command(hilbench() + " sim --outt x");
+  EXPECT_EQ(typo.status, 2);
+  EXPECT_NE(typo.output.find("did you mean --out?"), std::string::npos) << typo.output;
+}
+}  // namespace
