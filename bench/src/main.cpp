@@ -40,6 +40,9 @@ const Command kCommands[] = {
      "plant [--plant FILE | --campaign CAMPAIGN.yaml] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml]\n"
      "      [--period-ms 1] [--initial-mpa 1.0] [--duration-s S] [--rt-priority P] [--port-file F]\n"
      "      the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices"},
+    {"report", hil::bench::cmd_report,
+     "report RUN_DIR... [--out FILE] [--quiet]\n"
+     "      the paper-style report of runs recorded by hilbench serve (default FILE: the first RUN_DIR/report.html)"},
     {"characterise", hil::bench::cmd_characterise,
      "characterise [--readme README.md] [--campaigns DIR]\n"
      "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},

@@ -80,11 +80,7 @@ void write_text(const std::filesystem::path& file, const std::string& text) {
 RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
                    std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
-  const long n = std::lround(c.duration_s / c.period_s);
-  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
-  Decimator report({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg", "theta_cmd_deg",
-                    "gap_est_deg", "gap_true_deg"},
-                   n);
+  RunDigest digest(c, std::lround(c.duration_s / c.period_s));
   std::unique_ptr<CsvWriter> csv;
   if (telemetry) {
     csv = std::make_unique<CsvWriter>(dir / "telemetry.csv", sim_telemetry_columns(),
@@ -94,17 +90,13 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   simulate_run(
       c, run,
       [&](const StepRecord& r) {
-        metrics.add(r);
-        const double values[] = {pa_to_mpa(r.p_ref_pa),        pa_to_mpa(r.p_meas_pa),       static_cast<double>(r.touch),
-                                 rad_to_deg(r.theta_motor_rad), rad_to_deg(r.theta_valve_rad), rad_to_deg(r.theta_cmd_rad),
-                                 rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad)};
-        report.add(r.t_s, values);
+        digest.add(r);
         if (csv) csv->row(telemetry_row(r));
         if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw Cancelled("cancelled");
       },
       &steps_done);
   if (csv) csv->close();
-  RunOutcome out{run.name, metrics.finish(), report.take(), 0};
+  RunOutcome out = digest.finish(run.name);
   out.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   nlohmann::json summary = out.summary.to_json();
   summary["campaign"] = c.name;
@@ -136,6 +128,29 @@ void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::strin
 }
 
 }  // namespace
+
+struct RunDigest::Impl {
+  RunMetrics metrics;
+  Decimator report;
+};
+
+RunDigest::RunDigest(const Campaign& c, long total_periods)
+    : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS),
+                                        Decimator({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg",
+                                                   "theta_cmd_deg", "gap_est_deg", "gap_true_deg"},
+                                                  total_periods)})) {}
+
+RunDigest::~RunDigest() = default;
+
+void RunDigest::add(const StepRecord& r) {
+  impl_->metrics.add(r);
+  const double values[] = {pa_to_mpa(r.p_ref_pa),        pa_to_mpa(r.p_meas_pa),       static_cast<double>(r.touch),
+                           rad_to_deg(r.theta_motor_rad), rad_to_deg(r.theta_valve_rad), rad_to_deg(r.theta_cmd_rad),
+                           rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad)};
+  impl_->report.add(r.t_s, values);
+}
+
+RunOutcome RunDigest::finish(std::string run_name) { return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0}; }
 
 const std::vector<CsvColumn>& sim_telemetry_columns() {
   static const std::vector<CsvColumn> columns = {

@@ -2,12 +2,17 @@
 // HTTP/WebSocket API (and, once, through `hilbench ctl`).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <mutex>
 #include <thread>
 
+#include "hil/bench/campaign.hpp"
+#include "hil/bench/run_report.hpp"
+#include "hil/bench/sim.hpp"
 #include "hil/csv_reader.hpp"
+#include "loop_fixture.hpp"
 #include "server_process.hpp"
 
 using namespace std::chrono_literals;
@@ -319,4 +324,42 @@ TEST(ServerEndToEnd, CtlStartsAndFollowsWithAProgressBar) {
   const std::string runs = hil::test::slurp(server.dir() / "runs.log");
   EXPECT_NE(runs.find("_two_seconds_none"), std::string::npos) << runs;
   EXPECT_NE(runs.find("_two_seconds_adaptive"), std::string::npos) << runs;
+}
+
+// A run recorded by the server is reviewed as a simulation is: `hilbench report` gives the same
+// metrics as `hilbench sim` for the same campaign (the sim rig reproduces it row for row; only
+// the CSV's rounding differs) and writes the same report.
+TEST(ServerEndToEnd, ReportOfRecordedRunsMatchesTheSimulation) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string yaml = hil::test::short_campaign_yaml(6, "review");
+  ASSERT_EQ(api.request("POST", "/api/start", json{{"campaign_yaml", yaml}, {"speed", 10}}.dump(), "application/json").status, 202);
+  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 60s);
+  ASSERT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
+  std::vector<std::filesystem::path> dirs;
+  for (const auto& e : std::filesystem::directory_iterator(server.runs_dir())) dirs.push_back(e.path());
+  std::sort(dirs.begin(), dirs.end());
+  ASSERT_EQ(dirs.size(), 2u);
+
+  const auto log = server.dir() / "report.log";
+  const pid_t pid = hil::test::spawn({hil::test::hilbench_exe(), "report", dirs[0].string(), dirs[1].string(), "--out",
+                                      (server.dir() / "review.html").string()}, log);
+  ASSERT_EQ(hil::test::wait_exit(pid, 60s), 0) << hil::test::slurp(log);
+  EXPECT_NE(hil::test::slurp(log).find("completed"), std::string::npos) << hil::test::slurp(log);
+  EXPECT_GT(std::filesystem::file_size(server.dir() / "review.html"), 10000u);
+
+  const auto runs = hil::bench::write_run_report(dirs, server.dir() / "again.html");
+  const auto campaign = hil::bench::load_campaign_text(yaml, "review.yaml", hil::test::source_path("configs/campaigns"));
+  ASSERT_EQ(runs.size(), 2u);
+  for (const auto& r : runs) {
+    const auto sim = hil::bench::summarise_run(campaign, hil::test::run_named(campaign, r.digest.name));
+    const auto& got = r.digest.summary;
+    EXPECT_NEAR(got.iae_mpa_s, sim.iae_mpa_s, 1e-3 * sim.iae_mpa_s) << r.digest.name;
+    ASSERT_EQ(got.reversals.size(), sim.reversals.size()) << r.digest.name;
+    for (std::size_t i = 0; i < sim.reversals.size(); ++i) {
+      EXPECT_NEAR(got.reversals[i].stall_s, sim.reversals[i].stall_s, 0.005) << r.digest.name << " reversal " << i;
+      EXPECT_NEAR(got.reversals[i].gap_est_deg, sim.reversals[i].gap_est_deg, 1e-4) << r.digest.name << " reversal " << i;
+    }
+    EXPECT_EQ(got.touch_state_changes, sim.touch_state_changes) << r.digest.name;
+  }
 }

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -77,6 +78,23 @@ struct RunOutcome {
   RunSummary summary;
   std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true
   double wall_s = 0;
+};
+
+// What a run's report and summary are made of, gathered from its records one period at a time:
+// the metrics (RunMetrics) and the min/max-decimated series the report plots. One for
+// `hilbench sim` (while it simulates) and `hilbench report` (from a recorded telemetry.csv).
+class RunDigest {
+ public:
+  RunDigest(const Campaign& c, long total_periods);
+  ~RunDigest();
+  RunDigest(const RunDigest&) = delete;
+  RunDigest& operator=(const RunDigest&) = delete;
+  void add(const StepRecord& r);
+  RunOutcome finish(std::string run_name);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 struct SimOptions {
