@@ -6,7 +6,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 launcher=()
 # ccache, where installed, makes a rebuild after a small change cheap; the build is the same without it.
-command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# CCACHE_BASEDIR makes the cache hit from another clone of the tree too (CI's fresh clone).
+if command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR="$PWD"
+fi
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null
 targets=()
 for t in "$@"; do targets+=(--target "$t"); done
