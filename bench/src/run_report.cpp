@@ -101,8 +101,14 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;
-  for (const auto& r : runs) outcomes.push_back(r.digest);
-  write_sim_report(*campaign, outcomes, out_file);
+  std::string note = "Recorded by hilbench serve:";
+  for (const auto& r : runs) {
+    outcomes.push_back(r.digest);
+    note += " " + r.digest.name + " " + r.outcome + (r.reason.empty() ? "" : " (" + r.reason + ")") + " [" +
+            r.dir.filename().string() + "];";
+  }
+  note.back() = '.';
+  write_sim_report(*campaign, outcomes, out_file, "hilbench report", note);
   return runs;
 }
 

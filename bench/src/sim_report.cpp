@@ -58,10 +58,12 @@ std::string describe_gap(const Campaign& c) {
 
 }  // namespace
 
-void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, const std::filesystem::path& file) {
-  report::Document doc("hilbench sim: " + c.name);
+void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, const std::filesystem::path& file,
+                      const std::string& origin, const std::string& note) {
+  report::Document doc(origin + ": " + c.name);
   doc.heading("Campaign " + c.name, 1);
   if (!c.description.empty()) doc.paragraph(c.description);
+  if (!note.empty()) doc.paragraph(note);
   doc.paragraph("Plant " + c.plant_file.filename().string() + "; " + fmt("%.6g", c.duration_s) + " s at dT = " +
                 fmt("%.3g", c.period_s * 1e3) + " ms; sensor noise " + fmt("%.3g", c.sensor_noise_rms_pa / 1e3) +
                 " kPa RMS; seed " + std::to_string(c.seed) + "; " + std::to_string(c.reversals_s.size()) +
@@ -73,11 +75,13 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     const auto& s = r.summary;
     const RunSpec* spec = nullptr;
     for (const auto& rs : c.runs)
-      if (rs.name == r.name) spec = &rs;
-    const char* comp = spec->controller.compensation == ctl::Compensation::none       ? "none"
+      if (rs.name == r.name || r.name.rfind(rs.name + " (", 0) == 0) spec = &rs;  // "adaptive (its folder)"
+    const char* comp = !spec                                                           ? "?"
+                       : spec->controller.compensation == ctl::Compensation::none       ? "none"
                        : spec->controller.compensation == ctl::Compensation::constant ? "constant"
                                                                                        : "adaptive";
-    rows.push_back({r.name, comp, spec->controller.observer == ctl::ObserverKind::paper ? "paper" : "robust",
+    const char* observer = !spec ? "?" : spec->controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
+    rows.push_back({r.name, comp, observer,
                     fmt("%.4f", s.iae_mpa_s), fmt("%.4f", s.rmse_mpa), fmt("%.3f", s.stall_s_total),
                     fmt("%.1f", 100 * s.stall_fraction),
                     fmt("%.2f", s.reversals.empty() ? 0.0 : double(s.touch_state_changes) / s.reversals.size()),

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "hil/bench/campaign.hpp"
@@ -11,6 +12,9 @@
 
 namespace hil::bench {
 
-void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, const std::filesystem::path& file);
+// `origin` heads the page ("hilbench sim", "hilbench report"); `note`, when set, is a paragraph
+// under the campaign's description (where recorded runs came from and how they ended).
+void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, const std::filesystem::path& file,
+                      const std::string& origin = "hilbench sim", const std::string& note = "");
 
 }  // namespace hil::bench
