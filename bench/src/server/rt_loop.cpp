@@ -104,6 +104,15 @@ std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::a
   return n;
 }
 
+// With shaped targets the compensator does not boost its jumps: the boost overdrives a lagging
+// servo to cross the gap at its slew limit, while a shaped target already crosses at the drive's
+// velocity limit; boosted, the shaper must brake from full speed when the boost is taken back,
+// overshoots the flank and pushes the valve (stall per reversal x4 on paper_adaptive).
+static ctl::ControllerParams shaped_params(ctl::ControllerParams p, const LoopConfig& loop) {
+  if (loop.target_shaping.enabled()) p.traverse_boost = 0;
+  return p;
+}
+
 std::string_view to_string(SensorFault f) noexcept {
   switch (f) {
     case SensorFault::none: return "none";
@@ -120,7 +129,7 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
                  SpscRing<LoopEvent>& events, SpscRing<LoopRequest>& requests, TimedRig::NowFn now)
     : c_(campaign),
       run_(run),
-      controller_(run.controller),
+      controller_(shaped_params(run.controller, loop)),
       rig_(rig, now),
       gap_to_rig_(rig.programmable_gap()),
       safety_(safety),
