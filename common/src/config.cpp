@@ -51,6 +51,14 @@ std::string closest(std::string_view word, const std::vector<std::string>& candi
 
 Node Node::load_file(const std::filesystem::path& file) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
+  // A folder opens as a stream on Linux and only fails at the first read, inside yaml-cpp (which
+  // then leaks its half-built document): refuse anything that is not a regular file up front.
+  std::error_code ec;
+  const auto status = std::filesystem::status(file, ec);
+  if (std::filesystem::is_directory(status)) throw Error(file.string() + ": is a folder, not a YAML file");
+  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    throw Error(file.string() + ": is not a regular file");
+  }
   std::ifstream in(file);
   if (!in) throw Error(file.string() + ": cannot open the file");
   try {
