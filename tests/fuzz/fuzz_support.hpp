@@ -7,7 +7,10 @@
 // runaway memory (-rss_limit_mb).
 #pragma once
 
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <cstdint>
 #include <cstdio>
@@ -46,6 +49,14 @@ class InputFile {
     std::error_code ec;
     std::filesystem::path dir = "/dev/shm";
     if (!std::filesystem::is_directory(dir, ec)) dir = std::filesystem::temp_directory_path();
+    // libFuzzer ends without static destructors (a time limit, a finding): drop the folders of
+    // earlier runs whose process is gone.
+    for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+      const std::string n = e.path().filename().string();
+      if (n.rfind("hilbench-fuzz-", 0) != 0) continue;
+      const long pid = std::strtol(n.c_str() + 14, nullptr, 10);
+      if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) std::filesystem::remove_all(e.path(), ec);
+    }
     dir /= "hilbench-fuzz-" + std::to_string(::getpid());
     std::filesystem::create_directories(dir);
     dir_ = dir;
