@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages hilbench needs, only those missing.
 #   scripts/setup.sh          build and run (compiler, libraries)
-#   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll)
+#   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll,
+#                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer)
 #   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
 set -euo pipefail
 
@@ -9,7 +10,8 @@ build_pkgs=(build-essential cmake ninja-build ccache pkg-config git
   libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
-  python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps)
+  python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps
+  clang-14 libclang-rt-14-dev llvm-14)
 bench_pkgs=(rt-tests)
 
 want=("${build_pkgs[@]}")

@@ -86,11 +86,14 @@ YAML::Node checked(YAML::Node node, const std::string& origin) {
 
 Node Node::load_file(const std::filesystem::path& file) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
-  // A folder, a FIFO or a device is no config: opening a FIFO would wait for a writer forever.
+  // A folder opens as a stream on Linux and only fails at the first read, inside yaml-cpp (which
+  // then leaks its half-built document): refuse anything that is not a regular file up front.
   std::error_code ec;
   const auto status = std::filesystem::status(file, ec);
-  if (ec || !std::filesystem::exists(status)) throw Error(file.string() + ": cannot open the file (no such file)");
-  if (!std::filesystem::is_regular_file(status)) throw Error(file.string() + ": not a regular file");
+  if (std::filesystem::is_directory(status)) throw Error(file.string() + ": is a folder, not a YAML file");
+  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    throw Error(file.string() + ": is not a regular file");
+  }
   std::ifstream in(file);
   if (!in) throw Error(file.string() + ": cannot open the file");
   try {

@@ -38,6 +38,18 @@ CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request)
   if (std::filesystem::is_directory(file, ec)) throw CsvError(file.string() + ": is a folder, not a CSV file");
   file_ = std::fopen(file.c_str(), "rb");
   if (file_ == nullptr) throw CsvError(file.string() + ": cannot open the file: " + std::strerror(errno));
+  // A constructor that throws runs no destructor: close the file on every error below, or each
+  // refused file would keep its descriptor open (a long fuzz run ran out of them).
+  struct CloseOnError {
+    std::FILE*& file;
+    bool armed = true;
+    ~CloseOnError() {
+      if (armed && file != nullptr) {
+        std::fclose(file);
+        file = nullptr;
+      }
+    }
+  } close_on_error{file_};
   file_bytes_ = std::filesystem::file_size(file, ec);
   std::string line;
   for (;;) {
@@ -81,6 +93,7 @@ CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request)
     field_of_.push_back(find(name));
     header_.present.push_back(field_of_.back() >= 0);
   }
+  close_on_error.armed = false;
 }
 
 CsvReader::~CsvReader() {

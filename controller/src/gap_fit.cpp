@@ -44,8 +44,11 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
                            std::int64_t skip) const noexcept {
   Result out;
   const std::int64_t to = h.count - 1;
+  // The window starts `lead` samples before the extreme, but never before the first sample
+  // pushed (a reversal within the first `lead` samples of a run), nor before the oldest sample
+  // the ring still holds, nor so early that it exceeds kMaxWindow.
   std::int64_t from = std::max(extreme - lead, to - kMaxWindow + 1);
-  from = std::max(from, h.count - kCapacity);
+  from = std::max({from, h.count - kCapacity, std::int64_t{0}});
   if (to - from <= skip + 10 || dir == 0) return out;
   Window& w = h.scratch;
   w.n = to - from + 1;

@@ -94,7 +94,7 @@ TEST(ServerHardening, APostedCampaignCannotReadFilesOutsideTheBench) {
   yaml.replace(yaml.find("../plant/nominal.yaml"), std::string("../plant/nominal.yaml").size(), "../plant");
   const auto folder = api.post("/api/start", {{"campaign_yaml", yaml}});
   EXPECT_EQ(folder.status, 400) << folder.body;
-  EXPECT_NE(folder.body.find("not a regular file"), std::string::npos) << folder.body;
+  EXPECT_NE(folder.body.find("is a folder"), std::string::npos) << folder.body;
   EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
 }
 

@@ -112,6 +112,20 @@ TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {
   }
 }
 
+TEST(CampaignConfig, PlantThatIsAFolderNamesTheKeyAndTheFolder) {
+  hil::test::TempDir dir;
+  std::string text = std::regex_replace(paper_adaptive_text(), std::regex("plant: [^ ]+nominal\\.yaml"),
+                                        "plant: " + dir.path().string());
+  try {
+    (void)hil::bench::load_campaign(dir.write("c.yaml", text));
+    FAIL();
+  } catch (const hil::cfg::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("c.yaml:"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("plant: in the plant file: " + dir.path().string() + ": is a folder"), std::string::npos) << msg;
+  }
+}
+
 }  // namespace
 
 namespace {

@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <string>
+
+#include "temp_file.hpp"
 
 using hil::cfg::Error;
 using hil::cfg::Node;
@@ -68,6 +71,27 @@ TEST(Config, ListItemsCarryTheirIndex) {
   });
   EXPECT_NE(msg.find("runs[1].a"), std::string::npos) << msg;
   EXPECT_NE(msg.find(":3:"), std::string::npos) << msg;
+}
+
+// A folder opens as a stream on Linux; it must be refused by name before yaml-cpp reads it (which
+// leaked its half-built document, as LeakSanitizer showed), and so must a missing file.
+TEST(Config, FolderOrMissingFileIsRefusedNamingIt) {
+  hil::test::TempDir dir;
+  try {
+    (void)Node::load_file(dir.path());
+    FAIL() << "a folder loaded";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(dir.path().string() + ": is a folder, not a YAML file"), std::string::npos) << msg;
+  }
+  try {
+    (void)Node::load_file(dir.path() / "missing.yaml");
+    FAIL() << "a missing file loaded";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("missing.yaml: cannot open the file"), std::string::npos) << msg;
+  }
+  EXPECT_THROW((void)Node::load_file("/dev/null/x.yaml"), Error);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "temp_file.hpp"
@@ -82,6 +83,25 @@ TEST(CsvReader, StreamsInChunks) {
   EXPECT_EQ(rows, 10000u);
   EXPECT_EQ(chunks, 4u);
   EXPECT_EQ(reader.bytes_read(), reader.file_bytes());
+}
+
+// A file refused while its header is read (no header, duplicate or missing column) must not keep
+// its descriptor: the reader's constructor throws, so no destructor closes it.
+TEST(CsvReader, RefusedFilesAreClosed) {
+  auto open_fds = [] {
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+    return n;
+  };
+  hil::test::TempDir dir;
+  const auto no_header = dir.write("a.csv", "# only metadata\n");
+  const auto twice = dir.write("b.csv", "t_s,t_s,p_meas_mpa\n0,0,1\n");
+  const auto missing = dir.write("c.csv", "t_s,p_meas_mpa\n0,1\n");
+  const std::size_t before = open_fds();
+  for (int i = 0; i < 20; ++i) {
+    for (const auto& f : {no_header, twice, missing}) EXPECT_THROW((void)hil::read_csv(f, kMeasurement), CsvError);
+  }
+  EXPECT_EQ(open_fds(), before);
 }
 
 }  // namespace

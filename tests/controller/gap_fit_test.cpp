@@ -1,7 +1,9 @@
 // The gap fit on a synthetic history with a known gap.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include "hil/ctl/gap_fit.hpp"
@@ -56,6 +58,45 @@ TEST(GapFit, NoContactNoMeasurement) {
   // The motor crosses only half of a 2 deg gap: the valve never moves.
   auto h = history(2.0 * kDeg, +1, 8.0, 0.02, 50, 50 + 125, &ext, &ext_rad);
   EXPECT_FALSE(fit.fit(h, ext, ext_rad, +1, 20, 30).ok);
+}
+
+// A reversal within the first `lead` samples of a run (a reference reversing at 0.05 s at 1 kHz):
+// the window must start at the first sample, not `lead` samples before the extreme. The history
+// sits right behind a block of far-away angles, so a fit that reads before the ring's first
+// element (negative slots) sees them and misses the gap; AddressSanitizer/UBSan report the read.
+TEST(GapFit, ReversalBeforeTheLeadFitsFromTheFirstSample) {
+  const GapFit fit(1 - std::exp(-1e-3 / 0.015), 6 * kDeg);
+  for (int dir : {-1, +1}) {
+    struct Guarded {
+      std::array<double, 256> before;
+      GapFit::History h;
+    };
+    auto g = std::make_unique<Guarded>();
+    g->before.fill(1e3);
+    std::int64_t ext;
+    double ext_rad;
+    const double gap_deg = 1.3;
+    g->h = history(gap_deg * kDeg, dir, 8.0, 0.02, 30, 30 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext,
+                   &ext_rad);
+    ASSERT_LT(ext, 50);
+    const auto r = fit.fit(g->h, ext, ext_rad, dir, 50, 30);
+    ASSERT_TRUE(r.ok) << "dir " << dir;
+    EXPECT_NEAR(r.gap_rad / kDeg, gap_deg, 0.03) << "dir " << dir;
+    EXPECT_LT(r.rms_rad / kDeg, 0.03) << "dir " << dir;
+  }
+}
+
+// A reversal at the very first sample, and a fit asked before enough samples exist.
+TEST(GapFit, ReversalAtTheFirstSampleAndTooFewSamples) {
+  const GapFit fit(1 - std::exp(-1e-3 / 0.015), 6 * kDeg);
+  std::int64_t ext;
+  double ext_rad;
+  auto h = history(1.3 * kDeg, +1, 8.0, 0.02, 0, 300, &ext, &ext_rad);
+  const auto r = fit.fit(h, ext, ext_rad, +1, 50, 30);
+  ASSERT_TRUE(r.ok);
+  EXPECT_NEAR(r.gap_rad / kDeg, 1.3, 0.05);
+  auto few = history(1.3 * kDeg, +1, 8.0, 0.02, 0, 20, &ext, &ext_rad);
+  EXPECT_FALSE(fit.fit(few, ext, ext_rad, +1, 50, 30).ok);
 }
 
 }  // namespace

@@ -45,7 +45,9 @@ inline void expect_safe_stop(const RunFiles& f, const std::string& expect_trip, 
   EXPECT_EQ(safe_row, (*trip)["period"].get<long>());
   std::printf("%s: the loop saw the fault in period %ld, safe state in period %ld (%ld periods); trip detail: %s\n",
               expect_trip.c_str(), first, safe_row, safe_row - first + 1, trip->value("detail", "").c_str());
-  if (expect_trip == "rig fault") EXPECT_TRUE(f.flags(static_cast<std::size_t>(safe_row)) & kFlagDeviceFault);
+  if (expect_trip == "rig fault") {
+    EXPECT_TRUE(f.flags(static_cast<std::size_t>(safe_row)) & kFlagDeviceFault);
+  }
   // Held from then on (safe_state: hold), up to the end of the safe hold.
   const double held = f.csv.values[2][static_cast<std::size_t>(safe_row)];
   for (std::size_t i = static_cast<std::size_t>(safe_row); i < f.csv.rows(); ++i) {

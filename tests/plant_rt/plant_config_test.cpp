@@ -43,6 +43,16 @@ void expect_located(const std::string& msg, int line, const std::string& key, co
   EXPECT_NE(msg.find(words), std::string::npos) << msg;
 }
 
+TEST(PlantConfig, FolderIsRefusedNamingIt) {
+  hil::test::TempDir dir;
+  try {
+    (void)Plant::load(dir.path());
+    FAIL() << "a folder loaded as a plant";
+  } catch (const hil::cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find(dir.path().string() + ": is a folder"), std::string::npos) << e.what();
+  }
+}
+
 TEST(PlantConfig, NominalLoads) { EXPECT_NO_THROW((void)Plant::load(hil::test::source_path("configs/plant/nominal.yaml"))); }
 
 TEST(PlantConfig, ExponentAtOrAboveOne) {

@@ -184,7 +184,8 @@ double number_field(const json& j, const char* key) {
 }
 
 void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
-  for (const auto& [k, v] : j.items()) {
+  for (const auto& item : j.items()) {
+    const std::string k = item.key();  // not a structured binding: clang 14 cannot capture one in a lambda
     if (std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; }) == allowed.end()) {
       std::vector<std::string> names(allowed.begin(), allowed.end());
       const std::string hint = cfg::closest(k, names);

@@ -1,0 +1,74 @@
+// Fuzz target: one raw HTTP request to the bench server's API, answered as a connection would
+// answer it (ApiServer::answer_raw: parser limits, token, routes, campaign YAML in bodies).
+// A finding is a crash, a sanitizer report, a hang, or an answer that is not a JSON object with
+// a status the API documents; a 500 is a finding too (no input is the server's own fault).
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string_view>
+
+#include <boost/asio/io_context.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "hil/bench/runner.hpp"
+#include "server/api_server.hpp"
+
+namespace {
+
+struct Server {
+  boost::asio::io_context io;  // never run: answers come from answer_raw
+  hil::bench::TelemetryHub hub;
+  std::filesystem::path runs = std::filesystem::temp_directory_path() / ("hil_fuzz_runs_" + std::to_string(::getpid()));
+  std::unique_ptr<hil::bench::CampaignRunner> runner;
+  std::unique_ptr<hil::bench::ApiServer> api;
+  Server() {
+    spdlog::set_level(spdlog::level::off);
+    hil::bench::RunnerOptions ro;
+    ro.runs_dir = runs;
+    runner = std::make_unique<hil::bench::CampaignRunner>(std::move(ro));
+    hil::bench::ApiOptions o;
+    o.port = 0;
+    o.campaigns_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/campaigns";
+    o.rigs_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/rigs";
+    o.runs_dir = runs;
+    o.max_body_bytes = 64 * 1024;
+    api = std::make_unique<hil::bench::ApiServer>(io, o, *runner, hub);
+  }
+  ~Server() {
+    api.reset();
+    runner.reset();
+    std::error_code ec;
+    std::filesystem::remove_all(runs, ec);
+  }
+};
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  static Server server;
+  const auto answer = server.api->answer_raw(std::string_view(reinterpret_cast<const char*>(data), size));
+  // A start that got through runs a real campaign: end it at once, so inputs stay independent.
+  if (server.runner->running()) {
+    try {
+      server.runner->abort("fuzz input done");
+    } catch (const hil::bench::Conflict&) {
+    }
+    server.runner->wait();
+  }
+  if (answer.status >= 500 || answer.status < 200) {
+    std::fprintf(stderr, "answered %d: %s\n", answer.status, answer.body.c_str());
+    std::abort();
+  }
+  if (answer.body.rfind("file: ", 0) != 0) {
+    const auto j = nlohmann::json::parse(answer.body, nullptr, /*allow_exceptions=*/false);
+    if (!j.is_object()) {
+      std::fprintf(stderr, "answered %d with no JSON object: %s\n", answer.status, answer.body.c_str());
+      std::abort();
+    }
+  }
+  return 0;
+}
