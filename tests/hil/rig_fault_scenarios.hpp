@@ -132,16 +132,19 @@ inline void drive_silent(const FaultSetup& s) {
   expect_safe_stop(f, "watchdog", "drive: no TPDO since the last SYNC", c.period_s);
 }
 
-// An EMCY puts the drive in fault: the trip names the EMCY.
+// An EMCY puts the drive in fault: the trip names the EMCY decoded (class, error register,
+// manufacturer bytes), not just its code: a following error, as a drive reports one.
 inline void emcy_fault(const FaultSetup& s) {
   const auto c = short_paper_campaign(4, 0, s.period_ms);
   SimulatorSide side(c, s.can_transport, s.can_interface);
   Bench b(s.can_transport);
   const std::string rig = can_rig_yaml(side, fault_rig(), s.can_interface);
   const RunFiles f = run_with_fault(
-      b, c, rig, "rig fault", [&] { side.can.raise_emcy(0x2310, 0x02); }, [] {});
+      b, c, rig, "rig fault", [&] { side.can.raise_emcy(0x8611, 0x20, {0x10, 0x27, 0x00, 0x00, 0x00}); }, [] {});
   expect_safe_stop(f, "rig fault", "drive: CiA 402 drive node 5", c.period_s);
-  EXPECT_NE(f.run["reason"].get<std::string>().find("EMCY 0x2310"), std::string::npos) << f.run["reason"];
+  const std::string reason = f.run["reason"].get<std::string>();
+  EXPECT_NE(reason.find("drive entered fault: EMCY 0x8611 (following error), register 0x21 (generic, device profile), "
+                        "manufacturer 10 27 00 00 00"), std::string::npos) << reason;
   expect_next_campaign_completes(b, s, can_rig_yaml(side, {}, s.can_interface));  // activate() resets the fault
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 #include <spdlog/spdlog.h>
@@ -201,7 +202,8 @@ RigHealth DeviceRig::health() const noexcept {
   h.fault = !active_ || d.fault || (transducer_ && t.fault);
   char text[256];
   text[0] = '\0';
-  if (d.fault && d.last_emcy_code != 0) {  // the newest error may be "drive entered fault": name the EMCY too
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr) {
+    // The newest error is about something else (heartbeat, bus): name the EMCY too.
     std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
   } else if (d.fault) {
     std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
