@@ -39,6 +39,9 @@ const Command kCommands[] = {
      "plant [--plant FILE | --campaign CAMPAIGN.yaml] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml]\n"
      "      [--period-ms 1] [--initial-mpa 1.0] [--duration-s S] [--rt-priority P] [--port-file F]\n"
      "      the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices"},
+    {"drive", hil::bench::cmd_drive,
+     "drive probe --rig FILE\n"
+     "      know the rig's CiA 402 drive before a run: identity, modes, objects, PDOs, limits (no motion)"},
     {"characterise", hil::bench::cmd_characterise,
      "characterise [--readme README.md] [--campaigns DIR]\n"
      "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},
