@@ -53,6 +53,10 @@ class DeviceRig final : public Rig {
   enum class Stale : std::uint8_t { none, drive, transducer };
 
   RigStatus read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept;
+  // Before the loop's first write (the reading the run starts from), a Modbus value is fresh if
+  // it arrived after activate() began, however old it is by the time the loop starts: a loaded
+  // machine may take longer than max_age between enabling the drive and the first period.
+  bool first_read(Clock::time_point rx_time) const noexcept { return !first_write_done_ && rx_time >= activated_at_; }
 
   const RigConfig config_;
   const drv::CanTransportFactory can_transport_;
@@ -63,6 +67,8 @@ class DeviceRig final : public Rig {
   bool active_ = false;
   // Freshness.
   Clock::time_point last_sync_{};  // CAN: when the last write() triggered SYNC
+  Clock::time_point activated_at_{};
+  bool first_write_done_ = false;
   Stale stale_ = Stale::none;
   double stale_age_ms_ = 0;
   // Hybrid: the simulated valve and chamber.
