@@ -224,6 +224,91 @@ inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& 
   return res;
 }
 
+// The hybrid rig in lock-step: the CiA 402 emulator is backed by `motor` (the campaign's plant,
+// whose motor stands for a real one), stepped when the harness says; the rig's own simulated
+// valve and chamber step in its read() with the encoder angle, as in a real run. Period k: wait
+// until the client holds a TPDO newer than the last period's write showing the motor's encoder
+// counts -> cycle -> wait until the emulator handed target k to the motor -> step it -> SYNC.
+inline LockstepResult run_lockstep_hybrid(const bench::Campaign& c, const std::string& run, LockstepPlant& motor,
+                                          const std::function<void()>& sync_fn, const std::string& rig_text,
+                                          const drv::CanTransportFactory& can_transport,
+                                          const std::function<void(std::size_t, bench::SpscRing<bench::LoopRequest>&)>& before_cycle = {}) {
+  LockstepResult res;
+  const bench::RunSpec* spec = nullptr;
+  for (const auto& r : c.runs) {
+    if (r.name == run) spec = &r;
+  }
+  TempDir dir;
+  const bench::RigConfig rc = bench::load_rig_config(dir.write("rigs/lockstep.yaml", rig_text));
+  bench::DeviceRig rig(rc, can_transport);
+  rig.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
+  rig.activate();
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s));
+  const auto n = static_cast<std::size_t>(std::lround(c.duration_s / c.period_s));
+  bench::SpscRing<bench::TelemetryRecord> telemetry(n + 16);
+  bench::SpscRing<bench::LoopEvent> events(1024);
+  bench::SpscRing<bench::LoopRequest> requests(16);
+  const drv::DriveUnits& u = rc.devices.can_drive->units;
+  const auto through_counts = [&u](double rad) { return u.to_rad(u.to_counts(rad)); };
+  // The rig's frame: encoder angle minus the offset it took at configure (the settled plant's motor).
+  const double offset = through_counts(motor.signals().theta_motor_rad) - motor.signals().theta_motor_rad;
+  Clock::time_point seen{}, synced{}, wrote{};
+  const auto sync = [&] {
+    synced = Clock::now();
+    sync_fn();
+  };
+  const auto drive_shows_motor = [&] {
+    const double want = through_counts(motor.signals().theta_motor_rad);
+    const drv::DriveFeedback fb = rig.drive_feedback();
+    const auto t = Clock::now();
+    if (fb.valid && fb.rx_time > wrote && fb.position_rad == want) {
+      seen = t;
+      return true;
+    }
+    if (t - synced > std::chrono::milliseconds(1)) sync();
+    return false;
+  };
+  const auto t0 = Clock::now();
+  if (!wait_state(drive_shows_motor)) {
+    res.error = "the drive never showed the settled motor: " + std::string(rig.health().last_error_text());
+    rig.deactivate();
+    return res;
+  }
+  bench::RunLoop loop(c, *spec, rig, rc.safety, rc.loop, period, telemetry, events, requests);
+  loop.begin(seen);
+  bench::Schedule::Cursor gap_cursor;
+  for (std::size_t k = 0;; ++k) {
+    if (k > 0 && !wait_state(drive_shows_motor)) {
+      res.error = "period " + std::to_string(k) + ": the drive did not show the motor: " + std::string(rig.health().last_error_text());
+      break;
+    }
+    if (before_cycle) before_cycle(k, requests);  // operator requests, as the API would push them
+    loop.cycle(seen, seen);
+    const bool more = loop.finish_cycle(seen);
+    wrote = Clock::now();  // after the write's SYNC: the next period's TPDO must come later
+    bench::TelemetryRecord rec;
+    if (telemetry.pop(&rec, 1) != 1) {
+      res.error = "period " + std::to_string(k) + ": no telemetry row";
+      break;
+    }
+    res.rows.push_back(rec);
+    res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
+    if (!more) break;
+    const double want = through_counts(rec.step.theta_cmd_rad + offset);
+    std::optional<double> got;
+    if (!wait_state([&] { return (got = motor.enabled_target()) && *got == want; })) {
+      res.error = "period " + std::to_string(k) + ": the drive never got the target";
+      break;
+    }
+    motor.step(*got, c.gap_rad.at(static_cast<double>(k) * c.period_s, gap_cursor));
+    sync();
+  }
+  res.end = loop.end();
+  res.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  rig.deactivate();
+  return res;
+}
+
 // The largest differences of a lock-step run to the pure simulation, row by row.
 struct LockstepDiff {
   std::size_t rows = 0;

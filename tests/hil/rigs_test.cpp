@@ -243,37 +243,71 @@ TEST(CanRig, PaperAdaptiveInLockstepMatchesTheSimulation) {
   EXPECT_LT(d.percent, 0.1);  // measured 0.018 % (0.09 kPa RMS against 2 kPa of sensor noise), at load 8 on 2 cores
 }
 
-// The hybrid rig: a "real" drive (the CiA 402 emulator on the loopback bus, backed by a first-order
-// servo with the nominal motor's 10 ms lag and 60 deg/s, standing for a motor on the bench) and
-// the campaign's backlash, valve and gas generator simulated with its encoder angle. The
-// programmed gap change works, the truth columns are there, and the pressure trace is the pure
-// simulation's within 2 % of the range.
+// The hybrid rig: a "real" drive (the CiA 402 emulator on the loopback bus, backed by the
+// campaign's plant, whose motor stands for a motor on the bench) and the campaign's backlash,
+// valve and gas generator simulated in the rig with its encoder angle, in lock-step (simulated
+// time, lockstep.hpp): the programmed gap change works, the truth columns are there, and the
+// pressure trace is the pure simulation's but for the encoder's counts.
 TEST(HybridRig, ProgrammedGapChangeWithARealDriveMatchesTheSimulation) {
   const auto campaign = short_paper_campaign(8, 6.0);  // reversals at 2.5, 5, 7.5 s; the gap grows to 2 deg at 6 s
   drv::LoopbackBus bus;
-  drv::FirstOrderServoTestModel motor(0.010, units::deg_to_rad(60), 0.25);
-  std::optional<bench::ScopedRealtime> sched(std::in_place, 75);
+  LockstepPlant motor(campaign);
   drv::Cia402DriveEmulator drive(drv::Cia402EmulatorConfig{"vcan0", kNode, kUnits}, motor, bus.factory());
-  sched.reset();
-  Bench b(bus.factory());
-  b.start(campaign, rig_yaml("hybrid", can_drive_yaml(), ""));
-  const json last = b.finish(60s);
-  const RunFiles f(b.runs().back(), /*truth=*/true);
-  ASSERT_EQ(last["outcome"], "completed") << last.dump(2);
-  ASSERT_EQ(f.csv.rows(), 8000u);
-  EXPECT_EQ(f.run["rig"]["kind"], "hybrid");
-  for (std::size_t i = 0; i < f.csv.rows(); ++i) {
-    ASSERT_DOUBLE_EQ(f.csv.values[7][i], f.csv.values[0][i] < 6.0 - 1e-9 ? 1.0 : 2.0) << "gap_true_deg at row " << i;
-    ASSERT_TRUE(std::isfinite(f.csv.values[6][i]) && std::isfinite(f.csv.values[8][i])) << "truth at row " << i;
+  RigOptions o;
+  o.watchdog_misses = 3;
+  o.priority = 0;
+  o.cpu = -1;
+  o.io_priority = 0;
+  const LockstepResult r = run_lockstep_hybrid(campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
+                                               rig_yaml("hybrid", can_drive_yaml(), "", o), bus.factory());
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.end, bench::LoopEnd::completed);
+  ASSERT_EQ(r.rows.size(), 8000u);
+  EXPECT_EQ(r.missed, 0);
+  double lo = 1e300, hi = -1e300;
+  for (std::size_t i = 0; i < r.rows.size(); ++i) {
+    const auto& s = r.rows[i].step;
+    ASSERT_DOUBLE_EQ(units::rad_to_deg(s.gap_true_rad), s.t_s < 6.0 - 1e-9 ? 1.0 : 2.0) << "gap_true at row " << i;
+    ASSERT_TRUE(std::isfinite(s.theta_valve_rad) && std::isfinite(s.p_chamber_pa)) << "truth at row " << i;
+    lo = std::min(lo, s.theta_motor_rad);
+    hi = std::max(hi, s.theta_motor_rad);
   }
-  // The motor really moved: the encoder reports what the servo did (in the simulation's frame).
-  const double motor_travel = *std::max_element(f.csv.values[3].begin(), f.csv.values[3].end()) -
-                              *std::min_element(f.csv.values[3].begin(), f.csv.values[3].end());
-  EXPECT_GT(motor_travel, 3.0);
-  const TraceDiff d = compare_with_simulation(campaign, "adaptive", f.csv);
-  std::printf("hybrid rig (loopback CAN drive, 1 kHz): pressure RMS difference to the simulation %.2f kPa = %.2f %% of the range "
-              "(max %.1f kPa)\n", d.rms_mpa * 1e3, d.percent, d.max_abs_mpa * 1e3);
-  EXPECT_LT(d.percent, 2.0);
+  EXPECT_GT(units::rad_to_deg(hi - lo), 3.0);  // the motor really moved
+  const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
+  std::printf("hybrid rig in lock-step (loopback CAN drive): %zu periods in %.1f s wall; pressure RMS difference to the "
+              "simulation %.3f kPa = %.4f %% of the range (max %.3f kPa)\n",
+              r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
+  EXPECT_LT(d.percent, 0.1);
+}
+
+// An operator's gap change moves the flanks the motor meets, in lock-step (simulated time): in
+// contact on the opening flank the motor leads the valve by half the gap (0.5 deg); after the
+// reference steps up at 2.5 s it closes the valve across the new gap, in contact on the other
+// flank, half of 2.5 deg behind it (at 3 s, while it still pushes).
+TEST(HybridRig, OperatorGapChangeMovesTheFlanksInLockstep) {
+  const auto campaign = short_paper_campaign(4);
+  drv::LoopbackBus bus;
+  LockstepPlant motor(campaign);
+  drv::Cia402DriveEmulator drive(drv::Cia402EmulatorConfig{"vcan0", kNode, kUnits}, motor, bus.factory());
+  RigOptions o;
+  o.watchdog_misses = 3;
+  o.priority = 0;
+  o.cpu = -1;
+  o.io_priority = 0;
+  const LockstepResult r = run_lockstep_hybrid(
+      campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); }, rig_yaml("hybrid", can_drive_yaml(), "", o),
+      bus.factory(), [](std::size_t k, bench::SpscRing<bench::LoopRequest>& requests) {
+        if (k == 500) ASSERT_TRUE(requests.try_push({.kind = bench::LoopRequest::Kind::set_gap, .value = units::deg_to_rad(2.5)}));
+      });
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  ASSERT_EQ(r.rows.size(), 4000u);
+  EXPECT_EQ(r.missed, 0);
+  const auto deg = [&](std::size_t i, double bench::StepRecord::*m) { return units::rad_to_deg(r.rows[i].step.*m); };
+  EXPECT_DOUBLE_EQ(deg(499, &bench::StepRecord::gap_true_rad), 1.0);
+  EXPECT_DOUBLE_EQ(deg(500, &bench::StepRecord::gap_true_rad), 2.5);
+  EXPECT_DOUBLE_EQ(deg(3999, &bench::StepRecord::gap_true_rad), 2.5);
+  EXPECT_NEAR(deg(499, &bench::StepRecord::theta_motor_rad) - deg(499, &bench::StepRecord::theta_valve_rad), 0.5, 0.01);
+  EXPECT_NEAR(deg(3000, &bench::StepRecord::theta_motor_rad) - deg(3000, &bench::StepRecord::theta_valve_rad), -1.25, 0.01);
 }
 
 // An operator's gap change reaches the simulated backlash of the hybrid rig (not the CAN rig).
@@ -296,11 +330,7 @@ TEST(HybridRig, OperatorGapChangeReachesTheSimulatedBacklash) {
   EXPECT_DOUBLE_EQ(f.csv.values[7][at - 1], 1.0);
   EXPECT_DOUBLE_EQ(f.csv.values[7][at], 2.5);
   EXPECT_DOUBLE_EQ(f.csv.values[7].back(), 2.5);
-  // In contact on the opening flank the motor leads the valve by half the gap (0.5 deg). After the
-  // step up at 2.5 s it closes the valve: across the new gap, in contact on the other flank, half
-  // of 2.5 deg behind it (at 3 s, while it still pushes).
-  EXPECT_NEAR(f.csv.values[3][at - 1] - f.csv.values[6][at - 1], 0.5, 0.01);
-  EXPECT_NEAR(f.csv.values[3][3000] - f.csv.values[6][3000], -1.25, 0.01);
+  // (Where the motor sits in the new gap: OperatorGapChangeMovesTheFlanksInLockstep.)
 
   // The CAN rig refuses gap changes: it has no simulated valve.
   SimulatorSide side(campaign, bus.factory(), "can1");

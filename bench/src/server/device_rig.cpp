@@ -213,6 +213,10 @@ RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const 
   return RigStatus::ok;
 }
 
+drv::DriveFeedback DeviceRig::drive_feedback() const noexcept {
+  return drive_ ? drive_->read(Clock::now(), Clock::duration::zero()) : drv::DriveFeedback{};
+}
+
 RigHealth DeviceRig::health() const noexcept {
   RigHealth h;
   h.reads = reads_;

@@ -45,6 +45,9 @@ class DeviceRig final : public Rig {
   // Real-time safe; the loop thread (or after it ended): last_error names the device at fault or
   // the stale one, else the newest thing a client reported.
   RigHealth health() const noexcept override;
+  // The drive client's newest feedback as it stands (position in the drive's frame, rx_time,
+  // sequence), without the rig's freshness bookkeeping: for tests and diagnostics. Real-time safe.
+  drv::DriveFeedback drive_feedback() const noexcept;
 
  private:
   struct DriveClient;
