@@ -136,9 +136,17 @@ inline std::string lockstep_can_rig_yaml(const LockstepSide& s, const std::strin
   return rig_yaml("can", can_drive_yaml(interface), transducer, o);
 }
 
-// Runs `run` of campaign `c` through the CAN rig in lock-step with `side`.
-inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, LockstepSide& side, const std::string& rig_text,
-                                   const drv::CanTransportFactory& can_transport) {
+// What a physical value becomes on the way through the wire (encoder counts, register scale).
+using WireFn = std::function<double(double)>;
+
+// Runs `run` of campaign `c` through the rig of `rig_text` (kind can or modbus) in lock-step with
+// `plant` behind the rig's devices. `sync` asks a CAN drive for its newest position (no-op for
+// Modbus, which polls); `wire_position`/`wire_target` say what the motor angle and the command
+// become on the wire, so the harness knows when the rig shows the plant and the drive has the target.
+inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::string& run, LockstepPlant& plant,
+                                      const std::function<void()>& sync_fn, const std::string& rig_text,
+                                      const drv::CanTransportFactory& can_transport, const WireFn& wire_position,
+                                      const WireFn& wire_target) {
   LockstepResult res;
   const bench::RunSpec* spec = nullptr;
   for (const auto& r : c.runs) {
@@ -158,19 +166,17 @@ inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& 
   bench::SpscRing<bench::TelemetryRecord> telemetry(n + 16);
   bench::SpscRing<bench::LoopEvent> events(1024);
   bench::SpscRing<bench::LoopRequest> requests(16);
-  const drv::DriveUnits& u = rc.devices.can_drive->units;
-  const auto through_counts = [&u](double rad) { return u.to_rad(u.to_counts(rad)); };
 
   // The rig shows the plant's present state: fresh (TPDO after the last SYNC, a young pressure),
   // the encoder counts of the plant's motor angle, the plant's pressure (float32 on the wire).
   Clock::time_point seen{}, synced{};
   const auto sync = [&] {
     synced = Clock::now();
-    side.sync();
+    sync_fn();
   };
   const auto rig_shows_plant = [&] {
-    const plant::Signals s = side.plant.signals();
-    const double theta = through_counts(s.theta_motor_rad);
+    const plant::Signals s = plant.signals();
+    const double theta = wire_position(s.theta_motor_rad);
     const auto t = Clock::now();
     bench::RigReading rd;
     if (rig.read(t, period, rd) != bench::RigStatus::ok) return false;
@@ -209,19 +215,69 @@ inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& 
     res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
     if (!more) break;
     // The drive has this period's target once the emulator applied RPDO k (at its SYNC).
-    const double want = through_counts(rec.step.theta_cmd_rad);
+    const double want = wire_target(rec.step.theta_cmd_rad);
     std::optional<double> got;
-    if (!wait_state([&] { return (got = side.plant.enabled_target()) && *got == want; })) {
+    if (!wait_state([&] { return (got = plant.enabled_target()) && *got == want; })) {
       res.error = "period " + std::to_string(k) + ": the drive never got the target";
       break;
     }
-    side.plant.step(*got, c.gap_rad.at(static_cast<double>(k) * c.period_s, gap_cursor));
+    plant.step(*got, c.gap_rad.at(static_cast<double>(k) * c.period_s, gap_cursor));
     sync();
   }
   res.end = loop.end();
   res.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   rig.deactivate();
   return res;
+}
+
+// The CAN rig in lock-step with `side` (encoder counts both ways).
+inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, LockstepSide& side, const std::string& rig_text,
+                                   const drv::CanTransportFactory& can_transport) {
+  const auto through_counts = [](double rad) { return kUnits.to_rad(kUnits.to_counts(rad)); };
+  return run_lockstep_on(c, run, side.plant, side.sync, rig_text, can_transport, through_counts, through_counts);
+}
+
+// The Modbus rig's simulator side for the lock-step chain: the plant behind a Modbus drive and a
+// Modbus transducer emulator on ephemeral TCP ports.
+struct ModbusLockstepSide {
+  explicit ModbusLockstepSide(const bench::Campaign& c)
+      : plant(c),
+        drive_map(drv::RegisterMap::load(source_path("drivers/configs/modbus_drive_map.yaml"))),
+        drive(SimulatorSide::tcp(0), drive_map, plant),
+        transducer(SimulatorSide::tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")), plant) {}
+  // A value through one of the drive's registers, as the far side decodes it.
+  double through(const std::string& reg, double physical) const {
+    const drv::Register& r = drive_map.at(reg);
+    std::uint16_t words[4] = {};
+    r.encode(physical, words);
+    return r.decode(words);
+  }
+  LockstepPlant plant;
+  drv::RegisterMap drive_map;
+  drv::ModbusDriveEmulator drive;
+  drv::ModbusTransducerEmulator transducer;
+};
+
+inline std::string lockstep_modbus_rig_yaml(const ModbusLockstepSide& s) {
+  RigOptions o;
+  o.watchdog_misses = 3;
+  o.priority = 0;
+  o.cpu = -1;
+  o.io_priority = 0;
+  const auto device = [](int port, const std::string& map) {
+    return "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(port) +
+           ", poll_period_ms: 1, response_timeout_ms: 1000, reconnect: {initial_ms: 20, max_ms: 200}},\n"
+           "             register_map: " + source_path("drivers/configs/" + map).string() + "}\n"
+           "    max_age_ms: 4\n";
+  };
+  return rig_yaml("modbus", device(s.drive.port(), "modbus_drive_map.yaml"), device(s.transducer.port(), "modbus_transducer_map.yaml"), o);
+}
+
+inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, ModbusLockstepSide& side) {
+  return run_lockstep_on(
+      c, run, side.plant, [] {}, lockstep_modbus_rig_yaml(side), {},
+      [&side](double rad) { return side.through("actual_position", rad); },
+      [&side](double rad) { return side.through("target_position", rad); });
 }
 
 // The hybrid rig in lock-step: the CiA 402 emulator is backed by `motor` (the campaign's plant,
