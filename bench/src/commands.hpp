@@ -17,6 +17,7 @@ int cmd_diagnose(const std::vector<std::string>& args);
 int cmd_characterise(const std::vector<std::string>& args);
 int cmd_plant(const std::vector<std::string>& args);
 int cmd_report(const std::vector<std::string>& args);
+int cmd_drive(const std::vector<std::string>& args);
 
 // The characterisation table (markdown) of the observers on the paper's scenarios.
 std::string characterise_table(const std::filesystem::path& campaigns_dir);

@@ -43,6 +43,9 @@ const Command kCommands[] = {
     {"report", hil::bench::cmd_report,
      "report RUN_DIR... [--out FILE] [--quiet]\n"
      "      the paper-style report of runs recorded by hilbench serve (default FILE: the first RUN_DIR/report.html)"},
+    {"drive", hil::bench::cmd_drive,
+     "drive probe --rig FILE\n"
+     "      know the rig's CiA 402 drive before a run: identity, modes, objects, PDOs, limits (no motion)"},
     {"characterise", hil::bench::cmd_characterise,
      "characterise [--readme README.md] [--campaigns DIR]\n"
      "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},

@@ -274,12 +274,15 @@ std::uint16_t next_controlword(State state, Target target, bool reset) {
   switch (state) {
     case State::fault: return reset ? kCwFaultReset : kCwDisableVoltage;
     case State::fault_reaction_active:
-    case State::not_ready_to_switch_on:
-    case State::quick_stop_active: return kCwDisableVoltage;
-    case State::switch_on_disabled: return target == Target::disabled ? kCwDisableVoltage : kCwShutdown;
-    case State::ready_to_switch_on: return target == Target::disabled ? kCwDisableVoltage : kCwSwitchOn;
+    case State::not_ready_to_switch_on: return kCwDisableVoltage;
+    case State::quick_stop_active: return target == Target::quick_stop ? kCwQuickStop : kCwDisableVoltage;
+    case State::switch_on_disabled:
+      return target == Target::disabled || target == Target::quick_stop ? kCwDisableVoltage : kCwShutdown;
+    case State::ready_to_switch_on:
+      return target == Target::disabled || target == Target::quick_stop ? kCwDisableVoltage : kCwSwitchOn;
     case State::switched_on:
     case State::operation_enabled:
+      if (target == Target::quick_stop) return state == State::operation_enabled ? kCwQuickStop : kCwDisableVoltage;
       return target == Target::operation_enabled ? kCwEnableOperation
              : target == Target::switched_on     ? kCwSwitchOn
                                                  : kCwDisableVoltage;

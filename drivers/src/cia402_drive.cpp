@@ -65,7 +65,7 @@ milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback,
 
 Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units",
-                "timeouts", "bus_off", "disable_unused_pdos"});
+                "timeouts", "bus_off", "disable_unused_pdos", "limits"});
   Cia402Config c;
   c.interface = n.text("interface");
   const long long node = n.at("node_id").integer();
@@ -105,6 +105,25 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
+  if (auto l = n.find("limits")) {
+    l->allow_keys({"following_error_window_deg", "following_error_timeout_ms", "max_profile_velocity_deg_s",
+                   "quick_stop_deceleration_deg_s2"});
+    const auto positive = [&](std::string_view key, double& out) {
+      if (auto v = l->find(key)) {
+        const double x = v->number();
+        v->require(std::isfinite(x) && x > 0, "must be > 0");
+        out = x * std::numbers::pi / 180.0;
+      }
+    };
+    positive("following_error_window_deg", c.limits.following_error_window_rad);
+    positive("max_profile_velocity_deg_s", c.limits.max_profile_velocity_rad_s);
+    positive("quick_stop_deceleration_deg_s2", c.limits.quick_stop_deceleration_rad_s2);
+    if (auto t = l->find("following_error_timeout_ms")) {
+      const long long x = t->integer();
+      t->require(x >= 0 && x <= 65535, "must be 0..65535 ms (0x6066 is 16 bit)");
+      c.limits.following_error_timeout = milliseconds(x);
+    }
+  }
   return c;
 }
 
@@ -148,6 +167,7 @@ struct Cia402Drive::Impl {
   std::atomic<bool> reset_request{false};
   std::atomic<std::uint64_t> bootups{0};
   std::atomic<std::uint8_t> nmt_now{0xFF};
+  std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
 
   // I/O thread only.
   DeviceHealth h;
@@ -161,6 +181,7 @@ struct Cia402Drive::Impl {
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
   Clock::time_point last_sync{};
+  std::string last_emcy_text;  // the newest EMCY decoded, kept for the fault message
   std::deque<std::shared_ptr<SdoRequest>> sdo_queue;
   std::shared_ptr<SdoRequest> sdo_active;
 
@@ -245,7 +266,10 @@ struct Cia402Drive::Impl {
     ++fb.sequence;
     const auto st = cia402::decode_statusword(fb.statusword);
     if (static_cast<std::uint8_t>(st) != state_now.load()) {
-      if (st == cia402::State::fault) error(who + ": drive entered fault");
+      // The EMCY that announced the fault (if one came first) stays in the message.
+      if (st == cia402::State::fault) {
+        error(who + ": drive entered fault" + (last_emcy_text.empty() ? std::string() : ": " + last_emcy_text));
+      }
       state_now = static_cast<std::uint8_t>(st);
     }
   }
@@ -256,7 +280,9 @@ struct Cia402Drive::Impl {
     ++h.emcy_count;
     h.last_emcy_code = e->error_code;
     h.last_emcy_register = e->error_register;
-    error(who + ": " + describe(*e));
+    last_emcy_text = e->error_code == 0 ? std::string() : describe(*e);
+    const bool in_fault = fb.valid && cia402::decode_statusword(fb.statusword) == cia402::State::fault;
+    error(who + ": " + (in_fault && e->error_code != 0 ? "drive in fault: " : "") + describe(*e));
   }
 
   void on_error_frame(const CanFrame& f) {
@@ -505,6 +531,7 @@ void Cia402Drive::configure() {
     m.publish();
   });
   const auto boots = m.bootups.load();
+  m.notes.clear();
   nmt(NmtCommand::reset_communication);
   if (!detail::wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
     char id[8];
@@ -535,24 +562,69 @@ void Cia402Drive::configure() {
   sdo_write(0x1A00, 0, 2, 1);
   sdo_write(0x1800, 2, 1, 1);  // sent on every SYNC
   sdo_write(0x1800, 1, tpdo, 4);
+  // Optional objects: a drive may lack them (CiA 301 needs no more than one PDO each way;
+  // 0x60C2 and the limits are optional in CiA 402). Absent means nothing to write.
+  const auto optional_write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size,
+                                  const std::string& what) {
+    try {
+      sdo_write(index, sub, value, size);
+      return true;
+    } catch (const SdoAbortError& e) {
+      if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+      const std::string note = object_name(index, sub) + " absent: " + what;
+      m.notes.push_back(note);
+      m.run_on_io([&m, note] {
+        m.error(m.who + ": " + note);
+        m.publish();
+      });
+      return false;
+    }
+  };
   if (m.cfg.disable_unused_pdos) {
     for (std::uint32_t k = 1; k <= 3; ++k) {
-      sdo_write(static_cast<std::uint16_t>(0x1400 + k), 1, kCobIdInvalid | (rpdo + 0x100 * k), 4);
-      sdo_write(static_cast<std::uint16_t>(0x1800 + k), 1, kCobIdInvalid | (tpdo + 0x100 * k), 4);
+      const auto r = static_cast<std::uint16_t>(0x1400 + k), t = static_cast<std::uint16_t>(0x1800 + k);
+      optional_write(r, 1, kCobIdInvalid | (rpdo + 0x100 * k), 4, "RPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
+      optional_write(t, 1, kCobIdInvalid | (tpdo + 0x100 * k), 4, "TPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
     }
   }
   sdo_write(cia402::kModesOfOperation, 0, static_cast<std::uint8_t>(cia402::kModeCsp), 1);
-  const auto mode = static_cast<std::int8_t>(sdo_read(cia402::kModesDisplay, 0) & 0xFF);
+  // The mode display may follow the request some time later: poll it until transition_ms.
+  std::int8_t mode = 0;
+  const auto mode_until = Clock::now() + m.cfg.transition_timeout;
+  for (;;) {
+    mode = static_cast<std::int8_t>(sdo_read(cia402::kModesDisplay, 0) & 0xFF);
+    if (mode == cia402::kModeCsp || Clock::now() > mode_until) break;
+    std::this_thread::sleep_for(milliseconds(1));
+  }
   if (mode != cia402::kModeCsp) {
-    throw DriveError(m.who + ": did not enter cyclic synchronous position mode (0x6061:00 = " + std::to_string(mode) + ")");
+    throw DriveError(m.who + ": did not enter cyclic synchronous position mode within " +
+                     std::to_string(m.cfg.transition_timeout.count()) + " ms (0x6061:00 = " + std::to_string(mode) + ")");
   }
   const long long us = m.cfg.sync_period.count();
-  if (us % 1000 == 0 && us / 1000 <= 255) {
-    sdo_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(us / 1000), 1);
-    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-3), 1);
-  } else {
-    sdo_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(us / 100), 1);
-    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-4), 1);
+  const bool whole_ms = us % 1000 == 0 && us / 1000 <= 255;
+  if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(whole_ms ? us / 1000 : us / 100), 1,
+                     "the drive takes its interpolation period from SYNC")) {
+    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(whole_ms ? -3 : -4), 1);
+  }
+  const auto& lim = m.cfg.limits;
+  const double rpc = std::abs(m.cfg.units.rad_per_count());
+  const auto counts = [rpc](double x) {
+    return static_cast<std::uint32_t>(std::min(std::nearbyint(x / rpc), 4294967294.0));
+  };
+  if (lim.following_error_window_rad > 0) {
+    optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
+                   "no following error window to set");
+  }
+  if (lim.following_error_timeout.count() >= 0) {
+    optional_write(cia402::kFollowingErrorTimeout, 0, static_cast<std::uint32_t>(lim.following_error_timeout.count()), 2,
+                   "no following error timeout to set");
+  }
+  if (lim.max_profile_velocity_rad_s > 0) {
+    optional_write(cia402::kMaxProfileVelocity, 0, counts(lim.max_profile_velocity_rad_s), 4, "no max profile velocity to set");
+  }
+  if (lim.quick_stop_deceleration_rad_s2 > 0) {
+    optional_write(cia402::kQuickStopDeceleration, 0, counts(lim.quick_stop_deceleration_rad_s2), 4,
+                   "no quick stop deceleration to set");
   }
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
   m.command.store({m.cfg.units.to_rad(pos), false, false});
@@ -596,6 +668,18 @@ void Cia402Drive::deactivate() {
                      " ms (state: " + std::string(cia402::to_string(state())) + ")");
   }
 }
+
+void Cia402Drive::quick_stop() {
+  auto& m = *impl_;
+  m.target = static_cast<std::uint8_t>(cia402::Target::quick_stop);
+  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switch_on_disabled; })) {
+    throw DriveError(m.who + ": quick stop did not end in switch on disabled within " +
+                     std::to_string(m.cfg.transition_timeout.count()) + " ms (state: " +
+                     std::string(cia402::to_string(state())) + ")");
+  }
+}
+
+std::vector<std::string> Cia402Drive::configure_notes() const { return impl_->notes; }
 
 DriveFeedback Cia402Drive::read(Clock::time_point, Clock::duration) noexcept { return impl_->feedback.load(); }
 

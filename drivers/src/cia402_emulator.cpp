@@ -6,6 +6,7 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <future>
+#include <cmath>
 #include <map>
 #include <thread>
 
@@ -19,13 +20,22 @@ using namespace canopen;
 using cia402::State;
 
 Cia402EmulatorConfig Cia402EmulatorConfig::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"interface", "node_id", "units"});
+  n.allow_keys({"interface", "node_id", "units", "pdos", "interpolation_period", "mode_display_delay_ms", "following_error",
+                "quick_stop_ramp"});
   Cia402EmulatorConfig c;
   c.interface = n.text("interface", c.interface);
   const long long node = n.at("node_id").integer();
   n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");
   c.node_id = static_cast<std::uint8_t>(node);
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
+  c.pdos = static_cast<int>(n.integer("pdos", c.pdos));
+  if (auto p = n.find("pdos")) p->require(c.pdos >= 1 && c.pdos <= 4, "must be 1..4");
+  c.interpolation_period = n.boolean("interpolation_period", c.interpolation_period);
+  const long long delay = n.integer("mode_display_delay_ms", 0);
+  if (auto d = n.find("mode_display_delay_ms")) d->require(delay >= 0 && delay <= 10000, "must be 0..10000 ms");
+  c.mode_display_delay = std::chrono::milliseconds(delay);
+  c.following_error = n.boolean("following_error", c.following_error);
+  c.quick_stop_ramp = n.boolean("quick_stop_ramp", c.quick_stop_ramp);
   return c;
 }
 
@@ -90,6 +100,11 @@ struct Cia402DriveEmulator::Impl {
   std::uint16_t last_cw = 0;
   std::uint32_t flood_id = 1;
   int flood_per_ms = 0;
+  Clock::time_point mode_written{};                    // when 0x6060 last changed
+  Clock::time_point following_since{};                 // outside the following error window since
+  bool following_out = false;
+  Clock::time_point qs_t0{};                           // quick stop ramp: start, position, speed
+  double qs_p0 = 0, qs_v0 = 0;
 
   Impl(Cia402EmulatorConfig c, DriveModel& m) : cfg(std::move(c)), model(m), n(cfg.node_id) {}
 
@@ -109,7 +124,12 @@ struct Cia402DriveEmulator::Impl {
     def(0x1018, 2, 0x00000402, 4, false);
     def(0x1018, 3, 1, 4, false);
     def(0x1018, 4, 1, 4, false);
-    for (std::uint16_t k = 0; k < 4; ++k) {
+    for (int i = 0; i < 4; ++i) {  // a drive with fewer PDOs does not have the others at all
+      for (std::uint16_t base : {0x1400, 0x1600, 0x1800, 0x1A00}) {
+        for (std::uint8_t s = 0; s <= 8; ++s) od.erase(key(static_cast<std::uint16_t>(base + i), s));
+      }
+    }
+    for (std::uint16_t k = 0; k < static_cast<std::uint16_t>(cfg.pdos); ++k) {
       def(0x1400 + k, 0, 2, 1, false);
       def(0x1400 + k, 1, kRpdo1 + 0x100u * k + n, 4, true);
       def(0x1400 + k, 2, 0xFF, 1, true);
@@ -136,9 +156,20 @@ struct Cia402DriveEmulator::Impl {
     def(cia402::kPositionActual, 0, 0, 4, false, true);
     def(cia402::kVelocityActual, 0, 0, 4, false, true);
     def(cia402::kTargetPosition, 0, 0, 4, true, true);
-    def(cia402::kInterpolationPeriod, 0, 2, 1, false);
-    def(cia402::kInterpolationPeriod, 1, 1, 1, true);
-    def(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-3), 1, true);
+    def(cia402::kSupportedDriveModes, 0, 0x00000081, 4, false);  // profile position, cyclic synchronous position
+    if (cfg.interpolation_period) {
+      def(cia402::kInterpolationPeriod, 0, 2, 1, false);
+      def(cia402::kInterpolationPeriod, 1, 1, 1, true);
+      def(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(-3), 1, true);
+    }
+    if (cfg.following_error) {
+      def(cia402::kFollowingErrorWindow, 0, 0xFFFFFFFF, 4, true);
+      def(cia402::kFollowingErrorTimeout, 0, 10, 2, true);
+    }
+    def(cia402::kQuickStopOption, 0, cfg.quick_stop_ramp ? 2 : 0, 2, false);
+    if (cfg.quick_stop_ramp) def(cia402::kQuickStopDeceleration, 0, 0x7FFFFFFF, 4, true);
+    mode_written = {};
+    following_out = false;
     state = State::not_ready_to_switch_on;
     last_cw = 0;
     app_step();
@@ -187,7 +218,7 @@ struct Cia402DriveEmulator::Impl {
     if (f.id == kSdoRx + n) return on_sdo(f);
     if (nmt() != NmtState::operational) return;
     if (f.id == kSync) return on_sync();
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < cfg.pdos; ++k) {
       const std::uint32_t cob = get(0x1400 + k, 1);
       if (!(cob & kCobIdInvalid) && f.id == (cob & 0x7FF)) return on_rpdo(k, f);
     }
@@ -237,11 +268,11 @@ struct Cia402DriveEmulator::Impl {
   void on_sync() {
     ++syncs;
     bool applied = false;
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < cfg.pdos; ++k) {
       if (rpdo_pending[k] && get(0x1400 + k, 2) <= 240) apply_rpdo(k), applied = true;
     }
     if (!applied) app_step();
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < cfg.pdos; ++k) {
       const std::uint32_t cob = get(0x1800 + k, 1);
       const std::uint32_t type = get(0x1800 + k, 2);
       if ((cob & kCobIdInvalid) || type < 1 || type > 240) continue;  // only synchronous TPDOs are produced
@@ -306,7 +337,14 @@ struct Cia402DriveEmulator::Impl {
           if (switch_on) state = State::switched_on;
           else if (shutdown) state = State::ready_to_switch_on;
           else if (disable_voltage) state = State::switch_on_disabled;
-          else if (quick_stop) state = State::quick_stop_active;
+          else if (quick_stop && cfg.quick_stop_ramp) {
+            state = State::quick_stop_active;
+            qs_t0 = Clock::now();
+            qs_p0 = s.position_rad;
+            qs_v0 = s.velocity_rad_s;
+          } else if (quick_stop) {
+            state = State::switch_on_disabled;  // quick stop option 0: stop at once, drive function off
+          }
           break;
         case State::quick_stop_active:
           if (disable_voltage) state = State::switch_on_disabled;
@@ -315,18 +353,55 @@ struct Cia402DriveEmulator::Impl {
         case State::fault: break;
       }
     }
-    const auto mode = static_cast<std::int8_t>(get(cia402::kModesOfOperation, 0));
+    update_mode_display();
+    const auto mode = static_cast<std::int8_t>(get(cia402::kModesDisplay, 0));
     const bool following = state == State::operation_enabled && mode == cia402::kModeCsp;
     const auto target = static_cast<std::int32_t>(get(cia402::kTargetPosition, 0));
-    model.command(following ? cfg.units.to_rad(target) : s.position_rad, following);
+    if (state == State::quick_stop_active) {
+      // The quick stop ramp (0x6085), then switch on disabled (0x605A = 2).
+      const double a = std::abs(cfg.units.to_rad(static_cast<std::int32_t>(std::min<std::uint32_t>(get(cia402::kQuickStopDeceleration, 0), 0x7FFFFFFF))));
+      const double t = std::chrono::duration<double>(Clock::now() - qs_t0).count();
+      const double t_stop = a > 0 ? std::abs(qs_v0) / a : 0.0;
+      const double tt = std::min(t, t_stop);
+      const double dir = qs_v0 < 0 ? -1.0 : 1.0;
+      model.command(qs_p0 + qs_v0 * tt - dir * a * tt * tt / 2, true);
+      if (t >= t_stop) state = State::switch_on_disabled;
+    } else {
+      model.command(following ? cfg.units.to_rad(target) : s.position_rad, following);
+    }
     s = model.sample();
+    if (following && cfg.following_error) check_following_error(target, cfg.units.to_counts(s.position_rad));
+    else following_out = false;
     set(cia402::kPositionActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.position_rad)));
     set(cia402::kVelocityActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.velocity_rad_s)));
     std::uint16_t sw = statusword_for(state) | 0x0200;  // remote
     if (following) sw |= 0x1000;                       // CSP: drive follows the command value
     set(cia402::kStatusword, 0, sw);
-    set(cia402::kModesDisplay, 0, static_cast<std::uint8_t>(mode));
     state_now = static_cast<std::uint8_t>(state);
+  }
+
+  // 0x6061 shows the requested mode once mode_display_delay has passed since 0x6060 changed.
+  void update_mode_display() {
+    if (Clock::now() - mode_written >= cfg.mode_display_delay) set(cia402::kModesDisplay, 0, get(cia402::kModesOfOperation, 0));
+  }
+
+  // CiA 402 following error: |demand - actual| above 0x6065 for longer than 0x6066.
+  void check_following_error(std::int32_t demand, std::int32_t actual) {
+    const std::uint32_t window = get(cia402::kFollowingErrorWindow, 0);
+    const long long err = static_cast<long long>(demand) - actual;
+    if (window == 0xFFFFFFFF || static_cast<unsigned long long>(err < 0 ? -err : err) <= window) {
+      following_out = false;
+      return;
+    }
+    const auto now = Clock::now();
+    if (!following_out) following_out = true, following_since = now;
+    if (now - following_since > std::chrono::milliseconds(get(cia402::kFollowingErrorTimeout, 0))) {
+      following_out = false;
+      std::array<std::uint8_t, 5> mfr{};
+      put_le(mfr.data(), static_cast<std::uint32_t>(static_cast<std::int32_t>(err)), 4);
+      enter_fault(0x8611, 0x20, mfr);  // device profile specific (+ generic)
+      model.command(cfg.units.to_rad(actual), false);
+    }
   }
 
   // -- SDO server --
@@ -375,6 +450,7 @@ struct Cia402DriveEmulator::Impl {
       return abort(index_exists ? kAbortNoSub : kAbortNoObject);
     }
     Obj& o = it->second;
+    if (index == cia402::kModesDisplay) update_mode_display();
     if (cs == 0x40) return send_late(sdo_upload_ok(n, index, sub, o.value, o.size));
     if ((cs >> 5) != 1) return abort(kAbortCommand);
     if (!(cs & 0x02)) return abort(kAbortCommand);  // segmented download: not supported here
@@ -383,6 +459,7 @@ struct Cia402DriveEmulator::Impl {
     if (size != o.size) return abort(kAbortLength);
     const std::uint32_t v = get_le(&f.data[4], size);
     if (const std::uint32_t code = check_write(index, sub, v)) return abort(code);
+    if (index == cia402::kModesOfOperation && v != o.value) mode_written = Clock::now();
     o.value = v;
     if (index == 0x1017) arm_heartbeat();
     if (index == cia402::kControlword || index == cia402::kModesOfOperation || index == cia402::kTargetPosition) app_step();

@@ -9,10 +9,12 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <string>
 #include <thread>
 
 #include "hil/drv/cia402_drive.hpp"
 #include "hil/drv/cia402_emulator.hpp"
+#include "hil/drv/cia402_probe.hpp"
 #include "hil/drv/servo_test_model.hpp"
 
 namespace hil::drv::test {
@@ -74,9 +76,13 @@ class TestLoop {
 
 // One drive on the bus, its client, and the model behind the emulator.
 struct Rig {
-  Rig(const CanTransportFactory& factory, Cia402Config cfg)
-      : emulator(Cia402EmulatorConfig{cfg.interface, cfg.node_id, cfg.units}, model, factory),
-        client(cfg, factory) {}
+  Rig(const CanTransportFactory& factory, Cia402Config cfg, const std::function<void(Cia402EmulatorConfig&)>& variant = {})
+      : emulator(emulator_config(cfg, variant), model, factory), client(cfg, factory) {}
+  static Cia402EmulatorConfig emulator_config(const Cia402Config& cfg, const std::function<void(Cia402EmulatorConfig&)>& variant) {
+    Cia402EmulatorConfig e{cfg.interface, cfg.node_id, cfg.units};
+    if (variant) variant(e);
+    return e;
+  }
   FirstOrderServoTestModel model{0.01, 20.0, 0.25};
   Cia402DriveEmulator emulator;
   Cia402Drive client;
@@ -298,6 +304,176 @@ inline void malformed_frames_are_counted(const CanTransportFactory& f, std::uint
   // The client still runs.
   const auto seq = r.client.read(Clock::now(), 1ms).sequence;
   EXPECT_TRUE(eventually([&] { return r.client.read(Clock::now(), 1ms).sequence > seq + 3; }));
+}
+
+// ---- the emulator as other legal drives ---------------------------------------------------------
+
+inline bool has_note(const Cia402Drive& c, const std::string& part) {
+  for (const auto& n : c.configure_notes()) {
+    if (n.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// Configures, enables and moves the drive; `check` looks at what configure() left.
+inline void variant_runs(const CanTransportFactory& f, std::uint8_t node, const std::function<void(Cia402EmulatorConfig&)>& variant,
+                         const std::function<void(Rig&)>& check) {
+  Rig r(f, test_config(node), variant);
+  r.client.configure();
+  check(r);
+  r.client.activate();
+  TestLoop loop(r.client);
+  loop.target_rad = 0.25;
+  loop.target_rad = 0.6;
+  EXPECT_TRUE(eventually([&] { return std::abs(loop.position_rad - 0.6) < 1e-3; })) << loop.position_rad.load();
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+}
+
+// CiA 301 asks for one PDO each way; a drive with two has no 0x1402/0x1403/0x1802/0x1803.
+inline void variant_two_pdos_each_way(const CanTransportFactory& f, std::uint8_t node) {
+  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.pdos = 2; }, [](Rig& r) {
+    EXPECT_FALSE(r.emulator.object(0x1402, 1).has_value());
+    EXPECT_EQ(r.emulator.object(0x1401, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);  // the one it has: off
+    EXPECT_EQ(r.emulator.object(0x1801, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);
+    EXPECT_TRUE(has_note(r.client, "0x1402:01 absent"));
+    EXPECT_TRUE(has_note(r.client, "0x1803:01 absent"));
+  });
+}
+
+// 0x60C2 is optional in CiA 402: a drive without it takes its period from SYNC.
+inline void variant_no_interpolation_period(const CanTransportFactory& f, std::uint8_t node) {
+  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.interpolation_period = false; }, [](Rig& r) {
+    EXPECT_FALSE(r.emulator.object(0x60C2, 1).has_value());
+    EXPECT_TRUE(has_note(r.client, "0x60C2:01 absent"));
+  });
+}
+
+// 0x6061 follows 0x6060 5 ms later: the client polls it (up to transition_ms).
+inline void variant_delayed_mode_display(const CanTransportFactory& f, std::uint8_t node) {
+  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.mode_display_delay = 5ms; }, [](Rig& r) {
+    EXPECT_EQ(r.emulator.object(0x6061, 0), 8u);
+    EXPECT_TRUE(r.client.configure_notes().empty());
+  });
+  // A drive that never shows the mode fails after transition_ms, naming the object.
+  auto cfg = test_config(node);
+  cfg.transition_timeout = 300ms;
+  Rig r(f, cfg, [](Cia402EmulatorConfig& e) { e.mode_display_delay = 60s; });
+  try {
+    r.client.configure();
+    ADD_FAILURE() << "configured without the mode";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("within 300 ms (0x6061:00 = 0)"), std::string::npos) << e.what();
+  }
+}
+
+// Following error monitoring: configure writes 0x6065/0x6066 from the client's limits; a step
+// the drive cannot follow raises EMCY 0x8611, and the fault text names the decoded class, the
+// error register and the manufacturer bytes (not just "entered fault").
+inline void variant_following_error(const CanTransportFactory& f, std::uint8_t node) {
+  auto cfg = test_config(node);
+  cfg.limits.following_error_window_rad = 0.05;
+  cfg.limits.following_error_timeout = 20ms;
+  Rig r(f, cfg, [](Cia402EmulatorConfig& e) { e.following_error = true; });
+  r.client.configure();
+  EXPECT_EQ(r.emulator.object(0x6065, 0), static_cast<std::uint32_t>(std::lround(0.05 / cfg.units.rad_per_count())));
+  EXPECT_EQ(r.emulator.object(0x6066, 0), 20u);
+  r.client.activate();
+  {
+    TestLoop loop(r.client);
+    loop.target_rad = 0.25;
+    loop.target_rad = 0.3;  // within reach: no fault
+    ASSERT_TRUE(eventually([&] { return std::abs(loop.position_rad - 0.3) < 1e-3; }));
+    EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+    loop.target_rad = 5.0;  // 4.7 rad at 20 rad/s: 235 ms outside a 0.05 rad window
+    ASSERT_TRUE(eventually([&] { return r.client.state() == cia402::State::fault; }));
+  }
+  ASSERT_TRUE(eventually([&] { return r.client.health().last_emcy_code == 0x8611; }));
+  const auto h = r.client.health();
+  const std::string text(h.last_error_text());
+  EXPECT_NE(text.find("drive entered fault: EMCY 0x8611 (following error)"), std::string::npos) << text;
+  EXPECT_NE(text.find("register 0x21 (generic, device profile)"), std::string::npos) << text;
+  EXPECT_NE(text.find("manufacturer"), std::string::npos) << text;
+  EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
+}
+
+// A quick stop ramps down at 0x6085 (written from the client's limits), then switch on disabled.
+inline void variant_quick_stop_ramp(const CanTransportFactory& f, std::uint8_t node) {
+  auto cfg = test_config(node);
+  cfg.limits.quick_stop_deceleration_rad_s2 = 100.0;
+  Rig r(f, cfg, [](Cia402EmulatorConfig& e) { e.quick_stop_ramp = true; });
+  r.client.configure();
+  EXPECT_EQ(r.emulator.object(0x605A, 0), 2u);
+  EXPECT_EQ(r.emulator.object(0x6085, 0), static_cast<std::uint32_t>(std::lround(100.0 / cfg.units.rad_per_count())));
+  r.client.activate();
+  TestLoop loop(r.client);
+  loop.target_rad = 0.25;
+  loop.target_rad = 20.0;  // the model moves at its 20 rad/s limit
+  ASSERT_TRUE(eventually([&] { return loop.position_rad > 1.0; }));
+  const double at = loop.position_rad;
+  r.client.quick_stop();
+  EXPECT_EQ(r.emulator.state(), cia402::State::switch_on_disabled);
+  // From about 20 rad/s at 100 rad/s^2: 2 rad further (what the loop read then may be a period old).
+  std::this_thread::sleep_for(50ms);
+  const double stopped = r.client.read(Clock::now(), 1ms).position_rad;
+  EXPECT_GT(stopped - at, 1.0) << "no ramp: stopped at once";
+  EXPECT_LT(stopped - at, 3.5);
+  std::this_thread::sleep_for(50ms);
+  EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, stopped, 1e-3);  // and stays
+}
+
+// probe() reads what each variant has, without moving it: no NMT start, no SYNC, no enable.
+inline void probe_variants(const CanTransportFactory& f, std::uint8_t node) {
+  {
+    Rig r(f, test_config(node));
+    const Cia402Probe p = probe(r.client);
+    EXPECT_TRUE(p.usable) << p.report();
+    EXPECT_EQ(p.rpdos, 4);
+    EXPECT_EQ(p.tpdos, 4);
+    EXPECT_TRUE(p.csp_supported);
+    ASSERT_NE(p.find(0x1018, 1), nullptr);
+    EXPECT_EQ(p.find(0x1018, 1)->value, 0xABCu);
+    EXPECT_EQ(p.find(0x6502, 0)->value, 0x81u);
+    EXPECT_FALSE(p.find(0x6065, 0)->value.has_value());
+    const std::string rep = p.report();
+    EXPECT_NE(rep.find("0x6065/0x6066 following error window and timeout (optional"), std::string::npos) << rep;
+    EXPECT_NE(rep.find("verdict: usable"), std::string::npos) << rep;
+    // Nothing moved: the drive is where it booted, pre-operational, no SYNC seen.
+    EXPECT_EQ(r.emulator.nmt_state(), canopen::NmtState::pre_operational);
+    EXPECT_EQ(r.emulator.syncs_seen(), 0u);
+    EXPECT_NE(r.emulator.state(), cia402::State::operation_enabled);
+  }
+  {
+    Rig r(f, test_config(node), [](Cia402EmulatorConfig& e) {
+      e.pdos = 2;
+      e.interpolation_period = false;
+      e.following_error = true;
+      e.quick_stop_ramp = true;
+    });
+    const Cia402Probe p = probe(r.client);
+    EXPECT_TRUE(p.usable) << p.report();
+    EXPECT_EQ(p.rpdos, 2);
+    EXPECT_EQ(p.tpdos, 2);
+    EXPECT_EQ(p.find(0x6065, 0)->value, 0xFFFFFFFFu);
+    EXPECT_EQ(p.find(0x6066, 0)->value, 10u);
+    const std::string rep = p.report();
+    EXPECT_NE(rep.find("PDOs: 2 RPDO, 2 TPDO"), std::string::npos) << rep;
+    EXPECT_NE(rep.find("0x60C2 interpolation time period (optional"), std::string::npos) << rep;
+    EXPECT_NE(rep.find("quick stop option code 0x605A = 2 (quick stop ramp)"), std::string::npos) << rep;
+    EXPECT_EQ(r.emulator.syncs_seen(), 0u);
+  }
+}
+
+// EMCY then fault: the decoded EMCY stays in the fault text whatever its class.
+inline void emcy_text_survives_the_fault(const CanTransportFactory& f, std::uint8_t node) {
+  Rig r(f, test_config(node));
+  r.client.configure();
+  r.client.activate();
+  r.emulator.raise_emcy(0x8611, 0x20, {0x01, 0x02, 0x03, 0x04, 0x05});
+  ASSERT_TRUE(eventually([&] { return r.client.state() == cia402::State::fault; }));
+  ASSERT_TRUE(eventually([&] { return r.client.health().last_emcy_code == 0x8611; }));
+  const std::string text(r.client.health().last_error_text());
+  EXPECT_NE(text.find("EMCY 0x8611 (following error), register 0x21 (generic, device profile), manufacturer 01 02 03 04 05"),
+            std::string::npos) << text;
 }
 
 }  // namespace hil::drv::test

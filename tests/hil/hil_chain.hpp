@@ -107,26 +107,27 @@ struct SimulatorSide {
 };
 
 // Device entries of a rig file (inline client configurations).
-inline std::string can_drive_yaml(const std::string& interface = "vcan0", const std::string& bus_off_policy = "recover") {
+inline std::string can_drive_yaml(const std::string& interface = "vcan0", const std::string& bus_off_policy = "recover",
+                                  int heartbeat_timeout_ms = 100) {
   return "    cia402: {interface: " + interface + ", node_id: 5, units: {counts_per_rev: 131072},\n"
-         "             heartbeat: {producer_ms: 20, timeout_ms: 100},\n"
+         "             heartbeat: {producer_ms: 20, timeout_ms: " + std::to_string(heartbeat_timeout_ms) + "},\n"
          "             timeouts: {boot_ms: 10000, sdo_ms: 500, sdo_retries: 2, transition_ms: 3000},\n"
          "             bus_off: {policy: " + bus_off_policy + ", recover_after_ms: 200}}\n";
 }
-inline std::string modbus_device_yaml(int port, const std::string& map, double max_age_ms = 4) {
+inline std::string modbus_device_yaml(int port, const std::string& map, double max_age_ms = 4, int response_timeout_ms = 100) {
   return "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(port) +
-         ", poll_period_ms: 2, response_timeout_ms: 100, reconnect: {initial_ms: 20, max_ms: 200}},\n"
+         ", poll_period_ms: 2, response_timeout_ms: " + std::to_string(response_timeout_ms) +
+         ", reconnect: {initial_ms: 20, max_ms: 200}},\n"
          "             register_map: " + source_path("drivers/configs/" + map).string() + "}\n"
          "    max_age_ms: " + std::to_string(max_age_ms) + "\n";
 }
 
-// The watchdog: 20 periods by default here. This machine preempts a vCPU for ~4.5 ms now and then
-// (up to ~15 ms; cyclictest at SCHED_FIFO 80 sees it on both CPUs, a few times in 10 s, more under
-// load): the devices' I/O threads stall and the loop, on the other CPU, reads 4-5 stale periods in
-// a row. Long runs would trip a 3-period watchdog on that alone; the fault tests use 3
-// (rig_fault_scenarios.hpp) and retry a run that tripped before its injected fault.
+// The watchdog: 500 periods by default here, so that it ends a run whose chain broke, not one the
+// machine slowed down. This machine preempts a vCPU for ~4.5 ms now and then, and with other
+// builds running the loop wakes up to 90 ms late in the VM: a few periods' watchdog would trip on
+// that alone. The fault tests set the watchdog where it is their subject (rig_fault_scenarios.hpp).
 struct RigOptions {
-  int watchdog_misses = 20;
+  int watchdog_misses = 500;
   int safe_hold_ms = 200;
   int priority = 80;  // SCHED_FIFO as the shipped rigs (a warning where refused)
   int cpu = 1;

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
+#include <thread>
 
 #include <spdlog/spdlog.h>
 
@@ -104,8 +106,37 @@ void DeviceRig::configure(const RigSetup& setup) {
 
 void DeviceRig::activate() {
   if (!drive_) throw std::logic_error(kind_ + " rig: activate before configure");
+  activated_at_ = Clock::now();
+  first_write_done_ = false;
   drive_->activate();
   active_ = true;
+  // The loop starts from a reading: wait (setup, so it may block) until every device gives a fresh
+  // one, however long a loaded machine takes to deliver the first TPDO and poll, up to 5 s.
+  const auto until = Clock::now() + std::chrono::seconds(5);
+  for (;;) {
+    drv::DriveFeedback fb;
+    RigStatus s = read_drive(Clock::now(), fb);
+    if (s == RigStatus::ok && transducer_) {
+      const auto now = Clock::now();
+      const drv::PressureReading p = transducer_->read(now, Clock::duration::zero());
+      s = p.fault ? RigStatus::fault
+          : (!p.valid || now - p.rx_time > config_.devices.transducer_max_age) ? RigStatus::stale : RigStatus::ok;
+      if (s == RigStatus::stale) {
+        stale_ = Stale::transducer;
+        stale_age_ms_ = p.valid ? ms(now - p.rx_time) : -1;
+      }
+    }
+    if (s == RigStatus::ok) {
+      stale_ = Stale::none;
+      return;
+    }
+    if (s == RigStatus::fault || Clock::now() > until) {
+      const RigHealth h = health();
+      throw std::runtime_error(kind_ + " rig: no fresh reading after enabling the drive" +
+                               (h.last_error_text().empty() ? std::string() : ": " + std::string(h.last_error_text())));
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
 }
 
 void DeviceRig::deactivate() noexcept {
@@ -124,7 +155,7 @@ RigStatus DeviceRig::read_drive(Clock::time_point now, drv::DriveFeedback& fb) n
   fb = drive_->read(now, Clock::duration::zero());
   if (fb.fault) return RigStatus::fault;
   const bool fresh = config_.devices.can_drive ? fb.valid && (last_sync_ == Clock::time_point{} || fb.rx_time > last_sync_)
-                                               : fb.valid && now - fb.rx_time <= config_.devices.drive_max_age;
+                                               : fb.valid && (now - fb.rx_time <= config_.devices.drive_max_age || first_read(fb.rx_time));
   if (fresh) return RigStatus::ok;
   stale_ = Stale::drive;
   stale_age_ms_ = fb.valid ? ms(now - fb.rx_time) : -1;
@@ -154,7 +185,7 @@ RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigRead
     RigStatus ps = RigStatus::ok;
     if (p.fault) {
       ps = RigStatus::fault;
-    } else if (!p.valid || now - p.rx_time > config_.devices.transducer_max_age) {
+    } else if (!p.valid || (now - p.rx_time > config_.devices.transducer_max_age && !first_read(p.rx_time))) {
       ps = RigStatus::stale;
       if (status == RigStatus::ok) {
         stale_ = Stale::transducer;
@@ -176,9 +207,14 @@ RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const 
     gap_rad_ = command.gap_rad;
     step_pending_ = true;
   }
+  first_write_done_ = true;
   if (config_.devices.can_drive) last_sync_ = Clock::now();  // before the SYNC this write triggers
   drive_->write(now, period, {command.theta_cmd_rad + offset_rad_, command.enable, false});
   return RigStatus::ok;
+}
+
+drv::DriveFeedback DeviceRig::drive_feedback() const noexcept {
+  return drive_ ? drive_->read(Clock::now(), Clock::duration::zero()) : drv::DriveFeedback{};
 }
 
 RigHealth DeviceRig::health() const noexcept {
@@ -201,7 +237,8 @@ RigHealth DeviceRig::health() const noexcept {
   h.fault = !active_ || d.fault || (transducer_ && t.fault);
   char text[256];
   text[0] = '\0';
-  if (d.fault && d.last_emcy_code != 0) {  // the newest error may be "drive entered fault": name the EMCY too
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr) {
+    // The newest error is about something else (heartbeat, bus): name the EMCY too.
     std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
   } else if (d.fault) {
     std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());

@@ -118,6 +118,14 @@ TEST(Cia402, ControlwordSequenceToOperationEnabled) {
   EXPECT_EQ(cia402::next_controlword(State::fault, op, true), 0x0080);   // fault reset
   EXPECT_EQ(cia402::next_controlword(State::fault, op, false), 0x0000);  // bit 7 low for the next edge
   EXPECT_EQ(cia402::next_controlword(State::quick_stop_active, op, false), 0x0000);
+  // Quick stop (CiA 402 transition 11): 0x0002 from operation enabled, held while the drive
+  // ramps down (quick stop active); once it is switch on disabled the client stays there.
+  const auto qs = Target::quick_stop;
+  EXPECT_EQ(cia402::next_controlword(State::operation_enabled, qs, false), 0x0002);
+  EXPECT_EQ(cia402::next_controlword(State::quick_stop_active, qs, false), 0x0002);
+  EXPECT_EQ(cia402::next_controlword(State::switch_on_disabled, qs, false), 0x0000);
+  EXPECT_EQ(cia402::next_controlword(State::ready_to_switch_on, qs, false), 0x0000);
+  EXPECT_EQ(cia402::next_controlword(State::switched_on, qs, false), 0x0000);
 }
 
 TEST(CanErrors, DecodedFromLinuxErrorFrames) {

@@ -23,6 +23,13 @@ TEST_F(Cia402Loopback, SdoTimeoutRetryAndLateAnswer) { sdo_timeout_retry_and_lat
 TEST_F(Cia402Loopback, BusOffPolicyReport) { bus_off_policy(factory(), 5, BusOffPolicy::report); }
 TEST_F(Cia402Loopback, BusOffPolicyWait) { bus_off_policy(factory(), 5, BusOffPolicy::wait); }
 TEST_F(Cia402Loopback, BusOffPolicyRecover) { bus_off_policy(factory(), 5, BusOffPolicy::recover); }
+TEST_F(Cia402Loopback, VariantTwoPdosEachWay) { variant_two_pdos_each_way(factory(), 5); }
+TEST_F(Cia402Loopback, VariantNoInterpolationPeriod) { variant_no_interpolation_period(factory(), 5); }
+TEST_F(Cia402Loopback, VariantDelayedModeDisplay) { variant_delayed_mode_display(factory(), 5); }
+TEST_F(Cia402Loopback, VariantFollowingError) { variant_following_error(factory(), 5); }
+TEST_F(Cia402Loopback, VariantQuickStopRamp) { variant_quick_stop_ramp(factory(), 5); }
+TEST_F(Cia402Loopback, ProbeReadsEachVariantWithoutMovingIt) { probe_variants(factory(), 5); }
+TEST_F(Cia402Loopback, EmcyTextSurvivesTheFault) { emcy_text_survives_the_fault(factory(), 5); }
 TEST_F(Cia402Loopback, MalformedFramesAreCounted) {
   malformed_frames_are_counted(factory(), 5, [this](const CanFrame& f) { bus.inject(f); });
 }

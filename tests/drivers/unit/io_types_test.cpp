@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <string>
+#include <utility>
+#include <vector>
+
 #include <thread>
 
 #include "hil/config.hpp"
@@ -76,6 +80,31 @@ TEST(Cia402Config, ErrorsNameFileLineAndKey) {
     FAIL();
   } catch (const cfg::Error& e) {
     EXPECT_NE(std::string(e.what()).find("did you mean 'timeout_ms'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Cia402Config, LimitsInDegreesAndTheirErrors) {
+  const auto ok = cfg::Node::load_string(
+      "interface: vcan0\nnode_id: 2\nlimits: {following_error_window_deg: 0.5, following_error_timeout_ms: 20,\n"
+      "  max_profile_velocity_deg_s: 3600, quick_stop_deceleration_deg_s2: 36000}\n", "d.yaml");
+  const auto c = Cia402Config::from_yaml(ok);
+  EXPECT_NEAR(c.limits.following_error_window_rad, 0.5 * 3.14159265358979 / 180, 1e-12);
+  EXPECT_EQ(c.limits.following_error_timeout, std::chrono::milliseconds(20));
+  EXPECT_NEAR(c.limits.max_profile_velocity_rad_s, 20 * 3.14159265358979, 1e-9);
+  EXPECT_NEAR(c.limits.quick_stop_deceleration_rad_s2, 200 * 3.14159265358979, 1e-9);
+  const auto none = Cia402Config::from_yaml(cfg::Node::load_string("interface: vcan0\nnode_id: 2\n", "d.yaml"));
+  EXPECT_EQ(none.limits.following_error_window_rad, 0);  // nothing written at configure
+  EXPECT_LT(none.limits.following_error_timeout.count(), 0);
+  for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
+           {"limits: {following_error_timeout_ms: 70000}", "d.yaml:3:10: limits.following_error_timeout_ms: must be 0..65535 ms"},
+           {"limits: {following_error_window_deg: -1}", "d.yaml:3:10: limits.following_error_window_deg: must be > 0"},
+           {"limits: {following_error_window: 1}", "did you mean 'following_error_window_deg'"}}) {
+    try {
+      Cia402Config::from_yaml(cfg::Node::load_string("interface: vcan0\nnode_id: 2\n" + text + "\n", "d.yaml"));
+      ADD_FAILURE() << text;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
   }
 }
 

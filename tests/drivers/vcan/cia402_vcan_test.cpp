@@ -5,12 +5,14 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -30,41 +32,61 @@ struct Logged {
   std::string text;  // "605#2F60600008000000"
 };
 
-// candump -L vcan0 into a file, stopped with SIGINT (candump then flushes and exits).
+void cansend(const std::string& frame);
+
+// candump -L vcan0 on a pseudo-terminal (so its stdout is line-buffered and every frame it
+// printed can be seen at once), read by a thread. No sleeps: it is ready once a marker frame
+// sent with cansend comes back through it, and stop() waits for a second marker, so every frame
+// put on the bus before stop() is in the log whatever the machine's load. Markers (ID 0x7FF, the
+// heartbeat of node 127, which nobody here is) are left out of the log.
 class Candump {
  public:
   Candump() {
-    path_ = std::filesystem::temp_directory_path() / ("candump-" + std::to_string(::getpid()) + ".log");
+    master_ = ::posix_openpt(O_RDWR | O_NOCTTY);
+    if (master_ < 0 || ::grantpt(master_) != 0 || ::unlockpt(master_) != 0) {
+      ADD_FAILURE() << "no pseudo-terminal for candump";
+      return;
+    }
+    const std::string slave = ::ptsname(master_);
     pid_ = ::fork();
     if (pid_ == 0) {
-      const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::setsid();
+      const int fd = ::open(slave.c_str(), O_RDWR);
+      termios t{};
+      ::tcgetattr(fd, &t);
+      ::cfmakeraw(&t);
+      ::tcsetattr(fd, TCSANOW, &t);
       ::dup2(fd, 1);
       ::execlp("candump", "candump", "-L", "vcan0", static_cast<char*>(nullptr));
       std::_Exit(127);
     }
-    // Ready once candump has its CAN socket open (then give it a moment to bind).
-    eventually([&] {
-      for (const auto& e : std::filesystem::directory_iterator("/proc/" + std::to_string(pid_) + "/fd")) {
-        std::error_code ec;
-        if (std::filesystem::read_symlink(e.path(), ec).string().rfind("socket:", 0) == 0) return true;
+    reader_ = std::thread([this] {
+      char buf[4096];
+      for (;;) {
+        const ssize_t n = ::read(master_, buf, sizeof buf);
+        if (n <= 0) break;  // EIO once candump has exited
+        std::lock_guard lock(mutex_);
+        text_.append(buf, static_cast<std::size_t>(n));
       }
-      return false;
-    }, std::chrono::seconds(10));
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    });
+    EXPECT_TRUE(marker("7FF#AA")) << "candump never showed the start marker";
   }
   ~Candump() { stop(); }
   std::vector<Logged> stop() {
     if (pid_ > 0) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(200));  // let the last frames through
+      EXPECT_TRUE(marker("7FF#BB")) << "candump never showed the end marker";
       ::kill(pid_, SIGINT);
       int status = 0;
       ::waitpid(pid_, &status, 0);
       pid_ = -1;
     }
+    if (reader_.joinable()) reader_.join();
+    if (master_ >= 0) ::close(master_), master_ = -1;
     std::vector<Logged> out;
-    std::ifstream in(path_);
+    std::istringstream in(text());
     std::string stamp, iface, frame;
     while (in >> stamp >> iface >> frame) {
+      if (frame.rfind("7FF#", 0) == 0) continue;
       Logged l;
       l.text = frame;
       const auto hash = frame.find('#');
@@ -80,8 +102,28 @@ class Candump {
   }
 
  private:
-  std::filesystem::path path_;
+  std::string text() {
+    std::lock_guard lock(mutex_);
+    return text_;
+  }
+  // Sends `frame` (again every 200 ms while candump may not have bound yet) until it shows.
+  bool marker(const std::string& frame) {
+    const std::string line = " vcan0 " + frame;
+    auto sent = Clock::now() - std::chrono::seconds(1);
+    return eventually([&] {
+      if (text().find(line) != std::string::npos) return true;
+      if (Clock::now() - sent > std::chrono::milliseconds(200)) {
+        sent = Clock::now();
+        cansend(frame);
+      }
+      return false;
+    }, std::chrono::seconds(60));
+  }
+  int master_ = -1;
   pid_t pid_ = -1;
+  std::thread reader_;
+  std::mutex mutex_;
+  std::string text_;
 };
 
 void cansend(const std::string& frame) {
@@ -112,6 +154,13 @@ TEST(Cia402Vcan, EmcyEntersFaultAndResets) { emcy_enters_fault_and_resets(kVcan,
 TEST(Cia402Vcan, SdoTimeoutRetryAndLateAnswer) { sdo_timeout_retry_and_late_answer(kVcan, 5); }
 // Bus-off through the kernel's error-frame path: the emulator writes frames carrying
 // CAN_ERR_FLAG; vcan hands them to sockets whose CAN_RAW_ERR_FILTER asks for that class.
+TEST(Cia402Vcan, VariantTwoPdosEachWay) { variant_two_pdos_each_way(kVcan, 5); }
+TEST(Cia402Vcan, VariantNoInterpolationPeriod) { variant_no_interpolation_period(kVcan, 5); }
+TEST(Cia402Vcan, VariantDelayedModeDisplay) { variant_delayed_mode_display(kVcan, 5); }
+TEST(Cia402Vcan, VariantFollowingError) { variant_following_error(kVcan, 5); }
+TEST(Cia402Vcan, VariantQuickStopRamp) { variant_quick_stop_ramp(kVcan, 5); }
+TEST(Cia402Vcan, ProbeReadsEachVariantWithoutMovingIt) { probe_variants(kVcan, 5); }
+TEST(Cia402Vcan, EmcyTextSurvivesTheFault) { emcy_text_survives_the_fault(kVcan, 5); }
 TEST(Cia402Vcan, BusOffPolicyReport) { bus_off_policy(kVcan, 5, BusOffPolicy::report); }
 TEST(Cia402Vcan, BusOffPolicyWait) { bus_off_policy(kVcan, 5, BusOffPolicy::wait); }
 TEST(Cia402Vcan, BusOffPolicyRecover) { bus_off_policy(kVcan, 5, BusOffPolicy::recover); }
@@ -124,7 +173,8 @@ TEST(Cia402Wire, ConfigureAndEnableBytesFollowTheStandard) {
     Rig r(kVcan, test_config(5));
     r.client.configure();
     r.client.activate();
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const auto syncs = r.emulator.syncs_seen();
+    EXPECT_TRUE(eventually([&] { return r.emulator.syncs_seen() > syncs + 20; }));  // SYNC/RPDO/TPDO cycles to look at
     r.client.deactivate();
   }
   const auto log = dump_.stop();
@@ -202,12 +252,14 @@ TEST(Cia402Wire, NmtCommandsBytes) {
   Candump dump_;
   {
     Rig r(kVcan, test_config(7));
+    using S = canopen::NmtState;
     r.client.nmt(canopen::NmtCommand::enter_pre_operational);
     r.client.nmt(canopen::NmtCommand::stop);
+    EXPECT_TRUE(eventually([&] { return r.emulator.nmt_state() == S::stopped; }));
     r.client.nmt(canopen::NmtCommand::start);
-    r.client.nmt(canopen::NmtCommand::reset_node);
-    EXPECT_TRUE(eventually([&] { return r.emulator.nmt_state() == canopen::NmtState::pre_operational; }));
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    EXPECT_TRUE(eventually([&] { return r.emulator.nmt_state() == S::operational; }));
+    r.client.nmt(canopen::NmtCommand::reset_node);  // boot-up, then pre-operational
+    EXPECT_TRUE(eventually([&] { return r.emulator.nmt_state() == S::pre_operational; }));
   }
   const auto log = dump_.stop();
   std::size_t at = 0;
@@ -246,12 +298,12 @@ TEST(Cia402Inject, MalformedAndValidEmcyFromCansend) {
 TEST(Cia402Inject, SdoAbortFromCansendNamesTheObject) {
   auto cfg = test_config(9);  // no emulator at node 9: cansend plays the server
   cfg.sdo_timeout = std::chrono::milliseconds(1500);
+  cfg.sdo_retries = 10;  // the request is repeated until the peer's candump has bound and answers
   Cia402Drive client(cfg, kVcan);
   // Answer the first request on 0x609 with abort 0x06020000 for 0x2100:03.
   std::thread peer([] {
     [[maybe_unused]] int rc = std::system("candump -n 1 vcan0,609:7FF >/dev/null && cansend vcan0 589#8000210300000206");
   });
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
   try {
     client.sdo_read(0x2100, 3);
     ADD_FAILURE() << "no abort";

@@ -113,6 +113,7 @@ cat > "$root/init" <<INIT
 /bin/busybox --install -s /bin
 export PATH=/bin:/sbin:/usr/bin:/usr/sbin HOME=/tmp TMPDIR=/tmp
 mount -t proc proc /proc; mount -t sysfs sys /sys; mount -t devtmpfs dev /dev; mkdir -p /tmp; chmod 1777 /tmp
+mkdir -p /dev/pts; mount -t devpts devpts /dev/pts
 for m in can can-raw can-dev vcan; do insmod /lib/modules/\$m.ko || echo "insmod \$m failed"; done
 ip link add dev vcan0 type vcan && ip link set up vcan0
 ip link set lo up

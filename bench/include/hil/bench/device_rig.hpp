@@ -45,6 +45,9 @@ class DeviceRig final : public Rig {
   // Real-time safe; the loop thread (or after it ended): last_error names the device at fault or
   // the stale one, else the newest thing a client reported.
   RigHealth health() const noexcept override;
+  // The drive client's newest feedback as it stands (position in the drive's frame, rx_time,
+  // sequence), without the rig's freshness bookkeeping: for tests and diagnostics. Real-time safe.
+  drv::DriveFeedback drive_feedback() const noexcept;
 
  private:
   struct DriveClient;
@@ -53,6 +56,10 @@ class DeviceRig final : public Rig {
   enum class Stale : std::uint8_t { none, drive, transducer };
 
   RigStatus read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept;
+  // Before the loop's first write (the reading the run starts from), a Modbus value is fresh if
+  // it arrived after activate() began, however old it is by the time the loop starts: a loaded
+  // machine may take longer than max_age between enabling the drive and the first period.
+  bool first_read(Clock::time_point rx_time) const noexcept { return !first_write_done_ && rx_time >= activated_at_; }
 
   const RigConfig config_;
   const drv::CanTransportFactory can_transport_;
@@ -63,6 +70,8 @@ class DeviceRig final : public Rig {
   bool active_ = false;
   // Freshness.
   Clock::time_point last_sync_{};  // CAN: when the last write() triggered SYNC
+  Clock::time_point activated_at_{};
+  bool first_write_done_ = false;
   Stale stale_ = Stale::none;
   double stale_age_ms_ = 0;
   // Hybrid: the simulated valve and chamber.

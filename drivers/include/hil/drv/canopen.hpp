@@ -107,6 +107,12 @@ inline constexpr std::uint16_t kPositionActual = 0x6064;
 inline constexpr std::uint16_t kVelocityActual = 0x606C;
 inline constexpr std::uint16_t kTargetPosition = 0x607A;
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;
+inline constexpr std::uint16_t kQuickStopOption = 0x605A;
+inline constexpr std::uint16_t kFollowingErrorWindow = 0x6065;   // u32, position units; 0xFFFFFFFF: off
+inline constexpr std::uint16_t kFollowingErrorTimeout = 0x6066;  // u16, ms
+inline constexpr std::uint16_t kMaxProfileVelocity = 0x607F;     // u32, velocity units
+inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  // u32, acceleration units
+inline constexpr std::uint16_t kSupportedDriveModes = 0x6502;    // u32, bit 7: csp
 inline constexpr std::int8_t kModeCsp = 8;  // cyclic synchronous position
 
 // Controlword commands (bits 0 switch on, 1 enable voltage, 2 quick stop, 3 enable operation, 7 fault reset).
@@ -133,10 +139,11 @@ std::string_view to_string(State s);
 State decode_statusword(std::uint16_t sw);
 
 // What the client wants the drive to be.
-enum class Target : std::uint8_t { disabled, switched_on, operation_enabled };
+enum class Target : std::uint8_t { disabled, switched_on, operation_enabled, quick_stop };
 
 // The controlword that moves a drive from `state` one step toward `target`. In fault it returns
-// kCwFaultReset when `reset` is set (the caller makes the 0 -> 1 edge), else 0.
+// kCwFaultReset when `reset` is set (the caller makes the 0 -> 1 edge), else 0. Target
+// quick_stop: quick stop from operation enabled, held while the drive ramps down.
 std::uint16_t next_controlword(State state, Target target, bool reset);
 
 }  // namespace hil::drv::cia402

@@ -13,6 +13,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "hil/drv/can.hpp"
 #include "hil/drv/canopen.hpp"
@@ -57,7 +58,16 @@ struct Cia402Config {
   std::chrono::milliseconds transition_timeout{2000};
   BusOffPolicy bus_off_policy = BusOffPolicy::wait;
   std::chrono::milliseconds bus_off_recover_after{500};
-  bool disable_unused_pdos = true;  // mark RPDO2-4 and TPDO2-4 invalid
+  bool disable_unused_pdos = true;  // mark RPDO2-4 and TPDO2-4 invalid (those the drive has)
+  // Written at configure when set (and skipped, with a note in configure_notes(), when the drive
+  // lacks the object; all are optional in CiA 402): following error window 0x6065 and timeout
+  // 0x6066, max profile velocity 0x607F, quick stop deceleration 0x6085.
+  struct Limits {
+    double following_error_window_rad = 0;   // 0: not written
+    std::chrono::milliseconds following_error_timeout{-1};  // -1: not written
+    double max_profile_velocity_rad_s = 0;   // 0: not written
+    double quick_stop_deceleration_rad_s2 = 0;  // 0: not written
+  } limits;
 
   // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.
   static Cia402Config from_yaml(const cfg::Node& node);
@@ -93,13 +103,20 @@ class Cia402Drive {
 
   // Setup (blocking, throw DriveError/SdoAbortError naming node, object and cause).
   // NMT reset communication, wait boot-up, check 0x1000, heartbeat 0x1017, map RPDO1/TPDO1,
-  // CSP mode (0x6060 = 8), interpolation period, NMT start, wait operational and the first TPDO.
+  // invalidate the other PDOs the drive has, CSP mode (0x6060 = 8, then 0x6061 polled until it
+  // shows 8 or transition_ms passes), interpolation period 0x60C2 and limits where the drive has
+  // them, NMT start, wait operational and the first TPDO.
   void configure();
+  // What configure() skipped because the drive lacks an optional object, one line each.
+  std::vector<std::string> configure_notes() const;
   // Shutdown -> switch on -> enable operation (one fault reset first if in fault); the target
   // starts at the actual position.
   void activate();
   // Enable operation -> switched on (power stage idle, drive keeps its position).
   void deactivate();
+  // Quick stop (controlword 0x0002): the drive stops on its quick stop ramp and, with the
+  // default quick stop option code, goes to switch on disabled; waits for that.
+  void quick_stop();
 
   // Real-time safe: the newest feedback (sequence counts TPDOs).
   DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept;

@@ -25,7 +25,21 @@ struct Cia402EmulatorConfig {
   std::uint8_t node_id = 1;
   DriveUnits units;  // must match the client's to read the same radians
 
-  // `node`: keys interface, node_id, units (as in Cia402Config).
+  // How this drive differs from the fullest one; every variant is a legal CiA 301/402 drive.
+  int pdos = 4;                      // RPDOs and TPDOs it has each way, 1..4 (0x1400.., 0x1800..)
+  bool interpolation_period = true;  // has 0x60C2 (optional in CiA 402)
+  std::chrono::milliseconds mode_display_delay{0};  // 0x6061 shows a new 0x6060 this much later
+  // Has 0x6065 (window, counts; 0xFFFFFFFF = off, the default) and 0x6066 (timeout, ms) and
+  // monitors them in CSP: outside the window for longer than the timeout -> EMCY 0x8611
+  // (following error; manufacturer bytes: the error in counts, int32 LE) and fault.
+  bool following_error = false;
+  // Has 0x605A = 2 and 0x6085 (counts/s^2): a quick stop (controlword 0x0002) ramps the speed
+  // down at 0x6085, then switch on disabled. Without it: quick stop option 0 (the drive stops
+  // at once and goes to switch on disabled).
+  bool quick_stop_ramp = false;
+
+  // `node`: keys interface, node_id, units (as in Cia402Config), and the variant keys pdos,
+  // interpolation_period, mode_display_delay_ms, following_error, quick_stop_ramp.
   static Cia402EmulatorConfig from_yaml(const cfg::Node& node);
   static Cia402EmulatorConfig load(const std::filesystem::path& file);  // top level or `cia402_emulator:`
 };

@@ -1,0 +1,154 @@
+#include "hil/drv/cia402_probe.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+namespace hil::drv {
+
+namespace {
+std::string hex(std::uint32_t v, int digits) {
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%0*X", digits, v);
+  return b;
+}
+}  // namespace
+
+const Cia402Probe::Object* Cia402Probe::find(std::uint16_t index, std::uint8_t sub) const {
+  for (const auto& o : objects) {
+    if (o.index == index && o.sub == sub) return &o;
+  }
+  return nullptr;
+}
+
+Cia402Probe probe(Cia402Drive& client) {
+  Cia402Probe p;
+  const Cia402Config& cfg = client.config();
+  p.device_type = client.sdo_read(0x1000, 0);  // no answer, or an abort: not a drive we can talk to
+  if ((p.device_type & 0xFFFF) != 402) {
+    throw DriveError("CiA 402 drive node " + std::to_string(cfg.node_id) + " on " + cfg.interface +
+                     ": not a CiA 402 device (0x1000:00 device type = " + hex(p.device_type, 8) + ")");
+  }
+  const auto read = [&](std::uint16_t index, std::uint8_t sub, const std::string& name, bool required) -> Cia402Probe::Object& {
+    Cia402Probe::Object o{index, sub, name, required, std::nullopt, 0};
+    try {
+      o.value = client.sdo_read(index, sub);
+    } catch (const SdoAbortError& e) {
+      o.abort_code = e.code;
+    }
+    p.objects.push_back(o);
+    return p.objects.back();
+  };
+  read(0x1018, 1, "vendor id", false);
+  read(0x1018, 2, "product code", false);
+  read(0x1018, 3, "revision number", false);
+  read(0x1018, 4, "serial number", false);
+  const auto modes = read(cia402::kSupportedDriveModes, 0, "supported drive modes", false).value;
+  read(0x1017, 0, "producer heartbeat time", true);
+  for (std::uint16_t k = 0; k < 4; ++k) {
+    p.rpdos += read(static_cast<std::uint16_t>(0x1400 + k), 1, "RPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
+    if (k == 0) read(0x1600, 0, "RPDO1 mapping count", true);
+  }
+  for (std::uint16_t k = 0; k < 4; ++k) {
+    p.tpdos += read(static_cast<std::uint16_t>(0x1800 + k), 1, "TPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
+    if (k == 0) read(0x1A00, 0, "TPDO1 mapping count", true);
+  }
+  read(cia402::kControlword, 0, "controlword", true);
+  read(cia402::kStatusword, 0, "statusword", true);
+  read(cia402::kModesOfOperation, 0, "modes of operation", true);
+  read(cia402::kModesDisplay, 0, "modes of operation display", true);
+  read(cia402::kPositionActual, 0, "position actual value", true);
+  read(cia402::kTargetPosition, 0, "target position", true);
+  read(cia402::kErrorCode, 0, "error code", false);
+  const bool ip = read(cia402::kInterpolationPeriod, 1, "interpolation time period value", false).value.has_value();
+  const auto window = read(cia402::kFollowingErrorWindow, 0, "following error window", false).value;
+  const auto timeout = read(cia402::kFollowingErrorTimeout, 0, "following error timeout", false).value;
+  const bool vmax = read(cia402::kMaxProfileVelocity, 0, "max profile velocity", false).value.has_value();
+  const auto qs_option = read(cia402::kQuickStopOption, 0, "quick stop option code", false).value;
+  const bool qs_dec = read(cia402::kQuickStopDeceleration, 0, "quick stop deceleration", false).value.has_value();
+
+  for (const auto& o : p.objects) {
+    if (o.required && !o.value) {
+      p.usable = false;
+      p.lacks.push_back(hex(o.index, 4) + ":" + hex(o.sub, 2).substr(2) + " " + o.name + " (required: configure() will fail)");
+    }
+  }
+  p.csp_supported = !modes || (*modes & 0x80);
+  if (!p.csp_supported) {
+    p.usable = false;
+    p.lacks.push_back("cyclic synchronous position mode (0x6502 = " + hex(*modes, 8) + ", bit 7 clear)");
+  }
+  const double deg_per_count = std::abs(cfg.units.rad_per_count()) * 180 / std::numbers::pi;
+  char line[256];
+  p.plan.push_back("map RPDO1 = controlword 0x6040 + target position 0x607A, TPDO1 = statusword 0x6041 + position actual "
+                   "0x6064, both on every SYNC");
+  if (cfg.disable_unused_pdos) {
+    std::snprintf(line, sizeof line, "invalidate the other PDOs it has (%d RPDO, %d TPDO of 4 each)", p.rpdos - 1, p.tpdos - 1);
+    p.plan.push_back(line);
+  }
+  p.plan.push_back("0x6060 = 8 (cyclic synchronous position), then poll 0x6061 for up to " +
+                   std::to_string(cfg.transition_timeout.count()) + " ms");
+  if (ip) {
+    p.plan.push_back("0x60C2 interpolation period = the SYNC period");
+  } else {
+    p.lacks.push_back("0x60C2 interpolation time period (optional: the drive takes its period from SYNC)");
+  }
+  const auto& lim = cfg.limits;
+  if (window) {
+    if (*window == 0xFFFFFFFF) {
+      p.plan.push_back("following error window 0x6065 is off (0xFFFFFFFF) in the drive");
+    } else {
+      std::snprintf(line, sizeof line, "following error window 0x6065 in the drive: %u counts = %.4g deg, timeout 0x6066: %s ms",
+                    *window, *window * deg_per_count, timeout ? std::to_string(*timeout).c_str() : "?");
+      p.plan.push_back(line);
+    }
+    if (lim.following_error_window_rad > 0) {
+      std::snprintf(line, sizeof line, "write following error window 0x6065 = %.4g deg (from the drive file)",
+                    lim.following_error_window_rad * 180 / std::numbers::pi);
+      p.plan.push_back(line);
+    }
+  } else {
+    p.lacks.push_back("0x6065/0x6066 following error window and timeout (optional: the limits in the drive file are skipped)");
+  }
+  if (timeout && lim.following_error_timeout.count() >= 0) {
+    p.plan.push_back("write following error timeout 0x6066 = " + std::to_string(lim.following_error_timeout.count()) + " ms");
+  }
+  if (vmax && lim.max_profile_velocity_rad_s > 0) p.plan.push_back("write max profile velocity 0x607F from the drive file");
+  if (!vmax) p.lacks.push_back("0x607F max profile velocity (optional)");
+  if (qs_option) {
+    p.plan.push_back(std::string("quick stop option code 0x605A = ") + std::to_string(static_cast<std::int16_t>(*qs_option)) +
+                     (*qs_option == 2 || *qs_option == 6 ? " (quick stop ramp)" : ""));
+  }
+  if (qs_dec && lim.quick_stop_deceleration_rad_s2 > 0) p.plan.push_back("write quick stop deceleration 0x6085 from the drive file");
+  if (!qs_dec) p.lacks.push_back("0x6085 quick stop deceleration (optional)");
+  return p;
+}
+
+std::string Cia402Probe::report() const {
+  std::string s;
+  char line[256];
+  std::snprintf(line, sizeof line, "device type 0x1000:00 = 0x%08X (CiA 402, %s)\n", device_type,
+                ((device_type >> 16) & 0x02) ? "servo drive" : "drive");
+  s += line;
+  for (const auto& o : objects) {
+    if (o.value) {
+      std::snprintf(line, sizeof line, "  0x%04X:%02X %-32s 0x%08X (%u)\n", o.index, o.sub, o.name.c_str(), *o.value, *o.value);
+    } else {
+      std::snprintf(line, sizeof line, "  0x%04X:%02X %-32s absent (abort 0x%08X)%s\n", o.index, o.sub, o.name.c_str(),
+                    o.abort_code, o.required ? " REQUIRED" : "");
+    }
+    s += line;
+  }
+  std::snprintf(line, sizeof line, "PDOs: %d RPDO, %d TPDO; cyclic synchronous position: %s\n", rpdos, tpdos,
+                find(0x6502, 0) && find(0x6502, 0)->value ? (csp_supported ? "supported" : "NOT supported") : "not declared (no 0x6502)");
+  s += line;
+  s += "configure() will:\n";
+  for (const auto& l : plan) s += "  - " + l + "\n";
+  s += "the drive lacks:\n";
+  if (lacks.empty()) s += "  (nothing the client uses)\n";
+  for (const auto& l : lacks) s += "  - " + l + "\n";
+  s += usable ? "verdict: usable by the CAN rig\n" : "verdict: NOT usable by the CAN rig\n";
+  return s;
+}
+
+}  // namespace hil::drv
