@@ -16,7 +16,10 @@ suites=(test_common test_controller test_plant_rt test_drivers_unit test_report
 cxx=$(command -v clang++-14 || command -v clang++ || true)  # the same path every time: a changed compiler resets the cache
 [[ -n "$cxx" ]] || { echo "sanitize: clang++ is missing (scripts/setup.sh --test installs it)" >&2; exit 1; }
 launcher=()
-command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+if command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR="$PWD"  # hits from another clone of the tree too
+fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER="$cxx" \
   -DHIL_FUZZ=ON -DHIL_BUILD_BENCHMARKS=OFF "${launcher[@]}" >/dev/null
 targets=()

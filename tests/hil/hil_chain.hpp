@@ -108,8 +108,9 @@ struct SimulatorSide {
 
 // Device entries of a rig file (inline client configurations).
 inline std::string can_drive_yaml(const std::string& interface = "vcan0", const std::string& bus_off_policy = "recover",
-                                  int heartbeat_timeout_ms = 100) {
-  return "    cia402: {interface: " + interface + ", node_id: 5, units: {counts_per_rev: 131072},\n"
+                                  int heartbeat_timeout_ms = 100, const std::string& limits = "") {
+  return "    cia402: {interface: " + interface + ", node_id: 5, units: {counts_per_rev: 131072},\n" +
+         (limits.empty() ? std::string() : "             limits: " + limits + ",\n") +
          "             heartbeat: {producer_ms: 20, timeout_ms: " + std::to_string(heartbeat_timeout_ms) + "},\n"
          "             timeouts: {boot_ms: 10000, sdo_ms: 500, sdo_retries: 2, transition_ms: 3000},\n"
          "             bus_off: {policy: " + bus_off_policy + ", recover_after_ms: 200}}\n";
@@ -127,6 +128,7 @@ inline std::string modbus_device_yaml(int port, const std::string& map, double m
 // builds running the loop wakes up to 90 ms late in the VM: a few periods' watchdog would trip on
 // that alone. The fault tests set the watchdog where it is their subject (rig_fault_scenarios.hpp).
 struct RigOptions {
+  std::string loop_extra;  // more keys of the loop block, e.g. "target_shaping: {...}"
   int watchdog_misses = 500;
   int safe_hold_ms = 200;
   int priority = 80;  // SCHED_FIFO as the shipped rigs (a warning where refused)
@@ -139,7 +141,7 @@ inline std::string rig_yaml(const std::string& kind, const std::string& drive, c
   std::string y = "kind: " + kind + "\ndescription: test rig\ndevices:\n  drive:\n" + drive;
   if (!transducer.empty()) y += "  transducer:\n" + transducer;
   y += "loop: {priority: " + std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) +
-       ", io_priority: " + std::to_string(o.io_priority) + "}\n"
+       ", io_priority: " + std::to_string(o.io_priority) + (o.loop_extra.empty() ? "" : ", " + o.loop_extra) + "}\n"
        "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 10000, p_max_mpa: 2.5, p_min_mpa: 0.2,\n"
        "         watchdog_misses: " + std::to_string(o.watchdog_misses) + ", safe_state: hold, safe_hold_ms: " +
        std::to_string(o.safe_hold_ms) + "}\n";

@@ -141,8 +141,8 @@ using WireFn = std::function<double(double)>;
 
 // Runs `run` of campaign `c` through the rig of `rig_text` (kind can or modbus) in lock-step with
 // `plant` behind the rig's devices. `sync` asks a CAN drive for its newest position (no-op for
-// Modbus, which polls); `wire_position`/`wire_target` say what the motor angle and the command
-// become on the wire, so the harness knows when the rig shows the plant and the drive has the target.
+// Modbus, which polls); `wire_position`/`wire_target` say what the motor angle and the target sent
+// (the command, shaped where the rig says so) become on the wire, so the harness knows when the rig shows the plant and the drive has the target.
 inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::string& run, LockstepPlant& plant,
                                       const std::function<void()>& sync_fn, const std::string& rig_text,
                                       const drv::CanTransportFactory& can_transport, const WireFn& wire_position,
@@ -215,7 +215,7 @@ inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::strin
     res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
     if (!more) break;
     // The drive has this period's target once the emulator applied RPDO k (at its SYNC).
-    const double want = wire_target(rec.step.theta_cmd_rad);
+    const double want = wire_target(rec.theta_target_rad);  // what the rig sent: the command, shaped where set
     std::optional<double> got;
     if (!wait_state([&] { return (got = plant.enabled_target()) && *got == want; })) {
       res.error = "period " + std::to_string(k) + ": the drive never got the target";
@@ -350,7 +350,7 @@ inline LockstepResult run_lockstep_hybrid(const bench::Campaign& c, const std::s
     res.rows.push_back(rec);
     res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
     if (!more) break;
-    const double want = through_counts(rec.step.theta_cmd_rad + offset);
+    const double want = through_counts(rec.theta_target_rad + offset);
     std::optional<double> got;
     if (!wait_state([&] { return (got = motor.enabled_target()) && *got == want; })) {
       res.error = "period " + std::to_string(k) + ": the drive never got the target";
