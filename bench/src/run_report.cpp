@@ -42,7 +42,7 @@ RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const 
   using units::mpa_to_pa;
   const CsvChunk t = read_csv(csv, {{"t_s", "theta_cmd_deg", "p_meas_mpa", "theta_motor_deg", "p_ref_mpa"},
                                     {"theta_valve_deg", "gap_true_deg", "touch_state", "motion_intention", "comp_deg",
-                                     "gap_est_deg", "p_chamber_mpa"},
+                                     "gap_est_deg", "p_chamber_mpa", "theta_target_deg"},
                                     "t_s"});
   const auto col = [&](std::size_t k, std::size_t i, double fallback) {
     return t.values[k].empty() ? fallback : t.values[k][i];
@@ -64,7 +64,7 @@ RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const 
     // A rig without the chamber's truth: the error is the measured one (IAE then holds the
     // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
     r.p_chamber_pa = t.values[11].empty() ? r.p_meas_pa : mpa_to_pa(t.values[11][i]);
-    digest.add(r);
+    digest.add(r, deg_to_rad(col(12, i, kNaN)));
   }
   RunOutcome out = digest.finish(name);
   if (t.values[5].empty()) {

@@ -137,16 +137,17 @@ struct RunDigest::Impl {
 RunDigest::RunDigest(const Campaign& c, long total_periods)
     : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS),
                                         Decimator({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg",
-                                                   "theta_cmd_deg", "gap_est_deg", "gap_true_deg"},
+                                                   "theta_cmd_deg", "gap_est_deg", "gap_true_deg", "theta_target_deg"},
                                                   total_periods)})) {}
 
 RunDigest::~RunDigest() = default;
 
-void RunDigest::add(const StepRecord& r) {
+void RunDigest::add(const StepRecord& r, double theta_target_rad) {
   impl_->metrics.add(r);
+  const double target = std::isfinite(theta_target_rad) ? theta_target_rad : r.theta_cmd_rad;
   const double values[] = {pa_to_mpa(r.p_ref_pa),        pa_to_mpa(r.p_meas_pa),       static_cast<double>(r.touch),
                            rad_to_deg(r.theta_motor_rad), rad_to_deg(r.theta_valve_rad), rad_to_deg(r.theta_cmd_rad),
-                           rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad)};
+                           rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad),    rad_to_deg(target)};
   impl_->report.add(r.t_s, values);
 }
 

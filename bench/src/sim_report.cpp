@@ -154,6 +154,10 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     f.group = "t";
     f.series = {series(r, "theta_cmd_deg", "command", "#7f7f7f", Series::Style::line, true),
                 series(r, "theta_motor_deg", "motor", "#ff7f0e"), series(r, "theta_valve_deg", "valve", "#2ca02c")};
+    // A real drive's shaped target, where it is not the command (a rig with target shaping).
+    const ReportSeries* cmd = find(r, "theta_cmd_deg");
+    const ReportSeries* target = find(r, "theta_target_deg");
+    if (cmd && target && target->value != cmd->value) f.series.push_back(series(r, "theta_target_deg", "drive target", "#17becf"));
     doc.figure(f);
   }
   for (const auto& r : runs) {

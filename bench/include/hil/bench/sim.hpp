@@ -76,7 +76,7 @@ struct ReportSeries {
 struct RunOutcome {
   std::string name;
   RunSummary summary;
-  std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true
+  std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true, target
   double wall_s = 0;
 };
 
@@ -89,7 +89,8 @@ class RunDigest {
   ~RunDigest();
   RunDigest(const RunDigest&) = delete;
   RunDigest& operator=(const RunDigest&) = delete;
-  void add(const StepRecord& r);
+  // theta_target_rad: what a rig's drive was sent (shaped), when it differs from the command.
+  void add(const StepRecord& r, double theta_target_rad = plant::kNaN);
   RunOutcome finish(std::string run_name);
 
  private:
