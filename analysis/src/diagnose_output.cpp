@@ -101,6 +101,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
     paths.push_back({{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)},
                      {"chosen", p.chosen}});
   j["paths_followed"] = paths;
+  j["revisions"] = d.revisions;
   nlohmann::json ni = nlohmann::json::array();
   for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
   j["not_identifiable"] = ni;

@@ -84,6 +84,7 @@ struct Diagnosis {
   bool at_noise_floor = false;          // the final model's RMSE is within 10 % of the noise
   std::string verdict;                  // explained | partly_explained | unexplained | nothing_missing
   std::vector<Alternative> paths;       // when the search followed several first choices
+  std::vector<std::string> revisions;   // choices the forward-backward revisit changed, in words
   std::vector<NotIdentifiable> not_identifiable;
   std::vector<std::string> summary;      // plain-language verdict
   ResidualReport before, after;
