@@ -675,6 +675,36 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
     }
     d.added.push_back(c);
   }
+  // Correlations between the added effects' parameters in the final joint fit.
+  if (added.size() >= 2) {
+    std::vector<FreeParam> params;
+    std::vector<double> x;
+    for (const auto& a : added) {
+      params.insert(params.end(), a.fit.continuous.begin(), a.fit.continuous.end());
+      x.insert(x.end(), a.fit.values.begin(), a.fit.values.end());
+    }
+    std::vector<const Added*> owner;
+    for (const auto& a : added)
+      for (std::size_t j = 0; j < a.fit.continuous.size(); ++j) owner.push_back(&a);
+    detail::Fitter f(current, params, full);
+    std::vector<std::vector<double>> corr;
+    const std::vector<double> sigma = f.uncertainty(x, &corr);
+    d.evaluations += f.evaluations();
+    auto unpinned = [&](std::size_t i) {
+      // The value meaning "effect absent": the candidate attached at its neutral values.
+      double neutral = value_of(owner[i]->cand->attach(base0), params[i].effect, params[i].key);
+      if (!std::isfinite(neutral)) neutral = 0;
+      // A parameter the data left near its neutral value is judged against its typical size.
+      const double change = std::max(std::abs(x[i] - neutral), params[i].scale);
+      return !(i < sigma.size() && sigma[i] <= kUnpinnedShare * change);
+    };
+    for (std::size_t i = 0; i < corr.size(); ++i)
+      for (std::size_t j = i + 1; j < corr.size(); ++j) {
+        if (owner[i] == owner[j] || !(std::abs(corr[i][j]) >= kReportCorrelation)) continue;
+        const bool apart = std::abs(corr[i][j]) >= kIndistinguishableCorrelation && (unpinned(i) || unpinned(j));
+        d.correlations.push_back({owner[i]->cand->name, params[i].key, owner[j]->cand->name, params[j].key, corr[i][j], apart});
+      }
+  }
   d.explained = !added.empty();
   d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
   for (auto& c : d.added) c.fit_after_pct = d.after.fit_pct;
@@ -697,6 +727,14 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
     }
     out.push_back("Found: " + list + ".");
     out.push_back(fit_line);
+    for (const auto& c : d.correlations) {
+      if (!c.indistinguishable) continue;
+      out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a +
+                    " and " + c.key_b + " correlate at " + text::num(c.rho, 3) +
+                    " in the joint fit and neither is pinned to 10 % of its change (a change of one is largely undone "
+                    "by the other); a run with other motion or pressure levels separates them.");
+    }
+    for (const auto& r : d.revisions) out.push_back("Revisited: " + r + ".");
     if (d.at_noise_floor) {
       d.verdict = "explained";
     } else {

@@ -102,6 +102,12 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                      {"chosen", p.chosen}});
   j["paths_followed"] = paths;
   j["revisions"] = d.revisions;
+  nlohmann::json corr = nlohmann::json::array();
+  for (const auto& c : d.correlations) {
+    corr.push_back({{"a", c.effect_a + "." + c.key_a}, {"b", c.effect_b + "." + c.key_b}, {"rho", c.rho},
+                    {"indistinguishable", c.indistinguishable}});
+  }
+  j["parameter_correlations"] = corr;
   nlohmann::json ni = nlohmann::json::array();
   for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
   j["not_identifiable"] = ni;

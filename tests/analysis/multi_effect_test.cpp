@@ -127,6 +127,13 @@ TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
   }
   const double floor = d.at("noise_floor_fit_pct").get<double>(), after = d.at("fit_after_pct").get<double>();
   EXPECT_GE(after, floor - 1.0) << why;
+  // Found in full and right: then the file told them apart, and the joint fit must not call any
+  // two of them indistinguishable.
+  for (const auto& corr : d.at("parameter_correlations")) {
+    std::printf("[ %s ] correlation %s ~ %s: %.3f\n", c.scenario.name.c_str(), corr.at("a").get<std::string>().c_str(),
+                corr.at("b").get<std::string>().c_str(), corr.at("rho").get<double>());
+    if (found == expected) EXPECT_FALSE(corr.at("indistinguishable").get<bool>()) << corr.dump();
+  }
   std::printf("[ %s ] fit %.2f -> %.2f %% (floor %.2f %%), verdict %s, %.1f s\n", c.scenario.name.c_str(),
               d.at("fit_before_pct").get<double>(), after, floor, d.at("verdict").get<std::string>().c_str(),
               d.at("method").at("wall_s").get<double>());
