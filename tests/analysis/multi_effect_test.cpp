@@ -14,6 +14,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -140,6 +143,87 @@ TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Combinations, MultiEffect, testing::ValuesIn(cases()), name_of);
+
+}  // namespace
+
+// --- a rough logger: 500 Hz, 1 kPa steps, lost rows ------------------------------------------
+
+namespace {
+
+// Rewrites a measurement file as a coarser logger would have written it: every second row (500
+// Hz), the pressure rounded to 1 kPa steps, about 1 % of the rows lost at random.
+fs::path roughen(const fs::path& in_file, const fs::path& out_file, std::uint64_t seed) {
+  std::ifstream in(in_file);
+  std::ofstream out(out_file);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::size_t p_col = 0, row = 0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') {
+      out << line << "\n";
+      continue;
+    }
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    if (!std::isdigit(static_cast<unsigned char>(line[0])) && line[0] != '-') {  // the header
+      p_col = static_cast<std::size_t>(std::find(cells.begin(), cells.end(), "p_meas_mpa") - cells.begin());
+      out << line << "\n";
+      continue;
+    }
+    const bool keep = row++ % 2 == 0 && (row < 100 || u(rng) >= 0.01);
+    if (!keep) continue;
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3f", std::stod(cells[p_col]));
+    cells[p_col] = b;
+    for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
+    out << "\n";
+  }
+  return out_file;
+}
+
+// Two effects through a rough logger are still found, and no effect through it (2 and 5 kPa
+// noise) adds nothing: the quantised noise floor is where a perfect model ends.
+TEST(MultiEffect, ARoughLoggerStillGivesThePairAndNoSpuriousEffect) {
+  hil::test::TempDir dir;
+  Scenario s;
+  s.name = "rough_pair";
+  s.seed = 321;
+  s.encoder = true;
+  s.reference_yaml = hil::test::reference_random(81, 0.9, 1.5, 1.5, 3.5);
+  s.truth = [](const Plant& p) {
+    return with_block(with_block(p, "backlash_change", "gap_deg: 1.5"), "sensor_lag", "time_constant_s: 0.025");
+  };
+  const fs::path pair = roughen(hil::test::make_measurement(s, dir.path()), dir.path() / "rough_pair_500hz.csv", 5);
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), pair, dir.path() / "diag_pair");
+  const std::string why = hil::test::brief(d);
+  std::vector<std::string> found;
+  for (const auto& a : d.at("added")) found.push_back(a.at("effect"));
+  std::sort(found.begin(), found.end());
+  EXPECT_EQ(found, (std::vector<std::string>{"backlash_change", "sensor_lag"})) << why;
+  for (const auto& a : d.at("added")) {
+    if (a.at("effect") == "backlash_change") EXPECT_NEAR(hil::test::param(a, "gap_deg"), 1.5, 0.15 * 1.5) << why;
+    if (a.at("effect") == "sensor_lag") EXPECT_NEAR(hil::test::param(a, "time_constant_s"), 0.025, 0.15 * 0.025) << why;
+  }
+  EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
+  EXPECT_EQ(d.at("verdict"), "explained") << why;
+  std::printf("[ rough pair ] %s\n", why.c_str());
+  for (const double noise_kpa : {2.0, 5.0}) {
+    Scenario n;
+    n.name = "rough_none";
+    n.seed = 330 + static_cast<std::uint64_t>(noise_kpa);
+    n.noise_kpa = noise_kpa;
+    n.encoder = noise_kpa < 3;
+    n.reference_yaml = hil::test::reference_random(83, 0.9, 1.5, 1.5, 3.5);
+    const fs::path none = roughen(hil::test::make_measurement(n, dir.path()), dir.path() / "rough_none_500hz.csv", 6);
+    const auto dn = hil::test::run_diagnose(hil::test::nominal_model(), none, dir.path() / "diag_none");
+    EXPECT_TRUE(dn.at("added").empty()) << noise_kpa << " kPa: " << hil::test::brief(dn);
+    EXPECT_EQ(dn.at("verdict"), "nothing_missing") << noise_kpa << " kPa: " << hil::test::brief(dn);
+    std::printf("[ rough, no effect, %.0f kPa ] verdict %s, fit %.2f %% (floor %.2f %%)\n", noise_kpa,
+                dn.at("verdict").get<std::string>().c_str(), dn.at("fit_before_pct").get<double>(),
+                dn.at("noise_floor_fit_pct").get<double>());
+  }
+}
 
 }  // namespace
 
