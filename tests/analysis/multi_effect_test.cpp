@@ -146,6 +146,39 @@ INSTANTIATE_TEST_SUITE_P(Combinations, MultiEffect, testing::ValuesIn(cases()), 
 
 }  // namespace
 
+// --- erosion in proportion to the area --------------------------------------------------------
+
+namespace {
+
+// A(t) = A0 (1 + e t): found as proportional erosion, not as additive erosion plus a spurious
+// burn rate (issue 9); and additive erosion on the same profile is still found as additive.
+TEST(MultiEffect, ErosionFormIsPickedByTheCriterion) {
+  for (const bool proportional : {true, false}) {
+    hil::test::TempDir dir;
+    Scenario s;
+    s.name = proportional ? "erosion_proportional" : "erosion_additive";
+    s.seed = 341;
+    s.encoder = true;
+    s.reference_yaml = hil::test::reference_random(85, 0.9, 1.6, 1.5, 4.0);
+    s.truth = [proportional](const Plant& p) {
+      return with_block(p, "throat_erosion", proportional ? "{proportional_rate_per_s: 0.006}" : "{rate_mm2_per_s: 0.45}");
+    };
+    const fs::path data = hil::test::make_measurement(s, dir.path());
+    const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+    const std::string why = hil::test::brief(d);
+    ASSERT_EQ(d.at("added").size(), 1u) << why;
+    const auto& a = d.at("added")[0];
+    EXPECT_EQ(a.at("effect"), "throat_erosion") << why;
+    EXPECT_EQ(a.at("variant"), proportional ? "proportional" : "rate") << why;
+    if (proportional) EXPECT_NEAR(hil::test::param(a, "proportional_rate_per_s"), 0.006, 0.15 * 0.006) << why;
+    else EXPECT_NEAR(hil::test::param(a, "rate_mm2_per_s"), 0.45, 0.15 * 0.45) << why;
+    EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
+    std::printf("[ %s ] %s\n", s.name.c_str(), why.c_str());
+  }
+}
+
+}  // namespace
+
 // --- a rough logger: 500 Hz, 1 kPa steps, lost rows ------------------------------------------
 
 namespace {
