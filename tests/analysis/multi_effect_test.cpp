@@ -95,6 +95,36 @@ std::vector<MultiCase> cases() {
                           "sensor_bias", "{offset_kpa: 25, gain: 1.0}");
       },
       {{"backlash_change", "gap_deg", 1.7}, {"throat_erosion", "rate_mm2_per_s", 0.5}, {"sensor_bias", "offset_kpa", 25}});
+  // Every pair of the eight candidates (full matrix only): magnitudes and a reference the single
+  // suite does not use; no encoder, so the command-side effects are identifiable.
+  struct One {
+    std::string tag;
+    std::function<Plant(const Plant&)> apply;
+    Truth truth;
+  };
+  const std::vector<One> ones = {
+      {"gap", [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.6"); }, {"backlash_change", "gap_deg", 1.6}},
+      {"offset", [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: 0.7"); }, {"valve_offset", "offset_deg", 0.7}},
+      {"erosion", [](const Plant& p) { return with_block(p, "throat_erosion", "rate_mm2_per_s: 0.4"); },
+       {"throat_erosion", "rate_mm2_per_s", 0.4}},
+      {"lag", [](const Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.025"); },
+       {"sensor_lag", "time_constant_s", 0.025}},
+      {"delay", [](const Plant& p) { return with_block(p, "transport_delay", "delay_s: 0.03"); },
+       {"transport_delay", "delay_s", 0.03}},
+      {"bias", [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 20, gain: 1.0}"); },
+       {"sensor_bias", "offset_kpa", 20}},
+      {"servo", [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.04); },
+       {"motor_dynamics", "time_constant_s", 0.04}},
+      {"burn", [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.3); },
+       {"burn_rate", "burn_rate_mm_s_at_1mpa", 5.3}},
+  };
+  std::uint64_t seed = 400;
+  for (std::size_t i = 0; i < ones.size(); ++i)
+    for (std::size_t j = i + 1; j < ones.size(); ++j) {
+      const auto a = ones[i].apply, b = ones[j].apply;
+      add("pair_" + ones[i].tag + "_" + ones[j].tag, ++seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
+          [a, b](const Plant& p) { return b(a(p)); }, {ones[i].truth, ones[j].truth}, true);
+    }
   return out;
 }
 

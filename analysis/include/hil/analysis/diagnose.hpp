@@ -14,7 +14,10 @@
 // When the best single effect of the first round does not reach the noise floor, the search also
 // follows the next two first choices that earn their place (a beam of three paths, each greedy
 // after its first step) and keeps the path with the lowest BIC: a two-effect misfit is often
-// mimicked best by a third effect alone.
+// mimicked best by a third effect alone. From round 2 on, the top candidates are refitted jointly
+// with every accepted effect (nothing frozen) and judged on that joint fit, N_eff measured again
+// on its residual; when the search stops, a forward-backward revisit drops an effect the others
+// make redundant or swaps it for one that gives a lower BIC (analysis/README.md, Selection).
 // Offline code: allocates, throws, and uses up to `threads` worker threads.
 #pragma once
 
