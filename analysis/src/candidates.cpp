@@ -76,9 +76,16 @@ Candidate throat_erosion(const plant::Plant& base) {
   const double v = value_of(base, "throat_erosion", "rate_mm2_per_s");
   Candidate c;
   c.name = "throat_erosion";
-  c.description = "the throat area grows (or shrinks, deposits) linearly over the run";
-  c.attach = [](const plant::Plant& p) { return add_block(p, "throat_erosion", "rate_mm2_per_s: 0"); };
-  c.variants = {{"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}}};
+  const double e = value_of(base, "throat_erosion", "proportional_rate_per_s");
+  c.description = "the throat area grows (or shrinks, deposits) linearly over the run, by a fixed area per second or "
+                  "in proportion to the area";
+  c.attach = [](const plant::Plant& p) {
+    return add_block(p, "throat_erosion", "{rate_mm2_per_s: 0, proportional_rate_per_s: 0}");
+  };
+  // Additive (A + r t) and proportional (A (1 + e t)): the same count of parameters, so the
+  // criterion picks the form that fits; they differ where the valve opening changes.
+  c.variants = {{"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}},
+                {"proportional", {{"throat_erosion", "proportional_rate_per_s", -0.05, 0.05, 5e-4, {std::isfinite(e) ? e : 0.0}}}}};
   return c;
 }
 

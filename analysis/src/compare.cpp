@@ -27,7 +27,6 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
   const plant::Plant quiet = noise_free(model);
   const ReplayStart start = estimate_start(first);
   (void)first_line;
-  (void)file;
   Replayer rep(quiet);
   const double yhat0 = rep.start(start);
   if (info) info->start = start;
@@ -42,6 +41,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
   double sum_d = 0, sum_d2 = 0;
   double cmd_prev = first.theta_cmd_rad[0];
   bool first_row = true;
+  std::size_t row = 0;
   const MeasurementRows* rows = &first;
   MeasurementRows buffer;
   while (rows != nullptr) {
@@ -49,6 +49,14 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
       const double t = rows->t_s[k];
       const double motor = enc ? rows->theta_motor_rad[k] : plant::kNaN;
       const double yhat = first_row ? yhat0 : rep.advance(t, cmd_prev, motor);
+      // The reader refuses what could make the prediction non-finite; a model that still diverges
+      // must stop here, not turn every metric into NaN.
+      if (!std::isfinite(yhat)) {
+        char b[200];
+        std::snprintf(b, sizeof b, ": the model's prediction is not finite at t_s = %.9g (data row %zu): the model "
+                      "diverges on this input", t, row);
+        throw std::runtime_error(file.string() + b);
+      }
       if (enc) {
         if (!first_row) drive.advance(t, cmd_prev, plant::kNaN);
         const double d = units::rad_to_deg(motor - drive.signals().theta_motor_rad);
@@ -58,6 +66,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
         ++mc.samples;
       }
       first_row = false;
+      ++row;
       cmd_prev = rows->theta_cmd_rad[k];
       an.add({t, rows->p_meas_pa[k], yhat, enc ? motor : rows->theta_cmd_rad[k], ref ? rows->p_ref_pa[k] : plant::kNaN,
               rep.burned_kg()});
@@ -165,6 +174,10 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   for (std::size_t i = 0; i < r.failing.size(); ++i) {
     bands.push_back({r.failing[i].first, r.failing[i].second, "model fails", ""});
   }
+  // Change points of the residual's level, as narrow blue bands (a line the plot can zoom to).
+  const double mark_s = 0.15 * r.window_width_s;
+  for (const double t : r.change_points_s)
+    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
   std::vector<Series> pressure = {
       Series{.name = "measured", .x = r.series.measured_mpa.t_s, .y = r.series.measured_mpa.value, .color = "#1f77b4"},
       Series{.name = model_label, .x = r.series.model_mpa.t_s, .y = r.series.model_mpa.value, .color = "#d62728"}};

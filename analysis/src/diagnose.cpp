@@ -80,6 +80,9 @@ struct VariantFit {
   double rss_coarse = kInf;  // on the decimated copy
   double rss_full = kInf;    // on every row
   bool refined = false;
+  // The accepted effects' continuous values from the joint refine with this candidate (in the
+  // order of apply_added); empty: they were held at their values.
+  std::vector<double> added_values;
   int evaluations = 0;
   std::string note;
   std::size_t k() const { return continuous.size() + (grid ? 1 : 0); }
@@ -258,6 +261,45 @@ void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Adde
   }
 }
 
+// Refits a candidate on every row together with the accepted effects (none held fixed): an
+// effect accepted earlier may have absorbed part of this one, and a fit of the newcomer against
+// it frozen would understate what the two explain together (valve offset against an erosion that
+// took part of it). The candidate's RSS for the criterion is the joint one.
+void refine_jointly(const Context& ctx, const plant::Plant& base0, const std::vector<Added>& added, const Candidate& cand,
+                    VariantFit& vf) {
+  if (!std::isfinite(vf.rss_full)) return;
+  std::vector<FreeParam> params;
+  std::vector<double> x;
+  for (const auto& a : added) {
+    params.insert(params.end(), a.fit.continuous.begin(), a.fit.continuous.end());
+    x.insert(x.end(), a.fit.values.begin(), a.fit.values.end());
+  }
+  const std::size_t n_added = x.size();
+  if (n_added == 0) return;
+  params.insert(params.end(), vf.continuous.begin(), vf.continuous.end());
+  x.insert(x.end(), vf.values.begin(), vf.values.end());
+  const plant::Plant m = model_for(cand.attach(apply_added(base0, added)), vf, vf.grid_value);
+  detail::Fitter f(m, params, ctx.full);
+  const auto r = f.levenberg_marquardt(x, kRefineIter);
+  vf.evaluations += f.evaluations();
+  if (!r.ok || !(r.rss < vf.rss_full)) return;
+  vf.rss_full = r.rss;
+  vf.added_values.assign(r.values.begin(), r.values.begin() + static_cast<std::ptrdiff_t>(n_added));
+  vf.values.assign(r.values.begin() + static_cast<std::ptrdiff_t>(n_added), r.values.end());
+  const auto sigma = f.uncertainty(r.values);
+  vf.evaluations += f.evaluations();
+  if (sigma.size() == r.values.size()) vf.sigma.assign(sigma.begin() + static_cast<std::ptrdiff_t>(n_added), sigma.end());
+}
+
+// Takes over the accepted effects' values that the chosen candidate's joint refine found.
+void adopt_joint_values(std::vector<Added>& added, const VariantFit& chosen) {
+  if (chosen.added_values.empty()) return;
+  std::size_t i = 0;
+  for (auto& a : added)
+    for (double& v : a.fit.values)
+      if (i < chosen.added_values.size()) v = chosen.added_values[i++];
+}
+
 std::string param_text(const FittedParam& p) {
   std::string s = p.key + " = " + text::num(p.value, 4);
   if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
@@ -279,8 +321,9 @@ struct RoundOutcome {
   std::vector<Added> earning;  // candidates that earn their place, best first
 };
 
-RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::vector<const Candidate*>& pool,
-                       int& evaluations) {
+RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::vector<Added>& added,
+                       const std::vector<const Candidate*>& pool, int& evaluations) {
+  const plant::Plant current = apply_added(base0, added);
   const Context& ctx = su.ctx;
   const ReplayData& full = ctx.full;
   const double N = static_cast<double>(full.size());
@@ -322,20 +365,27 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
                  [&](std::size_t i) { evaluate_full(ctx, current, *pool[jobs[todo[i]].candidate], jobs[todo[i]]); });
   }
 
-  // N_eff from the best-fitting variant's residual (the most whitened one).
-  const VariantFit* best_fit = nullptr;
-  for (const auto& j : jobs)
-    if (std::isfinite(j.rss_full) && (!best_fit || j.rss_full < best_fit->rss_full)) best_fit = &j;
-  rd.tau_int_samples = 1;
-  if (best_fit) {
-    std::vector<double> res;
-    const plant::Plant bm = with_values(model_for(pool[best_fit->candidate]->attach(current), *best_fit, best_fit->grid_value),
-                                        best_fit->continuous, best_fit->values);
-    rss_of(bm, full, &res);
-    rd.tau_int_samples = integrated_autocorrelation_time(res);
-    evaluations += 1;
-  }
-  rd.n_eff = N / rd.tau_int_samples;
+  // N_eff from the best-fitting variant's residual (the most whitened one), measured again after
+  // the joint refine below (the candidate added, the accepted effects refitted with it).
+  auto measure_n_eff = [&] {
+    const VariantFit* best_fit = nullptr;
+    for (const auto& j : jobs)
+      if (std::isfinite(j.rss_full) && (!best_fit || j.rss_full < best_fit->rss_full)) best_fit = &j;
+    rd.tau_int_samples = 1;
+    if (best_fit) {
+      std::vector<Added> with = added;
+      adopt_joint_values(with, *best_fit);
+      const plant::Plant bm =
+          with_values(model_for(pool[best_fit->candidate]->attach(apply_added(base0, with)), *best_fit, best_fit->grid_value),
+                      best_fit->continuous, best_fit->values);
+      std::vector<double> res;
+      rss_of(bm, full, &res);
+      rd.tau_int_samples = integrated_autocorrelation_time(res);
+      evaluations += 1;
+    }
+    rd.n_eff = N / rd.tau_int_samples;
+  };
+  measure_n_eff();
   auto dbic = [&](const VariantFit& v) {
     return std::isfinite(v.rss_full)
                ? rd.n_eff * std::log(v.rss_full / rd.rss_before_pa2) + static_cast<double>(v.k()) * std::log(rd.n_eff)
@@ -356,8 +406,10 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& current, const std::
   parallel_for(refine_n, ctx.threads, [&](std::size_t i) {
     VariantFit& v = jobs[order[i]];
     refine_variant(ctx, current, *pool[v.candidate], v);
+    refine_jointly(ctx, base0, added, *pool[v.candidate], v);
   });
   for (const auto& j : jobs) evaluations += j.evaluations;
+  if (!added.empty()) measure_n_eff();
   std::sort(order.begin(), order.end(), by_bic);
 
   const double excess = std::max(rd.rss_before_pa2 - su.noise_rss, 0.0);
@@ -424,7 +476,7 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
       path.rounds.push_back(std::move(done));
       return;
     }
-    RoundOutcome r = run_round(su, current, left, evaluations);
+    RoundOutcome r = run_round(su, base0, path.added, left, evaluations);
     if (su.progress) {
       std::fprintf(stderr, "diagnose: round %zu after %s: %s (%.1f s)\n", path.rounds.size() + 1,
                    path.added.back().cand->name.c_str(),
@@ -437,8 +489,74 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
       return;
     }
     r.round.added = r.earning.front().cand->name;
+    adopt_joint_values(path.added, r.earning.front().fit);
     path.added.push_back(r.earning.front());
     path.rounds.push_back(std::move(r.round));
+  }
+}
+
+// BIC of a whole model against the same N_eff: N_eff ln RSS + k ln N_eff.
+double path_bic(const std::vector<Added>& added, double rss, double n_eff) {
+  std::size_t k = 0;
+  for (const auto& a : added) k += a.fit.k();
+  return n_eff * std::log(rss) + static_cast<double>(k) * std::log(n_eff);
+}
+
+// Revisits the choices of a greedy path (forward-backward): for each accepted effect, the others
+// are refitted without it; if it no longer earns its place against them (dBIC >= -10, or a gain
+// under 5 % of the noise power) it is dropped; otherwise a round over the candidates not in the
+// model asks whether another effect in its place gives a lower BIC (a valve offset that a burn
+// rate exponent plus a sensor offset had stood in for), and if so swaps it. Repeats until nothing
+// changes (at most kRevisitPasses passes). Each change is told in `revisions`.
+constexpr int kRevisitPasses = 3;
+void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
+             std::vector<std::string>& revisions, int& evaluations) {
+  for (int pass = 0; pass < kRevisitPasses && path.added.size() >= 2; ++pass) {
+    std::vector<double> res;
+    path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
+    const double n_eff = static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
+    evaluations += 1;
+    bool changed = false;
+    for (std::size_t i = 0; i < path.added.size() && !changed; ++i) {
+      std::vector<Added> rest = path.added;
+      rest.erase(rest.begin() + static_cast<std::ptrdiff_t>(i));
+      if (rest.size() >= 1) joint_refit(su.ctx, base0, rest, evaluations);
+      const double rss_rest = rss_of(apply_added(base0, rest), su.ctx.full, nullptr);
+      evaluations += 1;
+      const Added& e = path.added[i];
+      const double dbic = n_eff * std::log(path.rss / rss_rest) + static_cast<double>(e.fit.k()) * std::log(n_eff);
+      if (!(dbic < kBicMargin) || rss_rest - path.rss < kMinNoiseShare * su.noise_rss) {
+        revisions.push_back("dropped " + e.cand->name + ": refitted without it the others do as well (dBIC " +
+                            text::num(dbic, 3) + ")");
+        path.added = std::move(rest);
+        path.rss = rss_rest;
+        changed = true;
+        break;
+      }
+      std::vector<const Candidate*> others;
+      for (const Candidate* c : remaining(pool, rest))
+        if (c != e.cand) others.push_back(c);
+      if (others.empty()) continue;
+      RoundOutcome r = run_round(su, base0, rest, others, evaluations);
+      if (r.earning.empty()) continue;
+      std::vector<Added> swapped = rest;
+      adopt_joint_values(swapped, r.earning.front().fit);
+      swapped.push_back(r.earning.front());
+      joint_refit(su.ctx, base0, swapped, evaluations);
+      const double rss_swapped = rss_of(apply_added(base0, swapped), su.ctx.full, nullptr);
+      evaluations += 1;
+      if (path_bic(swapped, rss_swapped, n_eff) < path_bic(path.added, path.rss, n_eff)) {
+        revisions.push_back("replaced " + e.cand->name + " by " + r.earning.front().cand->name +
+                            ": with the others refitted, it explains the data with a lower BIC");
+        r.round.added = r.earning.front().cand->name;
+        r.round.note = "revisit: in place of " + e.cand->name;
+        path.rounds.push_back(std::move(r.round));
+        path.added = std::move(swapped);
+        path.rss = rss_swapped;
+        changed = true;
+      }
+    }
+    if (!changed) break;
   }
 }
 
@@ -486,7 +604,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
 
   // Round 1 against the model as given.
   Path root;
-  RoundOutcome first = run_round(su, base0, pool, d.evaluations);
+  RoundOutcome first = run_round(su, base0, {}, pool, d.evaluations);
   root.rss = first.round.rss_before_pa2;
   Path chosen;
   if (first.earning.empty() || s.max_rounds < 1) {
@@ -540,6 +658,7 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
     }
     chosen = std::move(paths[best]);
   }
+  revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
   d.rounds = chosen.rounds;
   const std::vector<Added>& added = chosen.added;
   const plant::Plant current = apply_added(base0, added);
@@ -555,6 +674,36 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
       }
     }
     d.added.push_back(c);
+  }
+  // Correlations between the added effects' parameters in the final joint fit.
+  if (added.size() >= 2) {
+    std::vector<FreeParam> params;
+    std::vector<double> x;
+    for (const auto& a : added) {
+      params.insert(params.end(), a.fit.continuous.begin(), a.fit.continuous.end());
+      x.insert(x.end(), a.fit.values.begin(), a.fit.values.end());
+    }
+    std::vector<const Added*> owner;
+    for (const auto& a : added)
+      for (std::size_t j = 0; j < a.fit.continuous.size(); ++j) owner.push_back(&a);
+    detail::Fitter f(current, params, full);
+    std::vector<std::vector<double>> corr;
+    const std::vector<double> sigma = f.uncertainty(x, &corr);
+    d.evaluations += f.evaluations();
+    auto unpinned = [&](std::size_t i) {
+      // The value meaning "effect absent": the candidate attached at its neutral values.
+      double neutral = value_of(owner[i]->cand->attach(base0), params[i].effect, params[i].key);
+      if (!std::isfinite(neutral)) neutral = 0;
+      // A parameter the data left near its neutral value is judged against its typical size.
+      const double change = std::max(std::abs(x[i] - neutral), params[i].scale);
+      return !(i < sigma.size() && sigma[i] <= kUnpinnedShare * change);
+    };
+    for (std::size_t i = 0; i < corr.size(); ++i)
+      for (std::size_t j = i + 1; j < corr.size(); ++j) {
+        if (owner[i] == owner[j] || !(std::abs(corr[i][j]) >= kReportCorrelation)) continue;
+        const bool apart = std::abs(corr[i][j]) >= kIndistinguishableCorrelation && (unpinned(i) || unpinned(j));
+        d.correlations.push_back({owner[i]->cand->name, params[i].key, owner[j]->cand->name, params[j].key, corr[i][j], apart});
+      }
   }
   d.explained = !added.empty();
   d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
@@ -578,6 +727,14 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
     }
     out.push_back("Found: " + list + ".");
     out.push_back(fit_line);
+    for (const auto& c : d.correlations) {
+      if (!c.indistinguishable) continue;
+      out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a +
+                    " and " + c.key_b + " correlate at " + text::num(c.rho, 3) +
+                    " in the joint fit and neither is pinned to 10 % of its change (a change of one is largely undone "
+                    "by the other); a run with other motion or pressure levels separates them.");
+    }
+    for (const auto& r : d.revisions) out.push_back("Revisited: " + r + ".");
     if (d.at_noise_floor) {
       d.verdict = "explained";
     } else {

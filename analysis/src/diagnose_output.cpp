@@ -101,6 +101,13 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
     paths.push_back({{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)},
                      {"chosen", p.chosen}});
   j["paths_followed"] = paths;
+  j["revisions"] = d.revisions;
+  nlohmann::json corr = nlohmann::json::array();
+  for (const auto& c : d.correlations) {
+    corr.push_back({{"a", c.effect_a + "." + c.key_a}, {"b", c.effect_b + "." + c.key_b}, {"rho", c.rho},
+                    {"indistinguishable", c.indistinguishable}});
+  }
+  j["parameter_correlations"] = corr;
   nlohmann::json ni = nlohmann::json::array();
   for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
   j["not_identifiable"] = ni;
@@ -160,6 +167,10 @@ void add_before_after(report::Document& doc, const Diagnosis& d) {
     overlay.push_back(Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
   std::vector<report::Band> bands;
   for (const auto& f : d.before.failing) bands.push_back({f.first, f.second, "model before fails", ""});
+  // Change points of the residual before (where in time something changed), as in compare's report.
+  const double mark_s = 0.15 * d.before.window_width_s;
+  for (const double t : d.before.change_points_s)
+    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
   doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
                     .x_label = "time [s]", .y_label = "pressure [MPa]", .series = overlay, .bands = bands,
                     .group = "time", .height_px = 300});

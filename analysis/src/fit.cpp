@@ -194,7 +194,8 @@ FitResult Fitter::levenberg_marquardt(std::vector<double> x, int max_iter) {
   return out;
 }
 
-std::vector<double> Fitter::uncertainty(const std::vector<double>& x) {
+std::vector<double> Fitter::uncertainty(const std::vector<double>& x, std::vector<std::vector<double>>* correlation) {
+  if (correlation) correlation->clear();
   const std::size_t p = x.size();
   std::vector<double> sigma(p, kNaN);
   std::vector<double> r;
@@ -213,6 +214,12 @@ std::vector<double> Fitter::uncertainty(const std::vector<double>& x) {
   const double tau = integrated_autocorrelation_time(r);
   for (std::size_t i = 0; i < p; ++i) {
     if (inv[i][i] > 0) sigma[i] = std::sqrt(s2 * tau * inv[i][i]);
+  }
+  if (correlation) {
+    correlation->assign(p, std::vector<double>(p, kNaN));
+    for (std::size_t i = 0; i < p; ++i)
+      for (std::size_t j = 0; j < p; ++j)
+        if (inv[i][i] > 0 && inv[j][j] > 0) (*correlation)[i][j] = inv[i][j] / std::sqrt(inv[i][i] * inv[j][j]);
   }
   return sigma;
 }

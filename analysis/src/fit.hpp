@@ -32,7 +32,9 @@ class Fitter {
   FitResult levenberg_marquardt(std::vector<double> x0, int max_iter);
   // 1-sigma uncertainties at `x`: s^2 (J^T J)^-1 with s^2 = RSS / (N - p), inflated by the
   // residual's integrated autocorrelation time (correlated residuals carry less information).
-  std::vector<double> uncertainty(const std::vector<double>& x);
+  // correlation (optional): the parameters' correlation matrix, (J^T J)^-1 normalised; left
+  // empty when it cannot be computed.
+  std::vector<double> uncertainty(const std::vector<double>& x, std::vector<std::vector<double>>* correlation = nullptr);
   int evaluations() const { return evaluations_; }
   const std::vector<FreeParam>& params() const { return params_; }
 

@@ -80,6 +80,12 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
   j["windows"] = {{"width_s", r.window_width_s}, {"list", windows}};
   j["worst_windows"] = worst;
   j["failing_spans"] = failing;
+  nlohmann::json segments = nlohmann::json::array();
+  for (const auto& g : r.segments)
+    segments.push_back({{"t0_s", number(g.t0_s)}, {"t1_s", number(g.t1_s)}, {"rmse_kpa", number(g.rmse_pa / kKpa)},
+                         {"at_noise_floor", g.at_floor}});
+  j["segments"] = segments;
+  j["change_points_s"] = r.change_points_s;
   j["reversals"] = r.reversals;
   j["motion_cycle_hz"] = number(r.motion_cycle_hz);
   const Diagnostics& d = r.diagnostics;

@@ -1,6 +1,7 @@
 #include "hil/analysis/measurement.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "hil/units.hpp"
@@ -52,9 +53,81 @@ MeasurementReader::MeasurementReader(const std::filesystem::path& file)
   has_reference_ = reader_.header().present[4];
 }
 
+void MeasurementReader::fail_at(std::size_t line, const char* column, const std::string& what) const {
+  const auto& names = reader_.header().names;
+  const auto it = std::find(names.begin(), names.end(), column);
+  const std::size_t col = it == names.end() ? 1 : static_cast<std::size_t>(it - names.begin()) + 1;
+  throw CsvError(file_.string() + ":" + std::to_string(line) + ":" + std::to_string(col) + ": column '" + column +
+                 "': " + what);
+}
+
+// Per row, in file units (before the conversion to SI), so the messages quote the file.
+void MeasurementReader::check_rows(const CsvChunk& c) {
+  using L = MeasurementLimits;
+  char b[400];
+  const auto& t = c.values[0];
+  for (std::size_t r = 0; r < c.rows(); ++r) {
+    const std::size_t line = c.lines[r];
+    const std::size_t k = rows_read_ + r;  // row index in the file
+    if (k == 0) t_first_s_ = t_last_s_ = t[r];
+    const double dt = t[r] - t_last_s_;
+    if (dt > L::kMaxGapS) {
+      std::snprintf(b, sizeof b,
+                    "a gap of %.6g s in the log (t_s %.9g -> %.9g); the replay crosses gaps of at most %.3g s open "
+                    "loop with the inputs held: longer than that it is two runs, so cut the file there",
+                    dt, t_last_s_, t[r], L::kMaxGapS);
+      fail_at(line, "t_s", b);
+    }
+    const double span = t[r] - t_first_s_;
+    if (span > L::kMaxGapS + static_cast<double>(k) * L::kMaxMeanPeriodS) {
+      std::snprintf(b, sizeof b,
+                    "the log covers %.6g s in its first %zu rows (%.3g s per row); the workbench needs at least one "
+                    "row per %.3g s on average (the chamber's ~0.1 s dynamics must be sampled)",
+                    span, k + 1, span / static_cast<double>(k + 1), L::kMaxMeanPeriodS);
+      fail_at(line, "t_s", b);
+    }
+    t_last_s_ = t[r];
+    const double p = c.values[2][r];
+    if (!(p >= L::kMinPressureMpa && p <= L::kMaxPressureMpa)) {
+      std::snprintf(b, sizeof b, "%.6g MPa is outside what a chamber-pressure transducer reads here (%.3g to %.3g MPa)", p,
+                    L::kMinPressureMpa, L::kMaxPressureMpa);
+      fail_at(line, "p_meas_mpa", b);
+    }
+    const double p_pa = units::mpa_to_pa(p);
+    if (k == 0) p_min_pa_ = p_max_pa_ = p_pa;
+    p_min_pa_ = std::min(p_min_pa_, p_pa), p_max_pa_ = std::max(p_max_pa_, p_pa);
+    for (const auto& [col, name] : {std::pair{1, "theta_cmd_deg"}, std::pair{3, "theta_motor_deg"}}) {
+      if (c.values[col].empty()) continue;
+      const double a = c.values[col][r];
+      if (std::abs(a) > L::kMaxAngleDeg) {
+        std::snprintf(b, sizeof b, "%.6g deg is more than a turn from zero (the valve travels 0-30 deg; at most +-%.0f deg)",
+                      a, L::kMaxAngleDeg);
+        fail_at(line, name, b);
+      }
+    }
+    last_data_line_ = line;
+  }
+}
+
+void MeasurementReader::check_whole_file() const {
+  if (rows_read_ < kMinRows) return;  // "too short" is the error that matters then
+  if (p_max_pa_ - p_min_pa_ < MeasurementLimits::kMinPressureSpreadPa) {
+    char b[300];
+    std::snprintf(b, sizeof b,
+                  "the reading is %.9g MPa on every row (lines %zu-%zu): a pressure that never moves carries no "
+                  "dynamics to compare (a disconnected or saturated channel?)",
+                  units::pa_to_mpa(p_min_pa_), first_data_line_, last_data_line_);
+    fail_at(first_data_line_, "p_meas_mpa", b);
+  }
+}
+
 bool MeasurementReader::next(MeasurementRows& rows, std::size_t max_rows) {
   rows.clear();
-  if (!reader_.next(chunk_, max_rows)) return false;
+  if (!reader_.next(chunk_, max_rows)) {
+    check_whole_file();
+    return false;
+  }
+  check_rows(chunk_);
   first_line_ = chunk_.first_line;
   if (rows_read_ == 0) first_data_line_ = chunk_.first_line;
   const std::size_t n = chunk_.rows();

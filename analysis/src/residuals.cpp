@@ -9,6 +9,7 @@
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
+#include <unordered_map>
 
 #include "fft.hpp"
 #include "hil/units.hpp"
@@ -161,6 +162,88 @@ class LogHistogram {
   std::size_t zero_ = 0, total_ = 0;
 };
 
+// The noise from second differences of the reading (see noise_sigma_from_data). A reading that
+// comes off an ADC in steps of q makes every second difference a multiple of q, and the plain
+// median then sits on a multiple of q: 3 kPa instead of 3.3 kPa for 2 kPa noise in 1 kPa steps, a
+// sigma 10 % low and a noise floor that no model can reach. So the distinct |d2| values are
+// counted exactly while there are few of them; when 99 % of them are multiples of the smallest,
+// the median is read as grouped data (multiple j stands for [(j - 1/2) q, (j + 1/2) q], j = 0 for
+// [0, q/2]), which estimates the noise a perfect model leaves: sigma^2 + q^2/12 (quantisation
+// error included). Fine lattices (a 1 Pa log resolution) overflow the exact count and need no
+// correction.
+class SecondDifferenceNoise {
+ public:
+  void add(double d2_pa) {
+    hist_.add(d2_pa);
+    sum2_ += d2_pa * d2_pa;
+    ++n_;
+    if (overflow_) return;
+    ++exact_[std::llround(std::min(std::abs(d2_pa), 1e12) * kKeyPerPa)];
+    if (exact_.size() > kMaxDistinct) overflow_ = true, exact_.clear();
+  }
+  double sigma_pa() const {
+    if (const double q = lattice_step_pa(); q > 0) return 1.4826 * grouped_median(q) / std::sqrt(6.0);
+    const double med = hist_.median();
+    if (med > 0) return 1.4826 * med / std::sqrt(6.0);
+    return n_ > 0 ? std::sqrt(sum2_ / static_cast<double>(n_) / 6.0) : 0.0;
+  }
+  std::string method() const {
+    if (const double q = lattice_step_pa(); q > 0) {
+      char b[200];
+      std::snprintf(b, sizeof b,
+                    "1.4826 * median|second difference of p_meas| / sqrt(6), the median read as grouped data of a "
+                    "reading quantised in %.4g kPa steps", q / units::kPaPerKpa);
+      return b;
+    }
+    if (hist_.median() > 0) return "1.4826 * median|second difference of p_meas| / sqrt(6)";
+    return "RMS of the second difference of p_meas / sqrt(6) (the reading is too coarsely quantised for the median)";
+  }
+
+ private:
+  static constexpr double kKeyPerPa = 1e6;  // exact to a micro-pascal
+  static constexpr std::size_t kMaxDistinct = 4096;
+  // The step q when 99 % of the second differences are multiples of the smallest nonzero one; 0 else.
+  double lattice_step_pa() const {
+    if (overflow_ || exact_.empty()) return 0;
+    long long q = 0;
+    for (const auto& [key, count] : exact_)
+      if (key > 0 && (q == 0 || key < q)) q = key;
+    if (q == 0) return 0;
+    std::size_t on = 0, total = 0;
+    for (const auto& [key, count] : exact_) {
+      const double j = static_cast<double>(key) / static_cast<double>(q);
+      total += count;
+      if (std::abs(j - std::round(j)) < 1e-3) on += count;
+    }
+    return on >= 0.99 * static_cast<double>(total) ? static_cast<double>(q) / kKeyPerPa : 0.0;
+  }
+  double grouped_median(double q_pa) const {
+    std::vector<std::pair<long long, std::size_t>> bins;  // multiple of q, count
+    std::size_t total = 0;
+    for (const auto& [key, count] : exact_) {
+      bins.push_back({std::llround(static_cast<double>(key) / kKeyPerPa / q_pa), count});
+      total += count;
+    }
+    std::sort(bins.begin(), bins.end());
+    const double half = 0.5 * static_cast<double>(total);
+    double cum = 0;
+    for (std::size_t i = 0; i < bins.size(); ++i) {
+      std::size_t c = bins[i].second;
+      while (i + 1 < bins.size() && bins[i + 1].first == bins[i].first) c += bins[++i].second;  // off-lattice strays
+      const double j = static_cast<double>(bins[i].first);
+      const double lo = j == 0 ? 0.0 : (j - 0.5) * q_pa, width = j == 0 ? 0.5 * q_pa : q_pa;
+      if (cum + static_cast<double>(c) >= half) return lo + (half - cum) / static_cast<double>(c) * width;
+      cum += static_cast<double>(c);
+    }
+    return 0;
+  }
+  LogHistogram hist_;
+  double sum2_ = 0;
+  std::size_t n_ = 0;
+  std::unordered_map<long long, std::size_t> exact_;
+  bool overflow_ = false;
+};
+
 std::string fmt(const char* f, double a) {
   char b[512];
   std::snprintf(b, sizeof b, f, a);
@@ -186,16 +269,9 @@ double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n) {
 }
 
 double noise_sigma_from_data(const std::vector<double>& y) {
-  LogHistogram h;
-  double sum2 = 0;
-  for (std::size_t k = 2; k < y.size(); ++k) {
-    const double d2 = y[k] - 2 * y[k - 1] + y[k - 2];
-    h.add(d2);
-    sum2 += d2 * d2;
-  }
-  const double med = h.median();
-  if (med > 0) return 1.4826 * med / std::sqrt(6.0);
-  return y.size() > 2 ? std::sqrt(sum2 / static_cast<double>(y.size() - 2) / 6.0) : 0.0;
+  SecondDifferenceNoise noise;
+  for (std::size_t k = 2; k < y.size(); ++k) noise.add(y[k] - 2 * y[k - 1] + y[k - 2]);
+  return noise.sigma_pa();
 }
 
 namespace {
@@ -233,6 +309,10 @@ double integrated_autocorrelation_time(const std::vector<double>& e, std::size_t
   return tau_from_acf(rho);
 }
 
+namespace {
+void find_segments(ResidualReport& r);  // change points of the residual's level (defined below)
+}  // namespace
+
 struct ResidualAnalyzer::Impl {
   AnalyzerOptions opt;
 
@@ -241,9 +321,7 @@ struct ResidualAnalyzer::Impl {
   double t_first = 0, t_last = 0;
   Acc all;
   double y0 = 0, sy = 0, syy = 0;
-  LogHistogram d2;
-  double d2_sum2 = 0;  // for coarsely quantised readings, where the median second difference is 0
-  std::size_t d2_n = 0;
+  SecondDifferenceNoise d2;
   double y_prev1 = kNaN, y_prev2 = kNaN;
   std::vector<double> first_dts;
 
@@ -467,8 +545,6 @@ struct ResidualAnalyzer::Impl {
     if (std::isfinite(y_prev2)) {
       const double v = s.y_pa - 2 * y_prev1 + y_prev2;
       d2.add(v);
-      d2_sum2 += v * v;
-      ++d2_n;
     }
     y_prev2 = y_prev1;
     y_prev1 = s.y_pa;
@@ -541,12 +617,8 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   const double spread2 = std::max(0.0, syy - sy * sy / static_cast<double>(n));
   r.y_spread_pa = std::sqrt(spread2 / static_cast<double>(n));
   r.fit_pct = fit_percent(all.se2, r.y_spread_pa, n);
-  r.noise_sigma_pa = 1.4826 * d2.median() / std::sqrt(6.0);
-  r.noise_method = "1.4826 * median|second difference of p_meas| / sqrt(6)";
-  if (!(r.noise_sigma_pa > 0) && d2_n > 0) {
-    r.noise_sigma_pa = std::sqrt(d2_sum2 / static_cast<double>(d2_n) / 6.0);
-    r.noise_method = "RMS of the second difference of p_meas / sqrt(6) (the reading is too coarsely quantised for the median)";
-  }
+  r.noise_sigma_pa = d2.sigma_pa();
+  r.noise_method = d2.method();
   r.noise_floor_fit_pct = r.y_spread_pa > 0 ? 100.0 * (1.0 - r.noise_sigma_pa / r.y_spread_pa) : kNaN;
 
   // Regimes.
@@ -646,6 +718,7 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
       r.duration_s > 0 && ref_reversals >= 2 ? static_cast<double>(ref_reversals) / (2 * r.duration_s) : 0;
 
   finish_diagnostics(r);
+  find_segments(r);
   describe(r);
   if (opt.keep_series) {
     r.series.measured_mpa = s_meas.take();
@@ -854,6 +927,113 @@ void ResidualAnalyzer::Impl::name_peaks(ResidualReport& r) {
   }
 }
 
+namespace {
+
+// Binary segmentation of the windows' mean square (see kChangeRmsRatio). Windows with fewer than
+// a quarter of the fullest window's samples (a dropout) join their neighbours.
+void find_segments(ResidualReport& r) {
+  const auto& w = r.windows;
+  if (w.empty()) return;
+  std::size_t max_samples = 0;
+  for (const auto& x : w) max_samples = std::max(max_samples, x.error.samples);
+  std::vector<double> sum_sq(w.size() + 1, 0.0), count(w.size() + 1, 0.0);  // prefix sums
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const double n = static_cast<double>(w[i].error.samples);
+    sum_sq[i + 1] = sum_sq[i] + w[i].error.rmse_pa * w[i].error.rmse_pa * n;
+    count[i + 1] = count[i] + n;
+  }
+  auto ms = [&](std::size_t a, std::size_t b) {  // windows [a, b)
+    const double n = count[b] - count[a];
+    return n > 0 ? (sum_sq[b] - sum_sq[a]) / n : 0.0;
+  };
+  auto usable = [&](std::size_t i) { return w[i].error.samples * 4 >= max_samples; };
+  std::vector<std::size_t> cuts = {0, w.size()};
+  while (cuts.size() < kMaxChangePoints + 2) {
+    // The best cut over all segments: largest likelihood gain of a piecewise-constant variance.
+    double best_gain = 0;
+    std::size_t best_cut = 0;
+    for (std::size_t s = 0; s + 1 < cuts.size(); ++s) {
+      const std::size_t a = cuts[s], b = cuts[s + 1];
+      const double n = count[b] - count[a], m = ms(a, b);
+      if (m <= 0) continue;
+      for (std::size_t c = a + 2; c + 2 <= b; ++c) {
+        if (!usable(c) || !usable(c - 1)) continue;
+        const double n1 = count[c] - count[a], n2 = count[b] - count[c];
+        const double m1 = ms(a, c), m2 = ms(c, b);
+        if (m1 <= 0 || m2 <= 0) continue;
+        const double ratio = std::sqrt(std::max(m1, m2) / std::min(m1, m2));
+        if (ratio < kChangeRmsRatio) continue;
+        const double gain = n * std::log(m) - n1 * std::log(m1) - n2 * std::log(m2);
+        if (gain > best_gain) best_gain = gain, best_cut = c;
+      }
+    }
+    if (best_cut == 0) break;
+    cuts.insert(std::upper_bound(cuts.begin(), cuts.end(), best_cut), best_cut);
+  }
+  for (std::size_t s = 0; s + 1 < cuts.size(); ++s) {
+    ResidualReport::Segment g;
+    g.t0_s = w[cuts[s]].t0_s;
+    g.t1_s = w[cuts[s + 1] - 1].t1_s;
+    g.rmse_pa = std::sqrt(ms(cuts[s], cuts[s + 1]));
+    g.at_floor = g.rmse_pa <= kSegmentFloorRatio * r.noise_sigma_pa;
+    if (s > 0) r.change_points_s.push_back(g.t0_s);
+    r.segments.push_back(g);
+  }
+}
+
+// "Where in time", in words, when the error is confined to part of the run: one sentence, or
+// empty when the error is everywhere (or nowhere).
+std::string confinement_sentence(const ResidualReport& r) {
+  // Neighbouring segments above the floor are one span here (the level may change inside it).
+  std::vector<ResidualReport::Segment> g;
+  for (const auto& x : r.segments) {
+    if (!g.empty() && !g.back().at_floor && !x.at_floor) {
+      const double d0 = g.back().t1_s - g.back().t0_s, d1 = x.t1_s - x.t0_s;
+      g.back().rmse_pa = std::sqrt((g.back().rmse_pa * g.back().rmse_pa * d0 + x.rmse_pa * x.rmse_pa * d1) / (d0 + d1));
+      g.back().t1_s = x.t1_s;
+    } else {
+      g.push_back(x);
+    }
+  }
+  if (g.size() < 2) return "";
+  // The part at the floor must be a real part of the run (a quarter), not a quiet start.
+  double floor_s = 0;
+  for (const auto& x : g) floor_s += x.at_floor ? x.t1_s - x.t0_s : 0.0;
+  if (floor_s < 0.25 * (g.back().t1_s - g.front().t0_s)) return "";
+  std::string spans;
+  std::size_t failing = 0;
+  for (const auto& x : g) {
+    if (x.at_floor) continue;
+    ++failing;
+    spans += (spans.empty() ? "" : ", ") + fmt("%.3g-%.3g s", x.t0_s, x.t1_s);
+  }
+  const double kpa = units::kPaPerKpa;
+  const bool first_bad = !g.front().at_floor, last_bad = !g.back().at_floor;
+  if (failing == 1 && !first_bad && !last_bad) {
+    const ResidualReport::Segment* bad = nullptr;
+    for (const auto& x : g)
+      if (!x.at_floor) bad = &x;
+    return fmt("The error is confined to %.3g-%.3g s", bad->t0_s, bad->t1_s) +
+           fmt(" (RMS %.3g kPa there); before and after it is at the noise floor: something changed at %.3g s", bad->rmse_pa / kpa,
+               bad->t0_s) +
+           fmt(" and recovered at %.3g s.", bad->t1_s);
+  }
+  if (failing == 1 && last_bad) {
+    return fmt("The error starts at %.3g s (RMS %.3g kPa after it); before it the model is at the noise floor: something "
+               "changed at %.3g s",
+               g.back().t0_s, g.back().rmse_pa / kpa, g.back().t0_s) +
+           " and did not recover before the end of the file.";
+  }
+  if (failing == 1 && first_bad) {
+    return fmt("The error is confined to the start of the run, up to %.3g s (RMS %.3g kPa); after it the model is at the "
+               "noise floor.",
+               g.front().t1_s, g.front().rmse_pa / kpa);
+  }
+  return "The error comes and goes: above the noise in " + spans + "; at the noise floor in between.";
+}
+
+}  // namespace
+
 void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   auto& out = r.signature;
   const double kpa = units::kPaPerKpa;
@@ -880,7 +1060,11 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
       if (g.name == name) return &g;
     return nullptr;
   };
-  if (worst != nullptr && worst->error.rmse_pa > 1.3 * rmse && rmse > 1.5 * sigma) {
+  const std::string confined = rmse > 1.5 * sigma ? confinement_sentence(r) : "";
+  if (!confined.empty()) {
+    // Regime shares over the whole run would mislead when the error lives in one span of it.
+    out.push_back(confined);
+  } else if (worst != nullptr && worst->error.rmse_pa > 1.3 * rmse && rmse > 1.5 * sigma) {
     char b[300];
     std::snprintf(b, sizeof b, "Largest in regime '%s' (%s): RMS %.3g kPa against %.3g kPa overall.", worst->name.c_str(),
                   worst->description.c_str(), worst->error.rmse_pa / kpa, rmse / kpa);

@@ -2,7 +2,7 @@
 // on ten minutes at 1 kHz, on closed-loop files generated here (bench's simulate_run, controller
 // on the nominal plant, hidden effects in the simulated truth). Prints wall time, rows per second
 // and the peak resident memory each step added.
-//   bench_analysis [--keep DIR] [--threads N] [--only compare|diagnose]
+//   bench_analysis [--keep DIR] [--threads N] [--only compare|diagnose|three]
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -87,9 +87,9 @@ void bench_compare(const fs::path& dir) {
 }
 
 void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& name,
-                    const std::function<hil::plant::Plant(const hil::plant::Plant&)>& truth) {
+                    const std::function<hil::plant::Plant(const hil::plant::Plant&)>& truth, double duration_s = 600) {
   auto t0 = Clock::now();
-  const fs::path file = make_file(dir, name, 600, false, truth);
+  const fs::path file = make_file(dir, name, duration_s, false, truth);
   std::printf("diagnose %s: generated %.0f MB in %.1f s\n", name.c_str(), static_cast<double>(fs::file_size(file)) / 1e6,
               seconds_since(t0));
   t0 = Clock::now();
@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
     else if (a == "--threads" && i + 1 < argc) threads = static_cast<unsigned>(std::stoul(argv[++i]));
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
     else {
-      std::fprintf(stderr, "usage: bench_analysis [--keep DIR] [--threads N] [--only compare|diagnose]\n");
+      std::fprintf(stderr, "usage: bench_analysis [--keep DIR] [--threads N] [--only compare|diagnose|three]\n");
       return 2;
     }
   }
@@ -129,6 +129,15 @@ int main(int argc, char** argv) {
   fs::create_directories(dir);
   std::printf("bench_analysis: %s, %u hardware threads\n", dir.c_str(), std::thread::hardware_concurrency());
   if (only.empty() || only == "compare") bench_compare(dir);
+  // Three effects at once (issue 9): gap 1.7 deg, erosion 0.5 mm^2/s, sensor offset 25 kPa.
+  auto three = [](const hil::plant::Plant& p) {
+    return with_block(with_block(with_block(p, "backlash_change", "gap_deg: 1.7"), "throat_erosion", "rate_mm2_per_s: 0.5"),
+                      "sensor_bias", "{offset_kpa: 25, gain: 1.0}");
+  };
+  if (only.empty() || only == "three") {
+    bench_diagnose(dir, threads, "three-effects-30s", three, 30);
+    bench_diagnose(dir, threads, "three-effects-600s", three, 600);
+  }
   if (only.empty() || only == "diagnose") {
     bench_diagnose(dir, threads, "no-effect", [](const hil::plant::Plant& p) { return p; });
     bench_diagnose(dir, threads, "one-effect", [](const hil::plant::Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.03"); });

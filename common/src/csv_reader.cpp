@@ -134,6 +134,7 @@ bool CsvReader::read_line(std::string& line) {
 bool CsvReader::next(CsvChunk& chunk, std::size_t max_rows) {
   chunk.values.assign(field_of_.size(), {});
   chunk.first_line = 0;
+  chunk.lines.clear();
   std::string line;
   std::vector<std::string_view> fields;
   const int inc_index = [&] {
@@ -153,6 +154,7 @@ bool CsvReader::next(CsvChunk& chunk, std::size_t max_rows) {
                std::to_string(fields.size()));
     }
     if (rows == 0) chunk.first_line = line_no_;
+    chunk.lines.push_back(line_no_);
     for (std::size_t c = 0; c < field_of_.size(); ++c) {
       if (field_of_[c] < 0) continue;
       std::string_view cell = fields[static_cast<std::size_t>(field_of_[c])];
@@ -194,6 +196,7 @@ CsvChunk read_csv(const std::filesystem::path& file, const CsvRequest& request, 
     if (first) all.first_line = part.first_line, first = false;
     for (std::size_t c = 0; c < part.values.size(); ++c)
       all.values[c].insert(all.values[c].end(), part.values[c].begin(), part.values[c].end());
+    all.lines.insert(all.lines.end(), part.lines.begin(), part.lines.end());
   }
   if (header) *header = reader.header();
   return all;

@@ -21,6 +21,7 @@
 #include "hil/bench/sim.hpp"
 #include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
+#include "hil/units.hpp"
 #include "temp_file.hpp"
 #include "workbench_test_util.hpp"
 
@@ -118,6 +119,106 @@ TEST(MeasurementFile, OtherColumnsAreIgnoredAndUnitsConverted) {
   EXPECT_DOUBLE_EQ(rows.t_s[1], 0.002);
   EXPECT_NEAR(rows.theta_cmd_rad[1], 12 * std::numbers::pi / 180, 1e-15);
   EXPECT_NEAR(rows.theta_motor_rad[0], 10 * std::numbers::pi / 180, 1e-15);
+}
+
+// Rows at a given period, steady 1 MPa with a small wobble; `cell` replaces the pressure at row
+// `at` (verbatim text), `jump_s` is added to every time from row `at` on.
+std::string rows_with(int n, double period_s, int at = -1, const std::string& cell = "", double jump_s = 0) {
+  std::string s;
+  char b[160];
+  for (int i = 0; i < n; ++i) {
+    char p[64];
+    std::snprintf(p, sizeof p, "%.6f", 1.0 + 0.001 * std::sin(i));
+    const double t = i * period_s + (at >= 0 && i >= at ? jump_s : 0);
+    std::snprintf(b, sizeof b, "%.6f,11.41174,%s\n", t, i == at && !cell.empty() ? cell.c_str() : p);
+    s += b;
+  }
+  return s;
+}
+
+// A time column that jumps or crawls: refused at the row where it happens, before any replay (a
+// 1e9 s jump overflowed the replay's step count and was then accepted with a 96 % fit; a 1e6 s
+// jump or a 10 s period ran diagnose for minutes).
+TEST(MeasurementFile, TimeJumpsAndSlowLogsAreRefusedAtTheirLine) {
+  hil::test::TempDir dir;
+  const std::string head = "t_s,theta_cmd_deg,p_meas_mpa\n";  // data row i is on line i + 2
+  for (const double jump_s : {1e6, 1e9, 6.0}) {
+    const auto f = dir.write("jump.csv", head + rows_with(2000, 1e-3, 1000, "", jump_s));
+    for (const std::string& e : {error_of([&] { load_measurement(f); }), error_of([&] { compare_file(nominal(), f); })}) {
+      EXPECT_NE(e.find(f.string() + ":1002:1: column 't_s': a gap of"), std::string::npos) << jump_s << ": " << e;
+    }
+  }
+  // A 10 s sample period: the second row is already a gap.
+  auto f = dir.write("slow10.csv", head + rows_with(100, 10.0));
+  EXPECT_NE(error_of([&] { load_measurement(f); }).find(f.string() + ":3:1: column 't_s': a gap of 10 s"),
+            std::string::npos);
+  // 0.1 s per row: no single gap, but the log outruns one row per 20 ms from row 63 on
+  // (t = 6.3 s > 5 s + 63 * 20 ms).
+  f = dir.write("slow01.csv", head + rows_with(200, 0.1));
+  std::string e = error_of([&] { load_measurement(f); });
+  EXPECT_NE(e.find(f.string() + ":65:1: column 't_s': the log covers 6.3 s in its first 64 rows"), std::string::npos) << e;
+  // A dropout of 2 s in a 1 kHz log is a dropout, not two runs: accepted and replayed.
+  f = dir.write("dropout.csv", head + rows_with(3000, 1e-3, 1500, "", 2.0));
+  const auto r = compare_file(nominal(), f);
+  EXPECT_TRUE(std::isfinite(r.fit_pct));
+  EXPECT_TRUE(std::isfinite(r.error.rmse_pa));
+}
+
+// The replay itself cannot be made to overflow or run away by a time stamp.
+TEST(Replay, AStepBeyondTheLongestGapIsNaNNotAnOverflow) {
+  const hil::plant::Plant quiet = hil::analysis::noise_free(nominal());
+  hil::analysis::Replayer r(quiet);
+  r.start({0.0, 1e6, hil::units::deg_to_rad(11.4), 1});
+  EXPECT_TRUE(std::isfinite(r.advance(0.001, hil::units::deg_to_rad(11.4), hil::plant::kNaN)));
+  EXPECT_TRUE(std::isnan(r.advance(1e9, hil::units::deg_to_rad(11.4), hil::plant::kNaN)));
+  EXPECT_TRUE(std::isnan(r.advance(1e9, hil::units::deg_to_rad(11.4), hil::plant::kNaN)));  // not forward
+}
+
+// Pressure and angle columns that no rig can have written: refused naming file:line:column (they
+// gave exit 0 with NaN metrics, and diagnose called some of them "explained").
+TEST(MeasurementFile, NonsenseReadingsAreRefusedNamingFileLineAndColumn) {
+  hil::test::TempDir dir;
+  const std::string head = "t_s,theta_cmd_deg,p_meas_mpa\n";
+  struct Case {
+    std::string name, body, where, what;
+  };
+  std::string zero, constant, huge;
+  for (int i = 0; i < 500; ++i) {
+    char b[100];
+    std::snprintf(b, sizeof b, "%.3f,11.4,0\n", i * 1e-3);
+    zero += b;
+    std::snprintf(b, sizeof b, "%.3f,11.4,1.2\n", i * 1e-3);
+    constant += b;
+    std::snprintf(b, sizeof b, "%.3f,11.4,%.6g\n", i * 1e-3, 1e300 * (1 + 1e-3 * std::sin(i)));
+    huge += b;
+  }
+  const std::vector<Case> cases = {
+      {"zero.csv", head + zero, ":2:3: column 'p_meas_mpa': ", "0 MPa on every row (lines 2-501)"},
+      {"constant.csv", head + constant, ":2:3: column 'p_meas_mpa': ", "1.2 MPa on every row (lines 2-501)"},
+      {"huge.csv", head + huge, ":2:3: column 'p_meas_mpa': ", "outside what a chamber-pressure transducer reads"},
+      {"cell.csv", head + rows_with(500, 1e-3, 321, "1e308"), ":323:3: column 'p_meas_mpa': ", "1e+308 MPa is outside"},
+      {"negative.csv", head + rows_with(500, 1e-3, 40, "-5"), ":42:3: column 'p_meas_mpa': ", "-5 MPa is outside"},
+      {"cmd.csv", head + [] {
+         std::string s = rows_with(500, 1e-3);
+         return s.replace(s.find("11.41174", 30 * 20), 8, "1e300");
+       }(), ":24:2: column 'theta_cmd_deg': ", "1e+300 deg is more than a turn"},
+      {"motor.csv", "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg\n" + [] {
+         std::string s;
+         for (int i = 0; i < 500; ++i) {
+           char b[100];
+           std::snprintf(b, sizeof b, "%.3f,11.4,%.6f,%s\n", i * 1e-3, 1 + 1e-3 * std::sin(i), i == 77 ? "-4000" : "11.4");
+           s += b;
+         }
+         return s;
+       }(), ":79:4: column 'theta_motor_deg': ", "-4000 deg is more than a turn"},
+  };
+  for (const Case& c : cases) {
+    const auto f = dir.write(c.name, c.body);
+    for (const std::string& e : {error_of([&] { load_measurement(f); }), error_of([&] { compare_file(nominal(), f); })}) {
+      EXPECT_NE(e.find(f.string() + c.where), std::string::npos) << c.name << ": " << e;
+      EXPECT_NE(e.find(c.what), std::string::npos) << c.name << ": " << e;
+    }
+  }
 }
 
 TEST(MeasurementFile, BadModelFileIsALocatedConfigError) {
@@ -229,6 +330,65 @@ TEST(Statistics, DriftShowsAsLateAndSlow) {
   bool grows = false;
   for (const auto& line : r.signature) grows |= line.find("Grows over the run") != std::string::npos;
   EXPECT_TRUE(grows);
+}
+
+// An error that lives in one span of the run: the signature says where, the change points are
+// its edges (within a window), and it does not call it "spread evenly over the regimes".
+TEST(Statistics, ATimeConfinedErrorIsNamedWithItsSpan) {
+  const auto r = analyze([](double t, double) { return t >= 12 && t < 18 ? 1.5e4 + 5e3 * std::sin(3 * t) : 0.0; }, 2000);
+  std::string sig;
+  for (const auto& line : r.signature) sig += line + " ";
+  EXPECT_NE(sig.find("The error is confined to 12"), std::string::npos) << sig;
+  EXPECT_NE(sig.find("recovered at 18"), std::string::npos) << sig;
+  EXPECT_EQ(sig.find("Spread evenly"), std::string::npos) << sig;
+  ASSERT_GE(r.change_points_s.size(), 2u) << sig;
+  EXPECT_NEAR(r.change_points_s.front(), 12.0, r.window_width_s + 1e-9);
+  EXPECT_NEAR(r.change_points_s.back(), 18.0, r.window_width_s + 1e-9);
+  EXPECT_TRUE(r.segments.front().at_floor);
+  EXPECT_TRUE(r.segments.back().at_floor);
+  for (std::size_t i = 1; i + 1 < r.segments.size(); ++i) EXPECT_FALSE(r.segments[i].at_floor);
+  // A change that does not recover.
+  const auto late = analyze([](double t, double) { return t >= 25 ? 1e4 : 0.0; }, 2000);
+  sig.clear();
+  for (const auto& line : late.signature) sig += line + " ";
+  EXPECT_NE(sig.find("The error starts at 25"), std::string::npos) << sig;
+  EXPECT_NE(sig.find("did not recover"), std::string::npos) << sig;
+  // The other side: an error everywhere (after every reversal) and pure noise have no span.
+  for (const auto& other : {analyze([](double t, double) { return std::fmod(t, 2.0) < 0.3 ? 3e4 : 0.0; }, 2000),
+                            analyze([](double, double) { return 0.0; }, 2000)}) {
+    for (const auto& line : other.signature) {
+      EXPECT_EQ(line.find("confined"), std::string::npos) << line;
+      EXPECT_EQ(line.find("The error starts"), std::string::npos) << line;
+      EXPECT_EQ(line.find("comes and goes"), std::string::npos) << line;
+    }
+  }
+  EXPECT_TRUE(analyze([](double, double) { return 0.0; }, 2000).change_points_s.empty());
+}
+
+// A reading in ADC steps q: a perfect model leaves the noise plus the quantisation error, sigma^2 +
+// q^2/12, and the estimate must say so (the plain median sat on a multiple of q: 1.8 kPa for 2 kPa
+// noise in 1 kPa steps, so a fit at the floor was called partly explained). Steps from 0.5 to 2
+// sigma; the same estimate for logs at 200 Hz and 5 kHz of a chamber with its 0.1 s dynamics.
+TEST(Statistics, NoiseEstimateHoldsForQuantisedReadingsAndOtherRates) {
+  for (const double rate_hz : {200.0, 1000.0, 5000.0}) {
+    for (const double step_per_sigma : {0.0, 0.5, 1.0, 2.0}) {
+      const double sigma_pa = 2000, q_pa = step_per_sigma * sigma_pa;
+      std::mt19937 rng(11);
+      std::normal_distribution<double> noise(0, sigma_pa);
+      std::vector<double> y;
+      double p = 1.0e6;
+      const double dt = 1 / rate_hz;
+      for (double t = 0; t < 30; t += dt) {
+        const double target = std::fmod(t, 5) < 2.5 ? 1.0e6 : 1.5e6;  // steps every 2.5 s, tau 0.1 s
+        p += (target - p) * (1 - std::exp(-dt / 0.1));
+        const double v = p + noise(rng);
+        y.push_back(q_pa > 0 ? q_pa * std::round(v / q_pa) : v);
+      }
+      const double expected = std::sqrt(sigma_pa * sigma_pa + q_pa * q_pa / 12);
+      EXPECT_NEAR(hil::analysis::noise_sigma_from_data(y), expected, 0.04 * expected)
+          << rate_hz << " Hz, step " << step_per_sigma << " sigma";
+    }
+  }
 }
 
 TEST(Statistics, CoarselyQuantisedReadingsStillHaveANoiseEstimate) {
@@ -381,6 +541,26 @@ TEST(CommandLine, UsageAndBadFiles) {
   r = hilbench("compare --model " + model + " --data " + empty.string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("empty.csv:1:1"), std::string::npos) << r.out;
+}
+
+// diagnose on files no rig can have written: exit 1 with the place, never a verdict (it called a
+// constant and a 1e300 pressure "explained" and accepted a 1e9 s time jump with a 96 % fit).
+TEST(CommandLine, DiagnoseRefusesNonsenseFilesWithTheirPlace) {
+  hil::test::TempDir dir;
+  const std::string model = hil::test::nominal_model().string(), head = "t_s,theta_cmd_deg,p_meas_mpa\n";
+  std::string constant;
+  for (int i = 0; i < 300; ++i) constant += std::to_string(i * 1e-3) + ",11.4,1.2\n";
+  const std::vector<std::pair<fs::path, std::string>> files = {
+      {dir.write("constant.csv", head + constant), ":2:3: column 'p_meas_mpa': the reading is 1.2 MPa on every row"},
+      {dir.write("cell.csv", head + rows_with(300, 1e-3, 100, "1e308")), ":102:3: column 'p_meas_mpa': 1e+308 MPa"},
+      {dir.write("jump.csv", head + rows_with(300, 1e-3, 150, "", 1e9)), ":152:1: column 't_s': a gap of"},
+  };
+  for (const auto& [file, what] : files) {
+    const CliRun r = hilbench("diagnose --model " + model + " --data " + file.string() + " --out " + (dir.path() / "o").string());
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(file.string() + what), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("explained"), std::string::npos) << r.out;
+  }
 }
 
 TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {

@@ -34,10 +34,12 @@ struct CsvHeader {
 };
 
 // A block of consecutive rows: values[c][r] for requested column c (required then optional; a
-// missing optional column has an empty vector), first_line = file line of row 0.
+// missing optional column has an empty vector), first_line = file line of row 0, lines[r] = file
+// line of row r (blank and comment lines may sit between rows), for callers' own error messages.
 struct CsvChunk {
   std::vector<std::vector<double>> values;
   std::size_t first_line = 0;
+  std::vector<std::size_t> lines;
   std::size_t rows() const { return values.empty() ? 0 : values.front().size(); }
 };
 

@@ -14,7 +14,10 @@
 // When the best single effect of the first round does not reach the noise floor, the search also
 // follows the next two first choices that earn their place (a beam of three paths, each greedy
 // after its first step) and keeps the path with the lowest BIC: a two-effect misfit is often
-// mimicked best by a third effect alone.
+// mimicked best by a third effect alone. From round 2 on, the top candidates are refitted jointly
+// with every accepted effect (nothing frozen) and judged on that joint fit, N_eff measured again
+// on its residual; when the search stops, a forward-backward revisit drops an effect the others
+// make redundant or swaps it for one that gives a lower BIC (analysis/README.md, Selection).
 // Offline code: allocates, throws, and uses up to `threads` worker threads.
 #pragma once
 
@@ -68,6 +71,20 @@ struct Alternative {
   bool chosen = false;
 };
 
+// Correlation of two fitted parameters of different effects in the final joint fit. Near +-1 a
+// change of one can be largely undone by the other; the file cannot tell the two effects apart
+// when, in addition, the fit cannot pin them: a 1-sigma uncertainty above kUnpinnedShare of the
+// change from the model's value, or of the parameter's typical size when it hardly moved (a
+// correlation of 0.998 with both known to 1 % is separated).
+struct ParamCorrelation {
+  std::string effect_a, key_a, effect_b, key_b;
+  double rho = 0;
+  bool indistinguishable = false;
+};
+inline constexpr double kReportCorrelation = 0.5;              // listed from here on
+inline constexpr double kIndistinguishableCorrelation = 0.95;
+inline constexpr double kUnpinnedShare = 0.1;
+
 struct NotIdentifiable {
   std::string effect, reason;
 };
@@ -84,6 +101,8 @@ struct Diagnosis {
   bool at_noise_floor = false;          // the final model's RMSE is within 10 % of the noise
   std::string verdict;                  // explained | partly_explained | unexplained | nothing_missing
   std::vector<Alternative> paths;       // when the search followed several first choices
+  std::vector<std::string> revisions;   // choices the forward-backward revisit changed, in words
+  std::vector<ParamCorrelation> correlations;  // |rho| >= kReportCorrelation, between added effects
   std::vector<NotIdentifiable> not_identifiable;
   std::vector<std::string> summary;      // plain-language verdict
   ResidualReport before, after;

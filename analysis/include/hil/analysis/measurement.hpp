@@ -1,7 +1,9 @@
 // Measurement files (physics.md section 4): t_s, theta_cmd_deg, p_meas_mpa required; the motor
 // encoder theta_motor_deg and the reference p_ref_mpa optional; any other column is ignored.
 // Read through hil::CsvReader, so a missing column, a non-numeric cell or time going backwards
-// is a CsvError naming file:line:column. Values are converted to SI here, once.
+// is a CsvError naming file:line:column. Values are converted to SI here, once, and checked
+// against what a log of this rig can hold (MeasurementLimits), so that nonsense is refused by
+// file:line:column here instead of producing an overflow, a NaN metric or a hang further on.
 // Setup/offline code: allocates and throws.
 #pragma once
 
@@ -25,7 +27,28 @@ struct MeasurementRows {
   void append(const MeasurementRows& other);
 };
 
-// Streams a measurement file in chunks (bounded memory for hour-long files).
+// What a measurement file must satisfy beyond being numeric and in time order. Every bound is a
+// physical statement about the rig, not a tuning knob:
+//  - time: a gap between two rows of at most kMaxGapS (the replay crosses a gap open loop with the
+//    inputs held; longer than that it is two runs, not a dropout), and on average at least one row
+//    per kMaxMeanPeriodS from the first row to any row k: t(k) - t(0) <= kMaxGapS + k kMaxMeanPeriodS
+//    (the chamber's ~0.1 s dynamics must be sampled; this also bounds the replay's work at about
+//    two plant steps per row, whatever the time stamps say);
+//  - pressure within [kMinPressureMpa, kMaxPressureMpa] (a gauge reading a little below zero is an
+//    offset; above 100 MPa it is not this chamber), and not constant over the file (a reading that
+//    never moves carries no dynamics: a disconnected or saturated channel);
+//  - angles (command, encoder) within +-kMaxAngleDeg: the valve travels 0-30 deg.
+struct MeasurementLimits {
+  static constexpr double kMaxGapS = 5.0;
+  static constexpr double kMaxMeanPeriodS = 0.02;
+  static constexpr double kMinPressureMpa = -1.0, kMaxPressureMpa = 100.0;
+  static constexpr double kMinPressureSpreadPa = 1.0;  // max - min below this: constant
+  static constexpr double kMaxAngleDeg = 360.0;
+};
+
+// Streams a measurement file in chunks (bounded memory for hour-long files). Each row is checked
+// against MeasurementLimits as it is read; the whole-file checks (a constant pressure) run when
+// next() reaches the end of a file of at least kMinRows rows.
 class MeasurementReader {
  public:
   explicit MeasurementReader(const std::filesystem::path& file);
@@ -46,6 +69,13 @@ class MeasurementReader {
   CsvChunk chunk_;
   bool has_encoder_ = false, has_reference_ = false;
   std::size_t first_line_ = 0, rows_read_ = 0, first_data_line_ = 0;
+  // Running state of the checks.
+  double t_first_s_ = 0, t_last_s_ = 0;
+  double p_min_pa_ = 0, p_max_pa_ = 0;
+  std::size_t last_data_line_ = 0;
+  void check_rows(const CsvChunk& chunk);
+  void check_whole_file() const;
+  [[noreturn]] void fail_at(std::size_t line, const char* column, const std::string& what) const;
 };
 
 // A whole measurement in memory (diagnose, tests).

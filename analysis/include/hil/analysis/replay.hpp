@@ -48,13 +48,18 @@ class Replayer {
   // Prediction at row time t_s; cmd_held_rad: the command in force since the previous row;
   // motor_rad: the encoder at t_s (NaN: the motor model acts). Real-time safe.
   // A gap in the log (a dropout) is crossed in steps of at most kMaxStepS, the inputs held.
+  // A step that is not forward in time or longer than MeasurementLimits::kMaxGapS (which
+  // load_measurement and MeasurementReader refuse) yields NaN instead of a step count that
+  // overflows or a replay that runs for hours.
   double advance(double t_s, double cmd_held_rad, double motor_rad) noexcept {
-    const double dt = t_s - last_t_s_;
+    const double dt_s = t_s - last_t_s_;
     last_t_s_ = t_s;
-    const int n = dt > kMaxStepS ? static_cast<int>(std::ceil(dt / kMaxStepS)) : 1;
-    for (int i = 0; i < n; ++i) {
-      model_.step(state_, {cmd_held_rad, motor_rad, plant::kNaN}, dt / n);
-      burned_kg_ += state_.s.mdot_gen_kg_s * dt / n;
+    if (!(dt_s > 0 && dt_s <= MeasurementLimits::kMaxGapS)) return plant::kNaN;
+    const std::size_t n = dt_s > kMaxStepS ? static_cast<std::size_t>(std::ceil(dt_s / kMaxStepS)) : 1;
+    const double h_s = dt_s / static_cast<double>(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      model_.step(state_, {cmd_held_rad, motor_rad, plant::kNaN}, h_s);
+      burned_kg_ += state_.s.mdot_gen_kg_s * h_s;
     }
     return state_.s.p_meas_pa;
   }

@@ -101,6 +101,14 @@ struct ResidualReport {
   std::vector<TimeWindow> windows;       // in time order
   std::vector<std::size_t> worst;        // indices into windows, worst first
   std::vector<std::pair<double, double>> failing;  // merged failing spans [t0, t1]
+  // The residual's level against time: the run cut where the windows' RMS changes (change points,
+  // file time), each segment with its RMS. See residual_segments().
+  struct Segment {
+    double t0_s = 0, t1_s = 0, rmse_pa = 0;
+    bool at_floor = false;  // RMS within kSegmentFloorRatio of the noise
+  };
+  std::vector<Segment> segments;
+  std::vector<double> change_points_s;
   std::size_t reversals = 0;
   double motion_cycle_hz = 0;      // reversals / (2 * duration): the fundamental of the motion
   double reference_cycle_hz = 0;   // same for p_ref when present
@@ -147,6 +155,16 @@ inline bool at_noise_floor(double rmse_pa, double noise_sigma_pa) { return rmse_
 
 // Fit % of a residual: 100 (1 - sqrt(rss) / |y - mean(y)|).
 double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n);
+
+// Change points of the residual's level: binary segmentation of the time windows' mean square,
+// a cut kept when the RMS on its two sides differs by at least kChangeRmsRatio and each side
+// spans at least two windows (at most kMaxChangePoints cuts). A segment is at the noise floor
+// when its RMS is within kSegmentFloorRatio of sigma (short windows scatter more than the whole).
+// The signature says where in time the error lives when the segments at the floor make up at
+// least a quarter of the run ("confined to 12.2-18 s; before and after it is at the noise floor").
+inline constexpr double kChangeRmsRatio = 1.5;
+inline constexpr std::size_t kMaxChangePoints = 6;
+inline constexpr double kSegmentFloorRatio = 1.3;
 
 // Measurement noise from the measured pressure alone: 1.4826 * median|second difference| / sqrt(6)
 // (the second difference of white noise has variance 6 sigma^2; the median ignores transients).

