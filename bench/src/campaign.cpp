@@ -158,10 +158,23 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
     b.starts(body, from);
     double t = from;
     int dir = b.level() < (lo + hi) / 2 ? 1 : -1;
+    const bool alternate = directions == "alternate";
+    // Whether a level of [lo, hi) lies at least min_change from `level` (up: want > 0, down: < 0,
+    // either: 0). Levels are only drawn so that the move after them stays possible; a start level
+    // outside [lo, hi] (or, for random directions, in the middle of a narrow range) could leave
+    // none, and the draw below would never end.
+    auto can_move = [&](double level, int want) {
+      const bool up = hi - level > min_change, down = level - lo >= min_change;
+      return want > 0 ? up : want < 0 ? down : (up || down);
+    };
+    body.require(can_move(b.level(), alternate ? dir : 0),
+                 "no level within [min_mpa, max_mpa] is min_change_mpa away from the reference at from_s (" +
+                     std::to_string(b.level() / u) + " MPa)");
     while (true) {
       // A level at least min_change away; alternating: on the other side of the last move.
       double next = b.level();
-      while (std::abs(next - b.level()) < min_change || (directions == "alternate" && dir * (next - b.level()) < 0)) {
+      while (std::abs(next - b.level()) < min_change || (alternate && dir * (next - b.level()) < 0) ||
+             !can_move(next, alternate ? -dir : 0)) {
         next = lo + (hi - lo) * rng.uniform();
       }
       dir = -dir;

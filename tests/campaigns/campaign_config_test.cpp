@@ -188,6 +188,39 @@ TEST(CampaignProfiles, EveryItemKindBuildsTheScheduleItSays) {
   }
 }
 
+// A random item starting from a level outside [min_mpa, max_mpa] used to draw forever when its
+// first move landed where the next alternating move had no room (found by the config fuzz
+// target); a start with no possible move at all is refused naming the item.
+std::string random_campaign(double initial_mpa, const std::string& directions, double min_change, int seed) {
+  return "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
+         "\nduration_s: 200\nseed: " + std::to_string(seed) + "\nreference:\n  initial_mpa: " +
+         std::to_string(initial_mpa) + "\n  profile:\n    - random: {from_s: 1, min_mpa: 0.9, max_mpa: 1.6, min_change_mpa: " +
+         std::to_string(min_change) + ", dwell_s: [1, 2], directions: " + directions + "}\n" +
+         "runs:\n  - {name: a, compensation: none}\n";
+}
+
+TEST(CampaignProfiles, RandomItemFromOutsideItsRangeEnds) {
+  hil::test::TempDir dir;
+  for (int seed = 1; seed <= 40; ++seed) {
+    for (double initial : {0.5, 2.0}) {
+      const auto c = hil::bench::load_campaign_text(random_campaign(initial, "alternate", 0.3, seed), "r.yaml", dir.path());
+      // The first move (a ramp of at most 1 s from t = 1 s) enters the range; it never leaves it.
+      for (double t = 2.01; t < 200; t += 0.01) {
+        const double v = c.reference_pa.at(t);
+        ASSERT_TRUE(v >= 0.9e6 - 1 && v <= 1.6e6 + 1) << "seed " << seed << " from " << initial << " MPa, t " << t;
+      }
+    }
+  }
+  try {
+    (void)hil::bench::load_campaign_text(random_campaign(1.25, "random", 0.5, 1), "r.yaml", dir.path());
+    FAIL() << "a random item with no possible first move loaded";
+  } catch (const hil::cfg::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("r.yaml:"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("no level within [min_mpa, max_mpa] is min_change_mpa away"), std::string::npos) << msg;
+  }
+}
+
 TEST(CampaignProfiles, OverlappingItemsAreRefused) {
   hil::test::TempDir dir;
   const std::string yaml = "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
