@@ -5,6 +5,7 @@
 #include <fstream>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
@@ -351,9 +352,13 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     noise->require(noise->number() >= 0, "noise cannot be negative");
     const std::vector<double> v{noise->number()};
     const plant::Effect* sensor = truth.find("pressure_sensor");
-    truth = truth.with(sensor ? sensor->with_params(v)
-                              : plant::find_effect("pressure_sensor")
-                                    ->from_yaml(Node::load_string("noise_rms_kpa: " + noise->text(), "sensor_noise_kpa")));
+    try {
+      truth = truth.with(sensor ? sensor->with_params(v)
+                                : plant::find_effect("pressure_sensor")
+                                      ->from_yaml(Node::load_string("noise_rms_kpa: " + noise->text(), "sensor_noise_kpa")));
+    } catch (const std::invalid_argument& e) {  // the effect's own range check, e.g. above 10000 kPa
+      noise->fail(e.what());
+    }
   }
   c.sensor_noise_rms_pa = truth.find("pressure_sensor") ? truth.find("pressure_sensor")->params().at(0).value * kPaPerKpa : 0;
 

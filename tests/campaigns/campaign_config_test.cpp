@@ -82,6 +82,12 @@ TEST(CampaignConfig, GapCannotBeNegative) {
                "a gap cannot be negative");
 }
 
+// Above the sensor effect's own range: a located configuration error, not std::invalid_argument
+// from the effect (found by the config fuzz target).
+TEST(CampaignConfig, SensorNoiseAboveTheEffectsRange) {
+  expect_error(load_with("sensor_noise_kpa: 2.0", "sensor_noise_kpa: 6e16"), "sensor_noise_kpa", "must be in [0, 10000]");
+}
+
 TEST(CampaignConfig, ReferenceOutsideThePlantsReach) {
   expect_error(load_with("high_mpa: 1.5", "high_mpa: 3.5"), "reference.profile[0].square.high_mpa",
                "reference 3.5 MPa is outside what the plant reaches");
