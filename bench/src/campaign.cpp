@@ -5,6 +5,7 @@
 #include <fstream>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
@@ -158,10 +159,23 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
     b.starts(body, from);
     double t = from;
     int dir = b.level() < (lo + hi) / 2 ? 1 : -1;
+    const bool alternate = directions == "alternate";
+    // Whether a level of [lo, hi) lies at least min_change from `level` (up: want > 0, down: < 0,
+    // either: 0). Levels are only drawn so that the move after them stays possible; a start level
+    // outside [lo, hi] (or, for random directions, in the middle of a narrow range) could leave
+    // none, and the draw below would never end.
+    auto can_move = [&](double level, int want) {
+      const bool up = hi - level > min_change, down = level - lo >= min_change;
+      return want > 0 ? up : want < 0 ? down : (up || down);
+    };
+    body.require(can_move(b.level(), alternate ? dir : 0),
+                 "no level within [min_mpa, max_mpa] is min_change_mpa away from the reference at from_s (" +
+                     std::to_string(b.level() / u) + " MPa)");
     while (true) {
       // A level at least min_change away; alternating: on the other side of the last move.
       double next = b.level();
-      while (std::abs(next - b.level()) < min_change || (directions == "alternate" && dir * (next - b.level()) < 0)) {
+      while (std::abs(next - b.level()) < min_change || (alternate && dir * (next - b.level()) < 0) ||
+             !can_move(next, alternate ? -dir : 0)) {
         next = lo + (hi - lo) * rng.uniform();
       }
       dir = -dir;
@@ -364,9 +378,13 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     noise->require(noise->number() >= 0, "noise cannot be negative");
     const std::vector<double> v{noise->number()};
     const plant::Effect* sensor = truth.find("pressure_sensor");
-    truth = truth.with(sensor ? sensor->with_params(v)
-                              : plant::find_effect("pressure_sensor")
-                                    ->from_yaml(Node::load_string("noise_rms_kpa: " + noise->text(), "sensor_noise_kpa")));
+    try {
+      truth = truth.with(sensor ? sensor->with_params(v)
+                                : plant::find_effect("pressure_sensor")
+                                      ->from_yaml(Node::load_string("noise_rms_kpa: " + noise->text(), "sensor_noise_kpa")));
+    } catch (const std::invalid_argument& e) {  // the effect's own range check, e.g. above 10000 kPa
+      noise->fail(e.what());
+    }
   }
   c.sensor_noise_rms_pa = truth.find("pressure_sensor") ? truth.find("pressure_sensor")->params().at(0).value * kPaPerKpa : 0;
 

@@ -82,6 +82,12 @@ TEST(CampaignConfig, GapCannotBeNegative) {
                "a gap cannot be negative");
 }
 
+// Above the sensor effect's own range: a located configuration error, not std::invalid_argument
+// from the effect (found by the config fuzz target).
+TEST(CampaignConfig, SensorNoiseAboveTheEffectsRange) {
+  expect_error(load_with("sensor_noise_kpa: 2.0", "sensor_noise_kpa: 6e16"), "sensor_noise_kpa", "must be in [0, 10000]");
+}
+
 TEST(CampaignConfig, ReferenceOutsideThePlantsReach) {
   expect_error(load_with("high_mpa: 1.5", "high_mpa: 3.5"), "reference.profile[0].square.high_mpa",
                "reference 3.5 MPa is outside what the plant reaches");
@@ -185,6 +191,39 @@ TEST(CampaignProfiles, EveryItemKindBuildsTheScheduleItSays) {
   for (double t = 30; t < 60; t += 0.5) {
     const double deg = hil::units::rad_to_deg(g.at(t));
     ASSERT_TRUE(deg >= 0.5 - 1e-9 && deg <= 2.0 + 1e-9) << t;  // from 0.5 toward [0.8, 2.0]
+  }
+}
+
+// A random item starting from a level outside [min_mpa, max_mpa] used to draw forever when its
+// first move landed where the next alternating move had no room (found by the config fuzz
+// target); a start with no possible move at all is refused naming the item.
+std::string random_campaign(double initial_mpa, const std::string& directions, double min_change, int seed) {
+  return "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
+         "\nduration_s: 200\nseed: " + std::to_string(seed) + "\nreference:\n  initial_mpa: " +
+         std::to_string(initial_mpa) + "\n  profile:\n    - random: {from_s: 1, min_mpa: 0.9, max_mpa: 1.6, min_change_mpa: " +
+         std::to_string(min_change) + ", dwell_s: [1, 2], directions: " + directions + "}\n" +
+         "runs:\n  - {name: a, compensation: none}\n";
+}
+
+TEST(CampaignProfiles, RandomItemFromOutsideItsRangeEnds) {
+  hil::test::TempDir dir;
+  for (int seed = 1; seed <= 40; ++seed) {
+    for (double initial : {0.5, 2.0}) {
+      const auto c = hil::bench::load_campaign_text(random_campaign(initial, "alternate", 0.3, seed), "r.yaml", dir.path());
+      // The first move (a ramp of at most 1 s from t = 1 s) enters the range; it never leaves it.
+      for (double t = 2.01; t < 200; t += 0.01) {
+        const double v = c.reference_pa.at(t);
+        ASSERT_TRUE(v >= 0.9e6 - 1 && v <= 1.6e6 + 1) << "seed " << seed << " from " << initial << " MPa, t " << t;
+      }
+    }
+  }
+  try {
+    (void)hil::bench::load_campaign_text(random_campaign(1.25, "random", 0.5, 1), "r.yaml", dir.path());
+    FAIL() << "a random item with no possible first move loaded";
+  } catch (const hil::cfg::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("r.yaml:"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("no level within [min_mpa, max_mpa] is min_change_mpa away"), std::string::npos) << msg;
   }
 }
 
