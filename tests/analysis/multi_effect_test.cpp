@@ -123,7 +123,10 @@ std::vector<MultiCase> cases() {
   for (std::size_t i = 0; i < ones.size(); ++i)
     for (std::size_t j = i + 1; j < ones.size(); ++j) {
       const auto a = ones[i].apply, b = ones[j].apply;
-      add("pair_" + ones[i].tag + "_" + ones[j].tag, ++seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
+      // The profile's seed is the pair's seed before it is counted up (as the matrix was measured).
+      auto profile = reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5);
+      ++seed;
+      add("pair_" + ones[i].tag + "_" + ones[j].tag, seed, std::move(profile), false, 2.0,
           [a, b](const Plant& p) { return b(a(p)); }, {ones[i].truth, ones[j].truth}, true);
     }
   return out;
@@ -166,7 +169,9 @@ TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
   for (const auto& corr : d.at("parameter_correlations")) {
     std::printf("[ %s ] correlation %s ~ %s: %.3f\n", c.scenario.name.c_str(), corr.at("a").get<std::string>().c_str(),
                 corr.at("b").get<std::string>().c_str(), corr.at("rho").get<double>());
-    if (found == expected) EXPECT_FALSE(corr.at("indistinguishable").get<bool>()) << corr.dump();
+    if (found == expected) {
+      EXPECT_FALSE(corr.at("indistinguishable").get<bool>()) << corr.dump();
+    }
   }
   std::printf("[ %s ] fit %.2f -> %.2f %% (floor %.2f %%), verdict %s, %.1f s\n", c.scenario.name.c_str(),
               d.at("fit_before_pct").get<double>(), after, floor, d.at("verdict").get<std::string>().c_str(),
@@ -266,8 +271,12 @@ TEST(MultiEffect, ARoughLoggerStillGivesThePairAndNoSpuriousEffect) {
   std::sort(found.begin(), found.end());
   EXPECT_EQ(found, (std::vector<std::string>{"backlash_change", "sensor_lag"})) << why;
   for (const auto& a : d.at("added")) {
-    if (a.at("effect") == "backlash_change") EXPECT_NEAR(hil::test::param(a, "gap_deg"), 1.5, 0.15 * 1.5) << why;
-    if (a.at("effect") == "sensor_lag") EXPECT_NEAR(hil::test::param(a, "time_constant_s"), 0.025, 0.15 * 0.025) << why;
+    if (a.at("effect") == "backlash_change") {
+      EXPECT_NEAR(hil::test::param(a, "gap_deg"), 1.5, 0.15 * 1.5) << why;
+    }
+    if (a.at("effect") == "sensor_lag") {
+      EXPECT_NEAR(hil::test::param(a, "time_constant_s"), 0.025, 0.15 * 0.025) << why;
+    }
   }
   EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
   EXPECT_EQ(d.at("verdict"), "explained") << why;

@@ -117,7 +117,9 @@ TEST(RigCapabilities, SplitByWhatTheRigHas) {
     EXPECT_EQ(rig->read(Clock::now(), 1ms, rd), bench::RigStatus::fault);  // not configured: opens nothing before
     EXPECT_NE(rig->health().last_error_text().find("not configured"), std::string_view::npos);
   }
-  bench::CampaignRunner runner({.runs_dir = TempDir().path()});
+  bench::RunnerOptions ro;
+  ro.runs_dir = TempDir().path();
+  bench::CampaignRunner runner(std::move(ro));
   bench::StartRequest r;
   r.campaign = short_paper_campaign(1);
   r.rig = bench::load_rig_config(source_path("configs/rigs/hybrid.yaml"));
@@ -314,7 +316,9 @@ TEST(HybridRig, OperatorGapChangeMovesTheFlanksInLockstep) {
   const LockstepResult r = run_lockstep_hybrid(
       campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); }, rig_yaml("hybrid", can_drive_yaml(), "", o),
       bus.factory(), [](std::size_t k, bench::SpscRing<bench::LoopRequest>& requests) {
-        if (k == 500) ASSERT_TRUE(requests.try_push({.kind = bench::LoopRequest::Kind::set_gap, .value = units::deg_to_rad(2.5)}));
+        if (k == 500) {
+          ASSERT_TRUE(requests.try_push({.kind = bench::LoopRequest::Kind::set_gap, .value = units::deg_to_rad(2.5)}));
+        }
       });
   ASSERT_TRUE(r.error.empty()) << r.error;
   ASSERT_EQ(r.rows.size(), 4000u);

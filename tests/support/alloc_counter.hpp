@@ -40,6 +40,9 @@ inline void* allocate(std::size_t n, std::align_val_t al) noexcept {
   const std::size_t size = n ? (n + a - 1) / a * a : a;  // aligned_alloc wants a multiple of the alignment
   return std::aligned_alloc(a, size);
 }
+// Out of line on purpose: GCC 12 sees free() on a pointer from an operator new at an inlined
+// call site and warns (-Wmismatched-new-delete), not knowing that every new here is malloc.
+[[gnu::noinline]] inline void release(void* p) noexcept { std::free(p); }
 }  // namespace detail
 }  // namespace hil::test
 
@@ -72,15 +75,15 @@ void* operator new[](std::size_t n, std::align_val_t al, const std::nothrow_t&) 
 }
 
 // Every delete: all blocks above come from malloc or aligned_alloc, both released by free.
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete(void* p) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p) noexcept { hil::test::detail::release(p); }
+void operator delete(void* p, std::size_t) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p, std::size_t) noexcept { hil::test::detail::release(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { hil::test::detail::release(p); }
+void operator delete(void* p, std::align_val_t) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { hil::test::detail::release(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { hil::test::detail::release(p); }
+void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { hil::test::detail::release(p); }
+void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { hil::test::detail::release(p); }
