@@ -53,11 +53,18 @@ namespace {
 
 // yaml-cpp keeps the first of two equal keys and says nothing; a config whose author wrote a key
 // twice meant one of them, so it is refused. Also bounds the walk: aliases can make a small file
-// a huge tree ("billion laughs").
-void check_tree(const YAML::Node& node, const std::string& origin, std::size_t& visited) {
+// a huge tree ("billion laughs"), or a cycle (an anchor aliased inside itself: &x {c: *x}), which
+// every later reader would follow forever.
+constexpr int kMaxDepth = 64;
+void check_tree(const YAML::Node& node, const std::string& origin, std::size_t& visited, int depth = 0) {
   if (++visited > 1'000'000) throw Error(origin + ": more than a million YAML nodes (aliases?); refused");
+  if (depth > kMaxDepth) {
+    const YAML::Mark at = node.Mark();
+    throw Error(origin + ":" + std::to_string(at.line + 1) + ":" + std::to_string(at.column + 1) +
+                ": nested more than " + std::to_string(kMaxDepth) + " levels deep (an alias inside its own anchor?); refused");
+  }
   if (node.IsSequence()) {
-    for (const auto& item : node) check_tree(item, origin, visited);
+    for (const auto& item : node) check_tree(item, origin, visited, depth + 1);
   } else if (node.IsMap()) {
     std::vector<std::pair<std::string, YAML::Mark>> seen;
     for (const auto& kv : node) {
@@ -71,7 +78,8 @@ void check_tree(const YAML::Node& node, const std::string& origin, std::size_t& 
         }
         seen.emplace_back(key, kv.first.Mark());
       }
-      check_tree(kv.second, origin, visited);
+      check_tree(kv.first, origin, visited, depth + 1);  // a key may be a mapping too
+      check_tree(kv.second, origin, visited, depth + 1);
     }
   }
 }

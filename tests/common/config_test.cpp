@@ -95,3 +95,20 @@ TEST(Config, FolderOrMissingFileIsRefusedNamingIt) {
 }
 
 }  // namespace
+
+// An alias inside its own anchor makes a cycle that every reader would follow forever (found by
+// the config fuzz target as a stack overflow): refused with its place.
+TEST(Config, RecursiveAliasIsRefused) {
+  try {
+    (void)hil::cfg::Node::load_string("a: 1\nb: &x {c: *x}\n", "cycle.yaml");
+    FAIL() << "accepted";
+  } catch (const hil::cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cycle.yaml:2:"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("levels deep"), std::string::npos) << e.what();
+  }
+  // Deep but finite nesting within the limit still loads.
+  std::string deep = "v: ";
+  for (int i = 0; i < 30; ++i) deep += "[";
+  for (int i = 0; i < 30; ++i) deep += "]";
+  EXPECT_NO_THROW((void)hil::cfg::Node::load_string(deep, "deep.yaml"));
+}
