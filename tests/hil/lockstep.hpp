@@ -122,12 +122,19 @@ struct LockstepSide {
 // The CAN rig file for the lock-step chain: the transducer polled every 1 ms (the fastest the
 // client allows) so a new pressure is seen soon; the loop's own thread settings do not matter
 // (the harness is the loop thread).
-inline std::string lockstep_can_rig_yaml(const LockstepSide& s, const std::string& interface = "vcan0") {
+// The rig file's options in lock-step: the watchdog as on a quiet real-time host (no read is ever
+// missed), and no real-time scheduling (the harness is the loop thread).
+inline RigOptions lockstep_rig_options() {
   RigOptions o;
-  o.watchdog_misses = 3;  // as on a quiet real-time host: in lock-step no read is ever missed
+  o.watchdog_misses = 3;
   o.priority = 0;
   o.cpu = -1;
   o.io_priority = 0;
+  return o;
+}
+
+inline std::string lockstep_can_rig_yaml(const LockstepSide& s, const std::string& interface = "vcan0") {
+  const RigOptions o = lockstep_rig_options();
   const std::string transducer =
       "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(s.transducer.port()) +
       ", poll_period_ms: 1, response_timeout_ms: 1000, reconnect: {initial_ms: 20, max_ms: 200}},\n"
@@ -259,11 +266,7 @@ struct ModbusLockstepSide {
 };
 
 inline std::string lockstep_modbus_rig_yaml(const ModbusLockstepSide& s) {
-  RigOptions o;
-  o.watchdog_misses = 3;
-  o.priority = 0;
-  o.cpu = -1;
-  o.io_priority = 0;
+  const RigOptions o = lockstep_rig_options();
   const auto device = [](int port, const std::string& map) {
     return "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(port) +
            ", poll_period_ms: 1, response_timeout_ms: 1000, reconnect: {initial_ms: 20, max_ms: 200}},\n"

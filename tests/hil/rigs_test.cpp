@@ -272,11 +272,7 @@ TEST(HybridRig, ProgrammedGapChangeWithARealDriveMatchesTheSimulation) {
   drv::LoopbackBus bus;
   LockstepPlant motor(campaign);
   drv::Cia402DriveEmulator drive(drv::Cia402EmulatorConfig{"vcan0", kNode, kUnits}, motor, bus.factory());
-  RigOptions o;
-  o.watchdog_misses = 3;
-  o.priority = 0;
-  o.cpu = -1;
-  o.io_priority = 0;
+  RigOptions o = lockstep_rig_options();
   const LockstepResult r = run_lockstep_hybrid(campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
                                                rig_yaml("hybrid", can_drive_yaml(), "", o), bus.factory());
   ASSERT_TRUE(r.error.empty()) << r.error;
@@ -308,11 +304,7 @@ TEST(HybridRig, OperatorGapChangeMovesTheFlanksInLockstep) {
   drv::LoopbackBus bus;
   LockstepPlant motor(campaign);
   drv::Cia402DriveEmulator drive(drv::Cia402EmulatorConfig{"vcan0", kNode, kUnits}, motor, bus.factory());
-  RigOptions o;
-  o.watchdog_misses = 3;
-  o.priority = 0;
-  o.cpu = -1;
-  o.io_priority = 0;
+  RigOptions o = lockstep_rig_options();
   const LockstepResult r = run_lockstep_hybrid(
       campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); }, rig_yaml("hybrid", can_drive_yaml(), "", o),
       bus.factory(), [](std::size_t k, bench::SpscRing<bench::LoopRequest>& requests) {
@@ -381,11 +373,7 @@ TEST(HybridRig, ShapedTargetsKeepAFollowingErrorDriveOutOfFault) {
   drv::Cia402EmulatorConfig ecfg{"vcan0", kNode, kUnits};
   ecfg.following_error = true;
   drv::Cia402DriveEmulator drive(ecfg, motor, bus.factory());
-  RigOptions o;
-  o.watchdog_misses = 3;
-  o.priority = 0;
-  o.cpu = -1;
-  o.io_priority = 0;
+  RigOptions o = lockstep_rig_options();
   o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";
   const std::string limits = "{following_error_window_deg: 1, following_error_timeout_ms: 0}";
   const LockstepResult r = run_lockstep_hybrid(campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
