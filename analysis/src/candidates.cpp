@@ -40,9 +40,13 @@ double gap_of(const plant::Plant& base) {
 // motor has taken up the extra play, so the cost is roughly V-shaped around the true time, with
 // plateaus where the drive holds; the zoom search in diagnose finds its bottom.
 std::vector<double> step_times(const ReplayData& data) {
-  if (data.size() < 4) return {};
-  const double t0 = data.t_s.front(), span = data.t_s.back() - t0;
-  const double spacing = std::max(0.01, span / static_cast<double>(data.size() - 1));
+  // Model time counts from each file's first row; with several files the step time is one value
+  // for all of them (a grid over the longest file).
+  std::size_t rows = 0;
+  for (std::size_t i = 0; i < data.segments.size(); ++i) rows = std::max(rows, data.segment_end(i) - data.segment_begin(i));
+  if (rows < 4) return {};
+  const double span = data.longest_span_s();
+  const double spacing = std::max(0.01, span / static_cast<double>(rows - 1));
   std::vector<double> out;
   for (double t = spacing; t < span; t += spacing) out.push_back(t);
   return out;

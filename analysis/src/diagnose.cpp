@@ -563,28 +563,46 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
 }  // namespace
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const DiagnoseSettings& s) {
+  return diagnose(model, std::vector<const Measurement*>{&m}, s);
+}
+
+Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measurement*>& files, const DiagnoseSettings& s) {
+  if (files.empty()) throw std::invalid_argument("diagnose: no measurement file");
   const auto t_start = Clock::now();
   Diagnosis d;
-  d.rows = m.rows.size();
+  const Measurement& m = *files.front();
   d.has_encoder = m.has_encoder;
   const unsigned threads = s.threads ? s.threads : std::max(1u, std::min(2u, std::thread::hardware_concurrency()));
 
   const plant::Plant base0 = noise_free(model);
-  const ReplayData full = replay_data(m);
+  const ReplayData full = replay_data(files);
+  d.rows = full.size();
   const std::size_t dec = std::max<std::size_t>(1, (full.size() + s.coarse_rows - 1) / s.coarse_rows);
   const ReplayData coarse = decimate(full, dec);
   d.decimation = dec;
-  d.time_origin_s = full.start.t0_s;
+  d.time_origin_s = full.segments.front().start.t0_s;
 
-  d.before = compare_measurement(base0, m, s.keep_series);
-  d.noise_sigma_pa = d.before.noise_sigma_pa;
-  d.noise_floor_fit_pct = d.before.noise_floor_fit_pct;
+  // Each file compared on its own; the criterion's noise power and spread are pooled over them.
+  double noise_rss = 0, spread2 = 0, rss_before = 0;
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    FileFit f;
+    f.rows = files[i]->rows.size();
+    f.time_origin_s = full.segments[i].start.t0_s;
+    f.before = compare_measurement(base0, *files[i], s.keep_series);
+    const double n = static_cast<double>(f.rows);
+    noise_rss += n * f.before.noise_sigma_pa * f.before.noise_sigma_pa;
+    spread2 += n * f.before.y_spread_pa * f.before.y_spread_pa;
+    rss_before += n * f.before.error.rmse_pa * f.before.error.rmse_pa;
+    d.files.push_back(std::move(f));
+  }
+  d.before = d.files.front().before;
   const double N = static_cast<double>(full.size());
-  const Setup su{{full, dec > 1 ? coarse : full, threads},
-                 N * d.noise_sigma_pa * d.noise_sigma_pa,
-                 d.before.y_spread_pa,
-                 s.progress,
-                 t_start};
+  const double spread = std::sqrt(spread2 / N);
+  d.noise_sigma_pa = std::sqrt(noise_rss / N);
+  d.noise_floor_fit_pct = fit_percent(noise_rss, spread, full.size());
+  d.rmse_before_pa = std::sqrt(rss_before / N);
+  d.fit_before_pct = fit_percent(rss_before, spread, full.size());
+  const Setup su{{full, dec > 1 ? coarse : full, threads}, noise_rss, spread, s.progress, t_start};
 
   const std::vector<Candidate> all = candidates_for(base0, s.candidates);
   std::vector<const Candidate*> pool;
@@ -706,18 +724,38 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
       }
   }
   d.explained = !added.empty();
-  d.after = added.empty() ? d.before : compare_measurement(current, m, s.keep_series);
-  for (auto& c : d.added) c.fit_after_pct = d.after.fit_pct;
+  double rss_after = 0;
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    FileFit& f = d.files[i];
+    f.after = added.empty() ? f.before : compare_measurement(current, *files[i], s.keep_series);
+    rss_after += static_cast<double>(f.rows) * f.after.error.rmse_pa * f.after.error.rmse_pa;
+  }
+  d.after = d.files.front().after;
+  d.rmse_after_pa = std::sqrt(rss_after / N);
+  d.fit_after_pct = fit_percent(rss_after, spread, full.size());
+  for (auto& c : d.added) c.fit_after_pct = d.fit_after_pct;
   d.fitted = std::make_shared<const plant::Plant>(apply_added(model, added));
-  d.at_noise_floor = at_noise_floor(d.after.error.rmse_pa, d.noise_sigma_pa);
+  d.at_noise_floor = at_noise_floor(d.rmse_after_pa, d.noise_sigma_pa);
 
   // The verdict in words.
   auto& out = d.summary;
-  const std::string fit_line = "Fit " + text::fixed(d.before.fit_pct, 2) + " % -> " + text::fixed(d.after.fit_pct, 2) +
+  const std::string fit_line = "Fit " + text::fixed(d.fit_before_pct, 2) + " % -> " + text::fixed(d.fit_after_pct, 2) +
                                " % (noise floor " + text::fixed(d.noise_floor_fit_pct, 2) + " %); RMSE " +
-                               text::num(d.before.error.rmse_pa / units::kPaPerKpa, 3) + " -> " +
-                               text::num(d.after.error.rmse_pa / units::kPaPerKpa, 3) + " kPa (noise " +
-                               text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) + " kPa).";
+                               text::num(d.rmse_before_pa / units::kPaPerKpa, 3) + " -> " +
+                               text::num(d.rmse_after_pa / units::kPaPerKpa, 3) + " kPa (noise " +
+                               text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) + " kPa)" +
+                               (files.size() > 1 ? ", over all " + std::to_string(files.size()) + " files." : ".");
+  // Several files: say what was shared, and how each file ends.
+  auto per_file = [&](bool after) {
+    if (files.size() < 2) return;
+    std::string line = "Per file:";
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      const ResidualReport& r = after ? d.files[i].after : d.files[i].before;
+      line += (i ? "; " : " ") + std::string("file ") + std::to_string(i + 1) + " " + text::fixed(r.fit_pct, 2) +
+              " % (floor " + text::fixed(r.noise_floor_fit_pct, 2) + " %)";
+    }
+    out.push_back(line + ".");
+  };
   if (d.explained) {
     std::string list;
     for (const auto& c : d.added) {
@@ -726,7 +764,13 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
       list += (list.empty() ? "" : "; then ") + c.effect + " (" + c.variant + ": " + ps + ")";
     }
     out.push_back("Found: " + list + ".");
+    if (files.size() > 1) {
+      out.push_back("Fitted to " + std::to_string(files.size()) +
+                    " files of one rig together: every parameter above is shared by all of them; time-dependent ones "
+                    "(step times, erosion, drifts) count from each file's first row.");
+    }
     out.push_back(fit_line);
+    per_file(true);
     for (const auto& c : d.correlations) {
       if (!c.indistinguishable) continue;
       out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a +
@@ -739,21 +783,29 @@ Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const Diagno
       d.verdict = "explained";
     } else {
       d.verdict = "partly_explained";
+      std::string remains;
+      for (std::size_t i = 0; i < d.files.size(); ++i)
+        remains += (files.size() > 1 ? (i ? " File " : "File ") + std::to_string(i + 1) + ": " : std::string()) +
+                   text::join(d.files[i].after.signature, " ");
       out.push_back("Partly explained: each effect above earned its place, but the residual is still " +
-                    text::num(d.after.error.rmse_pa / d.noise_sigma_pa, 3) +
+                    text::num(d.rmse_after_pa / d.noise_sigma_pa, 3) +
                     " times the noise, so something else is missing, and the effects found may stand in for it. "
-                    "What remains: " + text::join(d.after.signature, " "));
+                    "What remains: " + remains);
     }
-  } else if (at_noise_floor(d.before.error.rmse_pa, d.noise_sigma_pa)) {
+  } else if (at_noise_floor(d.rmse_before_pa, d.noise_sigma_pa)) {
     d.verdict = "nothing_missing";
     d.at_noise_floor = true;
     out.push_back("Nothing is missing: the model fits at the noise floor and no candidate earns its place.");
     out.push_back(fit_line);
+    per_file(false);
   } else {
     d.verdict = "unexplained";
     out.push_back("No candidate explains the residual: none earns its place, so none is named. The missing effect is "
                   "something else; its signature:");
-    for (const auto& line : d.before.signature) out.push_back(line);
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      if (files.size() > 1) out.push_back("File " + std::to_string(i + 1) + ":");
+      for (const auto& line : d.files[i].before.signature) out.push_back(line);
+    }
   }
   d.wall_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   return d;

@@ -57,14 +57,39 @@ std::string params_text(const CandidateResult& c) {
   return s;
 }
 
+std::string files_text(const DataFiles& data_files) {
+  std::string s;
+  for (std::size_t i = 0; i < data_files.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == data_files.size() ? " and " : ", ") + data_files[i].string();
+  return s;
+}
+
 }  // namespace
 
-std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file,
-                           const std::filesystem::path& data_file) {
+std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files) {
   nlohmann::json j;
   j["command"] = "diagnose";
   j["model_file"] = model_file.string();
-  j["data_file"] = data_file.string();
+  j["data_file"] = data_files.empty() ? "" : data_files.front().string();
+  nlohmann::json files = nlohmann::json::array();
+  for (std::size_t i = 0; i < d.files.size(); ++i) {
+    const FileFit& f = d.files[i];
+    files.push_back({{"data_file", i < data_files.size() ? data_files[i].string() : ""},
+                     {"rows", f.rows},
+                     {"time_origin_s", f.time_origin_s},
+                     {"noise_sigma_kpa", number(f.before.noise_sigma_pa / kKpa)},
+                     {"noise_floor_fit_pct", number(f.before.noise_floor_fit_pct)},
+                     {"fit_before_pct", number(f.before.fit_pct)},
+                     {"fit_after_pct", number(f.after.fit_pct)},
+                     {"signature", d.explained ? f.after.signature : f.before.signature}});
+  }
+  j["files"] = files;
+  // Which fitted parameters the files share (all of them: one rig) and which are per file (none yet).
+  nlohmann::json shared = nlohmann::json::array();
+  for (const auto& c : d.added)
+    for (const auto& p : c.parameters) shared.push_back(p.effect + "." + p.key);
+  j["shared_parameters"] = shared;
+  j["per_file_parameters"] = nlohmann::json::array();
   j["rows"] = d.rows;
   j["encoder"] = d.has_encoder;
   j["time_origin_s"] = d.time_origin_s;  // the fitted model's t = 0 is this file time
@@ -74,8 +99,8 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["summary"] = d.summary;
   j["noise_sigma_kpa"] = number(d.noise_sigma_pa / kKpa);
   j["noise_floor_fit_pct"] = number(d.noise_floor_fit_pct);
-  j["fit_before_pct"] = number(d.before.fit_pct);
-  j["fit_after_pct"] = number(d.after.fit_pct);
+  j["fit_before_pct"] = number(d.fit_before_pct);
+  j["fit_after_pct"] = number(d.fit_after_pct);
   const double n_eff0 = d.rounds.empty() ? 0 : d.rounds.front().n_eff;
   nlohmann::json ranking = nlohmann::json::array();
   if (!d.rounds.empty())
@@ -111,7 +136,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   nlohmann::json ni = nlohmann::json::array();
   for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
   j["not_identifiable"] = ni;
-  j["signature"] = d.explained ? d.after.signature : d.before.signature;
+  j["signature"] = d.explained ? d.after.signature : d.before.signature;  // the first file's (files[i] has each)
   nlohmann::json peaks = nlohmann::json::array();
   for (const auto& p : (d.explained ? d.after : d.before).diagnostics.peaks)
     peaks.push_back({{"hz", p.hz}, {"power_share", p.power_share}, {"name", p.name}});
@@ -128,23 +153,27 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   return j.dump(2) + "\n";
 }
 
-std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file,
-                              const std::filesystem::path& data_file) {
-  std::string header = "Fitted by hilbench diagnose: " + model_file.string() + " against " + data_file.string() + ".\n";
+std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files) {
+  std::string header = "Fitted by hilbench diagnose: " + model_file.string() + " against " + files_text(data_files) + ".\n";
   if (d.added.empty()) {
     header += "No candidate effect earned its place: the model is unchanged.\n";
   } else {
     for (const auto& c : d.added) header += "Added " + c.effect + " (" + c.variant + "): " + params_text(c) + "\n";
   }
-  header += "Fit " + text::fixed(d.before.fit_pct, 2) + " % -> " + text::fixed(d.after.fit_pct, 2) + " % (noise floor " +
+  header += "Fit " + text::fixed(d.fit_before_pct, 2) + " % -> " + text::fixed(d.fit_after_pct, 2) + " % (noise floor " +
             text::fixed(d.noise_floor_fit_pct, 2) + " %).";
   return d.fitted->to_yaml(header);
 }
 
-void add_before_after(report::Document& doc, const Diagnosis& d) {
+namespace {
+
+// One file's before and after: table, overlay, residuals, error by regime. `group`: the plots
+// that zoom together (one group per file: the files have their own clocks).
+void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& f, const std::string& title,
+                      const std::string& group) {
   using report::Figure;
   using report::Series;
-  doc.heading("Before and after");
+  doc.heading(title);
   {
     auto row = [&](const std::string& name, const ResidualReport& r) {
       return std::vector<std::string>{name,
@@ -157,37 +186,37 @@ void add_before_after(report::Document& doc, const Diagnosis& d) {
     std::string after_name = "after";
     for (const auto& c : d.added) after_name += " + " + c.effect;
     doc.table({"model", "fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "bias [kPa]"},
-              {row("before (as given)", d.before), row(d.explained ? after_name : "after (unchanged)", d.after)});
+              {row("before (as given)", f.before), row(d.explained ? after_name : "after (unchanged)", f.after)});
   }
-  const auto& b = d.before.series;
-  const auto& a = d.after.series;
+  const auto& b = f.before.series;
+  const auto& a = f.after.series;
   std::vector<Series> overlay = {Series{.name = "measured", .x = b.measured_mpa.t_s, .y = b.measured_mpa.value, .color = "#1f77b4"},
                                  Series{.name = "model before", .x = b.model_mpa.t_s, .y = b.model_mpa.value, .color = "#d62728"}};
   if (d.explained)
     overlay.push_back(Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
   std::vector<report::Band> bands;
-  for (const auto& f : d.before.failing) bands.push_back({f.first, f.second, "model before fails", ""});
+  for (const auto& span : f.before.failing) bands.push_back({span.first, span.second, "model before fails", ""});
   // Change points of the residual before (where in time something changed), as in compare's report.
-  const double mark_s = 0.15 * d.before.window_width_s;
-  for (const double t : d.before.change_points_s)
+  const double mark_s = 0.15 * f.before.window_width_s;
+  for (const double t : f.before.change_points_s)
     bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
   doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
                     .x_label = "time [s]", .y_label = "pressure [MPa]", .series = overlay, .bands = bands,
-                    .group = "time", .height_px = 300});
+                    .group = group, .height_px = 300});
   std::vector<Series> residuals = {Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
   if (d.explained)
     residuals.push_back(Series{.name = "residual after", .x = a.residual_kpa.t_s, .y = a.residual_kpa.value, .color = "#2ca02c"});
-  const double s3 = 3 * d.noise_sigma_pa / kKpa;
+  const double s3 = 3 * f.before.noise_sigma_pa / kKpa;
   doc.figure(Figure{.title = "Residual before and after", .x_label = "time [s]", .y_label = "residual [kPa]",
                     .series = residuals, .bands = bands, .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
-                    .group = "time", .height_px = 240});
+                    .group = group, .height_px = 240});
   {
     report::Bars bars{.title = "RMS error by regime, before and after", .y_label = "RMS error [kPa]", .categories = {}, .groups = {}};
     std::vector<double> before, after;
-    for (std::size_t i = 0; i < d.before.regimes.size(); ++i) {
-      bars.categories.push_back(d.before.regimes[i].name);
-      before.push_back(d.before.regimes[i].error.rmse_pa / kKpa);
-      after.push_back(i < d.after.regimes.size() ? d.after.regimes[i].error.rmse_pa / kKpa : 0.0);
+    for (std::size_t i = 0; i < f.before.regimes.size(); ++i) {
+      bars.categories.push_back(f.before.regimes[i].name);
+      before.push_back(f.before.regimes[i].error.rmse_pa / kKpa);
+      after.push_back(i < f.after.regimes.size() ? f.after.regimes[i].error.rmse_pa / kKpa : 0.0);
     }
     bars.groups = {{"before", before}, {"after", after}};
     doc.bars(bars);
@@ -195,18 +224,42 @@ void add_before_after(report::Document& doc, const Diagnosis& d) {
 
 }
 
-void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
-                            const std::filesystem::path& data_file, const std::filesystem::path& html) {
-  using report::Figure;
-  using report::Series;
-  report::Document doc("Diagnosis: " + data_file.filename().string());
-  doc.paragraph("Model " + model_file.string() + " against " + data_file.string() + " (" + std::to_string(d.rows) +
+}  // namespace
+
+void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files,
+                            const std::filesystem::path& html) {
+  const bool several = d.files.size() > 1;
+  const std::string first = data_files.empty() ? std::string("data") : data_files.front().filename().string();
+  report::Document doc("Diagnosis: " + first + (several ? " and " + std::to_string(d.files.size() - 1) + " more" : ""));
+  doc.paragraph("Model " + model_file.string() + " against " + files_text(data_files) + " (" + std::to_string(d.rows) +
                 " rows, " + (d.has_encoder ? "motor encoder replayed" : "no encoder") + "). Each candidate effect was " +
                 "fitted to the data and ranked by an information criterion; the best one that earns its place is added " +
-                "and the search repeats.");
+                "and the search repeats." +
+                (several ? " The files are fitted together, as runs of one rig: every parameter is shared by all of them "
+                           "(time-dependent ones count from each file's first row)."
+                         : ""));
   doc.note(text::join(d.summary, " "), d.verdict != "explained" && d.verdict != "nothing_missing");
 
-  if (d.explained) add_before_after(doc, d);
+  if (several) {
+    std::vector<std::vector<std::string>> rows;
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      const FileFit& f = d.files[i];
+      rows.push_back({std::to_string(i + 1), i < data_files.size() ? data_files[i].string() : "", std::to_string(f.rows),
+                      text::num(f.before.noise_sigma_pa / kKpa, 3), text::fixed(f.before.noise_floor_fit_pct, 2),
+                      text::fixed(f.before.fit_pct, 2), text::fixed(f.after.fit_pct, 2)});
+    }
+    rows.push_back({"all", "", std::to_string(d.rows), text::num(d.noise_sigma_pa / kKpa, 3),
+                    text::fixed(d.noise_floor_fit_pct, 2), text::fixed(d.fit_before_pct, 2), text::fixed(d.fit_after_pct, 2)});
+    doc.heading("Files", 3);
+    doc.table({"file", "path", "rows", "noise [kPa]", "noise floor [%]", "fit before [%]", "fit after [%]"}, rows);
+  }
+  if (d.explained) {
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      const std::string name = i < data_files.size() ? data_files[i].filename().string() : std::to_string(i + 1);
+      add_before_after(doc, d, d.files[i], several ? "Before and after: file " + std::to_string(i + 1) + ", " + name : "Before and after",
+                       several ? "time" + std::to_string(i + 1) : "time");
+    }
+  }
 
   for (std::size_t ri = 0; ri < d.rounds.size(); ++ri) {
     const Round& r = d.rounds[ri];
@@ -255,25 +308,41 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
     doc.heading("Not identifiable from this file", 3);
     doc.table({"effect", "why"}, rows);
   }
-  doc.heading(d.explained ? "Where the fitted model still differs" : "Where the model fails (the residual's signature)");
-  const ResidualReport& last = d.explained ? d.after : d.before;
-  doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
-  add_residual_sections(doc, last, "time", d.explained ? "model after" : "model");
+  for (std::size_t i = 0; i < d.files.size(); ++i) {
+    const std::string which = several ? ": file " + std::to_string(i + 1) : "";
+    doc.heading((d.explained ? "Where the fitted model still differs" : "Where the model fails (the residual's signature)") + which);
+    const ResidualReport& last = d.explained ? d.files[i].after : d.files[i].before;
+    doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
+    add_residual_sections(doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model");
+  }
   doc.write(html);
 }
 
 Diagnosis run_diagnose(const DiagnoseOptions& o) {
+  if (o.data_files.empty()) throw std::invalid_argument("diagnose: no measurement file given");
   const plant::Plant model = plant::Plant::load(o.model_file);
-  const Measurement m = load_measurement(o.data_file);
+  std::vector<Measurement> data;
+  data.reserve(o.data_files.size());
+  for (const auto& f : o.data_files) {
+    data.push_back(load_measurement(f));
+    if (data.back().has_encoder != data.front().has_encoder) {
+      throw std::invalid_argument(f.string() + ": " + (data.back().has_encoder ? "has" : "has no") +
+                                  " theta_motor_deg column, but " + o.data_files.front().string() + " " +
+                                  (data.front().has_encoder ? "has one" : "has none") +
+                                  ": files diagnosed together are replayed the same way (all with the encoder or all without)");
+    }
+  }
+  std::vector<const Measurement*> files;
+  for (const auto& m : data) files.push_back(&m);
   DiagnoseSettings s = o.settings;
   s.progress = s.progress || !o.quiet;
-  const Diagnosis d = diagnose(model, m, s);
+  const Diagnosis d = diagnose(model, files, s);
   std::filesystem::create_directories(o.out_dir);
-  detail::write_text(o.out_dir / "diagnosis.json", diagnosis_json(d, o.model_file, o.data_file));
-  write_diagnosis_report(d, o.model_file, o.data_file, o.out_dir / "report.html");
+  detail::write_text(o.out_dir / "diagnosis.json", diagnosis_json(d, o.model_file, o.data_files));
+  write_diagnosis_report(d, o.model_file, o.data_files, o.out_dir / "report.html");
   if (!o.write_model.empty()) {
     if (o.write_model.has_parent_path()) std::filesystem::create_directories(o.write_model.parent_path());
-    detail::write_text(o.write_model, fitted_model_yaml(d, o.model_file, o.data_file));
+    detail::write_text(o.write_model, fitted_model_yaml(d, o.model_file, o.data_files));
   }
   if (!o.quiet) {
     for (const auto& line : d.summary) std::printf("%s\n", line.c_str());

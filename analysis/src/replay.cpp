@@ -32,61 +32,88 @@ double Replayer::start(const ReplayStart& s) {
   return state_.s.p_meas_pa;
 }
 
-ReplayData replay_data(const Measurement& m) {
+double ReplayData::longest_span_s() const {
+  double span = 0;
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const std::size_t b = segment_begin(i), e = segment_end(i);
+    if (e > b) span = std::max(span, t_s[e - 1] - t_s[b]);
+  }
+  return span;
+}
+
+ReplayData replay_data(const Measurement& m) { return replay_data(std::vector<const Measurement*>{&m}); }
+
+ReplayData replay_data(const std::vector<const Measurement*>& files) {
+  if (files.empty()) throw std::invalid_argument("replay_data: no file");
   ReplayData d;
-  const auto& r = m.rows;
-  d.t_s = r.t_s;
-  d.y_pa = r.p_meas_pa;
-  d.cmd_held_rad.resize(r.size());
-  for (std::size_t k = 1; k < r.size(); ++k) d.cmd_held_rad[k] = r.theta_cmd_rad[k - 1];
-  if (!r.theta_cmd_rad.empty()) d.cmd_held_rad[0] = r.theta_cmd_rad[0];
-  d.motor_rad = r.theta_motor_rad;
-  d.start = estimate_start(r);
+  d.segments.clear();
+  const bool enc = !files.front()->rows.theta_motor_rad.empty();
+  for (const Measurement* m : files) {
+    const auto& r = m->rows;
+    if (r.size() == 0) throw std::invalid_argument("replay_data: a file without rows");
+    if (r.theta_motor_rad.empty() == enc)
+      throw std::invalid_argument("replay_data: files with and without the encoder column cannot be replayed together");
+    const std::size_t b = d.size();
+    d.segments.push_back({b, estimate_start(r)});
+    d.t_s.insert(d.t_s.end(), r.t_s.begin(), r.t_s.end());
+    d.y_pa.insert(d.y_pa.end(), r.p_meas_pa.begin(), r.p_meas_pa.end());
+    d.motor_rad.insert(d.motor_rad.end(), r.theta_motor_rad.begin(), r.theta_motor_rad.end());
+    d.cmd_held_rad.push_back(r.theta_cmd_rad[0]);
+    for (std::size_t k = 1; k < r.size(); ++k) d.cmd_held_rad.push_back(r.theta_cmd_rad[k - 1]);
+  }
   return d;
 }
 
 ReplayData decimate(const ReplayData& full, std::size_t m) {
   if (m <= 1) return full;
   ReplayData d;
-  d.start = full.start;
+  d.segments.clear();
   d.decimation = full.decimation * m;
-  const std::size_t n = full.size();
   const bool enc = !full.motor_rad.empty();
-  for (std::size_t k = 0; k < n; k += m) {
-    d.t_s.push_back(full.t_s[k]);
-    d.y_pa.push_back(full.y_pa[k]);
-    if (enc) d.motor_rad.push_back(full.motor_rad[k]);
-    if (k == 0) {
-      d.cmd_held_rad.push_back(full.cmd_held_rad[0]);
-      continue;
+  for (std::size_t i = 0; i < full.segments.size(); ++i) {
+    const std::size_t b = full.segment_begin(i), n = full.segment_end(i);
+    d.segments.push_back({d.size(), full.segments[i].start});
+    for (std::size_t k = b; k < n; k += m) {
+      d.t_s.push_back(full.t_s[k]);
+      d.y_pa.push_back(full.y_pa[k]);
+      if (enc) d.motor_rad.push_back(full.motor_rad[k]);
+      if (k == b) {
+        d.cmd_held_rad.push_back(full.cmd_held_rad[b]);
+        continue;
+      }
+      // Time-weighted mean of the commands held over (t[k-m], t[k]].
+      double sum = 0, span = 0;
+      for (std::size_t j = k - m + 1; j <= k; ++j) {
+        const double dt = full.t_s[j] - full.t_s[j - 1];
+        sum += full.cmd_held_rad[j] * dt;
+        span += dt;
+      }
+      d.cmd_held_rad.push_back(sum / span);
     }
-    // Time-weighted mean of the commands held over (t[k-m], t[k]].
-    double sum = 0, span = 0;
-    for (std::size_t j = k - m + 1; j <= k; ++j) {
-      const double dt = full.t_s[j] - full.t_s[j - 1];
-      sum += full.cmd_held_rad[j] * dt;
-      span += dt;
-    }
-    d.cmd_held_rad.push_back(sum / span);
   }
   return d;
 }
 
 bool replay(const plant::Plant& model, const ReplayData& data, std::span<double> yhat) {
-  Replayer r(model);
-  try {
-    yhat[0] = r.start(data.start);
-  } catch (const std::out_of_range&) {
-    return false;
-  }
   const bool enc = !data.motor_rad.empty();
-  for (std::size_t k = 1; k < data.size(); ++k) {
-    yhat[k] = r.advance(data.t_s[k], data.cmd_held_rad[k], enc ? data.motor_rad[k] : plant::kNaN);
+  for (std::size_t i = 0; i < data.segments.size(); ++i) {
+    const std::size_t b = data.segment_begin(i), e = data.segment_end(i);
+    if (e <= b) continue;
+    Replayer r(model);
+    try {
+      yhat[b] = r.start(data.segments[i].start);
+    } catch (const std::out_of_range&) {
+      return false;
+    }
+    for (std::size_t k = b + 1; k < e; ++k) {
+      yhat[k] = r.advance(data.t_s[k], data.cmd_held_rad[k], enc ? data.motor_rad[k] : plant::kNaN);
+    }
+    for (std::size_t k = b; k < e; k += 97) {
+      if (!std::isfinite(yhat[k])) return false;
+    }
+    if (!std::isfinite(yhat[e - 1])) return false;
   }
-  for (std::size_t k = 0; k < data.size(); k += 97) {
-    if (!std::isfinite(yhat[k])) return false;
-  }
-  return std::isfinite(yhat[data.size() - 1]);
+  return true;
 }
 
 }  // namespace hil::analysis

@@ -1,4 +1,4 @@
-// hilbench diagnose --model MODEL.yaml --data FILE.csv [--out DIR] [--write-model FITTED.yaml]
+// hilbench diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]
 //                   [--candidates a,b] [--threads N] [--quiet]
 #include <sstream>
 
@@ -9,14 +9,14 @@
 namespace hil::bench {
 
 int cmd_diagnose(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"model", "data", "out", "write-model", "candidates", "threads"}, {"quiet"});
+  const Args args = parse_args(argv, {"model", "data", "out", "write-model", "candidates", "threads"}, {"quiet"}, {"data"});
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional[0] + "'");
   if (!args.options.count("model")) throw UsageError("--model MODEL.yaml is required");
   if (!args.options.count("data")) throw UsageError("--data FILE.csv is required");
   analysis::DiagnoseOptions o;
   o.model_file = args.option("model", "");
-  o.data_file = args.option("data", "");
-  o.out_dir = args.option("out", "out/diagnose-" + o.data_file.stem().string());
+  for (const auto& f : args.repeated.at("data")) o.data_files.emplace_back(f);
+  o.out_dir = args.option("out", "out/diagnose-" + o.data_files.front().stem().string());
   o.write_model = args.option("write-model", "");
   o.quiet = args.has("quiet");
   std::stringstream names(args.option("candidates", ""));

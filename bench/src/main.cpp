@@ -33,9 +33,10 @@ const Command kCommands[] = {
      "compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]\n"
      "      replay a measurement through a model and show where the model fails"},
     {"diagnose", hil::bench::cmd_diagnose,
-     "diagnose --model MODEL.yaml --data FILE.csv [--out DIR] [--write-model FITTED.yaml] [--candidates a,b]\n"
-     "         [--threads N] [--quiet]\n"
-     "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place"},
+     "diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]\n"
+     "         [--candidates a,b] [--threads N] [--quiet]\n"
+     "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place;\n"
+     "      several --data files (runs of one rig) are fitted together with shared parameters"},
     {"plant", hil::bench::cmd_plant,
      "plant [--plant FILE | --campaign CAMPAIGN.yaml] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml]\n"
      "      [--period-ms 1] [--initial-mpa 1.0] [--duration-s S] [--rt-priority P] [--port-file F]\n"

@@ -95,7 +95,7 @@ void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& na
   t0 = Clock::now();
   hil::analysis::DiagnoseOptions o;
   o.model_file = kNominal;
-  o.data_file = file;
+  o.data_files = {file};
   o.out_dir = dir / ("diagnose-" + name);
   o.quiet = true;
   o.settings.threads = threads;

@@ -90,18 +90,31 @@ std::filesystem::path make_measurement(const Scenario& s, const std::filesystem:
   return file;
 }
 
+std::function<double(double)> command_triangle(double lo_deg, double hi_deg, double speed_deg_s, double dwell_s) {
+  const double move_s = (hi_deg - lo_deg) / speed_deg_s;
+  const double period_s = 2 * (move_s + dwell_s);
+  return [=](double t) {
+    const double ph = std::fmod(t, period_s);
+    if (ph < dwell_s) return lo_deg;
+    if (ph < dwell_s + move_s) return lo_deg + speed_deg_s * (ph - dwell_s);
+    if (ph < 2 * dwell_s + move_s) return hi_deg;
+    return hi_deg - speed_deg_s * (ph - 2 * dwell_s - move_s);
+  };
+}
+
 std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path& dir) {
   const plant::Plant nominal = plant::Plant::load(nominal_model());
   plant::Plant truth = s.truth(with_param(nominal, "pressure_sensor", "noise_rms_kpa", s.noise_kpa));
   plant::PlantState st = truth.make_state(s.seed);
   plant::Rng jitter(s.seed + 1);
-  // Command: 11 deg (about 1 MPa) with steps every 2.7 s, ramps, and a slow sine on top.
-  auto command_deg = [](double t) {
+  // Default command: 11 deg (about 1 MPa) with steps every 2.7 s, ramps, and a slow sine on top.
+  auto default_command_deg = [](double t) {
     const double steps[] = {11.0, 8.0, 13.0, 9.5, 6.5, 12.0, 10.0};
     const double base = steps[static_cast<int>(t / 2.7) % 7];
     const double ramp = std::fmod(t, 9.0) < 1.5 ? 0.8 * std::fmod(t, 9.0) : 0.0;
     return base + ramp + 0.6 * std::sin(2 * 3.141592653589793 * 0.13 * t);
   };
+  const std::function<double(double)> command_deg = s.command_deg ? s.command_deg : default_command_deg;
   // Logging starts in a steady state: the motor at the first command, the valve on a flank.
   truth.settle_nearest(st, 0.0, units::deg_to_rad(command_deg(0)), s.t0_s);
   const auto file = dir / (s.name + ".csv");

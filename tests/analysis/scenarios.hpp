@@ -54,7 +54,11 @@ struct LabLog {
   double noise_kpa = 3.0;
   bool encoder = false;
   std::function<plant::Plant(const plant::Plant&)> truth = [](const plant::Plant& p) { return p; };
+  // The command [deg] against time since the first row; empty: the steps, ramps and sine above.
+  std::function<double(double)> command_deg = {};
 };
+// A command that moves between lo_deg and hi_deg at speed_deg_s and dwells dwell_s at each end.
+std::function<double(double)> command_triangle(double lo_deg, double hi_deg, double speed_deg_s, double dwell_s);
 std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path& dir);
 
 }  // namespace hil::test

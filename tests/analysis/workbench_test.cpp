@@ -424,6 +424,49 @@ TEST(Replay, DecimationKeepsTheCommandIntegral) {
   EXPECT_EQ(c.size(), 26u);
 }
 
+// Several files of one rig: each segment is replayed from its own start on its own clock, exactly
+// as the file alone (diagnose --data a --data b).
+TEST(Replay, SegmentsReplayAsTheirFilesAlone) {
+  hil::test::TempDir dir;
+  std::vector<hil::analysis::Measurement> files;
+  for (int i = 0; i < 2; ++i) {
+    hil::test::LabLog log;
+    log.name = "seg" + std::to_string(i);
+    log.t0_s = 50.0 + 400.0 * i;  // other clocks: the model's time starts at each file's first row
+    log.duration_s = 3;
+    log.seed = 31 + static_cast<std::uint64_t>(i);
+    log.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "throat_erosion", "rate_mm2_per_s: 2"); };
+    files.push_back(hil::analysis::load_measurement(hil::test::make_lab_log(log, dir.path())));
+  }
+  // Erosion is time-dependent: a model whose clock ran on across the files would differ.
+  const auto model = hil::analysis::noise_free(hil::test::with_block(nominal(), "throat_erosion", "rate_mm2_per_s: 2"));
+  const auto both = hil::analysis::replay_data({&files[0], &files[1]});
+  ASSERT_EQ(both.segments.size(), 2u);
+  ASSERT_EQ(both.size(), files[0].rows.size() + files[1].rows.size());
+  std::vector<double> yhat(both.size());
+  ASSERT_TRUE(hil::analysis::replay(model, both, yhat));
+  std::size_t at = 0;
+  for (const auto& f : files) {
+    const auto one = hil::analysis::replay_data(f);
+    std::vector<double> alone(one.size());
+    ASSERT_TRUE(hil::analysis::replay(model, one, alone));
+    for (std::size_t k = 0; k < alone.size(); ++k) ASSERT_EQ(yhat[at + k], alone[k]) << "row " << k;
+    at += alone.size();
+  }
+  // Decimated, each segment keeps its first row and its start.
+  const auto c = hil::analysis::decimate(both, 7);
+  ASSERT_EQ(c.segments.size(), 2u);
+  EXPECT_EQ(c.t_s[c.segment_begin(1)], files[1].rows.t_s[0]);
+  EXPECT_EQ(c.segments[1].start.t0_s, files[1].rows.t_s[0]);
+  // Files with and without the encoder are not replayed together.
+  hil::test::LabLog enc;
+  enc.name = "enc";
+  enc.duration_s = 1;
+  enc.encoder = true;
+  const auto with_encoder = hil::analysis::load_measurement(hil::test::make_lab_log(enc, dir.path()));
+  EXPECT_THROW(hil::analysis::replay_data({&files[0], &with_encoder}), std::invalid_argument);
+}
+
 // Writes and runs a small campaign with `hilbench sim`'s code path; returns the run's telemetry.
 fs::path sim_telemetry(const fs::path& dir, const std::string& plant_file, double duration_s) {
   const std::string yaml = "name: roundtrip\nplant: " + plant_file + "\nduration_s: " + std::to_string(duration_s) +
@@ -561,6 +604,41 @@ TEST(CommandLine, DiagnoseRefusesNonsenseFilesWithTheirPlace) {
     EXPECT_NE(r.out.find(file.string() + what), std::string::npos) << r.out;
     EXPECT_EQ(r.out.find("explained"), std::string::npos) << r.out;
   }
+}
+
+// diagnose --data a --data b: files of one rig together; an option given twice by mistake, or files
+// that cannot be replayed the same way, are refused with what is wrong.
+TEST(CommandLine, DiagnoseTakesSeveralFilesOfOneRig) {
+  hil::test::TempDir dir;
+  const std::string model = hil::test::nominal_model().string(), out = (dir.path() / "d").string();
+  std::vector<std::string> files;
+  for (int i = 0; i < 2; ++i) {
+    hil::test::LabLog log;
+    log.name = "rig" + std::to_string(i);
+    log.duration_s = 4;
+    log.seed = 41 + static_cast<std::uint64_t>(i);
+    log.noise_kpa = 2;
+    files.push_back(hil::test::make_lab_log(log, dir.path()).string());
+  }
+  CliRun r = hilbench("diagnose --model " + model + " --data " + files[0] + " --data " + files[1] + " --out " + out + " --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto d = hil::test::read_json(dir.path() / "d/diagnosis.json");
+  EXPECT_EQ(d.at("verdict"), "nothing_missing");
+  ASSERT_EQ(d.at("files").size(), 2u);
+  EXPECT_EQ(d.at("files")[1].at("data_file"), files[1]);
+  EXPECT_EQ(d.at("rows").get<std::size_t>(),
+            d.at("files")[0].at("rows").get<std::size_t>() + d.at("files")[1].at("rows").get<std::size_t>());
+  r = hilbench("diagnose --model " + model + " --data " + files[0] + " --out a --out b");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("option --out given twice ('a' and 'b')"), std::string::npos) << r.out;
+  hil::test::LabLog enc;
+  enc.name = "with_encoder";
+  enc.duration_s = 2;
+  enc.encoder = true;
+  const std::string encoder_file = hil::test::make_lab_log(enc, dir.path()).string();
+  r = hilbench("diagnose --model " + model + " --data " + files[0] + " --data " + encoder_file + " --out " + out);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(encoder_file + ": has theta_motor_deg column, but " + files[0] + " has none"), std::string::npos) << r.out;
 }
 
 TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {

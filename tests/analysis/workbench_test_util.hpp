@@ -22,17 +22,23 @@ inline nlohmann::json read_json(const std::filesystem::path& file) {
   return nlohmann::json::parse(in);
 }
 
-// Runs `diagnose` (quiet) on `data` against `model`; returns diagnosis.json.
-inline nlohmann::json run_diagnose(const std::filesystem::path& model, const std::filesystem::path& data,
+// Runs `diagnose` (quiet) on `data` (one file or several of one rig) against `model`; returns
+// diagnosis.json.
+inline nlohmann::json run_diagnose(const std::filesystem::path& model, const analysis::DataFiles& data,
                                    const std::filesystem::path& out, const std::filesystem::path& write_model = {}) {
   analysis::DiagnoseOptions o;
   o.model_file = model;
-  o.data_file = data;
+  o.data_files = data;
   o.out_dir = out;
   o.write_model = write_model;
   o.quiet = true;
   analysis::run_diagnose(o);
   return read_json(out / "diagnosis.json");
+}
+
+inline nlohmann::json run_diagnose(const std::filesystem::path& model, const std::filesystem::path& data,
+                                   const std::filesystem::path& out, const std::filesystem::path& write_model = {}) {
+  return run_diagnose(model, analysis::DataFiles{data}, out, write_model);
 }
 
 inline nlohmann::json run_compare(const std::filesystem::path& model, const std::filesystem::path& data,
@@ -50,6 +56,13 @@ inline nlohmann::json run_compare(const std::filesystem::path& model, const std:
 inline double param(const nlohmann::json& candidate, const std::string& key) {
   for (const auto& p : candidate.at("parameters"))
     if (p.at("key") == key) return p.at("value").is_null() ? NAN : p.at("value").get<double>();
+  return NAN;
+}
+
+// The fitted value of `key` of the added effect `effect` in diagnosis.json (NaN when not added).
+inline double added_param(const nlohmann::json& d, const std::string& effect, const std::string& key) {
+  for (const auto& c : d.at("added"))
+    if (c.at("effect") == effect) return param(c, key);
   return NAN;
 }
 

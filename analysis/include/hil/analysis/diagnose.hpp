@@ -89,12 +89,26 @@ struct NotIdentifiable {
   std::string effect, reason;
 };
 
-struct Diagnosis {
+// One measurement file of a diagnosis (several: diagnose --data a --data b, files of one rig).
+struct FileFit {
   std::size_t rows = 0;
+  double time_origin_s = 0;              // file time of its row 0: the fitted model's t = 0 for it
+  ResidualReport before, after;
+};
+
+struct Diagnosis {
+  std::size_t rows = 0;                  // all files together
   bool has_encoder = false;
   std::size_t decimation = 1;            // rows per row of the copy the coarse fits ran on
   double time_origin_s = 0;              // file time of row 0: the fitted model's t = 0 (replay.hpp)
+  // Over all files (one file: equal to before/after): the noise is the files' pooled sigma
+  // (N sigma^2 = sum of N_i sigma_i^2), the spread pooled about each file's own mean.
   double noise_sigma_pa = 0, noise_floor_fit_pct = 0;
+  double fit_before_pct = 0, fit_after_pct = 0, rmse_before_pa = 0, rmse_after_pa = 0;
+  // Every file's own comparison; `before` and `after` below are the first file's. With several
+  // files every fitted parameter is shared by all of them (one rig): a gap, an offset, a lag, a
+  // rate; time-dependent ones (a step time, erosion, a drift) count from each file's first row.
+  std::vector<FileFit> files;
   std::vector<Round> rounds;
   std::vector<CandidateResult> added;    // in the order found, values after the joint refit
   bool explained = false;               // at least one effect earned its place
@@ -121,17 +135,22 @@ struct DiagnoseSettings {
 };
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& data, const DiagnoseSettings& settings = {});
+// Several files of one rig at once: one set of parameters fitted to all of them, so that what one
+// run cannot separate, several runs with other motion can. All with the encoder column or all
+// without (std::invalid_argument otherwise).
+Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measurement*>& files,
+                   const DiagnoseSettings& settings = {});
 
-std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file,
-                           const std::filesystem::path& data_file);
-void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file,
-                            const std::filesystem::path& data_file, const std::filesystem::path& html);
+using DataFiles = std::vector<std::filesystem::path>;
+std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files);
+void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files,
+                            const std::filesystem::path& html);
 // The fitted model as YAML, with a header naming what was added.
-std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file,
-                              const std::filesystem::path& data_file);
+std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files);
 
 struct DiagnoseOptions {
-  std::filesystem::path model_file, data_file, out_dir, write_model;  // write_model empty: none
+  std::filesystem::path model_file, out_dir, write_model;  // write_model empty: none
+  DataFiles data_files;                                    // one or more (see diagnose above)
   DiagnoseSettings settings;
   bool quiet = false;
 };

@@ -77,24 +77,39 @@ class Replayer {
 };
 
 // A whole series prepared for repeated replays (fitting): inputs in "held" form so that a
-// decimated copy replays with the same code.
+// decimated copy replays with the same code. Several files of one rig (diagnose --data a --data b)
+// are held one after the other as segments: each is replayed from its own start, on its own clock
+// (model time = t_s - the segment's first t_s), and one parameter vector serves them all.
 struct ReplayData {
   std::vector<double> t_s;          // row times
-  std::vector<double> cmd_held_rad; // [k]: command in force over (t[k-1], t[k]]; [0] unused
+  std::vector<double> cmd_held_rad; // [k]: command in force over (t[k-1], t[k]]; [segment begin] unused
   std::vector<double> motor_rad;    // [k]: encoder at t[k]; empty: no encoder
   std::vector<double> y_pa;         // measured pressure at t[k]
-  ReplayStart start;
+  struct Segment {
+    std::size_t begin = 0;          // first row of this file
+    ReplayStart start;
+  };
+  std::vector<Segment> segments = {Segment{}};  // at least one; in row order
   std::size_t decimation = 1;       // rows of the original per row here
   std::size_t size() const { return t_s.size(); }
+  // Rows of segment i: [segment_begin(i), segment_end(i)).
+  std::size_t segment_begin(std::size_t i) const { return segments[i].begin; }
+  std::size_t segment_end(std::size_t i) const { return i + 1 < segments.size() ? segments[i + 1].begin : size(); }
+  // Longest span of model time any segment covers (grids of step times live in [0, this)).
+  double longest_span_s() const;
 };
 
+// One file, or several of one rig (all with the encoder or all without: the replay treats the
+// motor the same way in every segment; std::invalid_argument otherwise).
 ReplayData replay_data(const Measurement& m);
-// Every m-th row; the held command is the mean over the rows it replaces (preserves the command's
-// integral over each step), the encoder is taken at the end of the step.
+ReplayData replay_data(const std::vector<const Measurement*>& files);
+// Every m-th row of each segment; the held command is the mean over the rows it replaces
+// (preserves the command's integral over each step), the encoder is taken at the end of the step.
 ReplayData decimate(const ReplayData& full, std::size_t m);
 
-// Predictions for every row into yhat (size data.size()); returns false if the model cannot
-// start there (settle out of range) or the prediction is not finite.
+// Predictions for every row into yhat (size data.size()), each segment from its own start;
+// returns false if the model cannot start there (settle out of range) or the prediction is not
+// finite.
 bool replay(const plant::Plant& model, const ReplayData& data, std::span<double> yhat);
 
 }  // namespace hil::analysis
