@@ -241,15 +241,35 @@ void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Adde
   }
   if (params.empty()) return;
   const plant::Plant m = apply_added(base0, added);  // values are overwritten by the fitter
-  auto run = [&](const ReplayData& data, int iter) {
-    detail::Fitter f(m, params, data);
-    const auto r = f.levenberg_marquardt(x, iter);
-    evaluations += f.evaluations();
-    if (r.ok) x = r.values;
-    return f;
+  const bool decimated = ctx.coarse.size() != ctx.full.size();
+  // LM from `start`, on the coarse copy first; returns the end and its RSS on every row.
+  auto fit_from = [&](std::vector<double> start) {
+    auto run = [&](const ReplayData& data, int iter) {
+      detail::Fitter f(m, params, data);
+      const auto r = f.levenberg_marquardt(start, iter);
+      evaluations += f.evaluations();
+      if (r.ok) start = r.values;
+      return r;
+    };
+    if (decimated) run(ctx.coarse, kJointIter);
+    const auto r = run(ctx.full, decimated ? kRefineIter : kJointIter);
+    return std::make_pair(start, r.ok ? r.rss : kInf);
   };
-  if (ctx.coarse.size() != ctx.full.size()) run(ctx.coarse, kJointIter);
-  detail::Fitter f = run(ctx.full, ctx.coarse.size() != ctx.full.size() ? kRefineIter : kJointIter);
+  // From the values as they are, and from the best of the parameters' own starting points: an
+  // effect found first may have absorbed one found later (a sensor lag standing in for a transport
+  // delay takes twice its time constant), and LM from there stays in that valley.
+  auto [x_end, rss_end] = fit_from(x);
+  {
+    detail::Fitter f0(m, params, ctx.coarse);
+    const std::vector<double> fresh = f0.best_start(nullptr);
+    evaluations += f0.evaluations();
+    if (fresh != x) {
+      auto [x_alt, rss_alt] = fit_from(fresh);
+      if (rss_alt < rss_end) x_end = std::move(x_alt), rss_end = rss_alt;
+    }
+  }
+  x = std::move(x_end);
+  detail::Fitter f(m, params, ctx.full);
   const auto sigma = f.uncertainty(x);
   evaluations += f.evaluations();
   std::size_t i = 0;

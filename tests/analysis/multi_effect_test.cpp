@@ -129,6 +129,39 @@ std::vector<MultiCase> cases() {
       add("pair_" + ones[i].tag + "_" + ones[j].tag, seed, std::move(profile), false, 2.0,
           [a, b](const Plant& p) { return b(a(p)); }, {ones[i].truth, ones[j].truth}, true);
     }
+  // Triples and quadruples without a pair that Limits names as not told apart from pressure
+  // (valve offset with erosion, a sensor offset or a burn rate; a sensor offset with a burn rate;
+  // a sensor lag with a transport delay, no encoder). Two run by default (about 20 s each), the
+  // rest in the full matrix.
+  struct Group {
+    std::vector<std::string> tags;
+    bool by_default = false;
+  };
+  const std::vector<Group> groups = {
+      {{"gap", "erosion", "lag"}, true}, {{"gap", "bias", "lag"}},      {{"gap", "delay", "erosion"}},
+      {{"gap", "servo", "bias"}},        {{"offset", "lag", "gap"}},    {{"erosion", "bias", "delay"}},
+      {{"gap", "delay", "bias"}},        {{"offset", "delay", "gap"}},  {{"gap", "erosion", "lag", "bias"}},
+      {{"gap", "delay", "bias", "erosion"}}, {{"gap", "offset", "lag", "servo"}}, {{"gap", "erosion", "servo", "bias"}, true}};
+  seed = 600;
+  for (const auto& [g, by_default] : groups) {
+    std::vector<std::function<Plant(const Plant&)>> apply;
+    std::vector<Truth> truths;
+    std::string name = g.size() == 3 ? "triple" : "quad";
+    for (const auto& tag : g) {
+      const auto it = std::find_if(ones.begin(), ones.end(), [&](const One& o) { return o.tag == tag; });
+      apply.push_back(it->apply);
+      truths.push_back(it->truth);
+      name += "_" + tag;
+    }
+    ++seed;
+    add(name, seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
+        [apply](const Plant& p) {
+          Plant q = p;
+          for (const auto& f : apply) q = f(q);
+          return q;
+        },
+        truths, !by_default);
+  }
   return out;
 }
 

@@ -73,6 +73,14 @@ inline std::string brief(const nlohmann::json& d) {
          std::to_string(c.at("fit_after_pct").get<double>()) + "); ";
   }
   for (const auto& line : d.at("summary")) s += line.get<std::string>() + " ";
+  if (d.contains("paths_followed") && d.at("paths_followed").size() > 1) {
+    s += "Paths followed:";
+    for (const auto& p : d.at("paths_followed")) {
+      std::string effects;
+      for (const auto& e : p.at("effects")) effects += (effects.empty() ? "" : "+") + e.get<std::string>();
+      s += " " + effects + " (fit " + std::to_string(p.at("fit_pct").get<double>()) + ")";
+    }
+  }
   return s;
 }
 
