@@ -21,6 +21,7 @@
 
 #include "hil/ctl/chamber_model.hpp"
 #include "hil/ctl/observer.hpp"
+#include "hil/units.hpp"
 
 namespace hil::ctl {
 
@@ -30,7 +31,7 @@ enum class ObserverKind { paper, robust };
 // The drive as the controller designer models it; used when no encoder angle is available.
 struct MotorModel {
   double time_constant_s = 0.010;
-  double rate_limit_rad_s = 60 * 0.017453292519943295;
+  double rate_limit_rad_s = units::deg_to_rad(60);
 };
 
 struct ControllerParams {
@@ -41,7 +42,7 @@ struct ControllerParams {
   double gap_initial_rad = 0;    // adaptive mode: sigma_r(0)
   double damping_ratio = 0.7;    // zeta of the KI schedule
   double traverse_boost = 1.0;   // robust: extra command while crossing the gap, x the jump
-  double contact_overlap_rad = 0.02 * 0.017453292519943295;  // robust: jump this far past the flank
+  double contact_overlap_rad = units::deg_to_rad(0.02);  // robust: jump this far past the flank
   double cmd_min_rad = -0.0873;  // command limits (the valve travel plus the largest gap)
   double cmd_max_rad = 0.6109;
   bool use_encoder = true;       // motor angle from the drive; otherwise from `motor`

@@ -10,6 +10,7 @@
 
 #include "hil/ctl/chamber_model.hpp"
 #include "hil/ctl/gap_fit.hpp"
+#include "hil/units.hpp"
 
 namespace hil::ctl {
 
@@ -89,7 +90,7 @@ class PaperObserver {
 struct RobustObserverParams {
   double period_s = 1e-3;
   double pressure_noise_rms_pa = 2000;  // what the transducer's noise is believed to be
-  double intention_deadband_rad = 0.05 * 0.017453292519943295;
+  double intention_deadband_rad = units::deg_to_rad(0.05);
   double intention_sigmas = 8;
   double filter_time_constant_s = 0.015;
   double hold_smoothing = 4;  // the hold level's extra low-pass, in filter time constants
@@ -101,7 +102,7 @@ struct RobustObserverParams {
   int fit_tries = 8;
   double learn_gain = 0.8;
   double jump_fraction = 0.2;
-  double gap_max_rad = 6 * 0.017453292519943295;
+  double gap_max_rad = units::deg_to_rad(6);
   void validate() const;  // throws std::invalid_argument naming the parameter
 };
 
