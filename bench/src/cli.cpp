@@ -23,7 +23,7 @@ double Args::number(const std::string& name, double fallback) const {
 }
 
 Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
-                const std::vector<std::string>& switch_options, const std::vector<std::string>& repeatable) {
+                const std::vector<std::string>& switch_options) {
   Args args;
   std::vector<std::string> known;
   for (const auto& o : value_options) known.push_back("--" + o);
@@ -43,10 +43,7 @@ Args parse_args(const std::vector<std::string>& argv, const std::vector<std::str
         if (i + 1 >= argv.size()) throw UsageError("option --" + name + " needs a value");
         value = argv[++i];
       }
-      const bool again = args.options.count(name) > 0;
-      if (again && std::find(repeatable.begin(), repeatable.end(), name) == repeatable.end())
-        throw UsageError("option --" + name + " given twice ('" + args.options[name] + "' and '" + value + "')");
-      args.options[name] = value;
+      args.options[name] = value;  // given again: the last one counts (a wrapper's default, then the user's)
       args.repeated[name].push_back(value);
     } else if (std::find(switch_options.begin(), switch_options.end(), name) != switch_options.end() && !inline_value) {
       args.switches.insert(name);

@@ -17,8 +17,8 @@ class UsageError : public std::runtime_error {
 
 struct Args {
   std::vector<std::string> positional;
-  std::map<std::string, std::string> options;               // the value of each option given
-  std::map<std::string, std::vector<std::string>> repeated;  // every value of a repeatable option, in order
+  std::map<std::string, std::string> options;               // each option's value (the last one given)
+  std::map<std::string, std::vector<std::string>> repeated;  // every value of each option, in order (diagnose --data)
   std::set<std::string> switches;
   bool has(const std::string& s) const { return switches.count(s) > 0; }
   std::string option(const std::string& name, const std::string& fallback) const {
@@ -32,8 +32,7 @@ struct Args {
 // `text` as a number; a UsageError naming `what` ("--period-ms", "gap") when it is not one.
 double parse_number(const std::string& text, const std::string& what);
 
-// An option given twice is a UsageError unless it is `repeatable` (e.g. diagnose's --data).
 Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
-                const std::vector<std::string>& switch_options, const std::vector<std::string>& repeatable = {});
+                const std::vector<std::string>& switch_options);
 
 }  // namespace hil::bench

@@ -9,7 +9,7 @@
 namespace hil::bench {
 
 int cmd_diagnose(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"model", "data", "out", "write-model", "candidates", "threads"}, {"quiet"}, {"data"});
+  const Args args = parse_args(argv, {"model", "data", "out", "write-model", "candidates", "threads"}, {"quiet"});
   if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional[0] + "'");
   if (!args.options.count("model")) throw UsageError("--model MODEL.yaml is required");
   if (!args.options.count("data")) throw UsageError("--data FILE.csv is required");

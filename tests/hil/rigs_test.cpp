@@ -348,7 +348,7 @@ TEST(HybridRig, OperatorGapChangeReachesTheSimulatedBacklash) {
   // The CAN rig refuses gap changes: it has no simulated valve.
   SimulatorSide side(campaign, bus.factory(), "can1");
   Bench can(bus.factory());
-  can.start(campaign, can_rig_yaml(side, {}, "can1"));
+  can.start(campaign, can_rig_yaml(side, {}, "can1", "recover", kRelaxedTimeouts));
   ASSERT_TRUE(can.wait_t(0.2));
   try {
     can.runner().inject({.kind = bench::LoopRequest::Kind::set_gap, .value = 0.03});
