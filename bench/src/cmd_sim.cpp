@@ -26,7 +26,11 @@ int cmd_sim(const std::vector<std::string>& argv) {
   if (args.options.count("sensor-noise-kpa")) {
     const double kpa = args.number("sensor-noise-kpa", 0);
     if (!(kpa >= 0)) throw UsageError("--sensor-noise-kpa cannot be negative, got " + args.option("sensor-noise-kpa", ""));
-    campaign = with_sensor_noise(std::move(campaign), kpa);
+    try {
+      campaign = with_sensor_noise(std::move(campaign), kpa);
+    } catch (const std::invalid_argument& e) {  // beyond the sensor effect's range
+      throw UsageError("--sensor-noise-kpa " + args.option("sensor-noise-kpa", "") + ": " + e.what());
+    }
   }
   SimOptions options;
   options.out_dir = args.option("out", "out");

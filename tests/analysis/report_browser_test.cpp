@@ -67,4 +67,30 @@ TEST(ReportBrowser, UnexplainedReportRenders) {
   expect_renders(out_dir() / "unexplained" / "report.html", 12, "unexplained.png");
 }
 
+// diagnose --data a --data b: the files table, each file's before/after and remaining views,
+// each file's plots zooming together and apart from the other file's (its own clock).
+TEST(ReportBrowser, SeveralFilesReportRenders) {
+  hil::test::TempDir dir;
+  std::vector<fs::path> files;
+  for (int i = 0; i < 2; ++i) {
+    hil::test::LabLog log;
+    log.name = "browser_rig" + std::to_string(i + 1);
+    log.t0_s = 10.0 + 100.0 * i;
+    log.duration_s = 10;
+    log.seed = 118 + static_cast<std::uint64_t>(i);
+    log.noise_kpa = 2;
+    log.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "sensor_lag", "time_constant_s: 0.03"); };
+    log.command_deg = hil::test::command_triangle(8.0, 13.0, i == 0 ? 5.0 : 20.0, 0.5);
+    files.push_back(hil::test::make_lab_log(log, dir.path()));
+  }
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), hil::analysis::DataFiles(files), out_dir() / "several");
+  ASSERT_EQ(d.at("added").size(), 1u) << hil::test::brief(d);
+  // Per file: overlay, residuals, regime bars, then compare's 12 views; plus the ranking bars.
+  expect_renders(out_dir() / "several" / "report.html", 2 * 15, "several.png");
+  const std::string dom = hil::test::check_report_in_chromium(out_dir() / "several" / "report.html").dom;
+  EXPECT_NE(dom.find("Before and after: file 1, browser_rig1.csv"), std::string::npos);
+  EXPECT_NE(dom.find("Before and after: file 2, browser_rig2.csv"), std::string::npos);
+  EXPECT_NE(dom.find("shared by all of them"), std::string::npos);
+}
+
 }  // namespace

@@ -83,6 +83,13 @@ TEST(SimCli, UsageErrorsSuggest) {
   r = run_command(hilbench() + " sim /no/such/campaign.yaml");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("/no/such/campaign.yaml: cannot open"), std::string::npos) << r.output;
+  // An override outside the sensor's range is the option's error, not the campaign's.
+  r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
+                  " --sensor-noise-kpa 6e16 --out /tmp/x");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.output.find("--sensor-noise-kpa 6e16: pressure_sensor.noise_rms_kpa = 6e+16: must be in [0, 10000]"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
