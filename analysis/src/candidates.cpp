@@ -40,15 +40,18 @@ double gap_of(const plant::Plant& base) {
 // motor has taken up the extra play, so the cost is roughly V-shaped around the true time, with
 // plateaus where the drive holds; the zoom search in diagnose finds its bottom.
 std::vector<double> step_times(const ReplayData& data) {
-  // Model time counts from each file's first row; with several files the step time is one value
-  // for all of them (a grid over the longest file).
-  std::size_t rows = 0;
-  for (std::size_t i = 0; i < data.segments.size(); ++i) rows = std::max(rows, data.segment_end(i) - data.segment_begin(i));
-  if (rows < 4) return {};
-  const double span = data.longest_span_s();
-  const double spacing = std::max(0.01, span / static_cast<double>(rows - 1));
+  // Every row's time (at least 10 ms apart) of every file, on the runs' joint clock (replay.hpp,
+  // segment_model): with several files the step belongs to one of them, and it may also have
+  // happened between two runs (the later file's offset: in force from its first row).
   std::vector<double> out;
-  for (double t = spacing; t < span; t += spacing) out.push_back(t);
+  for (std::size_t i = 0; i < data.segments.size(); ++i) {
+    const std::size_t rows = data.segment_end(i) - data.segment_begin(i);
+    if (rows < 4) continue;
+    const double span = data.span_s(i), offset = data.segments[i].clock_offset_s;
+    const double spacing = std::max(0.01, span / static_cast<double>(rows - 1));
+    if (i > 0) out.push_back(offset);
+    for (double t = spacing; t < span; t += spacing) out.push_back(offset + t);
+  }
   return out;
 }
 
@@ -101,7 +104,9 @@ Candidate sensor_lag(const plant::Plant& base) {
   c.attach = [](const plant::Plant& p) { return add_block(p, "sensor_lag", "time_constant_s: 0"); };
   std::vector<double> starts = {0.003, 0.01, 0.03, 0.1};
   if (std::isfinite(v)) starts.insert(starts.begin(), v);
-  c.variants = {{"time constant", {{"sensor_lag", "time_constant_s", 0.0, 0.5, 0.005, starts}}}};
+  FreeParam tau{"sensor_lag", "time_constant_s", 0.0, 0.5, 0.005, starts};
+  tau.sample_step = true;
+  c.variants = {{"time constant", {tau}}};
   return c;
 }
 
@@ -114,7 +119,9 @@ Candidate transport_delay(const plant::Plant& base) {
   c.attach = [](const plant::Plant& p) { return add_block(p, "transport_delay", "delay_s: 0"); };
   std::vector<double> starts = {0.005, 0.02, 0.05, 0.1};
   if (std::isfinite(v)) starts.insert(starts.begin(), v);
-  c.variants = {{"delay", {{"transport_delay", "delay_s", 0.0, 0.5, 0.005, starts}}}};
+  FreeParam delay{"transport_delay", "delay_s", 0.0, 0.5, 0.005, starts};
+  delay.sample_step = true;
+  c.variants = {{"delay", {delay}}};
   return c;
 }
 
@@ -138,7 +145,8 @@ Candidate motor_dynamics(const plant::Plant& base) {
   c.description = "the servo's lag or rate limit differs from the model's (refits motor_servo)";
   c.command_side = true;
   c.attach = [](const plant::Plant& p) { return p; };
-  const FreeParam t{"motor_servo", "time_constant_s", 1e-4, 0.5, 0.002, {tau, 3 * tau, 8 * tau}};
+  FreeParam t{"motor_servo", "time_constant_s", 1e-4, 0.5, 0.002, {tau, 3 * tau, 8 * tau}};
+  t.sample_step = true;
   const FreeParam r{"motor_servo", "rate_limit_deg_s", 1.0, 1000.0, 1.0, {rate, 0.5 * rate, 0.25 * rate}};
   c.variants = {{"lag", {t}}, {"rate limit", {r}}, {"lag and rate limit", {t, r}}};
   return c;

@@ -323,7 +323,21 @@ void adopt_joint_values(std::vector<Added>& added, const VariantFit& chosen) {
 std::string param_text(const FittedParam& p) {
   std::string s = p.key + " = " + text::num(p.value, 4);
   if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
+  if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
   return s;
+}
+
+// Several files: an event time found on the runs' joint clock (replay.hpp) becomes "file k, t s
+// after its first row"; a step between two runs is at 0 s of the later file.
+void localise_event_times(std::vector<FittedParam>& params, const ReplayData& data) {
+  if (data.segments.size() < 2) return;
+  for (auto& p : params) {
+    if (!is_event_time(p.effect, p.key) || !std::isfinite(p.value)) continue;
+    std::size_t k = 0;
+    while (k + 1 < data.segments.size() && data.segments[k + 1].clock_offset_s <= p.value) ++k;
+    p.file = static_cast<int>(k);
+    p.value -= data.segments[k].clock_offset_s;
+  }
 }
 
 // --- one round, a path of rounds -----------------------------------------------------------------
@@ -580,6 +594,68 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
   }
 }
 
+
+// A variant chosen in an early round can keep a parameter that a later effect made idle (a gap
+// step of 0.001 deg once a sensor lag took over what the step had mimicked: with several files a
+// per-file step can stand for a speed-dependent lag). For each accepted effect, every variant of
+// its candidate whose parameters are a subset of the chosen one's is tried in its place, all
+// accepted effects refitted with it; it replaces the chosen variant when the whole model's BIC is
+// lower. Told in `revisions`.
+void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
+                       int& evaluations) {
+  if (path.added.empty()) return;
+  std::vector<double> res;
+  path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
+  const double n_eff = static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
+  evaluations += 1;
+  auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
+  for (std::size_t i = 0; i < path.added.size(); ++i) {
+    const Candidate& cand = *path.added[i].cand;
+    const VariantFit& chosen = path.added[i].fit;
+    const Variant& current = cand.variants[chosen.variant];
+    for (std::size_t vi = 0; vi < cand.variants.size(); ++vi) {
+      const Variant& simpler = cand.variants[vi];
+      const bool nested = vi != chosen.variant && simpler.params.size() < current.params.size() &&
+                          std::all_of(simpler.params.begin(), simpler.params.end(), [&](const FreeParam& p) {
+                            return std::any_of(current.params.begin(), current.params.end(),
+                                               [&](const FreeParam& q) { return same(p, q); });
+                          });
+      if (!nested) continue;
+      // The simpler variant starts from the chosen one's values of the parameters they share.
+      VariantFit f;
+      f.candidate = chosen.candidate;
+      f.variant = vi;
+      for (const auto& p : simpler.params) {
+        if (p.grid) {
+          f.grid = &p;
+          f.grid_value = chosen.grid_value;
+          continue;
+        }
+        f.continuous.push_back(p);
+        double v = p.starts.empty() ? 0.0 : p.starts.front();
+        for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
+          if (same(chosen.continuous[j], p)) v = chosen.values[j];
+        f.values.push_back(v);
+      }
+      f.sigma.assign(f.values.size(), kNaN);
+      std::vector<Added> trial = path.added;
+      trial[i].fit = std::move(f);
+      joint_refit(su.ctx, base0, trial, evaluations);
+      const double rss_trial = rss_of(apply_added(base0, trial), su.ctx.full, nullptr);
+      evaluations += 1;
+      if (path_bic(trial, rss_trial, n_eff) < path_bic(path.added, path.rss, n_eff)) {
+        trial[i].fit.rss_full = rss_trial;
+        trial[i].fit.refined = true;
+        revisions.push_back("simplified " + cand.name + " from " + current.name + " to " + simpler.name +
+                            ": with the others refitted, the simpler form explains the data with a lower BIC");
+        path.added = std::move(trial);
+        path.rss = rss_trial;
+        break;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const DiagnoseSettings& s) {
@@ -697,13 +773,17 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     chosen = std::move(paths[best]);
   }
   revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
+  simplify_variants(su, base0, chosen, d.revisions, d.evaluations);
   d.rounds = chosen.rounds;
+  for (auto& rd : d.rounds)
+    for (auto& c : rd.ranking) localise_event_times(c.parameters, full);
   const std::vector<Added>& added = chosen.added;
   const plant::Plant current = apply_added(base0, added);
 
   // Final values (after the joint refit) of the added effects.
   for (const auto& a : added) {
     CandidateResult c = describe(*a.cand, a.fit, base0);
+    localise_event_times(c.parameters, full);
     c.earns_place = true;
     for (const auto& rd : d.rounds) {
       if (rd.added != c.effect) continue;
@@ -747,14 +827,15 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   double rss_after = 0;
   for (std::size_t i = 0; i < files.size(); ++i) {
     FileFit& f = d.files[i];
-    f.after = added.empty() ? f.before : compare_measurement(current, *files[i], s.keep_series);
+    f.after = added.empty() ? f.before : compare_measurement(segment_model(current, full, i), *files[i], s.keep_series);
     rss_after += static_cast<double>(f.rows) * f.after.error.rmse_pa * f.after.error.rmse_pa;
   }
   d.after = d.files.front().after;
   d.rmse_after_pa = std::sqrt(rss_after / N);
   d.fit_after_pct = fit_percent(rss_after, spread, full.size());
   for (auto& c : d.added) c.fit_after_pct = d.fit_after_pct;
-  d.fitted = std::make_shared<const plant::Plant>(apply_added(model, added));
+  // Several files: the rig as the last file saw it (a step in an earlier run is in force from 0 s).
+  d.fitted = std::make_shared<const plant::Plant>(segment_model(apply_added(model, added), full, files.size() - 1));
   d.at_noise_floor = at_noise_floor(d.rmse_after_pa, d.noise_sigma_pa);
 
   // The verdict in words.
@@ -785,9 +866,19 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     }
     out.push_back("Found: " + list + ".");
     if (files.size() > 1) {
-      out.push_back("Fitted to " + std::to_string(files.size()) +
-                    " files of one rig together: every parameter above is shared by all of them; time-dependent ones "
-                    "(step times, erosion, drifts) count from each file's first row.");
+      std::string per_file_list;
+      for (const auto& c : d.added)
+        for (const auto& p : c.parameters)
+          if (p.file >= 0)
+            per_file_list += (per_file_list.empty() ? "" : ", ") + p.key + " (file " + std::to_string(p.file + 1) + ", " +
+                             text::num(p.value, 4) + " s after its first row)";
+      out.push_back("Fitted to " + std::to_string(files.size()) + " files of one rig together (in the order they were run): " +
+                    (per_file_list.empty()
+                         ? std::string("every parameter above is shared by all of them")
+                         : "every parameter above is shared by all of them except the step time, which is per file: " +
+                               per_file_list + "; the files before it have the gap before the step, the files after "
+                               "it the gap after the step") +
+                    "; erosion and drifts count from each file's first row.");
     }
     out.push_back(fit_line);
     per_file(true);

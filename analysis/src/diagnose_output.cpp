@@ -27,6 +27,7 @@ nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
                       {"uncertainty", number(p.sigma)},
                       {"model_value", number(p.model_value)},
                       {"searched_on_grid", p.grid}});
+    if (p.file >= 0) params.back()["file_index"] = p.file;
   }
   nlohmann::json j = {{"effect", c.effect},
                       {"variant", c.variant},
@@ -53,6 +54,7 @@ std::string params_text(const CandidateResult& c) {
   for (const auto& p : c.parameters) {
     s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
     if (std::isfinite(p.sigma)) s += " \u00b1 " + text::num(p.sigma, 2);
+    if (p.file >= 0) s += " (file " + std::to_string(p.file + 1) + ")";
   }
   return s;
 }
@@ -84,12 +86,24 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                      {"signature", d.explained ? f.after.signature : f.before.signature}});
   }
   j["files"] = files;
-  // Which fitted parameters the files share (all of them: one rig) and which are per file (none yet).
-  nlohmann::json shared = nlohmann::json::array();
+  // Which fitted parameters the files share (one rig) and which are per file (an event time: the
+  // file it happened in and when, from that file's first row).
+  nlohmann::json shared = nlohmann::json::array(), per_file = nlohmann::json::array();
   for (const auto& c : d.added)
-    for (const auto& p : c.parameters) shared.push_back(p.effect + "." + p.key);
+    for (const auto& p : c.parameters) {
+      if (p.file < 0) {
+        shared.push_back(p.effect + "." + p.key);
+        continue;
+      }
+      const auto k = static_cast<std::size_t>(p.file);
+      per_file.push_back({{"parameter", p.effect + "." + p.key},
+                          {"file_index", p.file},
+                          {"data_file", k < data_files.size() ? data_files[k].string() : ""},
+                          {"value", number(p.value)},
+                          {"file_time_s", number(p.value + (k < d.files.size() ? d.files[k].time_origin_s : 0.0))}});
+    }
   j["shared_parameters"] = shared;
-  j["per_file_parameters"] = nlohmann::json::array();
+  j["per_file_parameters"] = per_file;
   j["rows"] = d.rows;
   j["encoder"] = d.has_encoder;
   j["time_origin_s"] = d.time_origin_s;  // the fitted model's t = 0 is this file time

@@ -53,7 +53,10 @@ bool invert(const std::vector<std::vector<double>>& a, std::vector<std::vector<d
 }
 
 Fitter::Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data)
-    : model_(model), params_(std::move(params)), data_(data), yhat_(data.size()) {}
+    : model_(model), params_(std::move(params)), data_(data), yhat_(data.size()) {
+  const std::size_t end = data.segments.empty() ? data.size() : data.segment_end(0);
+  if (end >= 2) sample_period_s_ = (data.t_s[end - 1] - data.t_s[0]) / static_cast<double>(end - 1);
+}
 
 std::vector<double> Fitter::clamp(std::vector<double> x) const {
   for (std::size_t i = 0; i < x.size(); ++i) x[i] = std::clamp(x[i], params_[i].lo, params_[i].hi);
@@ -107,8 +110,10 @@ std::vector<double> Fitter::best_start(double* rss) {
 bool Fitter::jacobian(const std::vector<double>& x, const std::vector<double>& r0, std::vector<std::vector<double>>& cols) {
   cols.assign(x.size(), {});
   for (std::size_t j = 0; j < x.size(); ++j) {
-    // Forward difference of 1 % of the scale, backwards at the upper bound.
+    // Forward difference of 1 % of the scale (a time: at least one sample period, see
+    // FreeParam::sample_step), backwards at the upper bound.
     double h = 0.01 * params_[j].scale;
+    if (params_[j].sample_step) h = std::max(h, sample_period_s_);
     auto xp = x;
     xp[j] = x[j] + h;
     if (xp[j] > params_[j].hi) h = -h, xp[j] = x[j] + h;

@@ -45,6 +45,7 @@ class Fitter {
   const plant::Plant& model_;
   std::vector<FreeParam> params_;
   const ReplayData& data_;
+  double sample_period_s_ = 0;  // mean row spacing of the data's first segment (0: one row)
   std::vector<double> yhat_;
   int evaluations_ = 0;
 };

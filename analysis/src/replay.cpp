@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 namespace hil::analysis {
@@ -32,13 +33,33 @@ double Replayer::start(const ReplayStart& s) {
   return state_.s.p_meas_pa;
 }
 
-double ReplayData::longest_span_s() const {
-  double span = 0;
-  for (std::size_t i = 0; i < segments.size(); ++i) {
-    const std::size_t b = segment_begin(i), e = segment_end(i);
-    if (e > b) span = std::max(span, t_s[e - 1] - t_s[b]);
+double ReplayData::span_s(std::size_t i) const {
+  const std::size_t b = segment_begin(i), e = segment_end(i);
+  return e > b ? t_s[e - 1] - t_s[b] : 0.0;
+}
+
+bool is_event_time(std::string_view effect, std::string_view key) {
+  return effect == "backlash_change" && key == "step_time_s";
+}
+
+plant::Plant segment_model(const plant::Plant& model, const ReplayData& data, std::size_t i) {
+  if (data.segments.size() < 2) return model;
+  plant::Plant out = model;
+  for (const auto& effect : model.effects()) {
+    auto params = effect->params();
+    std::vector<double> values;
+    bool moved = false;
+    for (const auto& p : params) {
+      double v = p.value;
+      if (is_event_time(effect->kind(), p.key)) {
+        v = std::max(0.0, v - data.segments[i].clock_offset_s);
+        moved |= v != p.value;
+      }
+      values.push_back(v);
+    }
+    if (moved) out = out.with(effect->with_params(values));
   }
-  return span;
+  return out;
 }
 
 ReplayData replay_data(const Measurement& m) { return replay_data(std::vector<const Measurement*>{&m}); }
@@ -54,7 +75,10 @@ ReplayData replay_data(const std::vector<const Measurement*>& files) {
     if (r.theta_motor_rad.empty() == enc)
       throw std::invalid_argument("replay_data: files with and without the encoder column cannot be replayed together");
     const std::size_t b = d.size();
-    d.segments.push_back({b, estimate_start(r)});
+    const double offset = d.segments.empty() ? 0.0
+                                             : d.segments.back().clock_offset_s + d.span_s(d.segments.size() - 1) +
+                                                   ReplayData::kRunPauseS;
+    d.segments.push_back({b, estimate_start(r), offset});
     d.t_s.insert(d.t_s.end(), r.t_s.begin(), r.t_s.end());
     d.y_pa.insert(d.y_pa.end(), r.p_meas_pa.begin(), r.p_meas_pa.end());
     d.motor_rad.insert(d.motor_rad.end(), r.theta_motor_rad.begin(), r.theta_motor_rad.end());
@@ -72,7 +96,7 @@ ReplayData decimate(const ReplayData& full, std::size_t m) {
   const bool enc = !full.motor_rad.empty();
   for (std::size_t i = 0; i < full.segments.size(); ++i) {
     const std::size_t b = full.segment_begin(i), n = full.segment_end(i);
-    d.segments.push_back({d.size(), full.segments[i].start});
+    d.segments.push_back({d.size(), full.segments[i].start, full.segments[i].clock_offset_s});
     for (std::size_t k = b; k < n; k += m) {
       d.t_s.push_back(full.t_s[k]);
       d.y_pa.push_back(full.y_pa[k]);
@@ -99,7 +123,9 @@ bool replay(const plant::Plant& model, const ReplayData& data, std::span<double>
   for (std::size_t i = 0; i < data.segments.size(); ++i) {
     const std::size_t b = data.segment_begin(i), e = data.segment_end(i);
     if (e <= b) continue;
-    Replayer r(model);
+    std::optional<plant::Plant> moved;  // several files: this one's event times
+    if (data.segments.size() > 1) moved = segment_model(model, data, i);
+    Replayer r(moved ? *moved : model);
     try {
       yhat[b] = r.start(data.segments[i].start);
     } catch (const std::out_of_range&) {

@@ -9,8 +9,8 @@
 // HIL_ANALYSIS_FULL_MATRIX=1 adds the longer ones: offset_and_delay (passes, ~50 s),
 // offset_erosion_lag, which does not pass yet (a sensor offset and gain stand in for the valve
 // offset at the noise floor; the revisit does not swap them back), all 28 pairs of the eight
-// candidates (23 pass) and ten more triples and quadruples (seven pass); analysis/README.md,
-// Limits, says which do not and why.
+// candidates (25 pass; the other three are not identifiable from pressure) and ten more triples
+// and quadruples (six pass); analysis/README.md, Limits, says which do not and why.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,10 +1,13 @@
 // Several files of one rig at once (issue 9): `diagnose --data a --data b --data c` fits one set of
 // parameters to all of them. Three runs share a gap of 1.6 deg (nominal 1.0) and a 15 ms sensor
-// lag. In one run the valve moves at one speed only, and there the two effects look alike: during
-// a ramp a wider gap holds the valve back by a constant angle, and a lag holds the reading back by
-// a constant angle too (lag x speed); after a reversal both delay the answer. Only the speed tells
-// them apart (the gap's delay is gap / speed, the lag's is not), so runs at three speeds separate
-// what one cannot. The test checks that premise on the single runs, then the joint diagnosis.
+// lag; the logger records the command and the pressure, no encoder, so the drive's own lag sits
+// between them too. In the slow run (10 deg/s) a sensor lag and a slower drive look alike: both
+// hold the reading back by a time, and at one speed a time is an angle (lag x speed); with the gap
+// in between, that run alone ends at its noise floor with a 58 ms drive lag and no sensor lag.
+// The 20 and 40 deg/s runs alone find both (measured); diagnosed together, the three do. The test
+// checks that premise on the slow run, then the joint diagnosis.
+// A step of the gap is per file: it happened during one run (or between two), so the runs before
+// it have the old gap and the runs after it the new one.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -38,7 +41,7 @@ TEST(MultiFile, ThreeRunsOfOneRigSeparateAGapAndASensorLagThatOneRunCannot) {
   hil::test::TempDir dir;
   const double speeds_deg_s[] = {10.0, 20.0, 40.0};
   std::vector<fs::path> files;
-  bool fastest_alone_found_both = false;
+  bool slowest_alone_found_both = true;
   for (int i = 0; i < 3; ++i) {
     hil::test::LabLog log;
     log.name = "run" + std::to_string(i + 1);
@@ -46,17 +49,17 @@ TEST(MultiFile, ThreeRunsOfOneRigSeparateAGapAndASensorLagThatOneRunCannot) {
     log.duration_s = 16;
     log.seed = 911 + static_cast<std::uint64_t>(i);
     log.noise_kpa = 2.0;
-    log.encoder = true;
+    log.encoder = false;
     log.truth = truth;
     log.command_deg = hil::test::command_triangle(8.0, 13.0, speeds_deg_s[i], 0.0);
     files.push_back(hil::test::make_lab_log(log, dir.path()));
     const auto d = hil::test::run_diagnose(hil::test::nominal_model(), files.back(), dir.path() / ("diag" + std::to_string(i)));
-    fastest_alone_found_both = found_both(d);  // the last run is the fastest
+    if (i == 0) slowest_alone_found_both = found_both(d);
     std::printf("[ one run, %g deg/s ] %s\n", speeds_deg_s[i], hil::test::brief(d).c_str());
   }
-  // The premise: at 40 deg/s alone the two trade places (measured: a 31 ms lag and a gap that
-  // shrinks to 0.66 deg, at that file's noise floor).
-  EXPECT_FALSE(fastest_alone_found_both) << "the fast run alone separates the two: this test no longer shows what "
+  // The premise: at 10 deg/s alone the sensor lag is traded for a drive lag (measured: 58 ms, with
+  // the gap, at that file's noise floor).
+  EXPECT_FALSE(slowest_alone_found_both) << "the slow run alone separates the two: this test no longer shows what "
                                             "several files add";
 
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), hil::analysis::DataFiles(files), dir.path() / "joint",
@@ -91,6 +94,68 @@ TEST(MultiFile, ThreeRunsOfOneRigSeparateAGapAndASensorLagThatOneRunCannot) {
     const auto c = hil::test::run_compare(dir.path() / "fitted.yaml", files[i], dir.path() / ("cmp" + std::to_string(i)));
     EXPECT_GE(c.at("fit_pct").get<double>(), c.at("noise_floor_fit_pct").get<double>() - 1.0) << files[i];
   }
+}
+
+// The gap grows from the nominal 1.0 to 1.8 deg 6 s into the second of three runs (a tooth
+// chipped): the first run has the old gap throughout, the third the new one. A step time shared by
+// the three files (6 s into each) would misfit the first and the third; per file it is found in
+// the second, and everything else is shared.
+TEST(MultiFile, AGapThatSteppedDuringTheSecondRunIsFoundInThatRun) {
+  constexpr double kStepAfterS = 6.0, kStepDeg = 0.8;
+  hil::test::TempDir dir;
+  std::vector<fs::path> files;
+  for (int i = 0; i < 3; ++i) {
+    hil::test::LabLog log;
+    log.name = "chipped" + std::to_string(i + 1);
+    log.t0_s = 100.0 * (i + 1);
+    log.duration_s = 16;
+    log.seed = 931 + static_cast<std::uint64_t>(i);
+    log.noise_kpa = 2.0;
+    log.encoder = true;
+    // The truth's clock is the file's (it starts at t0_s).
+    const std::string gap = i == 0 ? "gap_deg: 1.0"
+                            : i == 1 ? "{gap_deg: 1.0, step_deg: 0.8, step_time_s: " + std::to_string(log.t0_s + kStepAfterS) + "}"
+                                     : "gap_deg: 1.8";
+    log.truth = [gap](const Plant& p) { return with_block(p, "backlash_change", gap); };
+    log.command_deg = hil::test::command_triangle(8.0, 13.0, 20.0, 0.0);
+    files.push_back(hil::test::make_lab_log(log, dir.path()));
+  }
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), hil::analysis::DataFiles(files), dir.path() / "joint",
+                                         dir.path() / "fitted.yaml");
+  const std::string why = hil::test::brief(d);
+  std::printf("[ three runs, a step in the second ] %s\n", why.c_str());
+  EXPECT_EQ(d.at("verdict"), "explained") << why;
+  ASSERT_EQ(d.at("added").size(), 1u) << why;
+  const auto& a = d.at("added")[0];
+  EXPECT_EQ(a.at("effect"), "backlash_change");
+  EXPECT_EQ(a.at("variant"), "gap step") << why;
+  EXPECT_NEAR(hil::test::param(a, "gap_deg"), 1.0, 0.15);
+  EXPECT_NEAR(hil::test::param(a, "step_deg"), kStepDeg, 0.15 * kStepDeg);
+  // The step time: in the second file, within a quarter of a cycle (the step only shows at the
+  // next reversal, every 0.25 s at 20 deg/s over 5 deg).
+  ASSERT_EQ(d.at("per_file_parameters").size(), 1u) << d.at("per_file_parameters").dump();
+  const auto& pf = d.at("per_file_parameters")[0];
+  EXPECT_EQ(pf.at("parameter"), "backlash_change.step_time_s");
+  EXPECT_EQ(pf.at("file_index"), 1);
+  EXPECT_EQ(pf.at("data_file"), files[1].string());
+  EXPECT_NEAR(pf.at("value").get<double>(), kStepAfterS, 0.3);
+  EXPECT_NEAR(pf.at("file_time_s").get<double>(), 200.0 + kStepAfterS, 0.3);
+  for (const auto& p : a.at("parameters"))
+    if (p.at("key") == "step_time_s") EXPECT_EQ(p.at("file_index"), 1);
+  std::string shared;
+  for (const auto& p : d.at("shared_parameters")) shared += p.get<std::string>() + " ";
+  EXPECT_NE(shared.find("backlash_change.step_deg"), std::string::npos) << shared;
+  EXPECT_EQ(shared.find("step_time_s"), std::string::npos) << shared;
+  std::string summary;
+  for (const auto& line : d.at("summary")) summary += line.get<std::string>() + " ";
+  EXPECT_NE(summary.find("per file"), std::string::npos) << summary;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto& f = d.at("files")[i];
+    EXPECT_GE(f.at("fit_after_pct").get<double>(), f.at("noise_floor_fit_pct").get<double>() - 1.0) << f.dump();
+  }
+  // The written model is the rig as the last run saw it: the wider gap from its first row.
+  const auto last = hil::test::run_compare(dir.path() / "fitted.yaml", files[2], dir.path() / "cmp_last");
+  EXPECT_GE(last.at("fit_pct").get<double>(), last.at("noise_floor_fit_pct").get<double>() - 1.0);
 }
 
 }  // namespace

@@ -30,6 +30,11 @@ struct FreeParam {
   bool grid = false;            // discontinuous (a step time): searched on a grid, not by LM
   // Grid values from the data (grid parameters only), e.g. every 10 ms of the run.
   std::function<std::vector<double>(const ReplayData&)> grid_values = {};
+  // A time constant or delay [s]: its finite-difference step is at least one sample period of the
+  // data. The replay resolves events (a contact in the gap, a reversal of the command) to whole
+  // steps, so the cost has a ripple finer than a sample; a step of 1 % of `scale` (50 us for a
+  // lag) measures the ripple's slope, not the trend's, and LM stalls on the lag + delay ridge.
+  bool sample_step = false;
 };
 
 struct Variant {

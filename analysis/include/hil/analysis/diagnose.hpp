@@ -39,6 +39,9 @@ struct FittedParam {
   double sigma = 0;        // 1-sigma; NaN when not computed (grid-searched step times)
   double model_value = 0;  // in the model before the fit (NaN: the block is new)
   bool grid = false;       // searched on a grid (discontinuous)
+  // Several files: an event time (a step) belongs to one file: its index here, and `value` counts
+  // from that file's first row (-1: a parameter all files share).
+  int file = -1;
 };
 
 struct CandidateResult {

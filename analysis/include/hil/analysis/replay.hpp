@@ -79,7 +79,8 @@ class Replayer {
 // A whole series prepared for repeated replays (fitting): inputs in "held" form so that a
 // decimated copy replays with the same code. Several files of one rig (diagnose --data a --data b)
 // are held one after the other as segments: each is replayed from its own start, on its own clock
-// (model time = t_s - the segment's first t_s), and one parameter vector serves them all.
+// (model time = t_s - the segment's first t_s), and one parameter vector serves them all, except
+// event times (a step of the gap), which are per file: see segment_model.
 struct ReplayData {
   std::vector<double> t_s;          // row times
   std::vector<double> cmd_held_rad; // [k]: command in force over (t[k-1], t[k]]; [segment begin] unused
@@ -88,15 +89,19 @@ struct ReplayData {
   struct Segment {
     std::size_t begin = 0;          // first row of this file
     ReplayStart start;
+    // Where this file starts on the runs' joint clock: the files back to back in the order given,
+    // kRunPauseS apart. Event times of a model fitted to several files are on this clock.
+    double clock_offset_s = 0;
   };
+  static constexpr double kRunPauseS = 1.0;
   std::vector<Segment> segments = {Segment{}};  // at least one; in row order
   std::size_t decimation = 1;       // rows of the original per row here
   std::size_t size() const { return t_s.size(); }
   // Rows of segment i: [segment_begin(i), segment_end(i)).
   std::size_t segment_begin(std::size_t i) const { return segments[i].begin; }
   std::size_t segment_end(std::size_t i) const { return i + 1 < segments.size() ? segments[i + 1].begin : size(); }
-  // Longest span of model time any segment covers (grids of step times live in [0, this)).
-  double longest_span_s() const;
+  // Model time segment i covers (its last row's time minus its first's).
+  double span_s(std::size_t i) const;
 };
 
 // One file, or several of one rig (all with the encoder or all without: the replay treats the
@@ -107,7 +112,16 @@ ReplayData replay_data(const std::vector<const Measurement*>& files);
 // (preserves the command's integral over each step), the encoder is taken at the end of the step.
 ReplayData decimate(const ReplayData& full, std::size_t m);
 
-// Predictions for every row into yhat (size data.size()), each segment from its own start;
+// Event times: parameters that say when something happened (backlash_change.step_time_s). With
+// several files such a value T is on the runs' joint clock, so the event belongs to one file: file
+// i sees it at max(0, T - its clock offset), so an event in an earlier file (or between runs) is in
+// force from its first row and one in a later file never comes. One file: T as it is.
+bool is_event_time(std::string_view effect, std::string_view key);
+// `model` as segment i of `data` sees it (its event times moved to the segment's own clock).
+plant::Plant segment_model(const plant::Plant& model, const ReplayData& data, std::size_t i);
+
+// Predictions for every row into yhat (size data.size()), each segment from its own start, with
+// its segment_model;
 // returns false if the model cannot start there (settle out of range) or the prediction is not
 // finite.
 bool replay(const plant::Plant& model, const ReplayData& data, std::span<double> yhat);
