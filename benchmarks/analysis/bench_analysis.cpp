@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   fs::create_directories(dir);
   std::printf("bench_analysis: %s, %u hardware threads\n", dir.c_str(), std::thread::hardware_concurrency());
   if (only.empty() || only == "compare") bench_compare(dir);
-  // Three effects at once (issue 9): gap 1.7 deg, erosion 0.5 mm^2/s, sensor offset 25 kPa.
+  // Three effects at once: gap 1.7 deg, erosion 0.5 mm^2/s, sensor offset 25 kPa.
   auto three = [](const hil::plant::Plant& p) {
     return with_block(with_block(with_block(p, "backlash_change", "gap_deg: 1.7"), "throat_erosion", "rate_mm2_per_s: 0.5"),
                       "sensor_bias", "{offset_kpa: 25, gain: 1.0}");

@@ -1,4 +1,4 @@
-// Several hidden effects at once (issue 9): the truth has two or three effects the nominal model
+// Several hidden effects at once: the truth has two or three effects the nominal model
 // lacks; diagnose must add every one of them (and nothing else), each parameter within 15 % of
 // the truth, and end within 1 point of the noise floor. Scenarios use reference profiles, seeds
 // and magnitudes that the single-effect suite does not. Also: a time-confined effect outside the
@@ -221,7 +221,7 @@ INSTANTIATE_TEST_SUITE_P(Combinations, MultiEffect, testing::ValuesIn(cases()), 
 namespace {
 
 // A(t) = A0 (1 + e t): found as proportional erosion, not as additive erosion plus a spurious
-// burn rate (issue 9); and additive erosion on the same profile is still found as additive.
+// burn rate; and additive erosion on the same profile is still found as additive.
 TEST(MultiEffect, ErosionFormIsPickedByTheCriterion) {
   for (const bool proportional : {true, false}) {
     hil::test::TempDir dir;

@@ -1,4 +1,4 @@
-// Several files of one rig at once (issue 9): `diagnose --data a --data b --data c` fits one set of
+// Several files of one rig at once: `diagnose --data a --data b --data c` fits one set of
 // parameters to all of them. Three runs share a gap of 1.6 deg (nominal 1.0) and a 15 ms sensor
 // lag; the logger records the command and the pressure, no encoder, so the drive's own lag sits
 // between them too. In the slow run (10 deg/s) a sensor lag and a slower drive look alike: both
