@@ -140,8 +140,11 @@ TEST(MultiFile, AGapThatSteppedDuringTheSecondRunIsFoundInThatRun) {
   EXPECT_EQ(pf.at("data_file"), files[1].string());
   EXPECT_NEAR(pf.at("value").get<double>(), kStepAfterS, 0.3);
   EXPECT_NEAR(pf.at("file_time_s").get<double>(), 200.0 + kStepAfterS, 0.3);
-  for (const auto& p : a.at("parameters"))
-    if (p.at("key") == "step_time_s") EXPECT_EQ(p.at("file_index"), 1);
+  for (const auto& p : a.at("parameters")) {
+    if (p.at("key") == "step_time_s") {
+      EXPECT_EQ(p.at("file_index"), 1);
+    }
+  }
   std::string shared;
   for (const auto& p : d.at("shared_parameters")) shared += p.get<std::string>() + " ";
   EXPECT_NE(shared.find("backlash_change.step_deg"), std::string::npos) << shared;

@@ -77,7 +77,10 @@ inline std::string brief(const nlohmann::json& d) {
     s += "Paths followed:";
     for (const auto& p : d.at("paths_followed")) {
       std::string effects;
-      for (const auto& e : p.at("effects")) effects += (effects.empty() ? "" : "+") + e.get<std::string>();
+      for (const auto& e : p.at("effects")) {
+        if (!effects.empty()) effects += '+';
+        effects += e.get<std::string>();
+      }
       s += " " + effects + " (fit " + std::to_string(p.at("fit_pct").get<double>()) + ")";
     }
   }
