@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "fft.hpp"
+#include "hil/minmax_decimator.hpp"
 #include "hil/units.hpp"
 
 namespace hil::analysis {
@@ -76,53 +77,18 @@ struct WindowAcc {
   }
 };
 
-// Min/max decimation with buckets that merge pairwise as the data grows.
+// A plotted series: min/max decimated as the rows stream by (hil/minmax_decimator.hpp).
 class SeriesDecimator {
  public:
-  void add(double t, double v) {
-    if (!std::isfinite(v)) return;
-    if (count_ == 0) buckets_.push_back({t, v, t, v});
-    Bucket& b = buckets_.back();
-    if (v < b.vmin) b.vmin = v, b.tmin = t;
-    if (v > b.vmax) b.vmax = v, b.tmax = t;
-    if (++count_ == per_bucket_) {
-      count_ = 0;
-      if (buckets_.size() >= 2 * kSeriesBuckets) merge();
-    }
-  }
+  void add(double t, double v) { d_.add(t, v); }
   TimeSeries take() const {
     TimeSeries s;
-    for (const auto& b : buckets_) {
-      const bool min_first = b.tmin <= b.tmax;
-      s.t_s.push_back(min_first ? b.tmin : b.tmax);
-      s.value.push_back(min_first ? b.vmin : b.vmax);
-      if (b.tmin != b.tmax) {
-        s.t_s.push_back(min_first ? b.tmax : b.tmin);
-        s.value.push_back(min_first ? b.vmax : b.vmin);
-      }
-    }
+    d_.take(s.t_s, s.value);
     return s;
   }
 
  private:
-  struct Bucket {
-    double tmin, vmin, tmax, vmax;
-  };
-  void merge() {
-    std::vector<Bucket> out;
-    for (std::size_t i = 0; i + 1 < buckets_.size(); i += 2) {
-      Bucket a = buckets_[i];
-      const Bucket& b = buckets_[i + 1];
-      if (b.vmin < a.vmin) a.vmin = b.vmin, a.tmin = b.tmin;
-      if (b.vmax > a.vmax) a.vmax = b.vmax, a.tmax = b.tmax;
-      out.push_back(a);
-    }
-    if (buckets_.size() % 2 == 1) out.push_back(buckets_.back());
-    buckets_ = std::move(out);
-    per_bucket_ *= 2;
-  }
-  std::vector<Bucket> buckets_;
-  std::size_t per_bucket_ = 1, count_ = 0;
+  MinMaxDecimator d_{kSeriesBuckets};
 };
 
 // Histogram of |x| on log-spaced bins, for a streaming median.

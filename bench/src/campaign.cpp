@@ -11,6 +11,7 @@
 #include "hil/csv_reader.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/plant/rng.hpp"
+#include "hil/physics.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -487,8 +488,7 @@ ctl::ChamberModel chamber_model_of(const plant::Plant& plant) {
   ctl::ChamberModel m;
   m.propellant_density_kg_m3 = param_of(plant, "gas_generator", "propellant_density_kg_m3");
   m.pressure_exponent = param_of(plant, "gas_generator", "pressure_exponent");
-  m.burn_coeff_si = param_of(plant, "gas_generator", "burn_rate_mm_s_at_1mpa") * 1e-3 /
-                    std::pow(units::kPaPerMpa, m.pressure_exponent);
+  m.burn_coeff_si = physics::burn_coeff_si(param_of(plant, "gas_generator", "burn_rate_mm_s_at_1mpa"), m.pressure_exponent);
   m.burning_area_m2 = param_of(plant, "gas_generator", "burning_area_m2");
   m.cstar_m_s = param_of(plant, "gas_generator", "cstar_m_s");
   m.rtc_m2_s2 = param_of(plant, "gas_generator", "rtc_m2_s2");

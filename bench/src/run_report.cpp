@@ -47,7 +47,7 @@ RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const 
   const auto col = [&](std::size_t k, std::size_t i, double fallback) {
     return t.values[k].empty() ? fallback : t.values[k][i];
   };
-  RunDigest digest(c, static_cast<long>(t.rows()));
+  RunDigest digest(c);
   for (std::size_t i = 0; i < t.rows(); ++i) {
     StepRecord r;
     r.t_s = t.values[0][i];

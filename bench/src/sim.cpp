@@ -14,6 +14,7 @@
 
 #include "hil/bench/sim_report.hpp"
 #include "hil/config.hpp"
+#include "hil/minmax_decimator.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -24,50 +25,30 @@ using units::rad_to_deg;
 using Clock = std::chrono::steady_clock;
 
 constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
-constexpr std::size_t kReportBuckets = 10000;
+// At most 2 x 5000 buckets of two points: a report plot of a run holds at most 20 000 points.
+constexpr std::size_t kReportBuckets = 5000;
 
-// Min/max decimation of several series sampled together.
-class Decimator {
+// The report's series, min/max decimated as the run goes (hil/minmax_decimator.hpp).
+class ReportDecimator {
  public:
-  Decimator(std::vector<std::string> names, long total_samples)
-      : bucket_(std::max<long>(1, (total_samples + static_cast<long>(kReportBuckets) - 1) / static_cast<long>(kReportBuckets))) {
-    for (auto& n : names) series_.push_back({std::move(n), {}, {}});
-    lo_.resize(series_.size());
-    hi_.resize(series_.size());
-    const auto reserve = static_cast<std::size_t>(2 * std::min<long>(total_samples, 2 * kReportBuckets) + 4);
-    for (auto& s : series_) s.t_s.reserve(reserve), s.value.reserve(reserve);
+  explicit ReportDecimator(std::vector<std::string> names) : names_(std::move(names)) {
+    series_.assign(names_.size(), MinMaxDecimator(kReportBuckets));
   }
   void add(double t, const double* values) {
-    for (std::size_t i = 0; i < series_.size(); ++i) {
-      if (count_ == 0 || values[i] < lo_[i].second) lo_[i] = {t, values[i]};
-      if (count_ == 0 || values[i] > hi_[i].second) hi_[i] = {t, values[i]};
-    }
-    if (++count_ == bucket_) flush();
+    for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, values[i]);
   }
-  std::vector<ReportSeries> take() {
-    flush();
-    return std::move(series_);
+  std::vector<ReportSeries> take() const {
+    std::vector<ReportSeries> out(series_.size());
+    for (std::size_t i = 0; i < series_.size(); ++i) {
+      out[i].name = names_[i];
+      series_[i].take(out[i].t_s, out[i].value);
+    }
+    return out;
   }
 
  private:
-  void flush() {
-    if (count_ == 0) return;
-    for (std::size_t i = 0; i < series_.size(); ++i) {
-      auto a = lo_[i], b = hi_[i];
-      if (a.first > b.first) std::swap(a, b);
-      series_[i].t_s.push_back(a.first);
-      series_[i].value.push_back(a.second);
-      if (b.first != a.first) {
-        series_[i].t_s.push_back(b.first);
-        series_[i].value.push_back(b.second);
-      }
-    }
-    count_ = 0;
-  }
-  long bucket_;
-  long count_ = 0;
-  std::vector<ReportSeries> series_;
-  std::vector<std::pair<double, double>> lo_, hi_;
+  std::vector<std::string> names_;
+  std::vector<MinMaxDecimator> series_;
 };
 
 void write_text(const std::filesystem::path& file, const std::string& text) {
@@ -80,7 +61,7 @@ void write_text(const std::filesystem::path& file, const std::string& text) {
 RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
                    std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
-  RunDigest digest(c, std::lround(c.duration_s / c.period_s));
+  RunDigest digest(c);
   std::unique_ptr<CsvWriter> csv;
   if (telemetry) {
     csv = std::make_unique<CsvWriter>(dir / "telemetry.csv", sim_telemetry_columns(),
@@ -131,14 +112,14 @@ void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::strin
 
 struct RunDigest::Impl {
   RunMetrics metrics;
-  Decimator report;
+  ReportDecimator report;
 };
 
-RunDigest::RunDigest(const Campaign& c, long total_periods)
+RunDigest::RunDigest(const Campaign& c)
     : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS),
-                                        Decimator({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg", "theta_valve_deg",
-                                                   "theta_cmd_deg", "gap_est_deg", "gap_true_deg", "theta_target_deg"},
-                                                  total_periods)})) {}
+                                        ReportDecimator({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg",
+                                                         "theta_valve_deg", "theta_cmd_deg", "gap_est_deg", "gap_true_deg",
+                                                         "theta_target_deg"})})) {}
 
 RunDigest::~RunDigest() = default;
 

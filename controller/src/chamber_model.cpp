@@ -34,18 +34,11 @@ void ChamberModel::validate() const {
 }
 
 double ChamberModel::equilibrium_area_m2(double p_pa) const noexcept {
-  p_pa = std::max(p_pa, 1.0);
-  return burning_area_m2 * burn_coeff_si * cstar_m_s * (propellant_density_kg_m3 - volume_growth * p_pa / rtc_m2_s2) *
-         std::pow(p_pa, pressure_exponent - 1);
+  return GasGenerator::equilibrium_area_m2(std::max(p_pa, 1.0));
 }
 
 double ChamberModel::throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3) const noexcept {
-  // dP/dt = RTc/V (mdot_gen - mdot_out) - P/V dV/dt, dV/dt = mdot_gen / rho_p, mdot_out = P At / c*
-  p_pa = std::max(p_pa, 1.0);
-  const double mdot_gen = propellant_density_kg_m3 * burning_area_m2 * burn_coeff_si * std::pow(p_pa, pressure_exponent);
-  const double mdot_out =
-      mdot_gen * (1 - volume_growth * p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) - volume_m3 / rtc_m2_s2 * dpdt_pa_s;
-  return mdot_out * cstar_m_s / p_pa;
+  return GasGenerator::throat_area_m2(std::max(p_pa, 1.0), dpdt_pa_s, volume_m3);
 }
 
 double ChamberModel::angle_for_area_rad(double area) const noexcept {
@@ -76,7 +69,8 @@ double ChamberModel::gain_pa_per_rad(double p_pa) const noexcept {
 }
 
 double ChamberModel::volume_rate_m3_s(double p_pa) const noexcept {
-  return volume_growth * burning_area_m2 * burn_coeff_si * std::pow(std::max(p_pa, 1.0), pressure_exponent);
+  p_pa = std::max(p_pa, 1.0);
+  return rates(p_pa, std::pow(p_pa, pressure_exponent), 1.0, 0.0).dv_m3_s;
 }
 
 }  // namespace hil::ctl

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "hil/physics.hpp"
+
 namespace hil::ctl {
 
 void ControllerParams::validate() const {
@@ -32,7 +34,7 @@ ControllerParams validated(ControllerParams p) {
 }  // namespace
 
 Controller::Controller(const ControllerParams& params)
-    : p_(validated(params)), robust_(p_.robust, p_.chamber), motor_keep_(std::exp(-p_.period_s / p_.motor.time_constant_s)) {}
+    : p_(validated(params)), robust_(p_.robust, p_.chamber), motor_keep_(physics::servo_keep(p_.period_s, p_.motor.time_constant_s)) {}
 
 ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
   ControllerState s;
@@ -119,9 +121,7 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   if (s.boost_rad > 0 ? motor_rad + step_reach >= s.theta_cmd_rad : motor_rad - step_reach <= s.theta_cmd_rad) s.boost_rad = 0;
   const double cmd = std::clamp(s.theta_cmd_rad + s.boost_rad, p_.cmd_min_rad, p_.cmd_max_rad);
   // The motor model predicts the drive's angle at the next sample (lag, then rate limit).
-  const double lagged = cmd + (s.motor_model_rad - cmd) * motor_keep_;
-  const double max_move = p_.motor.rate_limit_rad_s * p_.period_s;
-  s.motor_model_rad += std::clamp(lagged - s.motor_model_rad, -max_move, max_move);
+  s.motor_model_rad = physics::servo_step_rad(s.motor_model_rad, cmd, motor_keep_, p_.motor.rate_limit_rad_s * p_.period_s);
   s.volume_p_sum_pa += in.p_meas_pa;
   if (++s.volume_steps == kVolumeSteps) {
     s.volume_m3 += p_.chamber.volume_rate_m3_s(s.volume_p_sum_pa / kVolumeSteps) * kVolumeSteps * p_.period_s;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hil/physics.hpp"
+
 namespace hil::ctl {
 
 double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad, double* rms,
@@ -17,11 +19,7 @@ double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t s
   std::int64_t n = 0;
   for (std::int64_t i = 0; i < w.n; ++i) {
     const double m = w.motor_rad[static_cast<std::size_t>(i)];
-    if (m - half > valve) {
-      valve = m - half;
-    } else if (m + half < valve) {
-      valve = m + half;
-    }
+    valve = physics::play_rad(valve, m, half);
     lp1 += alpha_ * (valve - lp1);
     lp2 += alpha_ * (lp1 - lp2);
     if (i >= skip) {

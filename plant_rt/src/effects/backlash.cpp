@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "hil/config.hpp"
+#include "hil/physics.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -38,12 +39,7 @@ class Backlash final : public ScalarEffect<Backlash> {
   }
   void step(std::span<double> x, Signals& s, double, Rng&) const noexcept override {
     const double half = gap(s) / 2;
-    if (s.theta_motor_rad - half > x[0]) {
-      x[0] = s.theta_motor_rad - half;  // positive flank pushes the valve open
-    } else if (s.theta_motor_rad + half < x[0]) {
-      x[0] = s.theta_motor_rad + half;  // negative flank pushes it closed
-    }
-    x[0] = clamp_stops(x[0]);
+    x[0] = clamp_stops(physics::play_rad(x[0], s.theta_motor_rad, half));
     write(x[0], s);
   }
 

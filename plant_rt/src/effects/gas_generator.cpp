@@ -1,5 +1,6 @@
 // The gas generator: a lumped chamber filled by an end-burning grain and emptied through the
-// choked throat (physics.md section 2):
+// choked throat (physics.md section 2; the equation is physics::GasGenerator's, shared with the
+// controller's model):
 //   mdot_gen = rho_p * Ab * r,  r = a * (Pg / 1 MPa)^n     mdot_out = Pg * At / c*
 //   dV/dt = g * Ab * r          dPg/dt = (R*Tc / V) * (mdot_gen - mdot_out) - (Pg / V) * dV/dt
 // g (volume_growth) is 1 for an end-burning grain in a closed case (physics.md); 0 keeps the free
@@ -11,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hil/physics.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -33,25 +35,17 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   };
   explicit GasGenerator(std::vector<double> v)
       : ScalarEffect(std::move(v)),
-        rho_(value(0)),
-        // a in SI for Pg in Pa: r[m/s] = a_si * Pg^n
-        a_si_(value(1) * 1e-3 / std::pow(units::kPaPerMpa, value(2))),
-        n_(value(2)),
-        ab_(value(3)),
-        cstar_(value(4)),
-        rtc_(value(5)),
-        v0_(value(6) * units::kM3PerL),
-        growth_(value(7)) {}
+        gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
+        v0_(value(6) * units::kM3PerL) {}
 
   // State: chamber pressure, free volume, generated gas mass, discharged gas mass.
   std::size_t state_size() const noexcept override { return 4; }
 
   void settle(std::span<double> x, Signals& s) const override {
-    // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point (contracts fast
-    // because P/RTc << rho_p).
+    // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point.
     double p = 1e6;
     for (int i = 0; i < 60; ++i) {
-      const double next = std::pow(ab_ * a_si_ * cstar_ * (rho_ - growth_ * p / rtc_) / s.throat_area_m2, 1.0 / (1.0 - n_));
+      const double next = gas_.equilibrium_pressure_step_pa(p, s.throat_area_m2);
       const bool converged = std::abs(next - p) <= 1e-12 * next;
       p = next;
       if (converged) break;
@@ -59,23 +53,23 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[0] = p;
     x[1] = v0_;
     x[2] = x[3] = 0;
-    const Rates r = rates(p, std::pow(p, n_), v0_, s.throat_area_m2);
-    write(x, s, r.mdot_gen, r.mdot_out);
+    const Rates r = rates(p, std::pow(p, gas_.pressure_exponent), v0_, s.throat_area_m2);
+    write(x, s, r.mdot_gen_kg_s, r.mdot_out_kg_s);
   }
 
   void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
     const double at = s.throat_area_m2;
     const double p = std::max(x[0], kMinPressurePa), v = x[1];
-    const double pn = std::pow(p, n_);
+    const double pn = std::pow(p, gas_.pressure_exponent);
     const Rates k1 = rates(p, pn, v, at);
-    const Rates k2 = rates(p + 0.5 * dt_s * k1.dp, pn, p, v + 0.5 * dt_s * k1.dv, at);
-    const Rates k3 = rates(p + 0.5 * dt_s * k2.dp, pn, p, v + 0.5 * dt_s * k2.dv, at);
-    const Rates k4 = rates(p + dt_s * k3.dp, pn, p, v + dt_s * k3.dv, at);
+    const Rates k2 = rates(p + 0.5 * dt_s * k1.dp_pa_s, pn, p, v + 0.5 * dt_s * k1.dv_m3_s, at);
+    const Rates k3 = rates(p + 0.5 * dt_s * k2.dp_pa_s, pn, p, v + 0.5 * dt_s * k2.dv_m3_s, at);
+    const Rates k4 = rates(p + dt_s * k3.dp_pa_s, pn, p, v + dt_s * k3.dv_m3_s, at);
     auto avg = [](double a, double b, double c, double d) { return (a + 2 * b + 2 * c + d) / 6; };
-    const double mdot_gen = avg(k1.mdot_gen, k2.mdot_gen, k3.mdot_gen, k4.mdot_gen);
-    const double mdot_out = avg(k1.mdot_out, k2.mdot_out, k3.mdot_out, k4.mdot_out);
-    x[0] = std::max(p + dt_s * avg(k1.dp, k2.dp, k3.dp, k4.dp), kMinPressurePa);
-    x[1] = v + dt_s * avg(k1.dv, k2.dv, k3.dv, k4.dv);
+    const double mdot_gen = avg(k1.mdot_gen_kg_s, k2.mdot_gen_kg_s, k3.mdot_gen_kg_s, k4.mdot_gen_kg_s);
+    const double mdot_out = avg(k1.mdot_out_kg_s, k2.mdot_out_kg_s, k3.mdot_out_kg_s, k4.mdot_out_kg_s);
+    x[0] = std::max(p + dt_s * avg(k1.dp_pa_s, k2.dp_pa_s, k3.dp_pa_s, k4.dp_pa_s), kMinPressurePa);
+    x[1] = v + dt_s * avg(k1.dv_m3_s, k2.dv_m3_s, k3.dv_m3_s, k4.dv_m3_s);
     x[2] += dt_s * mdot_gen;
     x[3] += dt_s * mdot_out;
     write(x, s, mdot_gen, mdot_out);
@@ -83,31 +77,24 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
 
  private:
   static constexpr double kMinPressurePa = 1.0;  // keeps P^n defined; far below any operating point
-  struct Rates {
-    double dp, dv, mdot_gen, mdot_out;
-  };
+  using Rates = physics::GasGenerator::Rates;
   // The later RK stages differ from the step's start by a fraction of a percent: P^n from a
   // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
   Rates rates(double p, double p0n, double p0, double v, double at) const noexcept {
     p = std::max(p, kMinPressurePa);
     const double d = (p - p0) / p0;
-    if (std::abs(d) > 0.01) return rates(p, std::pow(p, n_), v, at);
-    return rates(p, p0n * (1 + n_ * d * (1 + 0.5 * (n_ - 1) * d)), v, at);
+    if (std::abs(d) > 0.01) return rates(p, std::pow(p, gas_.pressure_exponent), v, at);
+    return rates(p, p0n * (1 + gas_.pressure_exponent * d * (1 + 0.5 * (gas_.pressure_exponent - 1) * d)), v, at);
   }
-  Rates rates(double p, double pn, double v, double at) const noexcept {
-    const double burn_m_s = a_si_ * pn;
-    const double mdot_gen = rho_ * ab_ * burn_m_s;
-    const double mdot_out = p * at / cstar_;
-    const double dv = growth_ * ab_ * burn_m_s;
-    return {(rtc_ * (mdot_gen - mdot_out) - p * dv) / v, dv, mdot_gen, mdot_out};
-  }
+  Rates rates(double p, double pn, double v, double at) const noexcept { return gas_.rates(p, pn, v, at); }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
     s.p_chamber_pa = x[0];
     s.volume_m3 = x[1];
     s.mdot_gen_kg_s = mdot_gen;
     s.mdot_out_kg_s = mdot_out;
   }
-  double rho_, a_si_, n_, ab_, cstar_, rtc_, v0_, growth_;
+  physics::GasGenerator gas_;
+  double v0_;
 };
 
 HIL_REGISTER_EFFECT(GasGenerator, "lumped gas-generator chamber with end-burning grain and choked throat")

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hil/physics.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -27,10 +28,8 @@ class MotorServo final : public ScalarEffect<MotorServo> {
     if (std::isfinite(s.theta_motor_meas_rad)) {
       x[0] = s.theta_motor_meas_rad;
     } else {
-      // Exact discretisation of the lag, so the step size does not change the response.
-      const double lagged = s.theta_cmd_rad + (x[0] - s.theta_cmd_rad) * std::exp(-dt_s / value(0));
-      const double max_move = units::deg_to_rad(value(1)) * dt_s;
-      x[0] += std::clamp(lagged - x[0], -max_move, max_move);
+      x[0] = physics::servo_step_rad(x[0], s.theta_cmd_rad, physics::servo_keep(dt_s, value(0)),
+                                     units::deg_to_rad(value(1)) * dt_s);
     }
     s.theta_motor_rad = x[0];
   }

@@ -85,7 +85,7 @@ struct RunOutcome {
 // `hilbench sim` (while it simulates) and `hilbench report` (from a recorded telemetry.csv).
 class RunDigest {
  public:
-  RunDigest(const Campaign& c, long total_periods);
+  explicit RunDigest(const Campaign& c);
   ~RunDigest();
   RunDigest(const RunDigest&) = delete;
   RunDigest& operator=(const RunDigest&) = delete;

@@ -7,16 +7,14 @@
 #include <array>
 #include <cstddef>
 
+#include "hil/physics.hpp"
+
 namespace hil::ctl {
 
-struct ChamberModel {
-  double propellant_density_kg_m3 = 0;
-  double burn_coeff_si = 0;        // a in r[m/s] = a * Pg[Pa]^n
-  double pressure_exponent = 0;    // n
-  double burning_area_m2 = 0;      // Ab
-  double cstar_m_s = 0;            // c*
-  double rtc_m2_s2 = 0;            // R*Tc
-  double volume_growth = 1;        // fraction of the burned volume freed to the gas
+// The gas generator's parameters and equation are physics::GasGenerator's (the plant's too); this
+// adds the throat map and the linearisation the controller designs with. Pressures below 1 Pa are
+// taken as 1 Pa (the laws have p^(n-1)).
+struct ChamberModel : physics::GasGenerator {
   static constexpr std::size_t kMaxMapPoints = 16;
   std::array<double, kMaxMapPoints> map_angle_rad{};  // throat map, increasing angles
   std::array<double, kMaxMapPoints> map_area_m2{};    // non-decreasing areas
@@ -25,7 +23,7 @@ struct ChamberModel {
   // Throws std::invalid_argument naming the bad value.
   void validate() const;
 
-  // Throat area that holds `p_pa` steady: Ab a c* (rho_p - p/RTc) p^(n-1).
+  // Throat area that holds `p_pa` steady: Ab a c* (rho_p - g p/RTc) p^(n-1).
   double equilibrium_area_m2(double p_pa) const noexcept;
   // Valve angle whose throat holds `p_pa` steady (inverse map, clamped to the table).
   double valve_angle_rad(double p_pa) const noexcept { return angle_for_area_rad(equilibrium_area_m2(p_pa)); }

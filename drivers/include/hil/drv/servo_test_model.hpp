@@ -9,6 +9,7 @@
 #include <mutex>
 
 #include "hil/drv/models.hpp"
+#include "hil/physics.hpp"
 
 namespace hil::drv {
 
@@ -55,11 +56,9 @@ class FirstOrderServoTestModel final : public DriveModel {
       velocity_rad_s_ = 0;
       return;
     }
-    double step = (target_rad_ - position_rad_) * (1.0 - std::exp(-dt / tau_s_));
-    const double max_step = rate_limit_rad_s_ * dt;
-    step = std::clamp(step, -max_step, max_step);
-    position_rad_ += step;
-    velocity_rad_s_ = step / dt;
+    const double before = position_rad_;
+    position_rad_ = physics::servo_step_rad(position_rad_, target_rad_, physics::servo_keep(dt, tau_s_), rate_limit_rad_s_ * dt);
+    velocity_rad_s_ = (position_rad_ - before) / dt;
   }
 
   std::mutex mutex_;
