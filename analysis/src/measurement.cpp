@@ -4,13 +4,19 @@
 #include <cmath>
 #include <cstdio>
 
+#include "hil/telemetry_schema.hpp"
 #include "hil/units.hpp"
 
 namespace hil::analysis {
 namespace {
 
+using telemetry::Col;
+
+// The measurement format (physics.md section 4, the first columns of the telemetry schema), in the
+// schema's order so that values[telemetry::index(c)] is column c.
 CsvRequest measurement_request() {
-  return {{"t_s", "theta_cmd_deg", "p_meas_mpa"}, {"theta_motor_deg", "p_ref_mpa"}, "t_s"};
+  auto n = [](Col c) { return std::string(telemetry::name(c)); };
+  return {{n(Col::t_s), n(Col::theta_cmd_deg), n(Col::p_meas_mpa)}, {n(Col::theta_motor_deg), n(Col::p_ref_mpa)}, n(Col::t_s)};
 }
 
 }  // namespace
@@ -53,11 +59,11 @@ MeasurementReader::MeasurementReader(const std::filesystem::path& file)
   has_reference_ = reader_.header().present[4];
 }
 
-void MeasurementReader::fail_at(std::size_t line, const char* column, const std::string& what) const {
+void MeasurementReader::fail_at(std::size_t line, std::string_view column, const std::string& what) const {
   const auto& names = reader_.header().names;
   const auto it = std::find(names.begin(), names.end(), column);
   const std::size_t col = it == names.end() ? 1 : static_cast<std::size_t>(it - names.begin()) + 1;
-  throw CsvError(file_.string() + ":" + std::to_string(line) + ":" + std::to_string(col) + ": column '" + column +
+  throw CsvError(file_.string() + ":" + std::to_string(line) + ":" + std::to_string(col) + ": column '" + std::string(column) +
                  "': " + what);
 }
 
@@ -65,7 +71,7 @@ void MeasurementReader::fail_at(std::size_t line, const char* column, const std:
 void MeasurementReader::check_rows(const CsvChunk& c) {
   using L = MeasurementLimits;
   char b[400];
-  const auto& t = c.values[0];
+  const auto& t = c.values[telemetry::index(Col::t_s)];
   for (std::size_t r = 0; r < c.rows(); ++r) {
     const std::size_t line = c.lines[r];
     const std::size_t k = rows_read_ + r;  // row index in the file
@@ -76,7 +82,7 @@ void MeasurementReader::check_rows(const CsvChunk& c) {
                     "a gap of %.6g s in the log (t_s %.9g -> %.9g); the replay crosses gaps of at most %.3g s open "
                     "loop with the inputs held: longer than that it is two runs, so cut the file there",
                     dt, t_last_s_, t[r], L::kMaxGapS);
-      fail_at(line, "t_s", b);
+      fail_at(line, telemetry::name(Col::t_s), b);
     }
     const double span = t[r] - t_first_s_;
     if (span > L::kMaxGapS + static_cast<double>(k) * L::kMaxMeanPeriodS) {
@@ -84,25 +90,26 @@ void MeasurementReader::check_rows(const CsvChunk& c) {
                     "the log covers %.6g s in its first %zu rows (%.3g s per row); the workbench needs at least one "
                     "row per %.3g s on average (the chamber's ~0.1 s dynamics must be sampled)",
                     span, k + 1, span / static_cast<double>(k + 1), L::kMaxMeanPeriodS);
-      fail_at(line, "t_s", b);
+      fail_at(line, telemetry::name(Col::t_s), b);
     }
     t_last_s_ = t[r];
-    const double p = c.values[2][r];
+    const double p = c.values[telemetry::index(Col::p_meas_mpa)][r];
     if (!(p >= L::kMinPressureMpa && p <= L::kMaxPressureMpa)) {
       std::snprintf(b, sizeof b, "%.6g MPa is outside what a chamber-pressure transducer reads here (%.3g to %.3g MPa)", p,
                     L::kMinPressureMpa, L::kMaxPressureMpa);
-      fail_at(line, "p_meas_mpa", b);
+      fail_at(line, telemetry::name(Col::p_meas_mpa), b);
     }
     const double p_pa = units::mpa_to_pa(p);
     if (k == 0) p_min_pa_ = p_max_pa_ = p_pa;
     p_min_pa_ = std::min(p_min_pa_, p_pa), p_max_pa_ = std::max(p_max_pa_, p_pa);
-    for (const auto& [col, name] : {std::pair{1, "theta_cmd_deg"}, std::pair{3, "theta_motor_deg"}}) {
-      if (c.values[col].empty()) continue;
-      const double a = c.values[col][r];
+    for (const Col angle : {Col::theta_cmd_deg, Col::theta_motor_deg}) {
+      const auto& values = c.values[telemetry::index(angle)];
+      if (values.empty()) continue;
+      const double a = values[r];
       if (std::abs(a) > L::kMaxAngleDeg) {
         std::snprintf(b, sizeof b, "%.6g deg is more than a turn from zero (the valve travels 0-30 deg; at most +-%.0f deg)",
                       a, L::kMaxAngleDeg);
-        fail_at(line, name, b);
+        fail_at(line, telemetry::name(angle), b);
       }
     }
     last_data_line_ = line;
@@ -117,7 +124,7 @@ void MeasurementReader::check_whole_file() const {
                   "the reading is %.9g MPa on every row (lines %zu-%zu): a pressure that never moves carries no "
                   "dynamics to compare (a disconnected or saturated channel?)",
                   units::pa_to_mpa(p_min_pa_), first_data_line_, last_data_line_);
-    fail_at(first_data_line_, "p_meas_mpa", b);
+    fail_at(first_data_line_, telemetry::name(Col::p_meas_mpa), b);
   }
 }
 
@@ -132,17 +139,17 @@ bool MeasurementReader::next(MeasurementRows& rows, std::size_t max_rows) {
   if (rows_read_ == 0) first_data_line_ = chunk_.first_line;
   const std::size_t n = chunk_.rows();
   rows_read_ += n;
-  rows.t_s = std::move(chunk_.values[0]);
-  rows.theta_cmd_rad = std::move(chunk_.values[1]);
+  rows.t_s = std::move(chunk_.values[telemetry::index(Col::t_s)]);
+  rows.theta_cmd_rad = std::move(chunk_.values[telemetry::index(Col::theta_cmd_deg)]);
   for (double& v : rows.theta_cmd_rad) v = units::deg_to_rad(v);
-  rows.p_meas_pa = std::move(chunk_.values[2]);
+  rows.p_meas_pa = std::move(chunk_.values[telemetry::index(Col::p_meas_mpa)]);
   for (double& v : rows.p_meas_pa) v = units::mpa_to_pa(v);
   if (has_encoder_) {
-    rows.theta_motor_rad = std::move(chunk_.values[3]);
+    rows.theta_motor_rad = std::move(chunk_.values[telemetry::index(Col::theta_motor_deg)]);
     for (double& v : rows.theta_motor_rad) v = units::deg_to_rad(v);
   }
   if (has_reference_) {
-    rows.p_ref_pa = std::move(chunk_.values[4]);
+    rows.p_ref_pa = std::move(chunk_.values[telemetry::index(Col::p_ref_mpa)]);
     for (double& v : rows.p_ref_pa) v = units::mpa_to_pa(v);
   }
   return true;

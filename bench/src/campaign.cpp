@@ -12,6 +12,7 @@
 #include "hil/plant/registry.hpp"
 #include "hil/plant/rng.hpp"
 #include "hil/physics.hpp"
+#include "hil/telemetry_schema.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -130,7 +131,9 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
   } else if (type == "csv") {
     body.allow_keys({"file", "column", "time_column"});
     const auto file = body.resolve_path(body.text("file"));
-    const std::string col = body.text("column", "p_ref_mpa"), tcol = body.text("time_column", "t_s");
+    // By default a telemetry file's reference and time columns (hil/telemetry_schema.hpp).
+    const std::string col = body.text("column", telemetry::name(telemetry::Col::p_ref_mpa)),
+                      tcol = body.text("time_column", telemetry::name(telemetry::Col::t_s));
     CsvChunk data;
     try {
       data = read_csv(file, {{tcol, col}, {}, tcol});

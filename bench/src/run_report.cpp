@@ -40,34 +40,41 @@ Campaign campaign_of(const json& run, const std::filesystem::path& dir) {
 RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const std::string& name) {
   using units::deg_to_rad;
   using units::mpa_to_pa;
-  const CsvChunk t = read_csv(csv, {{"t_s", "theta_cmd_deg", "p_meas_mpa", "theta_motor_deg", "p_ref_mpa"},
-                                    {"theta_valve_deg", "gap_true_deg", "touch_state", "motion_intention", "comp_deg",
-                                     "gap_est_deg", "p_chamber_mpa", "theta_target_deg"},
-                                    "t_s"});
-  const auto col = [&](std::size_t k, std::size_t i, double fallback) {
-    return t.values[k].empty() ? fallback : t.values[k][i];
+  using telemetry::Col;
+  // The schema's columns up to theta_target_deg, requested in its order so that values[index(c)]
+  // is column c: the measurement columns are required, the rest optional (a rig without the
+  // truth leaves those out).
+  CsvRequest request;
+  request.increasing = std::string(telemetry::name(Col::t_s));
+  for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k)
+    (k <= telemetry::index(Col::p_ref_mpa) ? request.required : request.optional).emplace_back(telemetry::kColumns[k].name);
+  const CsvChunk t = read_csv(csv, request);
+  const auto col = [&](Col c, std::size_t i, double fallback) {
+    const auto& v = t.values[telemetry::index(c)];
+    return v.empty() ? fallback : v[i];
   };
   RunDigest digest(c);
   for (std::size_t i = 0; i < t.rows(); ++i) {
     StepRecord r;
-    r.t_s = t.values[0][i];
-    r.theta_cmd_rad = deg_to_rad(t.values[1][i]);
-    r.p_meas_pa = mpa_to_pa(t.values[2][i]);
-    r.theta_motor_rad = deg_to_rad(t.values[3][i]);
-    r.p_ref_pa = mpa_to_pa(t.values[4][i]);
-    r.theta_valve_rad = deg_to_rad(col(5, i, kNaN));
-    r.gap_true_rad = deg_to_rad(col(6, i, kNaN));
-    r.touch = static_cast<decltype(r.touch)>(col(7, i, 0));
-    r.intention = static_cast<decltype(r.intention)>(col(8, i, 0));
-    r.comp_rad = deg_to_rad(col(9, i, 0));
-    r.gap_est_rad = deg_to_rad(col(10, i, kNaN));
+    r.t_s = col(Col::t_s, i, kNaN);
+    r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
+    r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
+    r.theta_motor_rad = deg_to_rad(col(Col::theta_motor_deg, i, kNaN));
+    r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
+    r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
+    r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
+    r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
+    r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
+    r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
+    r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
     // A rig without the chamber's truth: the error is the measured one (IAE then holds the
     // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
-    r.p_chamber_pa = t.values[11].empty() ? r.p_meas_pa : mpa_to_pa(t.values[11][i]);
-    digest.add(r, deg_to_rad(col(12, i, kNaN)));
+    const double chamber_mpa = col(Col::p_chamber_mpa, i, kNaN);
+    r.p_chamber_pa = t.values[telemetry::index(Col::p_chamber_mpa)].empty() ? r.p_meas_pa : mpa_to_pa(chamber_mpa);
+    digest.add(r, deg_to_rad(col(Col::theta_target_deg, i, kNaN)));
   }
   RunOutcome out = digest.finish(name);
-  if (t.values[5].empty()) {
+  if (t.values[telemetry::index(Col::theta_valve_deg)].empty()) {
     out.summary.stall_s_total = kNaN;
     out.summary.stall_fraction = kNaN;
     for (auto& rev : out.summary.reversals) rev.stall_s = kNaN;

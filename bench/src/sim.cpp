@@ -28,26 +28,30 @@ constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: 
 // At most 2 x 5000 buckets of two points: a report plot of a run holds at most 20 000 points.
 constexpr std::size_t kReportBuckets = 5000;
 
+// The telemetry columns the campaign report plots.
+constexpr telemetry::Col kReportColumns[] = {
+    telemetry::Col::p_ref_mpa,     telemetry::Col::p_meas_mpa,    telemetry::Col::touch_state,
+    telemetry::Col::theta_motor_deg, telemetry::Col::theta_valve_deg, telemetry::Col::theta_cmd_deg,
+    telemetry::Col::gap_est_deg,   telemetry::Col::gap_true_deg,  telemetry::Col::theta_target_deg};
+
 // The report's series, min/max decimated as the run goes (hil/minmax_decimator.hpp).
 class ReportDecimator {
  public:
-  explicit ReportDecimator(std::vector<std::string> names) : names_(std::move(names)) {
-    series_.assign(names_.size(), MinMaxDecimator(kReportBuckets));
-  }
-  void add(double t, const double* values) {
-    for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, values[i]);
+  ReportDecimator() : series_(std::size(kReportColumns), MinMaxDecimator(kReportBuckets)) {}
+  void add(const std::array<double, telemetry::kLoopColumns>& row) {
+    const double t = row[telemetry::index(telemetry::Col::t_s)];
+    for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, row[telemetry::index(kReportColumns[i])]);
   }
   std::vector<ReportSeries> take() const {
     std::vector<ReportSeries> out(series_.size());
     for (std::size_t i = 0; i < series_.size(); ++i) {
-      out[i].name = names_[i];
+      out[i].name = std::string(telemetry::name(kReportColumns[i]));
       series_[i].take(out[i].t_s, out[i].value);
     }
     return out;
   }
 
  private:
-  std::vector<std::string> names_;
   std::vector<MinMaxDecimator> series_;
 };
 
@@ -116,45 +120,58 @@ struct RunDigest::Impl {
 };
 
 RunDigest::RunDigest(const Campaign& c)
-    : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS),
-                                        ReportDecimator({"p_ref_mpa", "p_meas_mpa", "touch_state", "theta_motor_deg",
-                                                         "theta_valve_deg", "theta_cmd_deg", "gap_est_deg", "gap_true_deg",
-                                                         "theta_target_deg"})})) {}
+    : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS), {}})) {}
 
 RunDigest::~RunDigest() = default;
 
 void RunDigest::add(const StepRecord& r, double theta_target_rad) {
   impl_->metrics.add(r);
-  const double target = std::isfinite(theta_target_rad) ? theta_target_rad : r.theta_cmd_rad;
-  const double values[] = {pa_to_mpa(r.p_ref_pa),        pa_to_mpa(r.p_meas_pa),       static_cast<double>(r.touch),
-                           rad_to_deg(r.theta_motor_rad), rad_to_deg(r.theta_valve_rad), rad_to_deg(r.theta_cmd_rad),
-                           rad_to_deg(r.gap_est_rad),     rad_to_deg(r.gap_true_rad),    rad_to_deg(target)};
-  impl_->report.add(r.t_s, values);
+  impl_->report.add(full_telemetry_row(r, theta_target_rad));
 }
 
 RunOutcome RunDigest::finish(std::string run_name) { return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0}; }
 
 const std::vector<CsvColumn>& sim_telemetry_columns() {
-  static const std::vector<CsvColumn> columns = {
-      {"t_s", 4},          {"theta_cmd_deg", 5},    {"p_meas_mpa", 6},       {"theta_motor_deg", 5},
-      {"p_ref_mpa", 6},    {"theta_valve_deg", 5},  {"gap_true_deg", 5},     {"touch_state", 0},
-      {"motion_intention", 0}, {"comp_deg", 5},     {"gap_est_deg", 5},      {"p_chamber_mpa", 6}};
+  static const std::vector<CsvColumn> columns = [] {
+    std::vector<CsvColumn> c;
+    for (std::size_t i = 0; i < kSimColumns; ++i)
+      c.push_back({std::string(telemetry::kColumns[i].name), telemetry::kColumns[i].decimals});
+    return c;
+  }();
   return columns;
 }
 
 std::array<double, kSimColumns> telemetry_row(const StepRecord& r) {
-  return {r.t_s,
-          rad_to_deg(r.theta_cmd_rad),
-          pa_to_mpa(r.p_meas_pa),
-          rad_to_deg(r.theta_motor_rad),
-          pa_to_mpa(r.p_ref_pa),
-          rad_to_deg(r.theta_valve_rad),
-          rad_to_deg(r.gap_true_rad),
-          static_cast<double>(r.touch),
-          static_cast<double>(r.intention),
-          rad_to_deg(r.comp_rad),
-          rad_to_deg(r.gap_est_rad),
-          pa_to_mpa(r.p_chamber_pa)};
+  using telemetry::Col;
+  std::array<double, kSimColumns> row{};
+  auto set = [&row](Col c, double v) { row[telemetry::index(c)] = v; };
+  set(Col::t_s, r.t_s);
+  set(Col::theta_cmd_deg, rad_to_deg(r.theta_cmd_rad));
+  set(Col::p_meas_mpa, pa_to_mpa(r.p_meas_pa));
+  set(Col::theta_motor_deg, rad_to_deg(r.theta_motor_rad));
+  set(Col::p_ref_mpa, pa_to_mpa(r.p_ref_pa));
+  set(Col::theta_valve_deg, rad_to_deg(r.theta_valve_rad));
+  set(Col::gap_true_deg, rad_to_deg(r.gap_true_rad));
+  set(Col::touch_state, static_cast<double>(r.touch));
+  set(Col::motion_intention, static_cast<double>(r.intention));
+  set(Col::comp_deg, rad_to_deg(r.comp_rad));
+  set(Col::gap_est_deg, rad_to_deg(r.gap_est_rad));
+  set(Col::p_chamber_mpa, pa_to_mpa(r.p_chamber_pa));
+  return row;
+}
+
+std::array<double, telemetry::kLoopColumns> full_telemetry_row(const StepRecord& r, double theta_target_rad,
+                                                              double wake_latency_us, double compute_us,
+                                                              std::uint32_t loop_flags) {
+  using telemetry::Col;
+  std::array<double, telemetry::kLoopColumns> row{};
+  const auto sim = telemetry_row(r);
+  std::copy(sim.begin(), sim.end(), row.begin());
+  row[telemetry::index(Col::theta_target_deg)] = rad_to_deg(std::isfinite(theta_target_rad) ? theta_target_rad : r.theta_cmd_rad);
+  row[telemetry::index(Col::wake_latency_us)] = wake_latency_us;
+  row[telemetry::index(Col::compute_us)] = compute_us;
+  row[telemetry::index(Col::loop_flags)] = static_cast<double>(loop_flags);
+  return row;
 }
 
 RunSummary summarise_run(const Campaign& c, const RunSpec& run) {

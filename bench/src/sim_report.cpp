@@ -5,6 +5,7 @@
 #include <map>
 
 #include "hil/report/report.hpp"
+#include "hil/telemetry_schema.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -19,13 +20,16 @@ std::string fmt(const char* f, double v) {
   return buf;
 }
 
-const ReportSeries* find(const RunOutcome& r, const std::string& name) {
+using telemetry::Col;
+
+// A telemetry column's decimated series in the run (nullptr: the report does not keep it).
+const ReportSeries* find(const RunOutcome& r, telemetry::Col column) {
   for (const auto& s : r.series)
-    if (s.name == name) return &s;
+    if (s.name == telemetry::name(column)) return &s;
   return nullptr;
 }
 
-Series series(const RunOutcome& r, const std::string& name, std::string label, std::string color = "",
+Series series(const RunOutcome& r, telemetry::Col name, std::string label, std::string color = "",
               Series::Style style = Series::Style::line, bool dashed = false) {
   const ReportSeries* s = find(r, name);
   Series out;
@@ -129,8 +133,8 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   doc.paragraph("Drag to zoom (all time axes follow), double-click to reset, click a legend entry to hide it.");
   Figure overlay{"Pressure, all runs", "time [s]", "pressure [MPa]"};
   overlay.group = "t";
-  overlay.series.push_back(series(runs.front(), "p_ref_mpa", "reference", "#222", Series::Style::step, true));
-  for (const auto& r : runs) overlay.series.push_back(series(r, "p_meas_mpa", r.name + " measured"));
+  overlay.series.push_back(series(runs.front(), Col::p_ref_mpa, "reference", "#222", Series::Style::step, true));
+  for (const auto& r : runs) overlay.series.push_back(series(r, Col::p_meas_mpa, r.name + " measured"));
   doc.figure(overlay);
 
   const int n = static_cast<int>(runs.size());
@@ -138,34 +142,34 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (const auto& r : runs) {
     Figure f{r.name + ": pressure vs reference", "time [s]", "pressure [MPa]"};
     f.group = "t";
-    f.series = {series(r, "p_ref_mpa", "reference", "#222", Series::Style::step, true),
-                series(r, "p_meas_mpa", "measured", "#1f77b4")};
+    f.series = {series(r, Col::p_ref_mpa, "reference", "#222", Series::Style::step, true),
+                series(r, Col::p_meas_mpa, "measured", "#1f77b4")};
     doc.figure(f);
   }
   for (const auto& r : runs) {
     Figure f{r.name + ": touch state", "time [s]", "touch state Tf [-1, 0, +1]"};
     f.group = "t";
     f.height_px = 180;
-    f.series = {series(r, "touch_state", "Tf", "#d62728", Series::Style::step)};
+    f.series = {series(r, Col::touch_state, "Tf", "#d62728", Series::Style::step)};
     doc.figure(f);
   }
   for (const auto& r : runs) {
     Figure f{r.name + ": motor vs valve angle", "time [s]", "angle [deg]"};
     f.group = "t";
-    f.series = {series(r, "theta_cmd_deg", "command", "#7f7f7f", Series::Style::line, true),
-                series(r, "theta_motor_deg", "motor", "#ff7f0e"), series(r, "theta_valve_deg", "valve", "#2ca02c")};
+    f.series = {series(r, Col::theta_cmd_deg, "command", "#7f7f7f", Series::Style::line, true),
+                series(r, Col::theta_motor_deg, "motor", "#ff7f0e"), series(r, Col::theta_valve_deg, "valve", "#2ca02c")};
     // A real drive's shaped target, where it is not the command (a rig with target shaping).
-    const ReportSeries* cmd = find(r, "theta_cmd_deg");
-    const ReportSeries* target = find(r, "theta_target_deg");
-    if (cmd && target && target->value != cmd->value) f.series.push_back(series(r, "theta_target_deg", "drive target", "#17becf"));
+    const ReportSeries* cmd = find(r, Col::theta_cmd_deg);
+    const ReportSeries* target = find(r, Col::theta_target_deg);
+    if (cmd && target && target->value != cmd->value) f.series.push_back(series(r, Col::theta_target_deg, "drive target", "#17becf"));
     doc.figure(f);
   }
   for (const auto& r : runs) {
     Figure f{r.name + ": gap estimate vs true gap", "time [s]", "gap [deg]"};
     f.group = "t";
     f.height_px = 200;
-    f.series = {series(r, "gap_true_deg", "true gap", "#222", Series::Style::step, true),
-                series(r, "gap_est_deg", "estimate", "#9467bd", Series::Style::step)};
+    f.series = {series(r, Col::gap_true_deg, "true gap", "#222", Series::Style::step, true),
+                series(r, Col::gap_est_deg, "estimate", "#9467bd", Series::Style::step)};
     doc.figure(f);
   }
   doc.columns_end();

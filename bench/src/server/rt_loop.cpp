@@ -62,23 +62,11 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
   return c;
 }
 
-namespace {
-// Indices of the truth-only columns in hilbench sim's order.
-constexpr std::size_t kTruthColumns[] = {5, 6, 11};  // theta_valve_deg, gap_true_deg, p_chamber_mpa
-bool is_truth(std::size_t i) { return i == kTruthColumns[0] || i == kTruthColumns[1] || i == kTruthColumns[2]; }
-}  // namespace
-
 const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth) {
   static const auto make = [](bool truth) {
     std::vector<CsvColumn> c;
-    const auto& sim = sim_telemetry_columns();
-    for (std::size_t i = 0; i < sim.size(); ++i) {
-      if (truth || !is_truth(i)) c.push_back(sim[i]);
-    }
-    c.push_back({"theta_target_deg", 5});
-    c.push_back({"wake_latency_us", 2});
-    c.push_back({"compute_us", 2});
-    c.push_back({"loop_flags", 0});
+    for (const auto& col : telemetry::kColumns)
+      if (truth || !col.truth_only) c.push_back({std::string(col.name), col.decimals});
     return c;
   };
   static const std::vector<CsvColumn> all = make(true), measured = make(false);
@@ -86,21 +74,14 @@ const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth) {
 }
 
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r) {
-  std::array<double, kLoopColumns> row{};
-  loop_telemetry_row(r, true, row);
-  return row;
+  return full_telemetry_row(r.step, r.theta_target_rad, r.wake_latency_us, r.compute_us, r.flags);
 }
 
 std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::array<double, kLoopColumns>& out) {
-  const auto sim = telemetry_row(r.step);
+  const auto all = loop_telemetry_row(r);
   std::size_t n = 0;
-  for (std::size_t i = 0; i < kSimColumns; ++i) {
-    if (with_truth || !is_truth(i)) out[n++] = sim[i];
-  }
-  out[n++] = units::rad_to_deg(std::isfinite(r.theta_target_rad) ? r.theta_target_rad : r.step.theta_cmd_rad);
-  out[n++] = r.wake_latency_us;
-  out[n++] = r.compute_us;
-  out[n++] = static_cast<double>(r.flags);
+  for (std::size_t i = 0; i < kLoopColumns; ++i)
+    if (with_truth || !telemetry::kColumns[i].truth_only) out[n++] = all[i];
   return n;
 }
 

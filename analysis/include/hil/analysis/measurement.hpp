@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -75,7 +76,7 @@ class MeasurementReader {
   std::size_t last_data_line_ = 0;
   void check_rows(const CsvChunk& chunk);
   void check_whole_file() const;
-  [[noreturn]] void fail_at(std::size_t line, const char* column, const std::string& what) const;
+  [[noreturn]] void fail_at(std::size_t line, std::string_view column, const std::string& what) const;
 };
 
 // A whole measurement in memory (diagnose, tests).

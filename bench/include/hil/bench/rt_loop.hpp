@@ -19,6 +19,7 @@
 #include "hil/bench/rig.hpp"
 #include "hil/bench/run_metrics.hpp"
 #include "hil/bench/safety.hpp"
+#include "hil/telemetry_schema.hpp"
 #include "hil/bench/sim.hpp"
 #include "hil/bench/spsc_ring.hpp"
 #include "hil/bench/target_shaper.hpp"
@@ -73,12 +74,12 @@ struct TelemetryRecord {
   std::uint32_t flags = 0;
 };
 
-// hilbench sim's columns, then theta_target_deg (what the rig was sent), wake_latency_us,
-// compute_us, loop_flags. A rig without the truth
-// (Rig::knows_truth false: the CAN and Modbus rigs) leaves out theta_valve_deg, gap_true_deg and
-// p_chamber_mpa (with_truth false) rather than fill them with nan. A period without a reading repeats the last one recorded, with
-// kFlagReadMissed set, so every row parses.
-inline constexpr std::size_t kLoopColumns = kSimColumns + 4;
+// Every column of the schema (hil/telemetry_schema.hpp): hilbench sim's, then theta_target_deg
+// (what the rig was sent), wake_latency_us, compute_us, loop_flags. A rig without the truth
+// (Rig::knows_truth false: the CAN and Modbus rigs) leaves out the truth-only columns
+// (with_truth false) rather than fill them with nan. A period without a reading repeats the last
+// one recorded, with kFlagReadMissed set, so every row parses.
+inline constexpr std::size_t kLoopColumns = telemetry::kLoopColumns;
 const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
 std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
 // The row for the columns of loop_telemetry_columns(with_truth); returns how many values.

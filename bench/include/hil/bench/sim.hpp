@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -17,14 +18,20 @@
 #include "hil/bench/campaign.hpp"
 #include "hil/bench/run_metrics.hpp"
 #include "hil/csv_writer.hpp"
+#include "hil/telemetry_schema.hpp"
 
 namespace hil::bench {
 
-// Telemetry columns: t_s, theta_cmd_deg, p_meas_mpa, theta_motor_deg, p_ref_mpa (section 4), then
-// theta_valve_deg, gap_true_deg, touch_state, motion_intention, comp_deg, gap_est_deg, p_chamber_mpa.
-inline constexpr std::size_t kSimColumns = 12;
+// hilbench sim's telemetry columns: the first telemetry::kSimColumns of the one schema
+// (hil/telemetry_schema.hpp), in its order; telemetry_row fills them from a step.
+inline constexpr std::size_t kSimColumns = telemetry::kSimColumns;
 const std::vector<CsvColumn>& sim_telemetry_columns();
 std::array<double, kSimColumns> telemetry_row(const StepRecord& r);
+// Every column of the schema for one period: the above, then what the drive was sent
+// (theta_target_rad; NaN: the command) and the bench loop's timing and flags.
+std::array<double, telemetry::kLoopColumns> full_telemetry_row(const StepRecord& r, double theta_target_rad,
+                                                              double wake_latency_us = 0, double compute_us = 0,
+                                                              std::uint32_t loop_flags = 0);
 
 // Runs one campaign run; calls on_step(const StepRecord&) every control period. Counts finished
 // steps into steps_done (relaxed, every 1024 steps) when given.
