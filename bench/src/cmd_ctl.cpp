@@ -11,6 +11,7 @@
 #include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/api_client.hpp"
+#include "hil/bench/runner.hpp"
 
 namespace hil::bench {
 namespace {
@@ -140,7 +141,7 @@ int watch(const ApiClient& api) {
       if (tty) std::fprintf(stderr, "\n");
       print_last(s["last"]);
       const std::string outcome = s["last"].is_object() ? s["last"].value("outcome", "") : "";
-      return outcome == "completed" ? 0 : 3;
+      return outcome_from(outcome) == Outcome::completed ? 0 : 3;
     }
     const json& p = s["progress"];
     const double f = std::clamp(p.value("fraction", 0.0), 0.0, 1.0);

@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "hil/bench/recorder.hpp"
+#include "hil/bench/runner.hpp"
 #include "hil/csv_reader.hpp"
 #include "loop_fixture.hpp"
 
@@ -24,8 +25,8 @@ TEST(Recorder, WritesEveryRowAndEvent) {
     r.flags = kFlagOverrun;
     while (!rec.telemetry().try_push(r)) std::this_thread::yield();
   }
-  ASSERT_TRUE(rec.events().try_push({.kind = LoopEvent::Kind::gap_change, .period = 7, .t_s = 0.007, .a = 0.04}));
-  ASSERT_TRUE(rec.events().try_push({.kind = LoopEvent::Kind::trip, .trip = Trip::watchdog, .t_s = 1.5, .a = 3, .b = 3}));
+  ASSERT_TRUE(rec.events().try_push({.period = 7, .t_s = 0.007, .body = event::GapChange{0.04}}));
+  ASSERT_TRUE(rec.events().try_push({.t_s = 1.5, .body = event::Tripped{Trip::watchdog, 3, 3}}));
   for (int tries = 0; tries < 400 && rec.events_written() < 2; ++tries) std::this_thread::sleep_for(5ms);
   rec.log({{"kind", "run_start"}, {"source", "bench"}});
   EXPECT_EQ(rec.finish(), "");
@@ -89,4 +90,16 @@ TEST(Recorder, HardwareRigFilesLeaveTheTruthOut) {
   for (const char* truth : {"theta_valve_deg", "gap_true_deg", "p_chamber_mpa"}) {
     EXPECT_EQ(std::find(header.names.begin(), header.names.end(), truth), header.names.end()) << truth;
   }
+}
+
+// run.json's outcome names round-trip, and their order is how a campaign picks its worst run's.
+TEST(RunOutcome, NamesRoundTripAndOrderByHowBad) {
+  for (const Outcome o : {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted,
+                          Outcome::running})
+    EXPECT_EQ(outcome_from(to_string(o)), o) << to_string(o);
+  EXPECT_EQ(to_string(Outcome::aborted), "aborted");
+  EXPECT_EQ(outcome_from("exploded"), Outcome::error);  // a name it does not know is not "completed"
+  EXPECT_LT(Outcome::completed, Outcome::stopped);
+  EXPECT_LT(Outcome::stopped, Outcome::aborted);
+  EXPECT_LT(Outcome::aborted, Outcome::error);
 }

@@ -22,11 +22,13 @@ std::vector<StepRecord> simulated(const Campaign& c, const std::string& run) {
   return out;
 }
 
-const LoopEvent* find_event(const std::vector<LoopEvent>& events, LoopEvent::Kind kind) {
+// The first event of kind E, and E's fields.
+template <class E>
+std::pair<const LoopEvent*, const E*> find_event(const std::vector<LoopEvent>& events) {
   for (const auto& e : events) {
-    if (e.kind == kind) return &e;
+    if (const E* body = std::get_if<E>(&e.body)) return {&e, body};
   }
-  return nullptr;
+  return {nullptr, nullptr};
 }
 
 }  // namespace
@@ -78,10 +80,10 @@ TEST(RunLoop, GapChangeReachesThePlantAndTheEvents) {
   EXPECT_DOUBLE_EQ(rows.back().step.gap_true_rad, deg_to_rad(2.5));
   EXPECT_TRUE(rows[500].flags & kFlagGapOverride);
   const auto events = h.take_events();
-  const LoopEvent* e = find_event(events, LoopEvent::Kind::gap_change);
+  const auto [e, gap] = find_event<event::GapChange>(events);
   ASSERT_NE(e, nullptr);
   EXPECT_DOUBLE_EQ(e->t_s, 0.5);
-  EXPECT_DOUBLE_EQ(e->a, deg_to_rad(2.5));
+  EXPECT_DOUBLE_EQ(gap->gap_rad, deg_to_rad(2.5));
 }
 
 TEST(RunLoop, WatchdogHoldsWithinThreePeriodsWhenTheRigFallsSilent) {
@@ -96,12 +98,12 @@ TEST(RunLoop, WatchdogHoldsWithinThreePeriodsWhenTheRigFallsSilent) {
   EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
   EXPECT_EQ(h.loop->trip(), Trip::watchdog);
   const auto events = h.take_events();
-  const LoopEvent* silent = find_event(events, LoopEvent::Kind::rig_fault);
-  const LoopEvent* trip = find_event(events, LoopEvent::Kind::trip);
-  const LoopEvent* safe = find_event(events, LoopEvent::Kind::safe_state);
+  const auto [silent, rig_fault] = find_event<event::RigFaultSet>(events);
+  const auto [trip, tripped] = find_event<event::Tripped>(events);
+  const auto [safe, safe_state] = find_event<event::SafeState>(events);
   ASSERT_TRUE(silent && trip && safe);
-  EXPECT_EQ(silent->b, 1.0);  // accepted
-  EXPECT_EQ(trip->trip, Trip::watchdog);
+  EXPECT_EQ(rig_fault->accepted, true);
+  EXPECT_EQ(tripped->reason, Trip::watchdog);
   EXPECT_LE(trip->period - silent->period, 3);
   EXPECT_EQ(safe->period, trip->period);
   const auto rows = h.rows();
@@ -206,7 +208,7 @@ TEST(RunLoop, LimitsClampTheCommand) {
     limited |= (rows[i].flags & kFlagCmdLimited) != 0;
   }
   EXPECT_TRUE(limited);
-  EXPECT_NE(find_event(h.take_events(), LoopEvent::Kind::cmd_limited), nullptr);
+  EXPECT_NE(find_event<event::CmdLimited>(h.take_events()).first, nullptr);
 }
 
 TEST(RunLoop, OverrunPolicyAbortTripsAfterNInARow) {

@@ -1,6 +1,8 @@
 #include "hil/bench/recorder.hpp"
 
 #include <cmath>
+#include <cstring>
+#include <variant>
 
 #include <ctime>
 
@@ -13,69 +15,64 @@ namespace {
 using units::pa_to_mpa;
 using units::rad_to_deg;
 
+template <class... F>
+struct Overloaded : F... {
+  using F::operator()...;
+};
+
 // JSON has no NaN: absent values become null.
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 }  // namespace
 
 nlohmann::json event_json(const LoopEvent& e) {
-  using K = LoopEvent::Kind;
   nlohmann::json j;
   j["t_s"] = std::round(e.t_s * 1e6) / 1e6;
   j["period"] = e.period;
-  switch (e.kind) {
-    case K::gap_change:
-      j["kind"] = "gap_change", j["source"] = "operator", j["gap_deg"] = num(rad_to_deg(e.a));
-      break;
-    case K::gap_programme:
-      j["kind"] = "gap_programme", j["source"] = "operator";
-      break;
-    case K::sensor_fault:
-      j["kind"] = "sensor_fault", j["source"] = "operator", j["mode"] = to_string(e.sensor);
-      if (e.sensor == SensorFault::stuck) j["held_mpa"] = num(pa_to_mpa(e.a));
-      if (e.sensor == SensorFault::bias) j["bias_kpa"] = num(e.a / 1e3);
-      if (e.sensor == SensorFault::noise) j["rms_kpa"] = num(e.a / 1e3);
-      j["duration_s"] = e.b > 0 ? num(e.b) : nlohmann::json(nullptr);
-      break;
-    case K::drive_fault:
-      j["kind"] = "drive_fault", j["source"] = "operator", j["mode"] = "ignores_commands", j["on"] = e.a > 0;
-      j["duration_s"] = e.b > 0 ? num(e.b) : nlohmann::json(nullptr);
-      break;
-    case K::rig_fault:
-      j["kind"] = "rig_fault", j["source"] = "operator", j["mode"] = "silent", j["on"] = e.a > 0, j["accepted"] = e.b > 0;
-      break;
-    case K::fault_expired:
-      j["kind"] = "fault_expired", j["source"] = "loop";
-      j["fault"] = e.sensor == SensorFault::none ? std::string("drive") : "sensor " + std::string(to_string(e.sensor));
-      break;
-    case K::faults_cleared:
-      j["kind"] = "faults_cleared", j["source"] = "operator";
-      break;
-    case K::trip:
-      j["kind"] = "trip", j["source"] = "safety", j["reason"] = to_string(e.trip);
-      if (e.trip == Trip::overpressure || e.trip == Trip::underpressure) {
-        j["p_meas_mpa"] = num(pa_to_mpa(e.a)), j["limit_mpa"] = num(pa_to_mpa(e.b));
-      } else if (e.trip == Trip::watchdog) {
-        j["missed_in_a_row"] = num(e.a), j["limit"] = num(e.b);
-      } else if (e.trip == Trip::overruns) {
-        j["overruns_in_a_row"] = num(e.a), j["limit"] = num(e.b);
-      }
-      if (e.detail[0] != '\0') j["detail"] = std::string(e.detail.data());
-      break;
-    case K::safe_state:
-      j["kind"] = "safe_state", j["source"] = "safety", j["theta_cmd_deg"] = num(rad_to_deg(e.a));
-      break;
-    case K::cmd_limited:
-      j["kind"] = "cmd_limited", j["source"] = "safety", j["requested_deg"] = num(rad_to_deg(e.a)),
-      j["sent_deg"] = num(rad_to_deg(e.b));
-      break;
-    case K::overrun:
-      j["kind"] = "overrun", j["source"] = "loop", j["late_us"] = num(std::round(e.a * 10) / 10);
-      break;
-    case K::stopped:
-      j["kind"] = "stopped", j["source"] = "operator";
-      break;
-  }
+  auto duration = [](double s) { return s > 0 ? num(s) : nlohmann::json(nullptr); };  // 0: until cleared
+  auto kind = [&j](const char* k, const char* source) { j["kind"] = k, j["source"] = source; };
+  std::visit(Overloaded{
+                 [&](const event::GapChange& v) { kind("gap_change", "operator"), j["gap_deg"] = num(rad_to_deg(v.gap_rad)); },
+                 [&](const event::GapProgramme&) { kind("gap_programme", "operator"); },
+                 [&](const event::SensorFaultSet& v) {
+                   kind("sensor_fault", "operator"), j["mode"] = to_string(v.mode);
+                   if (v.mode == SensorFault::stuck) j["held_mpa"] = num(pa_to_mpa(v.value_pa));
+                   if (v.mode == SensorFault::bias) j["bias_kpa"] = num(v.value_pa / units::kPaPerKpa);
+                   if (v.mode == SensorFault::noise) j["rms_kpa"] = num(v.value_pa / units::kPaPerKpa);
+                   j["duration_s"] = duration(v.duration_s);
+                 },
+                 [&](const event::DriveFaultSet& v) {
+                   kind("drive_fault", "operator"), j["mode"] = "ignores_commands", j["on"] = v.on;
+                   j["duration_s"] = duration(v.duration_s);
+                 },
+                 [&](const event::RigFaultSet& v) {
+                   kind("rig_fault", "operator"), j["mode"] = "silent", j["on"] = v.on, j["accepted"] = v.accepted;
+                 },
+                 [&](const event::FaultExpired& v) {
+                   kind("fault_expired", "loop");
+                   j["fault"] = v.sensor == SensorFault::none ? std::string("drive") : "sensor " + std::string(to_string(v.sensor));
+                 },
+                 [&](const event::FaultsCleared&) { kind("faults_cleared", "operator"); },
+                 [&](const event::Tripped& v) {
+                   kind("trip", "safety"), j["reason"] = to_string(v.reason);
+                   if (v.reason == Trip::overpressure || v.reason == Trip::underpressure) {
+                     j["p_meas_mpa"] = num(pa_to_mpa(v.value)), j["limit_mpa"] = num(pa_to_mpa(v.limit));
+                   } else if (v.reason == Trip::watchdog) {
+                     j["missed_in_a_row"] = num(v.value), j["limit"] = num(v.limit);
+                   } else if (v.reason == Trip::overruns) {
+                     j["overruns_in_a_row"] = num(v.value), j["limit"] = num(v.limit);
+                   }
+                   if (v.detail[0] != '\0') j["detail"] = std::string(v.detail.data(), strnlen(v.detail.data(), v.detail.size()));
+                 },
+                 [&](const event::SafeState& v) { kind("safe_state", "safety"), j["theta_cmd_deg"] = num(rad_to_deg(v.cmd_rad)); },
+                 [&](const event::CmdLimited& v) {
+                   kind("cmd_limited", "safety"), j["requested_deg"] = num(rad_to_deg(v.requested_rad));
+                   j["sent_deg"] = num(rad_to_deg(v.sent_rad));
+                 },
+                 [&](const event::Overrun& v) { kind("overrun", "loop"), j["late_us"] = num(std::round(v.late_us * 10) / 10); },
+                 [&](const event::Stopped&) { kind("stopped", "operator"); },
+             },
+             e.body);
   return j;
 }
 

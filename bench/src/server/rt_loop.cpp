@@ -151,9 +151,8 @@ void RunLoop::begin(Clock::time_point now) {
   snapshot_.store(snap);
 }
 
-void RunLoop::emit(LoopEvent e) noexcept {
-  e.period = k_;
-  if (!events_.try_push(e)) ++events_lost_;
+void RunLoop::emit(double t_s, LoopEventBody body) noexcept {
+  if (!events_.try_push(LoopEvent{k_, t_s, body})) ++events_lost_;
 }
 
 void RunLoop::apply(const LoopRequest& r, double t_s) noexcept {
@@ -163,28 +162,28 @@ void RunLoop::apply(const LoopRequest& r, double t_s) noexcept {
     case K::abort: abort_requested_ = true; break;
     case K::set_gap:
       gap_override_rad_ = r.value;
-      emit({.kind = LoopEvent::Kind::gap_change, .t_s = t_s, .a = r.value});
+      emit(t_s, event::GapChange{r.value});
       break;
     case K::programme_gap:
       gap_override_rad_ = kNaN;
-      emit({.kind = LoopEvent::Kind::gap_programme, .t_s = t_s});
+      emit(t_s, event::GapProgramme{});
       break;
     case K::sensor_fault:
       sensor_ = r.sensor;
       sensor_value_ = r.sensor == SensorFault::stuck ? last_p_meas_pa_ : r.value;
       sensor_until_s_ = until(t_s, r.duration_s);
-      emit({.kind = LoopEvent::Kind::sensor_fault, .sensor = r.sensor, .t_s = t_s, .a = sensor_value_, .b = r.duration_s});
+      emit(t_s, event::SensorFaultSet{r.sensor, sensor_value_, r.duration_s});
       break;
     case K::drive_fault:
       drive_fault_ = r.on;
       drive_frozen_rad_ = last_sent_rad_;
       drive_until_s_ = until(t_s, r.duration_s);
-      emit({.kind = LoopEvent::Kind::drive_fault, .t_s = t_s, .a = r.on ? 1.0 : 0.0, .b = r.duration_s});
+      emit(t_s, event::DriveFaultSet{r.on, r.duration_s});
       break;
     case K::rig_fault: {
       const bool accepted = rig_.rig().inject(RigFault::silent, r.on);
       if (accepted) rig_silent_ = r.on;
-      emit({.kind = LoopEvent::Kind::rig_fault, .t_s = t_s, .a = r.on ? 1.0 : 0.0, .b = accepted ? 1.0 : 0.0});
+      emit(t_s, event::RigFaultSet{r.on, accepted});
       break;
     }
     case K::clear_faults:
@@ -192,7 +191,7 @@ void RunLoop::apply(const LoopRequest& r, double t_s) noexcept {
       drive_fault_ = false;
       if (rig_silent_) rig_.rig().inject(RigFault::silent, false);
       rig_silent_ = false;
-      emit({.kind = LoopEvent::Kind::faults_cleared, .t_s = t_s});
+      emit(t_s, event::FaultsCleared{});
       break;
   }
 }
@@ -204,14 +203,14 @@ void RunLoop::enter_safe(Trip trip, double value, double limit, double t_s) noex
   trip_t_s_ = t_s;
   trip_value_ = value;
   trip_limit_ = limit;
-  LoopEvent e{.kind = LoopEvent::Kind::trip, .trip = trip, .t_s = t_s, .a = value, .b = limit};
+  event::Tripped e{trip, value, limit};
   if (trip == Trip::rig_fault || trip == Trip::watchdog) {
     const RigHealth h = rig_.rig().health();  // what the device says went wrong, for the event
     static_assert(sizeof e.detail == sizeof h.last_error);
     e.detail = h.last_error;
     trip_detail_ = h.last_error;
   }
-  emit(e);
+  emit(t_s, e);
 }
 
 void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept {
@@ -224,11 +223,11 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   LoopRequest req;
   for (int i = 0; i < kRequestsPerPeriod && requests_.pop(&req, 1) == 1; ++i) apply(req, t);
   if (sensor_ != SensorFault::none && t >= sensor_until_s_) {
-    emit({.kind = LoopEvent::Kind::fault_expired, .sensor = sensor_, .t_s = t});
+    emit(t, event::FaultExpired{sensor_});
     sensor_ = SensorFault::none;
   }
   if (drive_fault_ && t >= drive_until_s_) {
-    emit({.kind = LoopEvent::Kind::fault_expired, .t_s = t});
+    emit(t, event::FaultExpired{SensorFault::none});
     drive_fault_ = false;
   }
 
@@ -282,7 +281,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   }
   if (safe_) {
     cmd = safety_.safe_command(last_sent_rad_, dt);
-    if (safe_since_s_ == t) emit({.kind = LoopEvent::Kind::safe_state, .t_s = t, .a = cmd});
+    if (safe_since_s_ == t) emit(t, event::SafeState{cmd});
     flags |= kFlagSafeState;
   } else {
     bool limited = false;
@@ -291,7 +290,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
     if (limited) {
       flags |= kFlagCmdLimited;
       ++limited_periods_;
-      if (!limited_) emit({.kind = LoopEvent::Kind::cmd_limited, .t_s = t, .a = requested, .b = cmd});
+      if (!limited_) emit(t, event::CmdLimited{requested, cmd});
     }
     limited_ = limited;
   }
@@ -339,7 +338,7 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
     rec_.flags |= kFlagOverrun;
     ++overruns_;
     if (overruns_in_a_row_++ == 0) {
-      emit({.kind = LoopEvent::Kind::overrun, .t_s = rec_.step.t_s, .a = std::chrono::duration<double, std::micro>(late).count()});
+      emit(rec_.step.t_s, event::Overrun{std::chrono::duration<double, std::micro>(late).count()});
     }
     if (loop_.overrun_policy == OverrunPolicy::abort && overruns_in_a_row_ >= loop_.overrun_abort_after) overrun_trip_ = true;
   } else {
@@ -355,7 +354,7 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   ++k_;
   if (stop_requested_ && !safe_) {
     end_ = LoopEnd::stopped;
-    emit({.kind = LoopEvent::Kind::stopped, .t_s = t});
+    emit(t, event::Stopped{});
   } else if (safe_ && t - safe_since_s_ + 0.5 * c_.period_s >= safety_.config().safe_hold_s) {
     end_ = LoopEnd::tripped;
   } else if (k_ >= n_ && !safe_) {

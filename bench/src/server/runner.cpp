@@ -184,9 +184,26 @@ json faults_json(const LoopSnapshot& s) {
   return faults;
 }
 
-int outcome_rank(const std::string& o) { return o == "completed" ? 0 : o == "stopped" ? 1 : o == "aborted" ? 2 : 3; }
-
 }  // namespace
+
+std::string_view to_string(Outcome o) noexcept {
+  switch (o) {
+    case Outcome::completed: return "completed";
+    case Outcome::stopped: return "stopped";
+    case Outcome::aborted: return "aborted";
+    case Outcome::error: return "error";
+    case Outcome::interrupted: return "interrupted";
+    case Outcome::running: return "running";
+  }
+  return "error";
+}
+
+Outcome outcome_from(std::string_view text) noexcept {
+  for (const Outcome o : {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted,
+                          Outcome::running})
+    if (to_string(o) == text) return o;
+  return Outcome::error;
+}
 
 struct CampaignRunner::Active {
   StartRequest req;
@@ -339,15 +356,17 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
       run_one(*a, i);
     } catch (const std::exception& e) {
       spdlog::error("campaign '{}' run '{}': {}", a->req.campaign.name, a->runs[i]->name, e.what());
-      a->finished.push_back({{"run", a->runs[i]->name}, {"outcome", "error"}, {"reason", e.what()}});
+      a->finished.push_back({{"run", a->runs[i]->name}, {"outcome", to_string(Outcome::error)}, {"reason", e.what()}});
     }
-    if (a->finished.back()["outcome"] != "completed") break;
+    if (outcome_from(a->finished.back()["outcome"].get<std::string>()) != Outcome::completed) break;
   }
   json last = {{"campaign", a->req.campaign.name}, {"source", a->req.source}, {"rig", a->req.rig.name},
                {"started_utc", utc_iso(a->started_utc)}, {"finished_utc", utc_iso(SysClock::now())},
-               {"runs", a->finished}, {"outcome", "completed"}, {"reason", nullptr}};
+               {"runs", a->finished}, {"outcome", to_string(Outcome::completed)}, {"reason", nullptr}};
+  Outcome worst = Outcome::completed;
   for (const auto& r : a->finished) {
-    if (outcome_rank(r["outcome"]) > outcome_rank(last["outcome"])) last["outcome"] = r["outcome"], last["reason"] = r["reason"];
+    const Outcome o = outcome_from(r["outcome"].get<std::string>());
+    if (o > worst) worst = o, last["outcome"] = r["outcome"], last["reason"] = r["reason"];
   }
   if (a->finished.size() < a->runs.size()) last["runs_skipped"] = a->runs.size() - a->finished.size();
   notice({{"type", "campaign_end"}, {"campaign", a->req.campaign.name}, {"outcome", last["outcome"]}, {"reason", last["reason"]}});
@@ -387,7 +406,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                {"rig", {{"name", rc.name}, {"kind", rc.kind}}},
                {"start_utc", utc_iso(start_utc)},
                {"stop_utc", nullptr},
-               {"outcome", "running"},
+               {"outcome", to_string(Outcome::running)},
                {"reason", nullptr},
                {"period_s", c.period_s},
                {"duration_s", c.duration_s},
@@ -423,7 +442,8 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
 
   SpscRing<LoopRequest> requests(64);
   std::unique_ptr<RunLoop> loop;
-  std::string outcome, reason;
+  Outcome outcome = Outcome::error;
+  std::string reason;
   try {
     Schedule::Cursor rc0, gc0;
     rig->configure({&c, c.period_s, c.reference_pa.at(0.0, rc0), c.gap_rad.at(0.0, gc0)});
@@ -433,7 +453,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     loop->watch_recording(&rec.failed());
     loop->begin(Clock::now());
   } catch (const std::exception& e) {
-    outcome = "error";
+    outcome = Outcome::error;
     reason = std::string("rig '") + rc.name + "' setup: " + e.what();
     rec.log({{"kind", "rig_error"}, {"source", "bench"}, {"detail", reason}});
     rig->deactivate();
@@ -473,11 +493,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     t.join();
     std::lock_guard lock(mutex_);
     switch (loop->end()) {
-      case LoopEnd::completed: outcome = "completed"; break;
-      case LoopEnd::stopped: outcome = "stopped", reason = "operator stop"; break;
+      case LoopEnd::completed: outcome = Outcome::completed; break;
+      case LoopEnd::stopped: outcome = Outcome::stopped, reason = "operator stop"; break;
       case LoopEnd::tripped:
       case LoopEnd::running:
-        outcome = "aborted";
+        outcome = Outcome::aborted;
         reason = loop->trip() == Trip::operator_abort ? (a.abort_reason.empty() ? "operator abort" : a.abort_reason)
                                                        : describe_trip(*loop);
         break;
@@ -503,14 +523,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   if (loop && loop->trip() == Trip::recording) {
     reason += write_error.empty() ? fmt(": the telemetry ring was full (%.0f rows lost)", static_cast<double>(loop->rows_lost()))
                                   : ": " + write_error;
-  } else if (!write_error.empty() && outcome == "completed") {
-    outcome = "error", reason = "telemetry: " + write_error;
+  } else if (!write_error.empty() && outcome == Outcome::completed) {
+    outcome = Outcome::error, reason = "telemetry: " + write_error;
   }
   const std::uint64_t rows_not_recorded = rec.rows_unwritten() + (loop ? loop->rows_lost() : 0);
   if (rows_not_recorded > 0 && !reason.empty()) reason += fmt("; %.0f rows not recorded", static_cast<double>(rows_not_recorded));
   const auto stop_utc = SysClock::now();
   info["stop_utc"] = utc_iso(stop_utc);
-  info["outcome"] = outcome;
+  info["outcome"] = to_string(outcome);
   info["reason"] = reason.empty() ? json(nullptr) : json(reason);
   info["trip"] = nullptr;
   info["rig_health"] = rig_health;
@@ -545,13 +565,13 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   try {
     write_json_atomically(dir / "run.json", info);
   } catch (const std::exception& e) {
-    spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), outcome, reason);
+    spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome), reason);
   }
   run_lock.reset();
-  const json summary = {{"run", run.name}, {"dir", dir.filename().string()}, {"outcome", outcome},
+  const json summary = {{"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)},
                         {"reason", info["reason"]}};
   notice({{"type", "run_end"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
-          {"outcome", outcome}, {"reason", info["reason"]}});
+          {"outcome", to_string(outcome)}, {"reason", info["reason"]}});
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
 }
@@ -626,7 +646,7 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
       continue;
     }
-    if (!info.is_object() || info.value("outcome", json(nullptr)) != "running" || !run_abandoned(dir)) continue;
+    if (!info.is_object() || info.value("outcome", json(nullptr)) != to_string(Outcome::running) || !run_abandoned(dir)) continue;
     try {
       // What is on disk is the record: a line cut by the crash is removed and counted.
       json trimmed = json::object();
@@ -638,7 +658,7 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       const auto last_write = std::filesystem::is_regular_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
       const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
       const std::string found = utc_iso(SysClock::now());
-      info["outcome"] = "interrupted";
+      info["outcome"] = to_string(Outcome::interrupted);
       info["reason"] = "the server process (pid " + info.value("pid", json("?")).dump() +
                        ") ended during the run; found by a server started at " + found;
       info["stop_utc"] = utc_iso(last_utc);

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <variant>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -98,29 +99,56 @@ struct LoopRequest {
   bool on = true;         // drive_fault, rig_fault: on or off
 };
 
-// Something the loop did or saw, with the loop time it happened at. a/b depend on the kind.
+// Something the loop did or saw: one struct per kind, each field named with its unit.
+namespace event {
+struct GapChange {  // the operator set the gap
+  double gap_rad;
+};
+struct GapProgramme {};  // the campaign's gap programme is back
+struct SensorFaultSet {  // the operator injected a sensor fault
+  SensorFault mode;
+  double value_pa;    // bias: offset; noise: RMS; stuck: the pressure held
+  double duration_s;  // 0: until cleared
+};
+struct DriveFaultSet {  // the operator made the drive ignore commands (or stopped that)
+  bool on;
+  double duration_s;  // 0: until cleared
+};
+struct RigFaultSet {  // the operator silenced the rig (or stopped that)
+  bool on;
+  bool accepted;  // the rig can do it
+};
+struct FaultExpired {  // an injected fault's duration ran out
+  SensorFault sensor;  // none: the drive fault
+};
+struct FaultsCleared {};
+struct Tripped {
+  Trip reason;
+  double value;  // the reading that tripped it: Pa for pressure, a count for watchdog and overruns
+  double limit;  // in the same unit
+  std::array<char, 256> detail{};  // a rig fault or the watchdog: the rig's last error (NUL-terminated)
+};
+struct SafeState {  // the loop entered the safe state
+  double cmd_rad;   // the safe command
+};
+struct CmdLimited {  // an angle or rate limit changed the command (the start of a streak)
+  double requested_rad, sent_rad;
+};
+struct Overrun {  // a period ended after the next deadline (the start of a streak)
+  double late_us;
+};
+struct Stopped {};  // the operator stopped the run
+}  // namespace event
+
+using LoopEventBody = std::variant<event::GapChange, event::GapProgramme, event::SensorFaultSet, event::DriveFaultSet,
+                                   event::RigFaultSet, event::FaultExpired, event::FaultsCleared, event::Tripped,
+                                   event::SafeState, event::CmdLimited, event::Overrun, event::Stopped>;
+
+// An event with the loop period and time it happened at.
 struct LoopEvent {
-  enum class Kind : std::uint8_t {
-    gap_change,      // a = gap [rad] (operator)
-    gap_programme,   // the campaign's gap programme is back
-    sensor_fault,    // sensor; a = value (bias/noise [Pa], stuck: the held [Pa]); b = duration [s] (0 = until cleared)
-    drive_fault,     // a = 1 on / 0 off; b = duration [s]
-    rig_fault,       // a = 1 on / 0 off; b = 1 if the rig accepted it
-    fault_expired,   // sensor != none: the sensor fault; otherwise the drive fault
-    faults_cleared,
-    trip,            // trip; a = value, b = limit (Pa for pressure, count for watchdog/overruns)
-    safe_state,      // a = the safe command [rad]
-    cmd_limited,     // a = the requested command [rad], b = the limited one [rad]
-    overrun,         // a = how far past the next deadline [us]; starts of streaks only
-    stopped,         // operator stop
-  };
-  Kind kind = Kind::stopped;
-  SensorFault sensor = SensorFault::none;
-  Trip trip = Trip::none;
   std::int64_t period = 0;
   double t_s = 0;
-  double a = kNaN, b = kNaN;
-  std::array<char, 256> detail{};  // trip on a rig fault or the watchdog: the rig's last error (NUL-terminated)
+  LoopEventBody body = event::Stopped{};
 };
 
 enum class LoopEnd : std::uint8_t { running, completed, stopped, tripped };
@@ -191,7 +219,7 @@ class RunLoop {
 
  private:
   void apply(const LoopRequest& r, double t_s) noexcept;
-  void emit(LoopEvent e) noexcept;
+  void emit(double t_s, LoopEventBody body) noexcept;
   void enter_safe(Trip trip, double value, double limit, double t_s) noexcept;
 
   const Campaign& c_;
