@@ -37,19 +37,25 @@ bool found_both(const nlohmann::json& d) {
   return std::abs(gap - kGapDeg) <= 0.15 * kGapDeg && std::abs(lag - kLagS) <= 0.15 * kLagS;
 }
 
+// Run i (0-based) of three of one rig: 16 s, 2 kPa noise, each file on its own clock 100 s apart.
+hil::test::LabLog run_log(const std::string& prefix, int i, std::uint64_t seed0, bool encoder) {
+  hil::test::LabLog log;
+  log.name = prefix + std::to_string(i + 1);
+  log.t0_s = 100.0 * (i + 1);
+  log.duration_s = 16;
+  log.seed = seed0 + static_cast<std::uint64_t>(i);
+  log.noise_kpa = 2.0;
+  log.encoder = encoder;
+  return log;
+}
+
 TEST(MultiFile, ThreeRunsOfOneRigSeparateAGapAndASensorLagThatOneRunCannot) {
   hil::test::TempDir dir;
   const double speeds_deg_s[] = {10.0, 20.0, 40.0};
   std::vector<fs::path> files;
   bool slowest_alone_found_both = true;
   for (int i = 0; i < 3; ++i) {
-    hil::test::LabLog log;
-    log.name = "run" + std::to_string(i + 1);
-    log.t0_s = 100.0 * (i + 1);
-    log.duration_s = 16;
-    log.seed = 911 + static_cast<std::uint64_t>(i);
-    log.noise_kpa = 2.0;
-    log.encoder = false;
+    hil::test::LabLog log = run_log("run", i, 911, false);
     log.truth = truth;
     log.command_deg = hil::test::command_triangle(8.0, 13.0, speeds_deg_s[i], 0.0);
     files.push_back(hil::test::make_lab_log(log, dir.path()));
@@ -105,13 +111,7 @@ TEST(MultiFile, AGapThatSteppedDuringTheSecondRunIsFoundInThatRun) {
   hil::test::TempDir dir;
   std::vector<fs::path> files;
   for (int i = 0; i < 3; ++i) {
-    hil::test::LabLog log;
-    log.name = "chipped" + std::to_string(i + 1);
-    log.t0_s = 100.0 * (i + 1);
-    log.duration_s = 16;
-    log.seed = 931 + static_cast<std::uint64_t>(i);
-    log.noise_kpa = 2.0;
-    log.encoder = true;
+    hil::test::LabLog log = run_log("chipped", i, 931, true);
     // The truth's clock is the file's (it starts at t0_s).
     const std::string gap = i == 0 ? "gap_deg: 1.0"
                             : i == 1 ? "{gap_deg: 1.0, step_deg: 0.8, step_time_s: " + std::to_string(log.t0_s + kStepAfterS) + "}"
