@@ -20,7 +20,7 @@
 
 #include "hil/drv/cia402_drive.hpp"
 #include "hil/drv/cia402_emulator.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 #include "hil/drv/socketcan.hpp"
 #include "stats.hpp"
 

@@ -10,7 +10,7 @@
 
 #include "hil/drv/modbus.hpp"
 #include "hil/drv/modbus_emulator.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 #include "stats.hpp"
 
 using namespace hil::drv;

@@ -15,7 +15,7 @@
 #include "hil/drv/cia402_drive.hpp"
 #include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/cia402_probe.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 
 namespace hil::drv::test {
 

@@ -11,7 +11,7 @@
 #include "hil/bench/rt_thread.hpp"
 #include "hil/bench/sim_rig.hpp"
 #include "hil/drv/can_loopback.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 #include "hil/units.hpp"
 #include <numbers>
 #include "hil_chain.hpp"

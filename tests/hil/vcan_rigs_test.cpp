@@ -31,7 +31,7 @@
 
 #include "hil/drv/canopen.hpp"
 #include "hil/drv/socketcan.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 #include "lockstep.hpp"
 #include "rig_fault_scenarios.hpp"
 #include "serve_e2e.hpp"

@@ -121,7 +121,6 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
       telemetry_(telemetry),
       events_(events),
       requests_(requests),
-      now_(now),
       rng_(campaign.seed ^ 0x5eed5eedULL) {
   if (wall_period_ <= Clock::duration::zero()) throw std::invalid_argument("loop period must be > 0");
 }

@@ -18,7 +18,7 @@
 #include "hil/config.hpp"
 #include "hil/drv/modbus.hpp"
 #include "hil/drv/modbus_emulator.hpp"
-#include "hil/drv/servo_test_model.hpp"
+#include "servo_test_model.hpp"
 
 namespace hil::drv {
 namespace {

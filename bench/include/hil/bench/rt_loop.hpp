@@ -235,7 +235,6 @@ class RunLoop {
   SpscRing<TelemetryRecord>& telemetry_;
   SpscRing<LoopEvent>& events_;
   SpscRing<LoopRequest>& requests_;
-  TimedRig::NowFn now_;
 
   ctl::ControllerState cs_;
   ctl::ControllerOutputs out_;

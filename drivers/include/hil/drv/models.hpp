@@ -1,5 +1,5 @@
 // What the device emulators are backed by. The bench wires the real plant model behind these;
-// tests use the doubles in servo_test_model.hpp. Implementations must be thread-safe: an
+// tests use the doubles in tests/support/servo_test_model.hpp. Implementations must be thread-safe: an
 // emulator calls them from its own thread while the plant may advance from another. They own
 // time: an emulator never tells them how much time passed.
 #pragma once
