@@ -110,7 +110,8 @@ namespace {
 TEST(Cli, EverySubCommandAnswersHelp) {
   const auto top = run_command(hilbench() + " --help");
   ASSERT_EQ(top.status, 0) << top.output;
-  for (const char* cmd : {"sim", "effects", "serve", "ctl", "compare", "diagnose", "plant", "characterise"}) {
+  for (const char* cmd :
+       {"sim", "effects", "serve", "ctl", "compare", "diagnose", "plant", "report", "drive", "characterise"}) {
     EXPECT_NE(top.output.find(std::string("\n  ") + cmd), std::string::npos) << cmd << "\n" << top.output;
     for (const char* flag : {"--help", "-h"}) {
       const auto r = run_command(hilbench() + " " + cmd + " " + flag);
