@@ -99,13 +99,17 @@ plant::Plant model_for(const plant::Plant& attached, const VariantFit& v, double
   return with_values(attached, {*v.grid}, {grid_value});
 }
 
-void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
-  const Variant& var = cand.variants[vf.variant];
-  const plant::Plant attached = cand.attach(base);
-  for (const auto& p : var.params) {
+// vf's variant's parameters: the grid one (at most one) and the continuous ones.
+void split_params(const Candidate& cand, VariantFit& vf) {
+  for (const auto& p : cand.variants[vf.variant].params) {
     if (p.grid) vf.grid = &p;
     else vf.continuous.push_back(p);
   }
+}
+
+void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  const plant::Plant attached = cand.attach(base);
+  split_params(cand, vf);
   const bool same = &ctx.coarse == &ctx.full || ctx.coarse.size() == ctx.full.size();
   if (vf.grid) {
     const auto values = vf.grid->grid_values ? vf.grid->grid_values(ctx.coarse) : std::vector<double>{};
@@ -536,6 +540,14 @@ double path_bic(const std::vector<Added>& added, double rss, double n_eff) {
   return n_eff * std::log(rss) + static_cast<double>(k) * std::log(n_eff);
 }
 
+// The path's RSS on every row (into path.rss) and its residual's effective sample size.
+double measure_path(const Setup& su, const plant::Plant& base0, Path& path, int& evaluations) {
+  std::vector<double> res;
+  path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
+  evaluations += 1;
+  return static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
+}
+
 // Revisits the choices of a greedy path (forward-backward): for each accepted effect, the others
 // are refitted without it; if it no longer earns its place against them (dBIC >= -10, or a gain
 // under 5 % of the noise power) it is dropped; otherwise a round over the candidates not in the
@@ -546,10 +558,7 @@ constexpr int kRevisitPasses = 3;
 void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
              std::vector<std::string>& revisions, int& evaluations) {
   for (int pass = 0; pass < kRevisitPasses && path.added.size() >= 2; ++pass) {
-    std::vector<double> res;
-    path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
-    const double n_eff = static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
-    evaluations += 1;
+    const double n_eff = measure_path(su, base0, path, evaluations);
     bool changed = false;
     for (std::size_t i = 0; i < path.added.size() && !changed; ++i) {
       std::vector<Added> rest = path.added;
@@ -594,7 +603,6 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
   }
 }
 
-
 // A variant chosen in an early round can keep a parameter that a later effect made idle (a gap
 // step of 0.001 deg once a sensor lag took over what the step had mimicked: with several files a
 // per-file step can stand for a speed-dependent lag). For each accepted effect, every variant of
@@ -604,10 +612,7 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
 void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
                        int& evaluations) {
   if (path.added.empty()) return;
-  std::vector<double> res;
-  path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
-  const double n_eff = static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
-  evaluations += 1;
+  const double n_eff = measure_path(su, base0, path, evaluations);
   auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
   for (std::size_t i = 0; i < path.added.size(); ++i) {
     const Candidate& cand = *path.added[i].cand;
@@ -625,13 +630,9 @@ void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, s
       VariantFit f;
       f.candidate = chosen.candidate;
       f.variant = vi;
-      for (const auto& p : simpler.params) {
-        if (p.grid) {
-          f.grid = &p;
-          f.grid_value = chosen.grid_value;
-          continue;
-        }
-        f.continuous.push_back(p);
+      split_params(cand, f);
+      if (f.grid) f.grid_value = chosen.grid_value;
+      for (const auto& p : f.continuous) {
         double v = p.starts.empty() ? 0.0 : p.starts.front();
         for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
           if (same(chosen.continuous[j], p)) v = chosen.values[j];

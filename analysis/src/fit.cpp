@@ -54,8 +54,8 @@ bool invert(const std::vector<std::vector<double>>& a, std::vector<std::vector<d
 
 Fitter::Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data)
     : model_(model), params_(std::move(params)), data_(data), yhat_(data.size()) {
-  const std::size_t end = data.segments.empty() ? data.size() : data.segment_end(0);
-  if (end >= 2) sample_period_s_ = (data.t_s[end - 1] - data.t_s[0]) / static_cast<double>(end - 1);
+  const std::size_t rows = data.segment_end(0) - data.segment_begin(0);
+  if (rows >= 2) sample_period_s_ = data.span_s(0) / static_cast<double>(rows - 1);
 }
 
 std::vector<double> Fitter::clamp(std::vector<double> x) const {
