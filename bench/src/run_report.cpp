@@ -55,7 +55,8 @@ RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const 
   };
   RunDigest digest(c);
   for (std::size_t i = 0; i < t.rows(); ++i) {
-    StepRecord r;
+    TelemetryRecord rec;
+    StepRecord& r = rec.step;
     r.t_s = col(Col::t_s, i, kNaN);
     r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
     r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
@@ -71,7 +72,8 @@ RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const 
     // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
     const double chamber_mpa = col(Col::p_chamber_mpa, i, kNaN);
     r.p_chamber_pa = t.values[telemetry::index(Col::p_chamber_mpa)].empty() ? r.p_meas_pa : mpa_to_pa(chamber_mpa);
-    digest.add(r, deg_to_rad(col(Col::theta_target_deg, i, kNaN)));
+    rec.theta_target_rad = deg_to_rad(col(Col::theta_target_deg, i, kNaN));
+    digest.add(rec);
   }
   RunOutcome out = digest.finish(name);
   if (t.values[telemetry::index(Col::theta_valve_deg)].empty()) {

@@ -20,8 +20,6 @@
 namespace hil::bench {
 namespace {
 
-using units::pa_to_mpa;
-using units::rad_to_deg;
 using Clock = std::chrono::steady_clock;
 
 constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
@@ -38,7 +36,7 @@ constexpr telemetry::Col kReportColumns[] = {
 class ReportDecimator {
  public:
   ReportDecimator() : series_(std::size(kReportColumns), MinMaxDecimator(kReportBuckets)) {}
-  void add(const std::array<double, telemetry::kLoopColumns>& row) {
+  void add(const TelemetryRow& row) {
     const double t = row[telemetry::index(telemetry::Col::t_s)];
     for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, row[telemetry::index(kReportColumns[i])]);
   }
@@ -68,15 +66,16 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   RunDigest digest(c);
   std::unique_ptr<CsvWriter> csv;
   if (telemetry) {
-    csv = std::make_unique<CsvWriter>(dir / "telemetry.csv", sim_telemetry_columns(),
+    csv = std::make_unique<CsvWriter>(dir / "telemetry.csv", telemetry_columns(ColumnSet::sim),
                                       std::vector<std::pair<std::string, std::string>>{
                                           {"source", "hilbench sim"}, {"campaign", c.name}, {"run", run.name}});
   }
+  TelemetryRow row;
   simulate_run(
       c, run,
-      [&](const StepRecord& r) {
+      [&](const TelemetryRecord& r) {
         digest.add(r);
-        if (csv) csv->row(telemetry_row(r));
+        if (csv) csv->row({row.data(), telemetry_row(r, ColumnSet::sim, row)});
         if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw Cancelled("cancelled");
       },
       &steps_done);
@@ -124,59 +123,37 @@ RunDigest::RunDigest(const Campaign& c)
 
 RunDigest::~RunDigest() = default;
 
-void RunDigest::add(const StepRecord& r, double theta_target_rad) {
-  impl_->metrics.add(r);
-  impl_->report.add(full_telemetry_row(r, theta_target_rad));
+void RunDigest::add(const TelemetryRecord& r) {
+  impl_->metrics.add(r.step);
+  impl_->report.add(telemetry_row(r));
 }
 
 RunOutcome RunDigest::finish(std::string run_name) { return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0}; }
 
-const std::vector<CsvColumn>& sim_telemetry_columns() {
-  static const std::vector<CsvColumn> columns = [] {
-    std::vector<CsvColumn> c;
-    for (std::size_t i = 0; i < kSimColumns; ++i)
-      c.push_back({std::string(telemetry::kColumns[i].name), telemetry::kColumns[i].decimals});
-    return c;
-  }();
-  return columns;
+SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)
+    : telemetry_(2),  // one record a period, taken before the next
+      events_(16),    // no operator, no interlocks: nothing to report but what nobody reads
+      requests_(1),
+      loop_(c, run, rig_, SafetyConfig::none(), LoopConfig{},
+            std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s)), telemetry_,
+            events_, requests_, /*now: simulated time, nothing to time*/ nullptr) {
+  rig_.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
+  rig_.activate();
+  loop_.begin(t_);
 }
 
-std::array<double, kSimColumns> telemetry_row(const StepRecord& r) {
-  using telemetry::Col;
-  std::array<double, kSimColumns> row{};
-  auto set = [&row](Col c, double v) { row[telemetry::index(c)] = v; };
-  set(Col::t_s, r.t_s);
-  set(Col::theta_cmd_deg, rad_to_deg(r.theta_cmd_rad));
-  set(Col::p_meas_mpa, pa_to_mpa(r.p_meas_pa));
-  set(Col::theta_motor_deg, rad_to_deg(r.theta_motor_rad));
-  set(Col::p_ref_mpa, pa_to_mpa(r.p_ref_pa));
-  set(Col::theta_valve_deg, rad_to_deg(r.theta_valve_rad));
-  set(Col::gap_true_deg, rad_to_deg(r.gap_true_rad));
-  set(Col::touch_state, static_cast<double>(r.touch));
-  set(Col::motion_intention, static_cast<double>(r.intention));
-  set(Col::comp_deg, rad_to_deg(r.comp_rad));
-  set(Col::gap_est_deg, rad_to_deg(r.gap_est_rad));
-  set(Col::p_chamber_mpa, pa_to_mpa(r.p_chamber_pa));
-  return row;
-}
-
-std::array<double, telemetry::kLoopColumns> full_telemetry_row(const StepRecord& r, double theta_target_rad,
-                                                              double wake_latency_us, double compute_us,
-                                                              std::uint32_t loop_flags) {
-  using telemetry::Col;
-  std::array<double, telemetry::kLoopColumns> row{};
-  const auto sim = telemetry_row(r);
-  std::copy(sim.begin(), sim.end(), row.begin());
-  row[telemetry::index(Col::theta_target_deg)] = rad_to_deg(std::isfinite(theta_target_rad) ? theta_target_rad : r.theta_cmd_rad);
-  row[telemetry::index(Col::wake_latency_us)] = wake_latency_us;
-  row[telemetry::index(Col::compute_us)] = compute_us;
-  row[telemetry::index(Col::loop_flags)] = static_cast<double>(loop_flags);
-  return row;
+bool SimulatedRun::next(TelemetryRecord& out) noexcept {
+  if (loop_.end() != LoopEnd::running) return false;
+  // Each period wakes on its deadline and ends there: no latency, no compute time, no overrun.
+  loop_.cycle(t_, t_);
+  loop_.finish_cycle(t_);
+  t_ += loop_.wall_period();
+  return telemetry_.pop(&out, 1) == 1;
 }
 
 RunSummary summarise_run(const Campaign& c, const RunSpec& run) {
   RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
-  simulate_run(c, run, [&](const StepRecord& r) { metrics.add(r); });
+  simulate_run(c, run, [&](const TelemetryRecord& r) { metrics.add(r.step); });
   return metrics.finish();
 }
 

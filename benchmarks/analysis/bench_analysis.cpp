@@ -58,7 +58,8 @@ fs::path make_file(const fs::path& dir, const std::string& name, double duration
   const fs::path file = dir / (name + ".csv");
   hil::CsvWriter w(file, cols, {{"source", "bench_analysis"}});
   std::vector<double> row;
-  hil::bench::simulate_run(c, c.runs.front(), [&](const hil::bench::StepRecord& r) {
+  hil::bench::simulate_run(c, c.runs.front(), [&](const hil::bench::TelemetryRecord& rec) {
+    const hil::bench::StepRecord& r = rec.step;
     row = {r.t_s, hil::units::rad_to_deg(r.theta_cmd_rad), hil::units::pa_to_mpa(r.p_meas_pa)};
     if (encoder) row.push_back(hil::units::rad_to_deg(r.theta_motor_rad));
     row.push_back(hil::units::pa_to_mpa(r.p_ref_pa));

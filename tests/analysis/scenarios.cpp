@@ -75,7 +75,8 @@ std::filesystem::path make_measurement(const Scenario& s, const std::filesystem:
   const auto file = dir / (s.name + ".csv");
   CsvWriter w(file, cols, {{"source", "hilbench tests (hidden effects)"}, {"scenario", s.name}});
   std::vector<double> row;
-  bench::simulate_run(c, c.runs.front(), [&](const bench::StepRecord& r) {
+  bench::simulate_run(c, c.runs.front(), [&](const bench::TelemetryRecord& rec) {
+    const bench::StepRecord& r = rec.step;
     row.clear();
     row.push_back(r.t_s);
     if (s.extra_columns) row.push_back(21.5);

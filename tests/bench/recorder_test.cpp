@@ -40,7 +40,7 @@ TEST(Recorder, WritesEveryRowAndEvent) {
   EXPECT_DOUBLE_EQ(chunk.values[1][4999], 1.004999);
   EXPECT_DOUBLE_EQ(chunk.values[2][0], 3.25);
   EXPECT_DOUBLE_EQ(chunk.values[3][0], kFlagOverrun);
-  EXPECT_EQ(header.names.size(), kLoopColumns);
+  EXPECT_EQ(header.names.size(), hil::telemetry::kLoopColumns);
 
   std::ifstream events(dir.path() / "events.jsonl");
   std::vector<nlohmann::json> lines;
@@ -86,7 +86,7 @@ TEST(Recorder, HardwareRigFilesLeaveTheTruthOut) {
   hil::CsvHeader header;
   const auto chunk = hil::read_csv(dir.path() / "telemetry.csv", {{"t_s", "theta_cmd_deg", "p_meas_mpa", "loop_flags"}, {}, "t_s"}, &header);
   EXPECT_EQ(chunk.rows(), 1u);
-  EXPECT_EQ(header.names.size(), kLoopColumns - 3);
+  EXPECT_EQ(header.names.size(), hil::telemetry::kLoopColumns - 3);
   for (const char* truth : {"theta_valve_deg", "gap_true_deg", "p_chamber_mpa"}) {
     EXPECT_EQ(std::find(header.names.begin(), header.names.end(), truth), header.names.end()) << truth;
   }

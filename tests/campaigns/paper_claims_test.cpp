@@ -122,7 +122,8 @@ TEST(RobustObserver, JumpsFollowTheEstimateAfterItChanges) {
   hil::test::TempDir dir;
   const Campaign c = load_campaign_text(yaml, "regrow.yaml", dir.path());
   int checked = 0;
-  simulate_run(c, c.runs.front(), [&](const StepRecord& r) {
+  simulate_run(c, c.runs.front(), [&](const TelemetryRecord& rec) {
+    const StepRecord& r = rec.step;
     if (r.comp_rad == 0 || r.t_s < 17) return;  // after the growth has been measured (16.4 s)
     EXPECT_NEAR(std::abs(r.comp_rad), r.gap_est_rad, 0.05 * r.gap_est_rad) << "jump at " << r.t_s << " s";
     ++checked;

@@ -277,7 +277,7 @@ inline TraceDiff compare_with_simulation(const bench::Campaign& c, const std::st
   }
   EXPECT_NE(spec, nullptr);
   std::vector<bench::StepRecord> sim;
-  bench::simulate_run(c, *spec, [&](const bench::StepRecord& r) { sim.push_back(r); });
+  bench::simulate_run(c, *spec, [&](const bench::TelemetryRecord& r) { sim.push_back(r.step); });
   TraceDiff d;
   double lo = 1e300, hi = -1e300, sum = 0;
   d.rows = std::min(csv.rows(), sim.size());

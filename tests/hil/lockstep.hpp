@@ -380,7 +380,7 @@ inline LockstepDiff compare_lockstep(const bench::Campaign& c, const std::string
     if (r.name == run) spec = &r;
   }
   std::vector<bench::StepRecord> sim;
-  bench::simulate_run(c, *spec, [&](const bench::StepRecord& r) { sim.push_back(r); });
+  bench::simulate_run(c, *spec, [&](const bench::TelemetryRecord& r) { sim.push_back(r.step); });
   LockstepDiff d;
   d.rows = std::min(rows.size(), sim.size());
   double sum = 0, lo = 1e300, hi = -1e300;

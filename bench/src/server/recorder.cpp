@@ -83,7 +83,7 @@ Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair
                    int avoid_cpu)
     : telemetry_(ring_rows),
       events_(4096),
-      csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv", loop_telemetry_columns(with_truth), csv_metadata)),
+      csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv", telemetry_columns(with_truth ? ColumnSet::all : ColumnSet::measured), csv_metadata)),
       events_file_(std::make_unique<LineFile>(dir / "events.jsonl")),
       on_row_(std::move(on_row)),
       flush_period_(flush_period),
@@ -142,8 +142,8 @@ bool Recorder::drain() {
     for (std::size_t i = 0; i < n; ++i) {
       if (!failed_.load(std::memory_order_relaxed)) {
         try {
-          std::array<double, kLoopColumns> row;
-          const std::size_t n = loop_telemetry_row(batch_[i], with_truth_, row);
+          TelemetryRow row;
+          const std::size_t n = telemetry_row(batch_[i], with_truth_ ? ColumnSet::all : ColumnSet::measured, row);
           csv_->row(std::span<const double>(row.data(), n));
         } catch (const std::exception& e) {
           fail(e);

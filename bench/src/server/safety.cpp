@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "hil/config.hpp"
 #include "hil/units.hpp"
@@ -23,6 +24,18 @@ std::string_view to_string(Trip trip) noexcept {
     case Trip::recording: return "recording";
   }
   return "?";
+}
+
+SafetyConfig SafetyConfig::none() noexcept {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  SafetyConfig c;
+  c.cmd_min_rad = -kInf;
+  c.cmd_max_rad = kInf;
+  c.rate_limit_rad_s = kInf;
+  c.p_max_pa = kInf;
+  c.p_min_pa = -kInf;
+  c.watchdog_misses = std::numeric_limits<int>::max();
+  return c;
 }
 
 SafetyConfig SafetyConfig::from_yaml(const cfg::Node& n) {

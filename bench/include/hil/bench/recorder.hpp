@@ -33,7 +33,7 @@ class Recorder {
   using RowSink = std::function<void(const TelemetryRecord&)>;
 
   // Creates dir/telemetry.csv and dir/events.jsonl and starts the writer thread. Throws naming
-  // the file when it cannot. with_truth: the rig is simulated (see loop_telemetry_columns).
+  // the file when it cannot. with_truth: the rig is simulated (see ColumnSet in telemetry_record.hpp).
   Recorder(const std::filesystem::path& dir, const std::vector<std::pair<std::string, std::string>>& csv_metadata,
            std::size_t ring_rows, RowSink on_row = {},
            std::chrono::milliseconds flush_period = std::chrono::milliseconds(100), bool with_truth = true,

@@ -1,6 +1,7 @@
 // The real-time loop of one run: every period it reads the rig, steps the controller, applies
-// the safety interlocks, writes the rig and pushes a telemetry row, and nothing else. It
-// reproduces simulate_run's per-step sequence exactly (tests/bench compares them row by row).
+// the safety interlocks, writes the rig and pushes a telemetry row, and nothing else. It is the
+// one period of every run: on the bench, paced by a clock (rt_thread.hpp), and offline, on the
+// simulated rig in simulated time (SimulatedRun below: `hilbench sim`, the tests, the sweeps).
 //
 // RunLoop is the period's work without the clock: the pacing thread (rt_thread.hpp) wakes it
 // on absolute deadlines and passes the times in, so tests drive it with made-up times.
@@ -20,8 +21,7 @@
 #include "hil/bench/rig.hpp"
 #include "hil/bench/run_metrics.hpp"
 #include "hil/bench/safety.hpp"
-#include "hil/telemetry_schema.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/telemetry_record.hpp"
 #include "hil/bench/spsc_ring.hpp"
 #include "hil/bench/target_shaper.hpp"
 #include "hil/drv/io_types.hpp"
@@ -66,25 +66,6 @@ enum LoopFlag : std::uint32_t {
   kFlagOverrun = 1u << 7,       // this period ended after the next deadline
   kFlagDeviceFault = 1u << 8,   // the rig reported a device or link fault (RigStatus::fault)
 };
-
-struct TelemetryRecord {
-  StepRecord step;
-  double theta_target_rad = kNaN;  // what the rig was sent (the command, shaped for a real drive)
-  double wake_latency_us = 0;
-  double compute_us = 0;
-  std::uint32_t flags = 0;
-};
-
-// Every column of the schema (hil/telemetry_schema.hpp): hilbench sim's, then theta_target_deg
-// (what the rig was sent), wake_latency_us, compute_us, loop_flags. A rig without the truth
-// (Rig::knows_truth false: the CAN and Modbus rigs) leaves out the truth-only columns
-// (with_truth false) rather than fill them with nan. A period without a reading repeats the last
-// one recorded, with kFlagReadMissed set, so every row parses.
-inline constexpr std::size_t kLoopColumns = telemetry::kLoopColumns;
-const std::vector<CsvColumn>& loop_telemetry_columns(bool with_truth = true);
-std::array<double, kLoopColumns> loop_telemetry_row(const TelemetryRecord& r);
-// The row for the columns of loop_telemetry_columns(with_truth); returns how many values.
-std::size_t loop_telemetry_row(const TelemetryRecord& r, bool with_truth, std::array<double, kLoopColumns>& out);
 
 enum class SensorFault : std::uint8_t { none, stuck, dropout, bias, noise };
 std::string_view to_string(SensorFault f) noexcept;
@@ -171,7 +152,8 @@ struct LoopSnapshot {
 class RunLoop {
  public:
   // Setup: builds the controller, keeps references (all must outlive the loop). wall_period is
-  // the pacing period (the campaign's dT divided by the speed factor).
+  // the pacing period (the campaign's dT divided by the speed factor). now: the clock that times
+  // the rig calls; nullptr in simulated time, where the loop keeps no timing statistics.
   RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
           Clock::duration wall_period, SpscRing<TelemetryRecord>& telemetry, SpscRing<LoopEvent>& events,
           SpscRing<LoopRequest>& requests, TimedRig::NowFn now = &Clock::now);
@@ -182,7 +164,9 @@ class RunLoop {
   // first command (the drive's own target: no jump). Throws when the rig gives none.
   void begin(Clock::time_point now);
 
-  // One period: requests, read, controller, safety, write. Real-time safe.
+  // One period: requests, read, controller, safety, write, and the period's record. A period
+  // without a usable reading records the last one again, with kFlagReadMissed set, so every row
+  // parses. Real-time safe.
   void cycle(Clock::time_point deadline, Clock::time_point woke) noexcept;
   // The recorder's "cannot write" flag (Recorder::failed), checked every period; a set flag is a
   // fault like a full ring (see RecordingFaultPolicy). Setup, before the first cycle.
@@ -227,6 +211,8 @@ class RunLoop {
   const ctl::Controller controller_;
   TimedRig rig_;
   const bool gap_to_rig_;  // the rig takes the programmed gap (Rig::programmable_gap)
+  const bool timed_;       // on a clock (not simulated time): wake-up and compute times are kept,
+                           // the snapshot is published every period
   Safety safety_;
   const LoopConfig loop_;
   TargetShaper shaper_;

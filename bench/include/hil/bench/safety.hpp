@@ -30,6 +30,9 @@ struct SafetyConfig {
   double safe_rate_rad_s = 0.349;     // how fast the safe state drives there (20 deg/s)
   double safe_hold_s = 0.2;           // the loop stays in the safe state this long, then the run ends
 
+  // No interlocks: no limits, no trips. An offline simulation has no motor to protect and records
+  // what the controller does, whatever it does (a runaway estimate included).
+  static SafetyConfig none() noexcept;
   // The `safety` block of a rig file; errors name file:line:key.
   static SafetyConfig from_yaml(const cfg::Node& node);
 };

@@ -16,57 +16,45 @@
 #include <vector>
 
 #include "hil/bench/campaign.hpp"
+#include "hil/bench/rt_loop.hpp"
 #include "hil/bench/run_metrics.hpp"
-#include "hil/csv_writer.hpp"
-#include "hil/telemetry_schema.hpp"
+#include "hil/bench/sim_rig.hpp"
+#include "hil/bench/telemetry_record.hpp"
 
 namespace hil::bench {
 
-// hilbench sim's telemetry columns: the first telemetry::kSimColumns of the one schema
-// (hil/telemetry_schema.hpp), in its order; telemetry_row fills them from a step.
-inline constexpr std::size_t kSimColumns = telemetry::kSimColumns;
-const std::vector<CsvColumn>& sim_telemetry_columns();
-std::array<double, kSimColumns> telemetry_row(const StepRecord& r);
-// Every column of the schema for one period: the above, then what the drive was sent
-// (theta_target_rad; NaN: the command) and the bench loop's timing and flags.
-std::array<double, telemetry::kLoopColumns> full_telemetry_row(const StepRecord& r, double theta_target_rad,
-                                                              double wake_latency_us = 0, double compute_us = 0,
-                                                              std::uint32_t loop_flags = 0);
+// One run on the simulated rig in simulated time: the bench's own period (RunLoop::cycle) on a
+// SimRig, paced by a counter instead of a clock, as fast as the machine goes, with no interlocks
+// (SafetyConfig::none) and no operator. Every period gives one record.
+class SimulatedRun {
+ public:
+  // Setup: builds and settles the plant at the reference and gap of t = 0, then the controller.
+  SimulatedRun(const Campaign& c, const RunSpec& run);
+  SimulatedRun(const SimulatedRun&) = delete;
+  SimulatedRun& operator=(const SimulatedRun&) = delete;
 
-// Runs one campaign run; calls on_step(const StepRecord&) every control period. Counts finished
-// steps into steps_done (relaxed, every 1024 steps) when given.
+  // The next period's record; false once the run is over. Real-time safe.
+  bool next(TelemetryRecord& out) noexcept;
+  const RunLoop& loop() const noexcept { return loop_; }
+
+ private:
+  SimRig rig_;
+  SpscRing<TelemetryRecord> telemetry_;
+  SpscRing<LoopEvent> events_;
+  SpscRing<LoopRequest> requests_;
+  RunLoop loop_;
+  Clock::time_point t_{};
+};
+
+// Runs one campaign run; calls on_step(const TelemetryRecord&) every control period. Counts
+// finished steps into steps_done (relaxed, every 1024 steps) when given.
 template <class OnStep>
 void simulate_run(const Campaign& c, const RunSpec& run, OnStep&& on_step, std::atomic<long>* steps_done = nullptr) {
-  const plant::Plant& plant = *c.plant;
-  plant::PlantState ps = plant.make_state(c.seed);
-  Schedule::Cursor ref_cursor, gap_cursor;
-  const double gap0 = c.gap_rad.at(0.0, gap_cursor);
-  plant.settle(ps, c.reference_pa.at(0.0, ref_cursor), plant::kNaN, 0.0, gap0);
-  const ctl::Controller controller(run.controller);
-  ctl::ControllerState cs = controller.initial_state(ps.s.theta_cmd_rad, ps.s.p_meas_pa, run.initial_touch);
-  const long n = std::lround(c.duration_s / c.period_s);
-  for (long k = 0; k < n; ++k) {
-    const double t = static_cast<double>(k) * c.period_s;
-    const double p_ref = c.reference_pa.at(t, ref_cursor);
-    const double gap = c.gap_rad.at(t, gap_cursor);
-    const ctl::ControllerOutputs out = controller.step(cs, {ps.s.p_meas_pa, p_ref, ps.s.theta_motor_rad});
-    StepRecord r;
-    r.t_s = t;
-    r.p_ref_pa = p_ref;
-    r.p_chamber_pa = ps.s.p_chamber_pa;
-    r.p_meas_pa = ps.s.p_meas_pa;
-    r.theta_cmd_rad = out.theta_cmd_rad;
-    r.theta_motor_rad = ps.s.theta_motor_rad;
-    r.theta_valve_rad = ps.s.theta_valve_rad;
-    r.gap_true_rad = gap;
-    r.gap_est_rad = out.gap_est_rad;
-    r.comp_rad = out.comp_rad;
-    r.touch = out.touch_state;
-    r.intention = out.motion_intention;
-    r.gap_measured = out.gap_measured;
-    on_step(r);
-    plant.step(ps, {out.theta_cmd_rad, plant::kNaN, gap}, c.period_s);
-    if (steps_done != nullptr && (k & 1023) == 1023) steps_done->fetch_add(1024, std::memory_order_relaxed);
+  SimulatedRun sim(c, run);
+  TelemetryRecord rec;
+  for (long k = 1; sim.next(rec); ++k) {
+    on_step(static_cast<const TelemetryRecord&>(rec));
+    if (steps_done != nullptr && (k & 1023) == 0) steps_done->fetch_add(1024, std::memory_order_relaxed);
   }
 }
 
@@ -96,8 +84,7 @@ class RunDigest {
   ~RunDigest();
   RunDigest(const RunDigest&) = delete;
   RunDigest& operator=(const RunDigest&) = delete;
-  // theta_target_rad: what a rig's drive was sent (shaped), when it differs from the command.
-  void add(const StepRecord& r, double theta_target_rad = plant::kNaN);
+  void add(const TelemetryRecord& r);
   RunOutcome finish(std::string run_name);
 
  private:
