@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "hil/bench/campaign.hpp"
@@ -243,8 +244,24 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   expect_error(api.post("/api/inject/gap", {{"gap_deg", 2}}), 409, "no campaign is running");
   expect_error(api.post("/api/stop", json::object()), 409, "");
   expect_error(api.post("/api/abort", json::object()), 409, "");
-  expect_error(api.get("/api/nothing"), 404, "");
+  expect_error(api.get("/api/nothing"), 404, "GET /api/runs/{id}/{file}");  // the list of endpoints
+  expect_error(api.get("/nothing"), 404, "the API lives under /api");
   expect_error(api.get("/api/start"), 405, "POST");
+  expect_error(api.post("/api/runs", json::object()), 405, "GET");
+  {  // GET /api: every endpoint, with what it does
+    const auto index = api.get("/api");
+    ASSERT_EQ(index.status, 200) << index.body;
+    std::set<std::string> endpoints;
+    for (const auto& e : index.json()["endpoints"]) {
+      EXPECT_FALSE(e["summary"].get<std::string>().empty());
+      endpoints.insert(e["method"].get<std::string>() + " " + e["path"].get<std::string>());
+    }
+    for (const char* e : {"GET /api/health", "GET /api/status", "POST /api/start", "POST /api/stop", "POST /api/abort",
+                          "POST /api/inject/{kind}", "GET /api/runs", "GET /api/runs/{id}", "GET /api/runs/{id}/{file}",
+                          "GET /api/telemetry", "GET /api/campaigns", "GET /api/rigs"}) {
+      EXPECT_EQ(endpoints.count(e), 1u) << e;
+    }
+  }
   expect_error(api.get("/api/runs/..%2F..%2Fetc/passwd"), 404, "");
   expect_error(api.get("/api/runs/nope"), 404, "");
 
@@ -327,8 +344,8 @@ TEST(ServerEndToEnd, CtlStartsAndFollowsWithAProgressBar) {
 }
 
 // A run recorded by the server is reviewed as a simulation is: `hilbench report` gives the same
-// metrics as `hilbench sim` for the same campaign (the sim rig reproduces it row for row; only
-// the CSV's rounding differs) and writes the same report.
+// metrics as `hilbench sim` for the same campaign (both run the loop's period on the simulated
+// rig; only the CSV's rounding differs) and writes the same report.
 TEST(ServerEndToEnd, ReportOfRecordedRunsMatchesTheSimulation) {
   ServerProcess server;
   const auto api = server.client();

@@ -218,7 +218,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       if (ec) return;
       const json hello = {{"type", "hello"}, {"rate_hz", rate_hz}, {"columns", [] {
                             json names = json::array();
-                            for (const auto& c : loop_telemetry_columns()) names.push_back(c.name);
+                            for (const auto& c : telemetry_columns(ColumnSet::all)) names.push_back(c.name);
                             return names;
                           }()}};
       self->send(std::make_shared<const std::string>(dump_json(hello)));
@@ -316,8 +316,8 @@ void TelemetryHub::publish_row(const TelemetryRecord& r) {
   }
   if (due.empty()) return;
   json j = {{"type", "row"}};
-  const auto values = loop_telemetry_row(r);
-  const auto& columns = loop_telemetry_columns();
+  const auto values = telemetry_row(r);
+  const auto& columns = telemetry_columns(ColumnSet::all);
   for (std::size_t i = 0; i < columns.size(); ++i) j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
   const auto message = std::make_shared<const std::string>(dump_json(j));
   for (const auto& session : due) session->send(message);
@@ -360,6 +360,8 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply campaigns();
   Reply rigs();
   Reply start(const Request& req, const Target& t);
+  Reply stop();
+  Reply abort(const Request& req);
   Reply inject(const std::string& what, const json& body);
   Reply runs();
   Reply run(const std::string& id);
@@ -640,59 +642,133 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
   return r;
 }
 
+namespace {
+
+Reply route_index();
+
+// The endpoints, one row each: the method, the path ("{name}" matches one segment, handed to the
+// handler in order), what it does (GET /api lists this table), and the handler.
+struct Route {
+  http::verb method;
+  std::string_view path;
+  std::string_view summary;
+  Reply (*handle)(ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>& args);
+};
+
+const Route kRoutes[] = {
+    {http::verb::get, "/api", "this list",
+     [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) { return route_index(); }},
+    {http::verb::get, "/api/health", "the server answers, and its version",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) {
+       return json_reply(http::status::ok, {{"ok", true}, {"version", api.options.version}});
+     }},
+    {http::verb::get, "/api/campaigns", "the campaign files the server can run",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.campaigns(); }},
+    {http::verb::get, "/api/rigs", "the rig files",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.rigs(); }},
+    {http::verb::get, "/api/status", "the campaign running now, its loop's health and interlocks",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) {
+       return json_reply(http::status::ok, api.runner.status());
+     }},
+    {http::verb::post, "/api/start", "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) { return api.start(req, t); }},
+    {http::verb::post, "/api/stop", "end the campaign after the run's current period",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.stop(); }},
+    {http::verb::post, "/api/abort", "safe state now, then end the campaign: {reason}",
+     [](ApiServer::Impl& api, const Request& req, const Target&, const std::vector<std::string>&) { return api.abort(req); }},
+    {http::verb::post, "/api/inject/{kind}", "inject a gap change or a fault: gap, sensor, drive, rig, clear",
+     [](ApiServer::Impl& api, const Request& req, const Target&, const std::vector<std::string>& a) {
+       return api.inject(a[0], parse_json_body(req));
+     }},
+    {http::verb::get, "/api/runs", "the recorded runs, newest first",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.runs(); }},
+    {http::verb::get, "/api/runs/{id}", "a run's record and its files",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
+    {http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run_file(a[0], a[1]); }},
+    {http::verb::get, "/api/telemetry", "live telemetry: a WebSocket, ?rate_hz=N",
+     [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) -> Reply {
+       throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
+     }},
+};
+
+// The route's path segments, or nothing when `path` is not its shape; "{name}" segments are
+// collected into args.
+bool match(std::string_view pattern, const std::vector<std::string>& path, std::vector<std::string>& args) {
+  args.clear();
+  std::size_t i = 0;
+  for (std::size_t from = 1; from <= pattern.size(); ++i) {
+    const std::size_t to = std::min(pattern.find('/', from), pattern.size());
+    const std::string_view seg = pattern.substr(from, to - from);
+    if (i >= path.size()) return false;
+    if (seg.size() > 1 && seg.front() == '{') {
+      args.push_back(path[i]);
+    } else if (seg != path[i]) {
+      return false;
+    }
+    from = to + 1;
+  }
+  return i == path.size();
+}
+
+std::string route_list() {
+  std::string out;
+  for (const auto& r : kRoutes) {
+    if (!out.empty()) out += ", ";
+    out += std::string(http::to_string(r.method)) + " " + std::string(r.path);
+  }
+  return out;
+}
+
+Reply route_index() {
+  json list = json::array();
+  for (const auto& r : kRoutes) {
+    list.push_back({{"method", std::string(http::to_string(r.method))}, {"path", r.path}, {"summary", r.summary}});
+  }
+  return json_reply(http::status::ok, {{"endpoints", list}});
+}
+
+}  // namespace
+
 Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
-  const auto& p = t.path;
-  const auto method = req.method();
-  auto need = [&](http::verb v) {
-    if (method != v) {
-      throw ApiError{http::status::method_not_allowed, "method not allowed",
-                     std::string(req.method_string()) + " " + std::string(req.target()) + ": use " + std::string(http::to_string(v))};
-    }
-  };
-  if (p.size() < 2 || p[0] != "api") throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
-  const std::string& what = p[1];
-  if (p.size() == 2 && what == "health") {
-    need(http::verb::get);
-    return json_reply(http::status::ok, {{"ok", true}, {"version", options.version}});
+  std::vector<std::string> args;
+  const Route* other_method = nullptr;
+  for (const auto& r : kRoutes) {
+    if (!match(r.path, t.path, args)) continue;
+    if (r.method == req.method()) return r.handle(*this, req, t, args);
+    other_method = &r;
   }
-  if (p.size() == 2 && what == "campaigns") return need(http::verb::get), campaigns();
-  if (p.size() == 2 && what == "rigs") return need(http::verb::get), rigs();
-  if (p.size() == 2 && what == "status") return need(http::verb::get), json_reply(http::status::ok, runner.status());
-  if (p.size() == 2 && what == "start") return need(http::verb::post), start(req, t);
-  if (p.size() == 2 && what == "stop") {
-    need(http::verb::post);
-    try {
-      runner.stop();
-    } catch (const Conflict& e) {
-      throw ApiError{http::status::conflict, "nothing to stop", e.what()};
-    }
-    return json_reply(http::status::accepted, {{"stopping", true}});
+  if (other_method != nullptr) {
+    throw ApiError{http::status::method_not_allowed, "method not allowed",
+                   std::string(req.method_string()) + " " + std::string(req.target()) + ": use " +
+                       std::string(http::to_string(other_method->method))};
   }
-  if (p.size() == 2 && what == "abort") {
-    need(http::verb::post);
-    const json body = parse_json_body(req);
-    allow_fields(body, {"reason"});
-    const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
-    std::string ends_with;
-    try {
-      ends_with = runner.abort(reason);
-    } catch (const Conflict& e) {
-      throw ApiError{http::status::conflict, "nothing to abort", e.what()};
-    }
-    json answer = {{"aborting", true}, {"reason", ends_with}};
-    if (ends_with != reason) answer["note"] = "an abort was already under way; the campaign ends with its reason";
-    return json_reply(http::status::accepted, answer);
+  if (t.path.empty() || t.path[0] != "api") throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
+  throw ApiError{http::status::not_found, "not found", std::string(req.target()) + " is no endpoint; see GET /api: " + route_list()};
+}
+
+Reply ApiServer::Impl::stop() {
+  try {
+    runner.stop();
+  } catch (const Conflict& e) {
+    throw ApiError{http::status::conflict, "nothing to stop", e.what()};
   }
-  if (p.size() == 3 && what == "inject") return need(http::verb::post), inject(p[2], parse_json_body(req));
-  if (what == "runs" && p.size() == 2) return need(http::verb::get), runs();
-  if (what == "runs" && p.size() == 3) return need(http::verb::get), run(p[2]);
-  if (what == "runs" && p.size() == 4) return need(http::verb::get), run_file(p[2], p[3]);
-  if (p.size() == 2 && what == "telemetry") {
-    throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
+  return json_reply(http::status::accepted, {{"stopping", true}});
+}
+
+Reply ApiServer::Impl::abort(const Request& req) {
+  const json body = parse_json_body(req);
+  allow_fields(body, {"reason"});
+  const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
+  std::string ends_with;
+  try {
+    ends_with = runner.abort(reason);
+  } catch (const Conflict& e) {
+    throw ApiError{http::status::conflict, "nothing to abort", e.what()};
   }
-  throw ApiError{http::status::not_found, "not found",
-                 std::string(req.target()) + " is no endpoint; see GET /api/campaigns, /api/rigs, /api/status, /api/runs, "
-                                             "POST /api/start, /api/stop, /api/abort, /api/inject/{gap,sensor,drive,rig,clear}"};
+  json answer = {{"aborting", true}, {"reason", ends_with}};
+  if (ends_with != reason) answer["note"] = "an abort was already under way; the campaign ends with its reason";
+  return json_reply(http::status::accepted, answer);
 }
 
 Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
