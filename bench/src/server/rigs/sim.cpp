@@ -1,8 +1,10 @@
+// The `sim` rig kind: the simulated rig (sim_rig.hpp) and its registration.
 #include "hil/bench/sim_rig.hpp"
 
 #include <stdexcept>
 
 #include "hil/bench/campaign.hpp"
+#include "hil/bench/rig_registry.hpp"
 
 namespace hil::bench {
 
@@ -72,3 +74,15 @@ bool SimRig::inject(RigFault fault, bool on) noexcept {
 }
 
 }  // namespace hil::bench
+
+namespace {
+std::unique_ptr<hil::bench::Rig> make_sim_rig(const hil::bench::RigKindInfo&, const hil::bench::RigConfig&,
+                                              const hil::drv::CanTransportFactory&) {
+  return std::make_unique<hil::bench::SimRig>();
+}
+}  // namespace
+
+HIL_REGISTER_RIG_KIND(sim, {.doc = "the campaign's plant, stepped in lock-step with the loop (any speed, faults on purpose)",
+                            .capabilities = {.simulated = true, .programmable_gap = true, .knows_truth = true},
+                            .devices = {.drive = hil::bench::DriveNeed::none, .transducer = false},
+                            .make = &make_sim_rig})
