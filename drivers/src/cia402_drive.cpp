@@ -693,6 +693,11 @@ void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& 
 
 DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }
 
+FeedbackFreshness Cia402Drive::freshness() const noexcept {
+  return impl_->cfg.sync_source == Cia402Config::SyncSource::loop ? FeedbackFreshness::reply_to_each_write
+                                                                   : FeedbackFreshness::polled;
+}
+
 cia402::State Cia402Drive::state() const noexcept { return static_cast<cia402::State>(impl_->state_now.load()); }
 
 std::uint32_t Cia402Drive::sdo_read(std::uint16_t index, std::uint8_t sub) { return impl_->sdo(true, index, sub, 0, 0); }

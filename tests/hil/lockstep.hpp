@@ -18,8 +18,10 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -36,6 +38,14 @@
 namespace hil::test {
 
 using bench::Clock;
+
+// The rig the file's kind makes (its registered recipe, as make_rig), as the DeviceRig it is: the
+// tests also look at its drive's raw feedback.
+inline std::unique_ptr<bench::DeviceRig> make_device_rig(const bench::RigConfig& rc, const drv::CanTransportFactory& can_transport = {}) {
+  std::unique_ptr<bench::Rig> rig = bench::make_rig(rc, can_transport);
+  if (dynamic_cast<bench::DeviceRig*>(rig.get()) == nullptr) throw std::logic_error("a " + rc.kind + " rig is no DeviceRig");
+  return std::unique_ptr<bench::DeviceRig>(static_cast<bench::DeviceRig*>(rig.release()));
+}
 
 // The campaign's plant behind the CiA 402 emulator (as its drive model) and the Modbus
 // transducer emulator (as its pressure model), stepped only when the harness says.
@@ -165,7 +175,8 @@ inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::strin
   }
   TempDir dir;
   const bench::RigConfig rc = bench::load_rig_config(dir.write("rigs/lockstep.yaml", rig_text));
-  bench::DeviceRig rig(rc, can_transport);
+  const auto owned_rig = make_device_rig(rc, can_transport);
+  bench::DeviceRig& rig = *owned_rig;
   rig.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
   rig.activate();
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s));
@@ -299,7 +310,8 @@ inline LockstepResult run_lockstep_hybrid(const bench::Campaign& c, const std::s
   }
   TempDir dir;
   const bench::RigConfig rc = bench::load_rig_config(dir.write("rigs/lockstep.yaml", rig_text));
-  bench::DeviceRig rig(rc, can_transport);
+  const auto owned_rig = make_device_rig(rc, can_transport);
+  bench::DeviceRig& rig = *owned_rig;
   rig.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
   rig.activate();
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s));

@@ -144,7 +144,8 @@ TEST(DeviceRig, ReadWriteHealthDoNotAllocate) {
                              : kind == "hybrid" ? rig_yaml("hybrid", can_drive_yaml(), "")
                                                 : rig_yaml("hybrid", modbus_device_yaml(side.drive.port(), "modbus_drive_map.yaml"), "");
     TempDir dir;
-    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/r.yaml", text)), bus.factory());
+    const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/r.yaml", text)), bus.factory());
+    bench::DeviceRig& rig = *owned_rig;
     rig.configure({&campaign, campaign.period_s, campaign.reference_pa.at(0.0), campaign.gap_rad.at(0.0)});
     rig.activate();
     bench::RigReading rd;
@@ -189,7 +190,8 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   };
   {
     TempDir dir;
-    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
+    const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
+    bench::DeviceRig& rig = *owned_rig;
     rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
     rig.activate();
     ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience));
@@ -204,7 +206,8 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   }
   {
     TempDir dir;
-    bench::DeviceRig rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+    const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+    bench::DeviceRig& rig = *owned_rig;
     rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
     rig.activate();
     ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience));

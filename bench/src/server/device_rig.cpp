@@ -16,43 +16,19 @@
 
 namespace hil::bench {
 
-// The calls the rig makes of a drive client; Cia402Drive and ModbusDrive have them all.
-struct DeviceRig::DriveClient {
-  virtual ~DriveClient() = default;
-  virtual void configure() = 0;
-  virtual void activate() = 0;
-  virtual void deactivate() = 0;
-  virtual drv::DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept = 0;
-  virtual void write(Clock::time_point now, Clock::duration period, const drv::DriveCommand& command) noexcept = 0;
-  virtual drv::DeviceHealth health() const noexcept = 0;
-};
-
-template <class Client>
-struct DeviceRig::DriveClientOf final : DriveClient {
-  template <class... Args>
-  explicit DriveClientOf(Args&&... args) : client(std::forward<Args>(args)...) {}
-  void configure() override { client.configure(); }
-  void activate() override { client.activate(); }
-  void deactivate() override { client.deactivate(); }
-  drv::DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override { return client.read(now, period); }
-  void write(Clock::time_point now, Clock::duration period, const drv::DriveCommand& command) noexcept override {
-    client.write(now, period, command);
-  }
-  drv::DeviceHealth health() const noexcept override { return client.health(); }
-  Client client;
-};
-
 namespace {
 double ms(Clock::duration d) noexcept { return std::chrono::duration<double, std::milli>(d).count(); }
 }  // namespace
 
-DeviceRig::DeviceRig(const RigConfig& config, drv::CanTransportFactory can_transport)
-    : config_(config), can_transport_(std::move(can_transport)), kind_(config.kind), hybrid_(config.kind == "hybrid") {
-  if (!config_.devices.can_drive && !config_.devices.modbus_drive) {
-    throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no drive");
-  }
-  if (!hybrid_ && !config_.devices.transducer) {
-    throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no pressure transducer");
+DeviceRig::DeviceRig(const RigConfig& config, const RigKindInfo& kind, Parts parts)
+    : config_(config), kind_(kind.kind), capabilities_(kind.capabilities), parts_(std::move(parts)) {
+  if (!parts_.drive) throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no drive");
+  // The capabilities are declared by the kind and delivered by the parts: they must agree, or the
+  // runner would offer gap changes the rig ignores (or drop truth columns it has).
+  const bool sim_chamber = simulated_chamber();
+  if (capabilities_.simulated || capabilities_.programmable_gap != sim_chamber || capabilities_.knows_truth != sim_chamber) {
+    throw std::logic_error(kind_ + " rig: its declared capabilities do not match its parts (a real drive is never simulated; "
+                           "a programmable gap and the truth come with the simulated chamber, and only with it)");
   }
 }
 
@@ -61,34 +37,30 @@ DeviceRig::~DeviceRig() = default;
 void DeviceRig::configure(const RigSetup& setup) {
   if (!(setup.period_s > 0)) throw std::invalid_argument(kind_ + " rig: the period must be > 0");
   active_ = false;
+  configured_ = false;
   drive_.reset();
-  transducer_.reset();
+  sensor_.reset();
   period_s_ = setup.period_s;
-  const RigDevices& d = config_.devices;
-  // The clients' I/O threads answer the loop every period: they inherit this priority (and the
-  // runner thread's affinity, which keeps off the loop's CPU).
-  const ScopedRealtime io_sched(config_.loop.io_priority);
-  if (!io_sched.warning().empty()) spdlog::warn("{} rig '{}': {}", kind_, config_.name, io_sched.warning());
-  if (d.can_drive) {
-    // One SYNC per period, sent right after the loop's command: the TPDO that answers it is the
-    // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
-    drv::Cia402Config c = *d.can_drive;
-    c.sync_source = drv::Cia402Config::SyncSource::loop;
-    c.sync_period = std::chrono::microseconds(std::clamp<long>(std::lround(setup.period_s * 1e6), 100, 100000));
-    drive_ = std::make_unique<DriveClientOf<drv::Cia402Drive>>(std::move(c), can_transport_);
-  } else {
-    drive_ = std::make_unique<DriveClientOf<drv::ModbusDrive>>(*d.modbus_drive);
+  {
+    // The parts' I/O threads answer the loop every period: they inherit this priority (and the
+    // runner thread's affinity, which keeps off the loop's CPU).
+    const ScopedRealtime io_sched(config_.loop.io_priority);
+    if (!io_sched.warning().empty()) spdlog::warn("{} rig '{}': {}", kind_, config_.name, io_sched.warning());
+    drive_ = parts_.drive(setup);
+    drive_->configure();
+    if (parts_.pressure_sensor) {
+      sensor_ = parts_.pressure_sensor(setup);
+      sensor_->configure();
+    }
   }
-  drive_->configure();
-  if (d.transducer) {
-    transducer_ = std::make_unique<drv::ModbusTransducer>(*d.transducer);
-    transducer_->configure();
-  }
+  drive_freshness_ = drive_->freshness();
   offset_rad_ = 0;
-  if (hybrid_) {
-    if (setup.campaign == nullptr || !setup.campaign->plant) throw std::invalid_argument("hybrid rig: configure needs a campaign with a plant");
+  if (simulated_chamber()) {
+    if (setup.campaign == nullptr || !setup.campaign->plant) {
+      throw std::invalid_argument(kind_ + " rig: configure needs a campaign with a plant");
+    }
     const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
-    if (!fb.valid || !std::isfinite(fb.position_rad)) throw std::runtime_error("hybrid rig: the drive reports no position after configure");
+    if (!fb.valid || !std::isfinite(fb.position_rad)) throw std::runtime_error(kind_ + " rig: the drive reports no position after configure");
     plant_ = setup.campaign->plant;
     state_ = plant_->make_state(setup.campaign->seed);
     plant_->settle(state_, setup.p_initial_pa, plant::kNaN, 0.0, setup.gap_initial_rad);
@@ -98,14 +70,15 @@ void DeviceRig::configure(const RigSetup& setup) {
     gap_rad_ = setup.gap_initial_rad;
     step_pending_ = false;
   }
-  last_sync_ = {};
+  last_write_ = {};
   stale_ = Stale::none;
   reads_ = stale_reads_ = fault_reads_ = 0;
   deactivate_error_[0] = '\0';
+  configured_ = true;
 }
 
 void DeviceRig::activate() {
-  if (!drive_) throw std::logic_error(kind_ + " rig: activate before configure");
+  if (!configured_) throw std::logic_error(kind_ + " rig: activate before configure (or after one that failed)");
   activated_at_ = Clock::now();
   first_write_done_ = false;
   drive_->activate();
@@ -116,11 +89,11 @@ void DeviceRig::activate() {
   for (;;) {
     drv::DriveFeedback fb;
     RigStatus s = read_drive(Clock::now(), fb);
-    if (s == RigStatus::ok && transducer_) {
+    if (s == RigStatus::ok && sensor_) {
       const auto now = Clock::now();
-      const drv::PressureReading p = transducer_->read(now, Clock::duration::zero());
+      const drv::PressureReading p = sensor_->read(now, Clock::duration::zero());
       s = p.fault ? RigStatus::fault
-          : (!p.valid || now - p.rx_time > config_.devices.transducer_max_age) ? RigStatus::stale : RigStatus::ok;
+          : (!p.valid || now - p.rx_time > parts_.sensor_max_age) ? RigStatus::stale : RigStatus::ok;
       if (s == RigStatus::stale) {
         stale_ = Stale::transducer;
         stale_age_ms_ = p.valid ? ms(now - p.rx_time) : -1;
@@ -154,8 +127,9 @@ void DeviceRig::deactivate() noexcept {
 RigStatus DeviceRig::read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept {
   fb = drive_->read(now, Clock::duration::zero());
   if (fb.fault) return RigStatus::fault;
-  const bool fresh = config_.devices.can_drive ? fb.valid && (last_sync_ == Clock::time_point{} || fb.rx_time > last_sync_)
-                                               : fb.valid && (now - fb.rx_time <= config_.devices.drive_max_age || first_read(fb.rx_time));
+  const bool fresh = drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write
+                         ? fb.valid && (last_write_ == Clock::time_point{} || fb.rx_time > last_write_)
+                         : fb.valid && (now - fb.rx_time <= parts_.drive_max_age || first_read(fb.rx_time));
   if (fresh) return RigStatus::ok;
   stale_ = Stale::drive;
   stale_age_ms_ = fb.valid ? ms(now - fb.rx_time) : -1;
@@ -172,7 +146,7 @@ RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigRead
   RigStatus status = read_drive(now, fb);
   if (fb.valid) motor_sim_rad_ = fb.position_rad - offset_rad_;
   out.theta_motor_rad = motor_sim_rad_;
-  if (hybrid_) {
+  if (simulated_chamber()) {
     // The physics goes on with the newest encoder angle whether or not it is fresh.
     if (step_pending_) plant_->step(state_, {cmd_sim_rad_, motor_sim_rad_, gap_rad_}, period_s_);
     step_pending_ = false;
@@ -180,12 +154,12 @@ RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigRead
     out.theta_valve_rad = state_.s.theta_valve_rad;
     out.p_chamber_pa = state_.s.p_chamber_pa;
   } else {
-    const drv::PressureReading p = transducer_->read(now, period);
+    const drv::PressureReading p = sensor_->read(now, period);
     out.p_meas_pa = p.pressure_pa;
     RigStatus ps = RigStatus::ok;
     if (p.fault) {
       ps = RigStatus::fault;
-    } else if (!p.valid || (now - p.rx_time > config_.devices.transducer_max_age && !first_read(p.rx_time))) {
+    } else if (!p.valid || (now - p.rx_time > parts_.sensor_max_age && !first_read(p.rx_time))) {
       ps = RigStatus::stale;
       if (status == RigStatus::ok) {
         stale_ = Stale::transducer;
@@ -202,13 +176,14 @@ RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigRead
 
 RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const RigCommand& command) noexcept {
   if (!active_ || !drive_) return RigStatus::fault;
-  if (hybrid_) {
+  if (simulated_chamber()) {
     cmd_sim_rad_ = command.theta_cmd_rad;
     gap_rad_ = command.gap_rad;
     step_pending_ = true;
   }
   first_write_done_ = true;
-  if (config_.devices.can_drive) last_sync_ = Clock::now();  // before the SYNC this write triggers
+  // Taken before the write that asks for the reply: a reply is fresh when it arrived after it.
+  if (drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) last_write_ = Clock::now();
   drive_->write(now, period, {command.theta_cmd_rad + offset_rad_, command.enable, false});
   return RigStatus::ok;
 }
@@ -231,10 +206,10 @@ RigHealth DeviceRig::health() const noexcept {
   }
   const drv::DeviceHealth d = drive_->health();
   drv::DeviceHealth t;
-  if (transducer_) t = transducer_->health();
-  h.connected = active_ && d.connected && (!transducer_ || t.connected);
+  if (sensor_) t = sensor_->health();
+  h.connected = active_ && d.connected && (!sensor_ || t.connected);
   h.reconnects = d.reconnects + t.reconnects;
-  h.fault = !active_ || d.fault || (transducer_ && t.fault);
+  h.fault = !active_ || d.fault || (sensor_ && t.fault);
   char text[256];
   text[0] = '\0';
   if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr) {
@@ -242,25 +217,53 @@ RigHealth DeviceRig::health() const noexcept {
     std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
   } else if (d.fault) {
     std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
-  } else if (transducer_ && t.fault) {
+  } else if (sensor_ && t.fault) {
     std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
-  } else if (stale_ == Stale::drive && config_.devices.can_drive) {
-    std::snprintf(text, sizeof text, "drive: no TPDO since the last SYNC (newest %.1f ms old)", stale_age_ms_);
+  } else if (stale_ == Stale::drive && drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) {
+    const std::string_view missing = drive_->missing_reply_text();
+    std::snprintf(text, sizeof text, "drive: %.*s (newest %.1f ms old)", static_cast<int>(missing.size()), missing.data(),
+                  stale_age_ms_);
   } else if (stale_ == Stale::drive) {
-    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)", stale_age_ms_,
-                  ms(config_.devices.drive_max_age));
+    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)", stale_age_ms_, ms(parts_.drive_max_age));
   } else if (stale_ == Stale::transducer) {
     std::snprintf(text, sizeof text, "transducer: newest reading %.1f ms old (limit %.1f ms)", stale_age_ms_,
-                  ms(config_.devices.transducer_max_age));
+                  ms(parts_.sensor_max_age));
   } else if (deactivate_error_[0] != '\0') {
     std::snprintf(text, sizeof text, "%s", deactivate_error_.data());
   } else if (d.last_error[0] != '\0') {
     std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
-  } else if (transducer_ && t.last_error[0] != '\0') {
+  } else if (sensor_ && t.last_error[0] != '\0') {
     std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
   }
   h.set_last_error(text);
   return h;
+}
+
+DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTransportFactory can_transport) {
+  const RigDevices& d = config.devices;
+  if (d.can_drive) {
+    return [c = *d.can_drive, can_transport = std::move(can_transport)](const RigSetup& setup) -> std::unique_ptr<drv::PositionDrive> {
+      // One SYNC per period, sent right after the loop's command: the TPDO that answers it is the
+      // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
+      drv::Cia402Config run = c;
+      run.sync_source = drv::Cia402Config::SyncSource::loop;
+      run.sync_period = std::chrono::microseconds(std::clamp<long>(std::lround(setup.period_s * 1e6), 100, 100000));
+      return std::make_unique<drv::Cia402Drive>(std::move(run), can_transport);
+    };
+  }
+  if (d.modbus_drive) {
+    return [c = *d.modbus_drive](const RigSetup&) -> std::unique_ptr<drv::PositionDrive> { return std::make_unique<drv::ModbusDrive>(c); };
+  }
+  throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no drive");
+}
+
+DeviceRig::SensorFactory transducer_from_file(const RigConfig& config) {
+  if (!config.devices.transducer) {
+    throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no pressure transducer");
+  }
+  return [c = *config.devices.transducer](const RigSetup&) -> std::unique_ptr<drv::PressureSensor> {
+    return std::make_unique<drv::ModbusTransducer>(c);
+  };
 }
 
 }  // namespace hil::bench

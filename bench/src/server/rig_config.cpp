@@ -3,14 +3,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "hil/bench/device_rig.hpp"
-#include "hil/bench/sim_rig.hpp"
+#include "hil/bench/rig_registry.hpp"
 #include "hil/config.hpp"
 
 namespace hil::bench {
 namespace {
-
-const std::vector<std::string> kKinds = {"sim", "can", "modbus", "hybrid"};
 
 // `{cia402: FILE | {...}}` and the like: a device's client configuration from its file (paths
 // relative to the rig file) or inline.
@@ -27,30 +24,40 @@ std::chrono::microseconds max_age(const cfg::Node& device, std::chrono::millisec
   return std::chrono::microseconds(std::lround(key->number() * 1000));
 }
 
-RigDevices devices_from(const cfg::Node& root, const std::string& kind) {
+bool takes_cia402(DriveNeed n) { return n == DriveNeed::cia402 || n == DriveNeed::cia402_or_modbus; }
+bool takes_modbus(DriveNeed n) { return n == DriveNeed::modbus || n == DriveNeed::cia402_or_modbus; }
+
+// The `devices` block as the kind declares it (RigKindInfo::devices).
+RigDevices devices_from(const cfg::Node& root, const std::string& kind, const RigDeviceNeeds& needs) {
   RigDevices d;
-  if (kind == "sim") {
-    if (root.has("devices")) root.at("devices").fail("the sim rig has no devices (it simulates the drive and the transducer)");
+  if (needs.drive == DriveNeed::none && !needs.transducer) {
+    if (root.has("devices")) root.at("devices").fail("the " + kind + " rig has no devices (it simulates the drive and the transducer)");
     return d;
   }
   const cfg::Node devices = root.at("devices");
   devices.allow_keys({"drive", "transducer"});
-  const cfg::Node drive = devices.at("drive");
-  drive.allow_keys({"cia402", "modbus", "max_age_ms"});
-  if (drive.has("cia402") == drive.has("modbus")) drive.fail("needs one of cia402 (a CiA 402 drive on CAN) or modbus");
-  if (drive.has("cia402")) {
-    if (kind == "modbus") drive.at("cia402").fail("the modbus rig needs a Modbus drive (drive: {modbus: ...})");
-    if (drive.has("max_age_ms")) {
-      drive.at("max_age_ms").fail("a CAN drive's feedback is stale when no TPDO arrived since the last SYNC; no age limit to set");
-    }
-    d.can_drive = device_config<drv::Cia402Config>(drive.at("cia402"));
+  if (needs.drive == DriveNeed::none) {
+    if (devices.has("drive")) devices.at("drive").fail("the " + kind + " rig simulates the drive: it takes no drive");
   } else {
-    if (kind == "can") drive.at("modbus").fail("the can rig needs a CiA 402 drive (drive: {cia402: ...})");
-    d.modbus_drive = device_config<drv::ModbusDriveConfig>(drive.at("modbus"));
-    d.drive_max_age = max_age(drive, d.modbus_drive->link.poll_period);
+    const cfg::Node drive = devices.at("drive");
+    drive.allow_keys({"cia402", "modbus", "max_age_ms"});
+    if (drive.has("cia402") == drive.has("modbus")) drive.fail("needs one of cia402 (a CiA 402 drive on CAN) or modbus");
+    if (drive.has("cia402")) {
+      if (!takes_cia402(needs.drive)) drive.at("cia402").fail("the " + kind + " rig needs a Modbus drive (drive: {modbus: ...})");
+      if (drive.has("max_age_ms")) {
+        drive.at("max_age_ms").fail("a CAN drive's feedback is stale when no TPDO arrived since the last SYNC; no age limit to set");
+      }
+      d.can_drive = device_config<drv::Cia402Config>(drive.at("cia402"));
+    } else {
+      if (!takes_modbus(needs.drive)) drive.at("modbus").fail("the " + kind + " rig needs a CiA 402 drive (drive: {cia402: ...})");
+      d.modbus_drive = device_config<drv::ModbusDriveConfig>(drive.at("modbus"));
+      d.drive_max_age = max_age(drive, d.modbus_drive->link.poll_period);
+    }
   }
-  if (kind == "hybrid") {
-    if (devices.has("transducer")) devices.at("transducer").fail("the hybrid rig simulates the chamber: its pressure comes from the plant, not a transducer");
+  if (!needs.transducer) {
+    if (devices.has("transducer")) {
+      devices.at("transducer").fail("the " + kind + " rig simulates the chamber: its pressure comes from the plant, not a transducer");
+    }
     return d;
   }
   const cfg::Node transducer = devices.at("transducer");
@@ -67,13 +74,10 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
   c.file = root.file();
   c.yaml_text = std::move(text);
   c.kind = root.text("kind");
-  if (std::find(kKinds.begin(), kKinds.end(), c.kind) == kKinds.end()) {
-    const std::string hint = cfg::closest(c.kind, kKinds);
-    root.at("kind").fail("unknown rig kind '" + c.kind + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
-                         "; this build knows: sim, can, modbus, hybrid");
-  }
+  const RigKindInfo* kind = find_rig_kind(c.kind);
+  if (kind == nullptr) root.at("kind").fail(unknown_rig_kind_text(c.kind));
   c.description = root.text("description", "");
-  c.devices = devices_from(root, c.kind);
+  c.devices = devices_from(root, c.kind, kind->devices);
   if (const auto loop = root.find("loop")) c.loop = LoopConfig::from_yaml(*loop);
   c.safety = SafetyConfig::from_yaml(root.at("safety"));
   return c;
@@ -94,11 +98,9 @@ RigConfig load_rig_config_text(const std::string& yaml, const std::string& origi
 }
 
 std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport) {
-  if (config.kind == "sim") return std::make_unique<SimRig>();
-  if (config.kind == "can" || config.kind == "modbus" || config.kind == "hybrid") {
-    return std::make_unique<DeviceRig>(config, can_transport);
-  }
-  throw std::invalid_argument(config.file.string() + ": rig kind '" + config.kind + "' is not built in");
+  const RigKindInfo* kind = find_rig_kind(config.kind);
+  if (kind == nullptr) throw std::invalid_argument(config.file.string() + ": " + unknown_rig_kind_text(config.kind));
+  return kind->make(*kind, config, can_transport);
 }
 
 }  // namespace hil::bench

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "hil/bench/recorder.hpp"
+#include "hil/bench/rig_registry.hpp"
 #include "hil/bench/rt_thread.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
@@ -263,8 +264,10 @@ void CampaignRunner::start(StartRequest request) {
     }
   }
   if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
-  const auto probe = make_rig(request.rig, o_.can_transport);  // opens nothing: asks what the rig can do
-  const bool simulated = probe->simulated(), programmable_gap = probe->programmable_gap();
+  // What the rig can do, as its kind declares it (no rig is made, nothing opened).
+  const RigKindInfo* kind = find_rig_kind(request.rig.kind);
+  if (kind == nullptr) throw std::invalid_argument(request.rig.file.string() + ": " + unknown_rig_kind_text(request.rig.kind));
+  const bool simulated = kind->capabilities.simulated, programmable_gap = kind->capabilities.programmable_gap;
   if (!simulated && request.speed != 1.0) {
     throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
   }

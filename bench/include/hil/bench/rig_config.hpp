@@ -31,7 +31,7 @@ struct RigDevices {
 
 struct RigConfig {
   std::string name;         // the file's stem
-  std::string kind;         // sim | can | modbus | hybrid
+  std::string kind;         // a registered rig kind (rig_registry.hpp): sim, can, modbus, hybrid, ...
   std::string description;
   std::filesystem::path file;
   RigDevices devices;       // empty for sim
@@ -43,9 +43,10 @@ struct RigConfig {
 RigConfig load_rig_config(const std::filesystem::path& file);
 RigConfig load_rig_config_text(const std::string& yaml, const std::string& origin);
 
-// A new, unconfigured rig of the file's kind (opens nothing yet). `can_transport` carries the CAN
-// rigs' frames (tests: drv::LoopbackBus::factory()); empty: SocketCAN on the drive's interface.
-// Throws naming the kind when it is unknown.
+// A new, unconfigured rig of the file's kind, made by the kind's registered recipe
+// (rig_registry.hpp; opens nothing yet). `can_transport` carries the CAN rigs' frames (tests:
+// drv::LoopbackBus::factory()); empty: SocketCAN on the drive's interface. Throws naming the file
+// and the kind, the kinds this build knows and the closest, when it is unknown.
 std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport = {});
 
 }  // namespace hil::bench

@@ -18,6 +18,7 @@
 #include "hil/drv/can.hpp"
 #include "hil/drv/canopen.hpp"
 #include "hil/drv/io_types.hpp"
+#include "hil/drv/parts.hpp"
 
 namespace hil::cfg {
 class Node;
@@ -90,12 +91,13 @@ class SdoAbortError : public DriveError {
   std::uint32_t code;
 };
 
-class Cia402Drive {
+// A PositionDrive (parts.hpp), so a rig holds it as one; the rest of its API is its own.
+class Cia402Drive final : public PositionDrive {
  public:
   // Opens the channel (SocketCAN on config.interface unless a factory is given) and starts
   // the I/O thread. Throws when the channel cannot be opened.
   explicit Cia402Drive(Cia402Config config, CanTransportFactory transport = {});
-  ~Cia402Drive();
+  ~Cia402Drive() override;
   Cia402Drive(const Cia402Drive&) = delete;
   Cia402Drive& operator=(const Cia402Drive&) = delete;
   Cia402Drive(Cia402Drive&&) = delete;
@@ -106,24 +108,28 @@ class Cia402Drive {
   // invalidate the other PDOs the drive has, CSP mode (0x6060 = 8, then 0x6061 polled until it
   // shows 8 or transition_ms passes), interpolation period 0x60C2 and limits where the drive has
   // them, NMT start, wait operational and the first TPDO.
-  void configure();
+  void configure() override;
   // What configure() skipped because the drive lacks an optional object, one line each.
   std::vector<std::string> configure_notes() const;
   // Shutdown -> switch on -> enable operation (one fault reset first if in fault); the target
   // starts at the actual position.
-  void activate();
+  void activate() override;
   // Enable operation -> switched on (power stage idle, drive keeps its position).
-  void deactivate();
+  void deactivate() override;
   // Quick stop (controlword 0x0002): the drive stops on its quick stop ramp and, with the
   // default quick stop option code, goes to switch on disabled; waits for that.
   void quick_stop();
 
   // Real-time safe: the newest feedback (sequence counts TPDOs).
-  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept;
+  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override;
   // Real-time safe: the command for the next SYNC (with sync_source loop, also triggers it).
-  void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept;
+  void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept override;
   // Real-time safe.
-  DeviceHealth health() const noexcept;
+  DeviceHealth health() const noexcept override;
+  // Real-time safe. sync_source loop: each write sends the SYNC the drive answers with a TPDO,
+  // so a TPDO since the last write is fresh; timer: the SYNC runs on its own clock (polled).
+  FeedbackFreshness freshness() const noexcept override;
+  std::string_view missing_reply_text() const noexcept override { return "no TPDO since the last SYNC"; }
   cia402::State state() const noexcept;  // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).

@@ -13,6 +13,7 @@
 
 #include "hil/drv/io_types.hpp"
 #include "hil/drv/modbus_map.hpp"
+#include "hil/drv/parts.hpp"
 
 namespace hil::cfg {
 class Node;
@@ -70,10 +71,11 @@ struct ModbusTransducerConfig {
 // The drive's control register: bit `enable` (default 0) switches the power stage on, a rising
 // edge of bit `fault_reset` (default 7) clears a fault. Status register: bit `enabled`
 // (default 0), bit `fault` (default 3). Bit numbers come from the map's `bits:`.
-class ModbusDrive {
+// A PositionDrive (parts.hpp) whose feedback is polled.
+class ModbusDrive final : public PositionDrive {
  public:
   explicit ModbusDrive(ModbusDriveConfig config);  // checks the map; no I/O yet
-  ~ModbusDrive();
+  ~ModbusDrive() override;
   ModbusDrive(const ModbusDrive&) = delete;
   ModbusDrive& operator=(const ModbusDrive&) = delete;
   ModbusDrive(ModbusDrive&&) = delete;
@@ -82,31 +84,34 @@ class ModbusDrive {
   // Connects and polls once (throws ModbusError naming the endpoint and register, e.g.
   // "... reading input registers 0..7 (status, actual_position): ILLEGAL DATA ADDRESS"),
   // then starts the I/O thread.
-  void configure();
-  void activate();    // enable; waits for the status register's enabled bit
-  void deactivate();  // disable; waits for it to clear
+  void configure() override;
+  void activate() override;    // enable; waits for the status register's enabled bit
+  void deactivate() override;  // disable; waits for it to clear
 
-  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept;  // real-time safe
-  void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept;  // real-time safe
-  DeviceHealth health() const noexcept;  // real-time safe
+  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override;  // real-time safe
+  void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept override;  // real-time safe
+  DeviceHealth health() const noexcept override;  // real-time safe
+  // Real-time safe: the I/O thread polls every poll_period, whatever the loop writes.
+  FeedbackFreshness freshness() const noexcept override { return FeedbackFreshness::polled; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
-class ModbusTransducer {
+// A PressureSensor (parts.hpp).
+class ModbusTransducer final : public PressureSensor {
  public:
   explicit ModbusTransducer(ModbusTransducerConfig config);
-  ~ModbusTransducer();
+  ~ModbusTransducer() override;
   ModbusTransducer(const ModbusTransducer&) = delete;
   ModbusTransducer& operator=(const ModbusTransducer&) = delete;
   ModbusTransducer(ModbusTransducer&&) = delete;
   ModbusTransducer& operator=(ModbusTransducer&&) = delete;
 
-  void configure();  // connects, reads once (throws naming endpoint and register), starts the thread
-  PressureReading read(Clock::time_point now, Clock::duration period) noexcept;  // real-time safe
-  DeviceHealth health() const noexcept;                                          // real-time safe
+  void configure() override;  // connects, reads once (throws naming endpoint and register), starts the thread
+  PressureReading read(Clock::time_point now, Clock::duration period) noexcept override;  // real-time safe
+  DeviceHealth health() const noexcept override;                                          // real-time safe
 
  private:
   struct Impl;
