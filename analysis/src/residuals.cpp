@@ -25,7 +25,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kVelocityWindowS = 0.010;       // drive velocity over 10 ms: smooths encoder steps
 constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
 constexpr double kReversalHysteresisRad = 0.1 * units::kRadPerDeg; // a reversal retreats > 0.1 deg
-constexpr double kAfterReversalS = 0.5;          // the "first 0.5 s after each reversal"
+constexpr double kAfterReversalS = 0.5;          // "the first 0.5 s after each reversal": where backlash shows
 constexpr double kLockedSpanS = 1.0, kLockedBinS = 0.01;  // event-locked residual after reversals
 constexpr std::size_t kMaxWindows = 512;         // time windows merge pairwise beyond this
 constexpr std::size_t kBlock = 16384;            // correlation block (zero-padded to 2x)

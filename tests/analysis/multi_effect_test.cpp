@@ -64,7 +64,7 @@ std::vector<MultiCase> cases() {
     s.truth = std::move(truth);
     out.push_back({s, std::move(truths), full_only});
   };
-  // The examples.
+  // The combinations the workbench was specified with.
   add("gap_and_sensor_lag", 301, reference_random(71, 0.9, 1.5, 1.5, 3.5), true, 2.0,
       [](const Plant& p) {
         return with_block(with_block(p, "backlash_change", "gap_deg: 1.6"), "sensor_lag", "time_constant_s: 0.015");

@@ -540,7 +540,7 @@ TEST(Replay, WithAnEncoderTheDriveIsCheckedSeparately) {
   EXPECT_TRUE(c2.at("motor_channel").at("matches").get<bool>()) << c2.at("motor_channel");
 }
 
-TEST(Replay, CandidatesAreTheIssuesEightPlusUserEffects) {
+TEST(Replay, CandidatesAreTheBuiltInEightPlusUserEffects) {
   const auto names = hil::analysis::builtin_candidate_names();
   EXPECT_EQ(names, (std::vector<std::string>{"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
                                              "transport_delay", "sensor_bias", "motor_dynamics", "burn_rate"}));

@@ -723,7 +723,7 @@ std::string route_list() {
 Reply route_index() {
   json list = json::array();
   for (const auto& r : kRoutes) {
-    list.push_back({{"method", std::string(http::to_string(r.method))}, {"path", r.path}, {"summary", r.summary}});
+    list.push_back({{"method", std::string(http::to_string(r.method))}, {"path", std::string(r.path)}, {"summary", std::string(r.summary)}});
   }
   return json_reply(http::status::ok, {{"endpoints", list}});
 }

@@ -43,7 +43,7 @@ struct Variant {
 };
 
 struct Candidate {
-  std::string name;             // effect name as the issue and the report use it
+  std::string name;             // effect name as the report and diagnosis.json use it
   std::string description;
   bool command_side = false;    // acts before the motor: invisible when the encoder is replayed
   // The base model with this effect at its neutral values (no change to the prediction).
