@@ -22,10 +22,11 @@ class UsageError : public std::runtime_error {
 using CommandRun = std::function<int()>;
 
 // Checks for number options; CLI11 prefixes each message with the option's name
-// ("--period-ms: needs a number, got 'fast'"). Every one refuses inf and nan.
+// ("--period-ms: needs a number, got 'fast'"). Every one refuses inf and nan. Ours rather than
+// CLI::NonNegativeNumber or CLI::Range: those name their bound as std::to_string(DBL_MAX), 300 digits.
 CLI::Validator finite_number();
 CLI::Validator non_negative_number();
-CLI::Validator whole_number(std::int64_t min, std::int64_t max);
+CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_MAX: no upper bound
 
 // Adds sub-command `name` to `parent` in the "Commands" group of the help.
 CLI::App* add_command(CLI::App& parent, const std::string& name, const std::string& summary);
