@@ -1,58 +1,60 @@
 #include "cli.hpp"
 
-#include <algorithm>
+#include <cerrno>
+#include <climits>
 #include <cmath>
 #include <cstdlib>
 
-#include "hil/config.hpp"
-
 namespace hil::bench {
+namespace {
 
-double parse_number(const std::string& text, const std::string& what) {
+// `text` as a finite number; false when it is not one (trailing text, inf, nan, empty).
+bool to_finite(const std::string& text, double& value) {
   char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) {
-    throw UsageError(what + " needs a number, got '" + text + "'");
-  }
-  return v;
+  value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
 }
 
-double Args::number(const std::string& name, double fallback) const {
-  const auto it = options.find(name);
-  return it == options.end() ? fallback : parse_number(it->second, "--" + name);
+}  // namespace
+
+CLI::Validator finite_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        double v = 0;
+        return to_finite(text, v) ? std::string() : "needs a number, got '" + text + "'";
+      },
+      "");
 }
 
-Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
-                const std::vector<std::string>& switch_options) {
-  Args args;
-  std::vector<std::string> known;
-  for (const auto& o : value_options) known.push_back("--" + o);
-  for (const auto& o : switch_options) known.push_back("--" + o);
-  for (std::size_t i = 0; i < argv.size(); ++i) {
-    const std::string& a = argv[i];
-    if (a.rfind("--", 0) != 0 || a == "--") {
-      args.positional.push_back(a);
-      continue;
-    }
-    std::string name = a.substr(2), value;
-    const auto eq = name.find('=');
-    const bool inline_value = eq != std::string::npos;
-    if (inline_value) value = name.substr(eq + 1), name = name.substr(0, eq);
-    if (std::find(value_options.begin(), value_options.end(), name) != value_options.end()) {
-      if (!inline_value) {
-        if (i + 1 >= argv.size()) throw UsageError("option --" + name + " needs a value");
-        value = argv[++i];
-      }
-      args.options[name] = value;  // given again: the last one counts (a wrapper's default, then the user's)
-      args.repeated[name].push_back(value);
-    } else if (std::find(switch_options.begin(), switch_options.end(), name) != switch_options.end() && !inline_value) {
-      args.switches.insert(name);
-    } else {
-      const std::string hint = cfg::closest("--" + name, known);
-      throw UsageError("unknown option --" + name + (hint.empty() ? "" : " (did you mean " + hint + "?)"));
-    }
-  }
-  return args;
+CLI::Validator non_negative_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        double v = 0;
+        if (!to_finite(text, v)) return "needs a number, got '" + text + "'";
+        return v >= 0 ? std::string() : "cannot be negative, got " + text;
+      },
+      ">= 0");
+}
+
+CLI::Validator whole_number(std::int64_t min, std::int64_t max) {
+  const bool bounded = max < INT64_MAX;
+  const std::string range = bounded ? std::to_string(min) + ".." + std::to_string(max) : ">= " + std::to_string(min);
+  return CLI::Validator(
+      [min, max, range, bounded](std::string& text) {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        const bool whole = !text.empty() && end == text.c_str() + text.size() && errno == 0;
+        return whole && v >= min && v <= max ? std::string()
+                                             : std::string("needs a whole number ") + (bounded ? "in " : "") + range + ", got '" + text + "'";
+      },
+      range);
+}
+
+CLI::App* add_command(CLI::App& parent, const std::string& name, const std::string& summary) {
+  CLI::App* cmd = parent.add_subcommand(name, summary);
+  cmd->group("Commands");
+  return cmd;
 }
 
 }  // namespace hil::bench

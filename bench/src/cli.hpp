@@ -1,38 +1,34 @@
-// Command-line parsing for the hilbench sub-commands: positional arguments, "--name value"
-// options and "--switch" flags. Unknown options fail with a suggestion.
+// What the hilbench sub-commands share on top of CLI11: the error for a bad invocation found past
+// parsing, the shape of a sub-command, and the number checks, worded alike for every option.
 #pragma once
 
-#include <map>
-#include <set>
+#include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
-#include <vector>
+
+#include <CLI/CLI.hpp>
 
 namespace hil::bench {
 
+// A bad invocation that CLI11 cannot see (options that go only together, a malformed address):
+// exit 2 with the sub-command's usage, like CLI11's own parse errors.
 class UsageError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-struct Args {
-  std::vector<std::string> positional;
-  std::map<std::string, std::string> options;               // each option's value (the last one given)
-  std::map<std::string, std::vector<std::string>> repeated;  // every value of each option, in order (diagnose --data)
-  std::set<std::string> switches;
-  bool has(const std::string& s) const { return switches.count(s) > 0; }
-  std::string option(const std::string& name, const std::string& fallback) const {
-    const auto it = options.find(name);
-    return it == options.end() ? fallback : it->second;
-  }
-  // Option --name as a number, or `fallback` when absent.
-  double number(const std::string& name, double fallback) const;
-};
+// A sub-command's job once its command line is parsed; returns the process exit code.
+using CommandRun = std::function<int()>;
 
-// `text` as a number; a UsageError naming `what` ("--period-ms", "gap") when it is not one.
-double parse_number(const std::string& text, const std::string& what);
+// Checks for number options; CLI11 prefixes each message with the option's name
+// ("--period-ms: needs a number, got 'fast'"). Every one refuses inf and nan. Ours rather than
+// CLI::NonNegativeNumber or CLI::Range: those name their bound as std::to_string(DBL_MAX), 300 digits.
+CLI::Validator finite_number();
+CLI::Validator non_negative_number();
+CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_MAX: no upper bound
 
-Args parse_args(const std::vector<std::string>& argv, const std::vector<std::string>& value_options,
-                const std::vector<std::string>& switch_options);
+// Adds sub-command `name` to `parent` in the "Commands" group of the help.
+CLI::App* add_command(CLI::App& parent, const std::string& name, const std::string& summary);
 
 }  // namespace hil::bench

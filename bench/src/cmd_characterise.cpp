@@ -1,11 +1,11 @@
-// hilbench characterise [--readme FILE]: the observers and compensators on the paper's scenarios,
+// hilbench characterise [--readme FILE] [--campaigns DIR]: the observers and compensators on the paper's scenarios,
 // noise-free and with the nominal transducer, as one markdown table. With --readme, the table
 // replaces the block between the characterise markers in FILE (the README's table is made so).
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <sstream>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/campaign.hpp"
 #include "hil/bench/sim.hpp"
@@ -68,16 +68,20 @@ std::string characterise_table(const std::filesystem::path& campaigns_dir) {
   return t.str();
 }
 
-int cmd_characterise(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"readme", "campaigns"}, {});
-  if (!args.positional.empty()) throw UsageError("characterise takes no positional arguments");
-  const std::filesystem::path dir = args.option("campaigns", "configs/campaigns");
-  const std::string table = characterise_table(dir);
-  if (!args.options.count("readme")) {
+namespace {
+
+struct CharacteriseArgs {
+  std::string readme;  // empty: the table goes to stdout
+  std::string campaigns_dir = "configs/campaigns";
+};
+
+int run_characterise(const CharacteriseArgs& args) {
+  const std::string table = characterise_table(args.campaigns_dir);
+  if (args.readme.empty()) {
     std::fputs(table.c_str(), stdout);
     return 0;
   }
-  const std::filesystem::path readme = args.option("readme", "");
+  const std::filesystem::path readme = args.readme;
   std::ifstream in(readme);
   if (!in) throw std::runtime_error("cannot read " + readme.string());
   std::stringstream ss;
@@ -91,6 +95,15 @@ int cmd_characterise(const std::vector<std::string>& argv) {
   std::ofstream(readme) << text;
   std::printf("updated the table in %s\n", readme.c_str());
   return 0;
+}
+
+}  // namespace
+
+CommandRun define_characterise(CLI::App& cmd) {
+  auto args = std::make_shared<CharacteriseArgs>();
+  cmd.add_option("--readme", args->readme, "replace the table between the characterise markers in FILE")->type_name("FILE");
+  cmd.add_option("--campaigns", args->campaigns_dir, "the folder of the paper's campaigns")->type_name("DIR")->capture_default_str();
+  return [args] { return run_characterise(*args); };
 }
 
 }  // namespace hil::bench

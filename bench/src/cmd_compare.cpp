@@ -1,22 +1,30 @@
 // hilbench compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]
-#include "cli.hpp"
+#include <memory>
+
 #include "commands.hpp"
 #include "hil/analysis/compare.hpp"
 
 namespace hil::bench {
 
-int cmd_compare(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"model", "data", "out"}, {"quiet"});
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional[0] + "'");
-  if (!args.options.count("model")) throw UsageError("--model MODEL.yaml is required");
-  if (!args.options.count("data")) throw UsageError("--data FILE.csv is required");
-  analysis::CompareOptions o;
-  o.model_file = args.option("model", "");
-  o.data_file = args.option("data", "");
-  o.out_dir = args.option("out", "out/compare-" + o.data_file.stem().string());
-  o.quiet = args.has("quiet");
-  analysis::run_compare(o);
-  return 0;
+CommandRun define_compare(CLI::App& cmd) {
+  struct CompareArgs {
+    std::string model_file, data_file, out_dir;
+    bool quiet = false;
+  };
+  auto args = std::make_shared<CompareArgs>();
+  cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
+  cmd.add_option("--data", args->data_file, "the measurement (docs/physics.md section 4)")->required()->type_name("FILE.csv");
+  cmd.add_option("--out", args->out_dir, "where the report goes (default out/compare-<FILE>)")->type_name("DIR");
+  cmd.add_flag("--quiet", args->quiet, "no summary on stdout");
+  return [args] {
+    analysis::CompareOptions o;
+    o.model_file = args->model_file;
+    o.data_file = args->data_file;
+    o.out_dir = args->out_dir.empty() ? "out/compare-" + o.data_file.stem().string() : args->out_dir;
+    o.quiet = args->quiet;
+    analysis::run_compare(o);
+    return 0;
+  };
 }
 
 }  // namespace hil::bench

@@ -3,12 +3,11 @@
 
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <thread>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/api_client.hpp"
 #include "hil/bench/runner.hpp"
@@ -17,30 +16,6 @@ namespace hil::bench {
 namespace {
 
 using nlohmann::json;
-
-constexpr const char* kCtlHelp =
-    "hilbench ctl [--server URL] [--token T] COMMAND\n"
-    "  URL defaults to $HILBENCH_SERVER or http://127.0.0.1:8470; T to $HILBENCH_TOKEN\n"
-    "commands:\n"
-    "  status [--json]                       state, progress, loop statistics, active faults\n"
-    "  campaigns | rigs | runs               what the server offers / has recorded\n"
-    "  start NAME|FILE.yaml [--rig R] [--runs a,b] [--speed X] [--detach]\n"
-    "                                        start a campaign (a name, or a YAML file posted) and\n"
-    "                                        follow it with a progress bar unless --detach\n"
-    "  watch                                 progress bar of the running campaign until it ends\n"
-    "  stop                                  end the campaign now (outcome 'stopped')\n"
-    "  abort [--reason TEXT]                 safe state, then end (outcome 'aborted')\n"
-    "  inject gap DEG | inject gap programme the true gap now / back to the campaign's programme\n"
-    "  inject sensor stuck|dropout [--duration-s S]\n"
-    "  inject sensor bias KPA|noise KPA [--duration-s S]\n"
-    "  inject drive [--off] [--duration-s S] the drive ignores commands\n"
-    "  inject rig silent [--off]             the (simulated) rig stops answering\n"
-    "  inject clear                          clear every fault\n"
-    "  telemetry [--rate-hz N] [--count N]   live rows as CSV on stdout\n"
-    "  show RUN                              a past run's run.json and files\n"
-    "  get RUN FILE [--out PATH]             download a file of a past run\n"
-    "exit status: 0 success (a followed campaign completed), 1 error reply or failure,\n"
-    "             2 usage, 3 a followed campaign ended stopped, aborted or in error";
 
 [[noreturn]] void fail(const ApiReply& r) {
   std::string error = "HTTP " + std::to_string(r.status), detail;
@@ -179,189 +154,238 @@ std::string read_file(const std::string& path) {
   return ss.str();
 }
 
-}  // namespace
+// ctl's command line: the server every command talks to, and each command's arguments (one
+// command runs, so commands that share an option share its field).
+struct CtlArgs {
+  std::string server_url = "http://127.0.0.1:8470";
+  std::string token;
+  bool json = false;                                   // status
+  std::string campaign, rig = "sim", runs;             // start
+  double speed = 1;                                    // start, given or not (speed_opt)
+  const CLI::Option* speed_opt = nullptr;
+  bool detach = false;                                 // start
+  std::string reason = "from hilbench ctl";            // abort
+  std::string gap;                                     // inject gap: DEG or "programme"
+  std::string mode;                                    // inject sensor / rig
+  double size_kpa = std::nan("");                      // inject sensor bias|noise; NaN: not given
+  double duration_s = std::nan("");                    // inject sensor / drive; NaN: until cleared
+  bool off = false;                                    // inject drive / rig
+  double rate_hz = 10;                                 // telemetry
+  long count = 0;                                      // telemetry; 0: until the stream ends
+  std::string run, file, out;                          // show, get
+};
 
-int cmd_ctl(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"server", "token", "rig", "runs", "speed", "reason", "duration-s", "rate-hz", "count", "out"},
-                               {"detach", "json", "off", "help"});
-  if (args.has("help")) {
-    std::printf("%s\n", kCtlHelp);
-    return 0;
+using Handler = std::function<int(const CtlArgs&, const ApiClient&)>;
+
+int inject(const std::string& kind, json body, const ApiClient& api) {
+  checked(api.post("/api/inject/" + kind, body));
+  std::printf("injected %s %s\n", kind.c_str(), body.dump().c_str());
+  return 0;
+}
+
+int start(const CtlArgs& a, const ApiClient& api) {
+  json body = {{"rig", a.rig}};
+  const bool file = a.campaign.find('/') != std::string::npos || a.campaign.ends_with(".yaml") || a.campaign.ends_with(".yml");
+  if (file) {
+    body["campaign_yaml"] = read_file(a.campaign);
+  } else {
+    body["campaign"] = a.campaign;
   }
-  if (args.positional.empty()) throw UsageError(std::string("ctl needs a command\n") + kCtlHelp);
-  const char* env_server = std::getenv("HILBENCH_SERVER");
-  const char* env_token = std::getenv("HILBENCH_TOKEN");
-  const ApiClient api(args.option("server", env_server ? env_server : "http://127.0.0.1:8470"),
-                      args.option("token", env_token ? env_token : ""));
-  const auto& pos = args.positional;
-  const std::string& cmd = pos[0];
-  auto need = [&](std::size_t n, const char* usage) {
-    if (pos.size() != n) throw UsageError(std::string("usage: hilbench ctl ") + usage);
-  };
+  if (!a.runs.empty()) {
+    std::stringstream rs(a.runs);
+    body["runs"] = json::array();
+    for (std::string r; std::getline(rs, r, ',');) {
+      if (!r.empty()) body["runs"].push_back(r);
+    }
+  }
+  if (a.speed_opt->count() > 0) body["speed"] = a.speed;
+  const json j = checked(api.post("/api/start", body));
+  std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
+  std::fflush(stdout);
+  return a.detach ? 0 : watch(api);
+}
 
-  if (cmd == "status") {
-    need(1, "status [--json]");
+int telemetry(const CtlArgs& a, const ApiClient& api) {
+  std::vector<std::string> columns;
+  long rows = 0;
+  char target[64];
+  std::snprintf(target, sizeof target, "/api/telemetry?rate_hz=%g", a.rate_hz);
+  api.stream(target, [&](const std::string& message) {
+    const json j = json::parse(message);
+    const std::string type = j.value("type", "");
+    if (type == "hello") {
+      for (const auto& c : j["columns"]) columns.push_back(c.get<std::string>());
+      std::string header;
+      for (const auto& c : columns) header += (header.empty() ? std::string() : std::string(",")) + c;
+      std::printf("%s\n", header.c_str());
+    } else if (type == "row") {
+      std::string line;
+      for (const auto& c : columns) {
+        if (!line.empty()) line.push_back(',');
+        line += j[c].is_number() ? number(j[c], "%.6g") : std::string("nan");
+      }
+      std::printf("%s\n", line.c_str());
+      ++rows;
+    } else {
+      std::printf("# %s\n", message.c_str());
+    }
+    std::fflush(stdout);
+    return a.count <= 0 || rows < a.count;
+  });
+  return 0;
+}
+
+// The commands of `hilbench ctl`, each with its arguments and what it does.
+void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const CLI::App*, Handler>>& handlers) {
+  const auto command = [&](CLI::App& parent, const std::string& name, const std::string& summary, Handler h = nullptr) {
+    CLI::App* cmd = add_command(parent, name, summary);
+    if (h) handlers.emplace_back(cmd, std::move(h));
+    return cmd;
+  };
+  command(ctl, "status", "state, progress, loop statistics, active faults", [](const CtlArgs& a, const ApiClient& api) {
     const json s = checked(api.get("/api/status"));
-    if (args.has("json")) {
+    if (a.json) {
       std::printf("%s\n", s.dump(2).c_str());
     } else {
       print_status(s);
     }
     return 0;
-  }
-  if (cmd == "campaigns" || cmd == "rigs") {
-    need(1, "campaigns | rigs");
-    const json j = checked(api.get("/api/" + cmd));
-    for (const auto& c : j[cmd]) {
-      if (c.contains("error")) {
-        std::printf("%-20s ERROR %s\n", c.value("name", "?").c_str(), c.value("error", "").c_str());
-      } else if (cmd == "campaigns") {
-        std::string runs;
-        for (const auto& r : c["runs"]) runs += (runs.empty() ? std::string() : std::string(",")) + r.get<std::string>();
-        std::printf("%-20s %6.1f s  dT %g ms  runs %-20s %s\n", c.value("name", "?").c_str(), c.value("duration_s", 0.0),
-                    c.value("period_ms", 0.0), runs.c_str(), c.value("description", "").c_str());
-      } else {
-        std::printf("%-20s %-8s prio %-3d cpu %-3d %s\n", c.value("name", "?").c_str(), c.value("kind", "?").c_str(),
-                    c.value("priority", 0), c.value("cpu", -1), c.value("description", "").c_str());
+  })->add_flag("--json", args.json, "the server's answer as JSON");
+  for (const std::string what : {"campaigns", "rigs"}) {
+    command(ctl, what, "what the server offers: its " + what, [what](const CtlArgs&, const ApiClient& api) {
+      const json j = checked(api.get("/api/" + what));
+      for (const auto& c : j[what]) {
+        if (c.contains("error")) {
+          std::printf("%-20s ERROR %s\n", c.value("name", "?").c_str(), c.value("error", "").c_str());
+        } else if (what == "campaigns") {
+          std::string runs;
+          for (const auto& r : c["runs"]) runs += (runs.empty() ? std::string() : std::string(",")) + r.get<std::string>();
+          std::printf("%-20s %6.1f s  dT %g ms  runs %-20s %s\n", c.value("name", "?").c_str(), c.value("duration_s", 0.0),
+                      c.value("period_ms", 0.0), runs.c_str(), c.value("description", "").c_str());
+        } else {
+          std::printf("%-20s %-8s prio %-3d cpu %-3d %s\n", c.value("name", "?").c_str(), c.value("kind", "?").c_str(),
+                      c.value("priority", 0), c.value("cpu", -1), c.value("description", "").c_str());
+        }
       }
-    }
-    return 0;
+      return 0;
+    });
   }
-  if (cmd == "runs") {
-    need(1, "runs");
+  command(ctl, "runs", "the runs the server has recorded", [](const CtlArgs&, const ApiClient& api) {
     const json list = checked(api.get("/api/runs"));
     for (const auto& r : list["runs"]) {
       std::printf("%-50s %-10s %s\n", r.value("id", "?").c_str(), r["outcome"].is_string() ? r["outcome"].get<std::string>().c_str() : "?",
                   r["reason"].is_string() ? r["reason"].get<std::string>().c_str() : "");
     }
     return 0;
-  }
-  if (cmd == "start") {
-    need(2, "start NAME|FILE.yaml [--rig R] [--runs a,b] [--speed X] [--detach]");
-    json body = {{"rig", args.option("rig", "sim")}};
-    const std::string& what = pos[1];
-    const bool file = what.find('/') != std::string::npos || what.ends_with(".yaml") || what.ends_with(".yml");
-    if (file) {
-      body["campaign_yaml"] = read_file(what);
-    } else {
-      body["campaign"] = what;
-    }
-    if (args.options.count("runs")) {
-      std::stringstream rs(args.option("runs", ""));
-      body["runs"] = json::array();
-      for (std::string r; std::getline(rs, r, ',');) {
-        if (!r.empty()) body["runs"].push_back(r);
-      }
-    }
-    if (args.options.count("speed")) body["speed"] = parse_number(args.option("speed", "1"), "--speed");
-    const json j = checked(api.post("/api/start", body));
-    std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
-    std::fflush(stdout);
-    return args.has("detach") ? 0 : watch(api);
-  }
-  if (cmd == "watch") {
-    need(1, "watch");
-    return watch(api);
-  }
-  if (cmd == "stop") {
-    need(1, "stop");
+  });
+
+  CLI::App* s = command(ctl, "start", "start a campaign (a name, or a YAML file posted); follow it with a progress bar", start);
+  s->add_option("campaign", args.campaign, "the campaign's name on the server, or a campaign file")->required()->type_name("NAME|FILE.yaml");
+  s->add_option("--rig", args.rig, "the rig it runs on")->type_name("R")->capture_default_str();
+  s->add_option("--runs", args.runs, "only these runs of the campaign")->type_name("a,b");
+  args.speed_opt = s->add_option("--speed", args.speed, "the simulated rig's speed, times real time")->type_name("X")->check(finite_number());
+  s->add_flag("--detach", args.detach, "return once started, no progress bar");
+
+  command(ctl, "watch", "progress bar of the running campaign until it ends",
+          [](const CtlArgs&, const ApiClient& api) { return watch(api); });
+  command(ctl, "stop", "end the campaign now (outcome 'stopped')", [](const CtlArgs&, const ApiClient& api) {
     checked(api.post("/api/stop", json::object()));
     std::printf("stopping\n");
     return 0;
-  }
-  if (cmd == "abort") {
-    need(1, "abort [--reason TEXT]");
-    const json j = checked(api.post("/api/abort", {{"reason", args.option("reason", "from hilbench ctl")}}));
+  });
+  command(ctl, "abort", "safe state, then end (outcome 'aborted')", [](const CtlArgs& a, const ApiClient& api) {
+    const json j = checked(api.post("/api/abort", {{"reason", a.reason}}));
     std::printf("aborting (%s)\n", j.value("reason", "").c_str());
     return 0;
-  }
-  if (cmd == "inject") {
-    if (pos.size() < 2) throw UsageError("usage: hilbench ctl inject gap|sensor|drive|rig|clear ...");
-    const std::string& kind = pos[1];
-    json body = json::object();
-    if (args.options.count("duration-s")) body["duration_s"] = parse_number(args.option("duration-s", "0"), "--duration-s");
-    if (kind == "gap") {
-      need(3, "inject gap DEG | inject gap programme");
-      body.erase("duration_s");
-      if (pos[2] == "programme" || pos[2] == "program") {
-        body["programme"] = true;
-      } else {
-        body["gap_deg"] = parse_number(pos[2], "the gap");
-      }
-    } else if (kind == "sensor") {
-      if (pos.size() < 3) throw UsageError("usage: hilbench ctl inject sensor stuck|dropout|bias KPA|noise KPA [--duration-s S]");
-      body["mode"] = pos[2];
-      if (pos[2] == "bias" || pos[2] == "noise") {
-        need(4, "inject sensor bias KPA|noise KPA [--duration-s S]");
-        body[pos[2] == "bias" ? "bias_kpa" : "rms_kpa"] = parse_number(pos[3], "the size in kPa");
-      } else {
-        need(3, "inject sensor stuck|dropout [--duration-s S]");
-      }
-    } else if (kind == "drive") {
-      need(2, "inject drive [--off] [--duration-s S]");
-      body["mode"] = "ignore_commands";
-      body["on"] = !args.has("off");
-    } else if (kind == "rig") {
-      need(3, "inject rig silent [--off]");
-      body["mode"] = pos[2];
-      body["on"] = !args.has("off");
-      body.erase("duration_s");
-    } else if (kind == "clear") {
-      need(2, "inject clear");
-      body = json::object();
-    } else {
-      throw UsageError("inject what? gap, sensor, drive, rig or clear");
-    }
-    checked(api.post("/api/inject/" + kind, body));
-    std::printf("injected %s %s\n", kind.c_str(), body.dump().c_str());
+  })->add_option("--reason", args.reason, "why, for the run's record")->type_name("TEXT");
+
+  CLI::App* in = command(ctl, "inject", "faults into the running campaign: gap, sensor, drive, rig; clear them");
+  in->require_subcommand(1);
+  command(*in, "gap", "the true gap now, deg, or back to the campaign's programme", [](const CtlArgs& a, const ApiClient& api) {
+    const bool programme = a.gap == "programme" || a.gap == "program";
+    return inject("gap", programme ? json{{"programme", true}} : json{{"gap_deg", std::stod(a.gap)}}, api);
+  })->add_option("gap", args.gap, "degrees, or 'programme'")
+      ->required()
+      ->type_name("DEG|programme")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            if (text == "programme" || text == "program") return std::string();
+            return finite_number()(text).empty() ? std::string() : "needs degrees or 'programme', got '" + text + "'";
+          },
+          ""));
+  CLI::App* sensor = command(*in, "sensor", "stuck, dropout, or a bias or noise of KPA", [](const CtlArgs& a, const ApiClient& api) {
+    const bool sized = a.mode == "bias" || a.mode == "noise";
+    if (sized && std::isnan(a.size_kpa)) throw UsageError("sensor " + a.mode + " needs its size, KPA");
+    if (!sized && !std::isnan(a.size_kpa)) throw UsageError("sensor " + a.mode + " takes no size");
+    json body = {{"mode", a.mode}};
+    if (sized) body[a.mode == "bias" ? "bias_kpa" : "rms_kpa"] = a.size_kpa;
+    if (!std::isnan(a.duration_s)) body["duration_s"] = a.duration_s;
+    return inject("sensor", body, api);
+  });
+  // The kinds are in the type name already: the check's own description would repeat them.
+  sensor->add_option("mode", args.mode, "the fault")
+      ->required()
+      ->type_name("stuck|dropout|bias|noise")
+      ->check(CLI::IsMember({"stuck", "dropout", "bias", "noise"}).description(""));
+  sensor->add_option("size", args.size_kpa, "the bias or the noise RMS, kPa")->type_name("KPA")->check(finite_number());
+  sensor->add_option("--duration-s", args.duration_s, "how long (default: until cleared)")->type_name("S")->check(non_negative_number());
+  CLI::App* drive = command(*in, "drive", "the drive ignores commands", [](const CtlArgs& a, const ApiClient& api) {
+    json body = {{"mode", "ignore_commands"}, {"on", !a.off}};
+    if (!std::isnan(a.duration_s)) body["duration_s"] = a.duration_s;
+    return inject("drive", body, api);
+  });
+  drive->add_flag("--off", args.off, "end the fault");
+  drive->add_option("--duration-s", args.duration_s, "how long (default: until cleared)")->type_name("S")->check(non_negative_number());
+  CLI::App* rig = command(*in, "rig", "the (simulated) rig stops answering", [](const CtlArgs& a, const ApiClient& api) {
+    return inject("rig", {{"mode", a.mode}, {"on", !a.off}}, api);
+  });
+  rig->add_option("mode", args.mode, "the fault")->required()->type_name("silent")->check(CLI::IsMember({"silent"}).description(""));
+  rig->add_flag("--off", args.off, "end the fault");
+  command(*in, "clear", "clear every fault", [](const CtlArgs&, const ApiClient& api) { return inject("clear", json::object(), api); });
+
+  CLI::App* t = command(ctl, "telemetry", "live rows as CSV on stdout", telemetry);
+  t->add_option("--rate-hz", args.rate_hz, "rows per second")->type_name("N")->check(finite_number())->capture_default_str();
+  t->add_option("--count", args.count, "stop after N rows (0: never)")->type_name("N")->check(whole_number(0, INT64_MAX));
+
+  command(ctl, "show", "a past run's run.json and files", [](const CtlArgs& a, const ApiClient& api) {
+    std::printf("%s\n", checked(api.get("/api/runs/" + a.run)).dump(2).c_str());
     return 0;
-  }
-  if (cmd == "telemetry") {
-    need(1, "telemetry [--rate-hz N] [--count N]");
-    const double rate = parse_number(args.option("rate-hz", "10"), "--rate-hz");
-    const long count = std::lround(parse_number(args.option("count", "0"), "--count"));
-    std::vector<std::string> columns;
-    long rows = 0;
-    char target[64];
-    std::snprintf(target, sizeof target, "/api/telemetry?rate_hz=%g", rate);
-    api.stream(target, [&](const std::string& message) {
-      const json j = json::parse(message);
-      const std::string type = j.value("type", "");
-      if (type == "hello") {
-        for (const auto& c : j["columns"]) columns.push_back(c.get<std::string>());
-        std::string header;
-        for (const auto& c : columns) header += (header.empty() ? std::string() : std::string(",")) + c;
-        std::printf("%s\n", header.c_str());
-      } else if (type == "row") {
-        std::string line;
-        for (const auto& c : columns) {
-          if (!line.empty()) line.push_back(',');
-          line += j[c].is_number() ? number(j[c], "%.6g") : std::string("nan");
-        }
-        std::printf("%s\n", line.c_str());
-        ++rows;
-      } else {
-        std::printf("# %s\n", message.c_str());
-      }
-      std::fflush(stdout);
-      return count <= 0 || rows < count;
-    });
-    return 0;
-  }
-  if (cmd == "show") {
-    need(2, "show RUN");
-    std::printf("%s\n", checked(api.get("/api/runs/" + pos[1])).dump(2).c_str());
-    return 0;
-  }
-  if (cmd == "get") {
-    need(3, "get RUN FILE [--out PATH]");
-    const std::filesystem::path out = args.option("out", pos[2]);
-    const ApiReply r = api.download("/api/runs/" + pos[1] + "/" + pos[2], out);
+  })->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
+  CLI::App* get = command(ctl, "get", "download a file of a past run", [](const CtlArgs& a, const ApiClient& api) {
+    const std::filesystem::path out = a.out.empty() ? a.file : a.out;
+    const ApiReply r = api.download("/api/runs/" + a.run + "/" + a.file, out);
     if (!r.ok()) fail(r);
     std::printf("%s (%ju bytes)\n", out.c_str(), static_cast<std::uintmax_t>(std::filesystem::file_size(out)));
     return 0;
-  }
-  throw UsageError("unknown ctl command '" + cmd + "'\n" + kCtlHelp);
+  });
+  get->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
+  get->add_option("file", args.file, "the file's name in the run")->required()->type_name("FILE");
+  get->add_option("--out", args.out, "where it goes (default: FILE)")->type_name("PATH");
+}
+
+}  // namespace
+
+CommandRun define_ctl(CLI::App& ctl) {
+  auto args = std::make_shared<CtlArgs>();
+  auto handlers = std::make_shared<std::vector<std::pair<const CLI::App*, Handler>>>();
+  ctl.add_option("--server", args->server_url, "the server")->type_name("URL")->envname("HILBENCH_SERVER")->capture_default_str();
+  ctl.add_option("--token", args->token, "its token")->type_name("T")->envname("HILBENCH_TOKEN");
+  ctl.require_subcommand(1);
+  // The commands inherit fallthrough: --server and --token may come after the command too.
+  ctl.fallthrough();
+  define_commands(ctl, *args, *handlers);
+  ctl.fallthrough(false);
+  ctl.footer(
+      "exit status: 0 success (a followed campaign completed), 1 error reply or failure,\n"
+      "             2 usage, 3 a followed campaign ended stopped, aborted or in error");
+  return [args, handlers, &ctl] {
+    const CLI::App* at = &ctl;
+    while (!at->get_subcommands().empty()) at = at->get_subcommands().front();
+    for (const auto& [cmd, handler] : *handlers) {
+      if (cmd == at) return handler(*args, ApiClient(args->server_url, args->token));
+    }
+    throw UsageError("needs a command");  // unreachable: CLI11 requires one, and every leaf has a handler
+  };
 }
 
 }  // namespace hil::bench

@@ -1,35 +1,47 @@
 // hilbench diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]
 //                   [--candidates a,b] [--threads N] [--quiet]
+#include <memory>
 #include <sstream>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/analysis/diagnose.hpp"
 
 namespace hil::bench {
 
-int cmd_diagnose(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"model", "data", "out", "write-model", "candidates", "threads"}, {"quiet"});
-  if (!args.positional.empty()) throw UsageError("unexpected argument '" + args.positional[0] + "'");
-  if (!args.options.count("model")) throw UsageError("--model MODEL.yaml is required");
-  if (!args.options.count("data")) throw UsageError("--data FILE.csv is required");
-  analysis::DiagnoseOptions o;
-  o.model_file = args.option("model", "");
-  for (const auto& f : args.repeated.at("data")) o.data_files.emplace_back(f);
-  o.out_dir = args.option("out", "out/diagnose-" + o.data_files.front().stem().string());
-  o.write_model = args.option("write-model", "");
-  o.quiet = args.has("quiet");
-  std::stringstream names(args.option("candidates", ""));
-  for (std::string n; std::getline(names, n, ',');)
-    if (!n.empty()) o.settings.candidates.push_back(n);
-  if (args.options.count("threads")) {
-    const std::string t = args.option("threads", "");
-    if (t.empty() || t.find_first_not_of("0123456789") != std::string::npos || std::stoul(t) == 0 || std::stoul(t) > 64)
-      throw UsageError("--threads needs a whole number from 1 to 64");
-    o.settings.threads = static_cast<unsigned>(std::stoul(t));
-  }
-  analysis::run_diagnose(o);
-  return 0;
+CommandRun define_diagnose(CLI::App& cmd) {
+  struct DiagnoseArgs {
+    std::string model_file, out_dir, write_model, candidates;
+    std::vector<std::string> data_files;
+    unsigned threads = 0;  // 0: the fitter's default, min(2, hardware)
+    bool quiet = false;
+  };
+  auto args = std::make_shared<DiagnoseArgs>();
+  cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
+  // One file per --data, every one kept: several runs of one rig are fitted together.
+  cmd.add_option("--data", args->data_files, "a measurement; several (runs of one rig) are fitted with shared parameters")
+      ->required()
+      ->type_name("FILE.csv")
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  cmd.add_option("--out", args->out_dir, "where the report goes (default out/diagnose-<first FILE>)")->type_name("DIR");
+  cmd.add_option("--write-model", args->write_model, "write the model with the effects found")->type_name("FITTED.yaml");
+  cmd.add_option("--candidates", args->candidates, "fit only these candidate effects")->type_name("a,b");
+  cmd.add_option("--threads", args->threads, "worker threads of the fitter")->type_name("N")->check(whole_number(1, 64));
+  cmd.add_flag("--quiet", args->quiet, "no summary on stdout");
+  return [args] {
+    analysis::DiagnoseOptions o;
+    o.model_file = args->model_file;
+    for (const auto& f : args->data_files) o.data_files.emplace_back(f);
+    o.out_dir = args->out_dir.empty() ? "out/diagnose-" + o.data_files.front().stem().string() : args->out_dir;
+    o.write_model = args->write_model;
+    o.quiet = args->quiet;
+    std::stringstream names(args->candidates);
+    for (std::string n; std::getline(names, n, ',');)
+      if (!n.empty()) o.settings.candidates.push_back(n);
+    o.settings.threads = args->threads;
+    analysis::run_diagnose(o);
+    return 0;
+  };
 }
 
 }  // namespace hil::bench

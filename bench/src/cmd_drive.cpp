@@ -3,9 +3,9 @@
 // the client uses, PDO counts, the following error window) and prints what the rig will do with
 // it and what it lacks. Sends no NMT command, no SYNC and no controlword: the motor does not move.
 #include <cstdio>
+#include <memory>
 #include <string>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/rig_config.hpp"
 #include "hil/drv/cia402_drive.hpp"
@@ -14,31 +14,9 @@
 namespace hil::bench {
 
 namespace {
-constexpr const char* kUsage =
-    "usage: hilbench drive probe --rig FILE\n"
-    "  Reads the CiA 402 drive of rig FILE (configs/rigs/*.yaml, kind can or hybrid) over SDO: identity\n"
-    "  (0x1018), supported modes (0x6502), which objects the client uses it has, PDO counts, the following\n"
-    "  error window (0x6065/0x6066), and prints what the rig will do with this drive and what it lacks.\n"
-    "  No NMT start, no SYNC, no enable: the motor does not move. Exit code 0 usable, 1 not usable or no answer.\n";
-}  // namespace
 
-int cmd_drive(const std::vector<std::string>& argv) {
-  if (argv.empty() || argv[0] == "--help" || argv[0] == "-h") {
-    std::fputs(kUsage, argv.empty() ? stderr : stdout);
-    return argv.empty() ? 2 : 0;
-  }
-  if (argv[0] != "probe") throw UsageError("unknown drive command '" + argv[0] + "' (probe)");
-  const std::vector<std::string> rest(argv.begin() + 1, argv.end());
-  for (const auto& a : rest) {
-    if (a == "--help" || a == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-  }
-  const Args args = parse_args(rest, {"rig"}, {});
-  if (!args.positional.empty()) throw UsageError("drive probe takes --rig FILE only");
-  if (!args.options.count("rig")) throw UsageError("give --rig FILE");
-  const RigConfig rig = load_rig_config(args.option("rig", ""));
+int run_probe(const std::string& rig_file) {
+  const RigConfig rig = load_rig_config(rig_file);
   if (!rig.devices.can_drive) {
     std::fprintf(stderr, "hilbench drive probe: rig '%s' has no CiA 402 drive (probe reads CANopen drives)\n", rig.name.c_str());
     return 1;
@@ -49,6 +27,21 @@ int cmd_drive(const std::vector<std::string>& argv) {
   const drv::Cia402Probe p = drv::probe(client);
   std::fputs(p.report().c_str(), stdout);
   return p.usable ? 0 : 1;
+}
+
+}  // namespace
+
+CommandRun define_drive(CLI::App& cmd) {
+  cmd.require_subcommand(1);
+  CLI::App* probe = add_command(cmd, "probe", "read what the drive is and has over SDO; the motor does not move");
+  probe->footer(
+      "Reads the CiA 402 drive of rig FILE (configs/rigs/*.yaml, kind can or hybrid) over SDO: identity\n"
+      "(0x1018), supported modes (0x6502), which objects the client uses it has, PDO counts, the following\n"
+      "error window (0x6065/0x6066), and prints what the rig will do with this drive and what it lacks.\n"
+      "No NMT start, no SYNC, no enable: the motor does not move. Exit code 0 usable, 1 not usable or no answer.");
+  auto rig_file = std::make_shared<std::string>();
+  probe->add_option("--rig", *rig_file, "the rig file")->required()->type_name("FILE");
+  return [rig_file] { return run_probe(*rig_file); };
 }
 
 }  // namespace hil::bench

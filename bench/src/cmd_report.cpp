@@ -1,20 +1,25 @@
 // hilbench report RUN_DIR... [--out FILE] [--quiet]
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/run_report.hpp"
 
 namespace hil::bench {
+namespace {
 
-int cmd_report(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"out"}, {"quiet"});
-  if (args.positional.empty()) throw UsageError("report needs at least one run folder");
-  std::vector<std::filesystem::path> dirs(args.positional.begin(), args.positional.end());
-  const std::filesystem::path out = args.option("out", (dirs.front() / "report.html").string());
+struct ReportArgs {
+  std::vector<std::string> run_dirs;
+  std::string out_file;  // empty: the first run folder's report.html
+  bool quiet = false;
+};
+
+int run_report(const ReportArgs& args) {
+  const std::vector<std::filesystem::path> dirs(args.run_dirs.begin(), args.run_dirs.end());
+  const std::filesystem::path out = args.out_file.empty() ? dirs.front() / "report.html" : std::filesystem::path(args.out_file);
   const auto runs = write_run_report(dirs, out);
-  if (!args.has("quiet")) {
+  if (!args.quiet) {
     std::printf("  %-28s %-11s %10s %12s %12s %10s\n", "run", "outcome", "IAE MPa.s", "stall s", "gap est deg", "touch chg");
     for (const auto& r : runs) {
       const auto& s = r.digest.summary;
@@ -26,6 +31,19 @@ int cmd_report(const std::vector<std::string>& argv) {
     std::printf("  report: %s\n", out.c_str());
   }
   return 0;
+}
+
+}  // namespace
+
+CommandRun define_report(CLI::App& cmd) {
+  auto args = std::make_shared<ReportArgs>();
+  cmd.add_option("runs", args->run_dirs, "run folders recorded by hilbench serve")
+      ->required()
+      ->type_name("RUN_DIR")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  cmd.add_option("--out", args->out_file, "the report (default: the first RUN_DIR/report.html)")->type_name("FILE");
+  cmd.add_flag("--quiet", args->quiet, "no table of the runs on stdout");
+  return [args] { return run_report(*args); };
 }
 
 }  // namespace hil::bench

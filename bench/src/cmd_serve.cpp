@@ -1,8 +1,8 @@
 // hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
 //                [--max-body-kb N] [--no-mlock]
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <thread>
 
 #include <boost/asio/io_context.hpp>
@@ -10,7 +10,6 @@
 #include <boost/asio/signal_set.hpp>
 #include <spdlog/spdlog.h>
 
-#include "cli.hpp"
 #include "commands.hpp"
 #include "hil/bench/rt_thread.hpp"
 #include "hil/bench/runner.hpp"
@@ -40,25 +39,26 @@ std::pair<std::string, unsigned short> split_listen(const std::string& listen) {
   }
 }
 
-}  // namespace
+struct ServeArgs {
+  std::string listen = "127.0.0.1:8470";
+  std::string token;  // empty: no token required
+  std::string configs_dir = "configs";
+  std::string runs_dir = "runs";
+  std::string port_file;  // empty: none
+  std::size_t max_body_kb = 1024;
+  bool no_mlock = false;
+};
 
-int cmd_serve(const std::vector<std::string>& argv) {
-  const Args args = parse_args(argv, {"listen", "token", "configs", "runs-dir", "port-file", "max-body-kb"}, {"no-mlock"});
-  if (!args.positional.empty()) throw UsageError("serve takes no positional arguments");
+int run_serve(const ServeArgs& args) {
   ApiOptions api;
-  std::tie(api.address, api.port) = split_listen(args.option("listen", "127.0.0.1:8470"));
-  const char* env_token = std::getenv("HILBENCH_TOKEN");
-  api.token = args.option("token", env_token ? env_token : "");
-  const std::filesystem::path configs = args.option("configs", "configs");
+  std::tie(api.address, api.port) = split_listen(args.listen);
+  api.token = args.token;
+  const std::filesystem::path configs = args.configs_dir;
   api.campaigns_dir = configs / "campaigns";
   api.rigs_dir = configs / "rigs";
-  api.runs_dir = args.option("runs-dir", "runs");
+  api.runs_dir = args.runs_dir;
   api.version = HIL_VERSION;
-  try {
-    api.max_body_bytes = static_cast<std::size_t>(std::stoul(args.option("max-body-kb", "1024"))) * 1024;
-  } catch (const std::exception&) {
-    throw UsageError("--max-body-kb must be a whole number");
-  }
+  api.max_body_bytes = args.max_body_kb * 1024;
   for (const auto& dir : {api.campaigns_dir, api.rigs_dir}) {
     if (!std::filesystem::is_directory(dir)) {
       throw std::runtime_error("no folder " + dir.string() + " (give --configs DIR, the folder holding campaigns/ and rigs/)");
@@ -71,7 +71,7 @@ int cmd_serve(const std::vector<std::string>& argv) {
   }
 
   std::string mlock_warning = "not requested (--no-mlock)";
-  if (!args.has("no-mlock")) {
+  if (!args.no_mlock) {
     mlock_warning = lock_memory();
     if (!mlock_warning.empty()) spdlog::warn("{}", mlock_warning);
   }
@@ -99,8 +99,8 @@ int cmd_serve(const std::vector<std::string>& argv) {
                             ":" + std::to_string(server.port());
   std::printf("hilbench serve: listening on %s%s\n", where.c_str(), api.token.empty() ? "" : " (token required)");
   std::fflush(stdout);
-  if (args.options.count("port-file")) {
-    const std::filesystem::path file = args.option("port-file", "");
+  if (!args.port_file.empty()) {
+    const std::filesystem::path file = args.port_file;
     const auto tmp = file.string() + ".tmp";
     std::ofstream(tmp) << server.port() << "\n";
     std::filesystem::rename(tmp, file);
@@ -142,6 +142,25 @@ int cmd_serve(const std::vector<std::string>& argv) {
   if (waiter.joinable()) waiter.join();
   spdlog::info("hilbench serve: stopped");
   return 0;
+}
+
+}  // namespace
+
+CommandRun define_serve(CLI::App& cmd) {
+  auto args = std::make_shared<ServeArgs>();
+  cmd.add_option("--listen", args->listen, "the operator API's address (port 0: any free one)")
+      ->type_name("HOST:PORT")
+      ->capture_default_str();
+  cmd.add_option("--token", args->token, "the token every request must carry")->type_name("T")->envname("HILBENCH_TOKEN");
+  cmd.add_option("--configs", args->configs_dir, "the folder holding campaigns/ and rigs/")->type_name("DIR")->capture_default_str();
+  cmd.add_option("--runs-dir", args->runs_dir, "where runs are recorded")->type_name("DIR")->capture_default_str();
+  cmd.add_option("--port-file", args->port_file, "write the port there once listening (the ready signal)")->type_name("F");
+  cmd.add_option("--max-body-kb", args->max_body_kb, "the largest request body")
+      ->type_name("N")
+      ->check(whole_number(0, 1024 * 1024))
+      ->capture_default_str();
+  cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
+  return [args] { return run_serve(*args); };
 }
 
 }  // namespace hil::bench

@@ -1,23 +1,25 @@
-// The hilbench sub-commands. Each takes its arguments after the command name and returns the
-// process exit code; usage errors throw UsageError, configuration errors throw cfg::Error.
+// The hilbench sub-commands. Each define_X declares X's arguments on its CLI11 sub-command and
+// returns the job to run once they are parsed, which returns the process exit code. Usage errors
+// past parsing throw UsageError, configuration errors cfg::Error; main.cpp maps them to exit codes.
 #pragma once
 
 #include <filesystem>
 #include <string>
-#include <vector>
+
+#include "cli.hpp"
 
 namespace hil::bench {
 
-int cmd_sim(const std::vector<std::string>& args);
-int cmd_effects(const std::vector<std::string>& args);
-int cmd_serve(const std::vector<std::string>& args);
-int cmd_ctl(const std::vector<std::string>& args);
-int cmd_compare(const std::vector<std::string>& args);
-int cmd_diagnose(const std::vector<std::string>& args);
-int cmd_characterise(const std::vector<std::string>& args);
-int cmd_plant(const std::vector<std::string>& args);
-int cmd_report(const std::vector<std::string>& args);
-int cmd_drive(const std::vector<std::string>& args);
+CommandRun define_sim(CLI::App& cmd);
+CommandRun define_effects(CLI::App& cmd);
+CommandRun define_serve(CLI::App& cmd);
+CommandRun define_ctl(CLI::App& cmd);
+CommandRun define_compare(CLI::App& cmd);
+CommandRun define_diagnose(CLI::App& cmd);
+CommandRun define_characterise(CLI::App& cmd);
+CommandRun define_plant(CLI::App& cmd);
+CommandRun define_report(CLI::App& cmd);
+CommandRun define_drive(CLI::App& cmd);
 
 // The characterisation table (markdown) of the observers on the paper's scenarios.
 std::string characterise_table(const std::filesystem::path& campaigns_dir);

@@ -1,9 +1,14 @@
-// hilbench: one executable, one sub-command per job.
+// hilbench: one executable, one sub-command per job. The command line is built here, once, on
+// CLI11, and every error becomes its exit code here: 2 for a bad invocation, 1 for a bad
+// configuration or measurement file or a failed job.
 #include <algorithm>
-#include <cstdio>
 #include <exception>
+#include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "cli.hpp"
 #include "commands.hpp"
@@ -12,93 +17,191 @@
 
 namespace {
 
+using hil::bench::CommandRun;
+
 struct Command {
   const char* name;
-  int (*run)(const std::vector<std::string>&);
-  const char* usage;
+  const char* summary;  // its one line in `hilbench --help`
+  CommandRun (*define)(CLI::App&);
 };
 
 const Command kCommands[] = {
-    {"sim", hil::bench::cmd_sim,
-     "sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa X] [--no-telemetry] [--quiet]\n"
-     "      run a campaign on the simulated plant, faster than real time"},
-    {"effects", hil::bench::cmd_effects, "effects\n      list the physical effects a plant file may use"},
-    {"serve", hil::bench::cmd_serve,
-     "serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F] [--no-mlock]\n"
-     "      the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)"},
-    {"ctl", hil::bench::cmd_ctl,
-     "ctl [--server URL] [--token T] status|campaigns|rigs|runs|start|watch|stop|abort|inject|telemetry|show|get ...\n"
-     "      command-line client of hilbench serve (hilbench ctl --help)"},
-    {"compare", hil::bench::cmd_compare,
-     "compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]\n"
-     "      replay a measurement through a model and show where the model fails"},
-    {"diagnose", hil::bench::cmd_diagnose,
-     "diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]\n"
-     "         [--candidates a,b] [--threads N] [--quiet]\n"
-     "      find the missing physical effect: fit each candidate, rank them, add the ones that earn their place;\n"
-     "      several --data files (runs of one rig) are fitted together with shared parameters"},
-    {"plant", hil::bench::cmd_plant,
-     "plant [--plant FILE | --campaign CAMPAIGN.yaml] [--can IFACE] [--modbus tcp:HOST:PORT] [--gap-program CAMPAIGN.yaml]\n"
-     "      [--period-ms 1] [--initial-mpa 1.0] [--duration-s S] [--rt-priority P] [--port-file F]\n"
-     "      the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices"},
-    {"report", hil::bench::cmd_report,
-     "report RUN_DIR... [--out FILE] [--quiet]\n"
-     "      the paper-style report of runs recorded by hilbench serve (default FILE: the first RUN_DIR/report.html)"},
-    {"drive", hil::bench::cmd_drive,
-     "drive probe --rig FILE\n"
-     "      know the rig's CiA 402 drive before a run: identity, modes, objects, PDOs, limits (no motion)"},
-    {"characterise", hil::bench::cmd_characterise,
-     "characterise [--readme README.md] [--campaigns DIR]\n"
-     "      the observers on the paper's scenarios, noise-free and noisy, as a markdown table"},
+    {"sim", "run a campaign on the simulated plant, faster than real time", hil::bench::define_sim},
+    {"effects", "list the physical effects a plant file may use", hil::bench::define_effects},
+    {"serve", "the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)", hil::bench::define_serve},
+    {"ctl", "command-line client of hilbench serve", hil::bench::define_ctl},
+    {"compare", "replay a measurement through a model and show where the model fails", hil::bench::define_compare},
+    {"diagnose", "find the missing physical effect of a model from measurements", hil::bench::define_diagnose},
+    {"plant", "the simulator side of the HIL: the plant in real time behind emulated CAN and Modbus devices",
+     hil::bench::define_plant},
+    {"report", "the paper-style report of runs recorded by hilbench serve", hil::bench::define_report},
+    {"drive", "know the rig's CiA 402 drive before a run, without moving it", hil::bench::define_drive},
+    {"characterise", "the observers on the paper's scenarios, noise-free and noisy, as a markdown table",
+     hil::bench::define_characterise},
 };
 
-void usage(std::FILE* to) {
-  std::fprintf(to, "usage: hilbench <command> [arguments]\n\ncommands:\n");
-  for (const auto& c : kCommands) std::fprintf(to, "  %s\n", c.usage);
+// Usage lines in the house style, "usage: hilbench compare --model MODEL.yaml --data FILE.csv [options]":
+// what must be given spelled out, everything optional behind [options].
+class Formatter : public CLI::Formatter {
+ public:
+  std::string make_usage(const CLI::App* app, std::string name) const override {
+    std::string usage = "usage: " + name;
+    bool optional = false;
+    for (const CLI::Option* o : app->get_options([](const CLI::Option* o) { return o->nonpositional(); })) {
+      if (o->get_required()) {
+        usage += " " + o->get_name() + " " + o->get_type_name();
+      } else {
+        optional = true;
+      }
+    }
+    for (const CLI::Option* o : app->get_options([](const CLI::Option* o) { return o->get_positional(); })) {
+      const std::string p = o->get_type_name() + (o->get_items_expected_max() > 1 ? "..." : "");
+      usage += " " + (o->get_required() ? p : "[" + p + "]");
+    }
+    if (!app->get_subcommands({}).empty()) usage += " COMMAND";
+    if (optional) usage += " [options]";
+    return usage + "\n";
+  }
+};
+
+// The sub-command the command line reached (the root when none) and its path ("hilbench ctl start").
+const CLI::App* reached(const CLI::App& root, std::string& path) {
+  const CLI::App* at = &root;
+  path = root.get_name();
+  for (auto subs = at->get_subcommands(); !subs.empty(); subs = at->get_subcommands()) {
+    at = subs.front();
+    path += " " + at->get_name();
+  }
+  return at;
+}
+
+// The first argument that nothing took, worded with a suggestion: "unknown option --outt (did you
+// mean --out?)", "unknown command 'prboe' (did you mean 'probe'?)"; empty when every one was taken.
+// An option falls through from a sub-command to its parent, so the parent's names count too.
+std::string unknown_argument(const CLI::App* at) {
+  std::vector<std::string> options, commands;
+  for (const CLI::App* a = at; a != nullptr; a = a->get_parent()) {
+    for (const CLI::Option* o : a->get_options()) {
+      for (const auto& n : o->get_lnames()) options.push_back("--" + n);
+    }
+    if (!a->get_fallthrough()) break;
+  }
+  for (const CLI::App* s : at->get_subcommands({})) commands.push_back(s->get_name());
+  for (const CLI::App* a = at; a != nullptr; a = a->get_parent()) {
+    for (const std::string& arg : a->remaining()) {
+      if (arg.size() > 1 && arg[0] == '-') {
+        const std::string name = arg.substr(0, arg.find('='));
+        const std::string hint = hil::cfg::closest(name, options);
+        return "unknown option " + name + (hint.empty() ? "" : " (did you mean " + hint + "?)");
+      }
+      if (!commands.empty()) {
+        const std::string hint = hil::cfg::closest(arg, commands);
+        return "unknown command '" + arg + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)");
+      }
+      return "unexpected argument '" + arg + "'";
+    }
+  }
+  return "";
+}
+
+// What a RequiredError is about, with the value's kind: "--data FILE.csv is required".
+std::string missing_requirement(const CLI::App* at) {
+  for (const CLI::App* a = at; a != nullptr; a = a->get_parent()) {
+    for (const CLI::Option* o : a->get_options()) {
+      if (!o->get_required() || o->count() > 0) continue;
+      return o->get_positional() ? "needs " + o->get_type_name() : o->get_name() + " " + o->get_type_name() + " is required";
+    }
+  }
+  if (at->get_require_subcommand_min() > 0) {
+    std::string names;
+    for (const CLI::App* s : at->get_subcommands({})) names += (names.empty() ? "" : ", ") + s->get_name();
+    return "needs a command: " + names;
+  }
+  return "";
+}
+
+// A bad invocation: what is wrong, naming the option, then the usage; exit code 2.
+int usage_error(const Formatter& formatter, const CLI::App& root, const std::string& message) {
+  std::string path;
+  const CLI::App* at = reached(root, path);
+  std::cerr << path << ": " << message << "\n" << formatter.make_usage(at, path) << "(" << path << " --help lists every option)\n";
+  return 2;
+}
+
+int parse_error(const Formatter& formatter, const CLI::App& root, const CLI::Error& e) {
+  std::string path;
+  const CLI::App* at = reached(root, path);
+  // An unknown option first: it is often why a required one looks missing (--modle for --model).
+  std::string message = unknown_argument(at);
+  if (message.empty() && dynamic_cast<const CLI::RequiredError*>(&e) != nullptr) message = missing_requirement(at);
+  if (message.empty() && dynamic_cast<const CLI::ArgumentMismatch*>(&e) != nullptr) {
+    const std::string what = e.what();  // "--out: 1 required DIR missing"
+    if (what.rfind("--", 0) == 0) message = what.substr(0, what.find(':')) + " needs a value";
+  }
+  return usage_error(formatter, root, message.empty() ? e.what() : message);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
-    usage(argc < 2 ? stderr : stdout);
-    return argc < 2 ? 2 : 0;
-  }
-  const std::string name = argv[1];
-  if (name == "--version") {
-    std::printf("hilbench %s\n", HIL_VERSION);
-    return 0;
-  }
-  std::vector<std::string> args(argv + 2, argv + argc);
+  CLI::App app("hilbench: the hardware-in-the-loop bench, one sub-command per job", "hilbench");
+  // Sub-commands copy these when they are added: the formatter, and the last of an option given
+  // twice counts (test harnesses and wrappers append their overrides to a default command line).
+  const auto formatter = std::make_shared<Formatter>();
+  formatter->column_width(32);
+  app.formatter(formatter);
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app.set_version_flag("--version", std::string("hilbench ") + HIL_VERSION);
+  app.require_subcommand(1);
   std::vector<std::string> names;
+  std::vector<std::pair<const CLI::App*, CommandRun>> runs;
   for (const auto& c : kCommands) {
+    CLI::App* cmd = hil::bench::add_command(app, c.name, c.summary);
+    runs.emplace_back(cmd, c.define(*cmd));
     names.emplace_back(c.name);
-    if (name != c.name) continue;
-    // `hilbench X --help`: X's usage on stdout, exit 0 (ctl has sub-commands and its own help).
-    if (name == "ctl" && !args.empty() && args[0] == "-h") args[0] = "--help";
-    if (name != "ctl" && std::any_of(args.begin(), args.end(), [](const std::string& a) { return a == "--help" || a == "-h"; })) {
-      std::printf("usage: hilbench %s\n", c.usage);
-      return 0;
-    }
+  }
+
+  if (argc < 2) {
+    std::cerr << app.help();
+    return 2;
+  }
+  if (const std::string first = argv[1]; first[0] != '-' && std::find(names.begin(), names.end(), first) == names.end()) {
+    const std::string hint = hil::cfg::closest(first, names);
+    std::cerr << "hilbench: unknown command '" << first << "'" << (hint.empty() ? "" : " (did you mean '" + hint + "'?)")
+              << "\n\n"
+              << app.help();
+    return 2;
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForVersion& e) {
+    std::cout << e.what() << "\n";
+    return 0;
+  } catch (const CLI::CallForHelp&) {
+    std::cout << app.help();
+    return 0;
+  } catch (const CLI::Error& e) {
+    return parse_error(*formatter, app, e);
+  }
+
+  const CLI::App* cmd = app.get_subcommands().front();
+  const std::string where = "hilbench " + cmd->get_name();
+  for (const auto& [app_of, run] : runs) {
+    if (app_of != cmd) continue;
     try {
-      return c.run(args);
+      return run();
     } catch (const hil::bench::UsageError& e) {
-      std::fprintf(stderr, "hilbench %s: %s\nusage: hilbench %s\n", c.name, e.what(), c.usage);
-      return 2;
+      return usage_error(*formatter, app, e.what());
     } catch (const hil::cfg::Error& e) {
-      std::fprintf(stderr, "hilbench %s: %s\n", c.name, e.what());
+      std::cerr << where << ": " << e.what() << "\n";
       return 1;
     } catch (const hil::CsvError& e) {
-      std::fprintf(stderr, "hilbench %s: %s\n", c.name, e.what());
+      std::cerr << where << ": " << e.what() << "\n";
       return 1;
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "hilbench %s: error: %s\n", c.name, e.what());
+      std::cerr << where << ": error: " << e.what() << "\n";
       return 1;
     }
   }
-  const std::string hint = hil::cfg::closest(name, names);
-  std::fprintf(stderr, "hilbench: unknown command '%s'%s\n\n", name.c_str(),
-               hint.empty() ? "" : (" (did you mean '" + hint + "'?)").c_str());
-  usage(stderr);
-  return 2;
+  return 2;  // unreachable: every sub-command has its job
 }

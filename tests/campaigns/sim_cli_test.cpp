@@ -4,6 +4,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "hil/csv_reader.hpp"
 #include "support/run_command.hpp"
@@ -106,22 +109,60 @@ TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
 }  // namespace
 
 namespace {
-// Every sub-command answers --help with its usage on stdout and exit 0; the top level lists them all.
+// Every sub-command answers --help with its usage and options on stdout and exit 0; the top level
+// lists them all, one line each.
 TEST(Cli, EverySubCommandAnswersHelp) {
   const auto top = run_command(hilbench() + " --help");
   ASSERT_EQ(top.status, 0) << top.output;
-  for (const char* cmd :
-       {"sim", "effects", "serve", "ctl", "compare", "diagnose", "plant", "report", "drive", "characterise"}) {
-    EXPECT_NE(top.output.find(std::string("\n  ") + cmd), std::string::npos) << cmd << "\n" << top.output;
+  // Each command with text its help must show: an option of its own (drive and ctl: a command).
+  const std::vector<std::pair<std::string, std::vector<std::string>>> commands = {
+      {"sim", {"--out", "--sensor-noise-kpa", "--no-telemetry"}},
+      {"effects", {"usage: hilbench effects"}},
+      {"serve", {"--listen", "--token", "--max-body-kb"}},
+      {"ctl", {"--server", "status", "inject", "telemetry"}},
+      {"compare", {"--model", "--data"}},
+      {"diagnose", {"--model", "--data", "--threads", "--write-model"}},
+      {"plant", {"--campaign", "--can", "--modbus", "--period-ms"}},
+      {"report", {"RUN_DIR", "--out"}},
+      {"drive", {"probe"}},
+      {"characterise", {"--readme", "--campaigns"}},
+  };
+  for (const auto& [cmd, expected] : commands) {
+    EXPECT_NE(top.output.find("\n  " + cmd + " "), std::string::npos) << cmd << "\n" << top.output;
     for (const char* flag : {"--help", "-h"}) {
       const auto r = run_command(hilbench() + " " + cmd + " " + flag);
       EXPECT_EQ(r.status, 0) << cmd << " " << flag << "\n" << r.output;
-      EXPECT_NE(r.output.find(std::string("hilbench ") + cmd), std::string::npos) << cmd << "\n" << r.output;
+      EXPECT_NE(r.output.find("hilbench " + cmd), std::string::npos) << cmd << "\n" << r.output;
       EXPECT_EQ(r.output.find("unknown option"), std::string::npos) << cmd << "\n" << r.output;
+      for (const auto& e : expected) EXPECT_NE(r.output.find(e), std::string::npos) << cmd << ": no " << e << "\n" << r.output;
     }
   }
+  // Commands of commands answer too.
+  for (const char* cmd : {"ctl start", "ctl inject sensor", "drive probe"}) {
+    const auto r = run_command(hilbench() + " " + cmd + " --help");
+    EXPECT_EQ(r.status, 0) << cmd << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string("usage: hilbench ") + cmd), std::string::npos) << cmd << "\n" << r.output;
+  }
+  // No command: the usage on stderr, exit 2.
+  const auto bare = run_command(hilbench());
+  EXPECT_EQ(bare.status, 2);
+  EXPECT_NE(bare.output.find("usage: hilbench"), std::string::npos) << bare.output;
+  EXPECT_EQ(run_command("(" + hilbench() + " 2>/dev/null)").output, "");
   const auto typo = run_command(hilbench() + " sim --outt x");
   EXPECT_EQ(typo.status, 2);
   EXPECT_NE(typo.output.find("did you mean --out?"), std::string::npos) << typo.output;
+}
+
+// An option given twice: the last one counts (wrappers append their overrides); --name=value works.
+TEST(Cli, TheLastOfARepeatedOptionCounts) {
+  const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
+                             " --sensor-noise-kpa=6e16 --sensor-noise-kpa 7e16 --out /tmp/x");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.output.find("--sensor-noise-kpa 7e16: "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("6e16"), std::string::npos) << r.output;
+  const auto bad = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
+                               " --sensor-noise-kpa=-1");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.output.find("--sensor-noise-kpa: cannot be negative, got -1"), std::string::npos) << bad.output;
 }
 }  // namespace
