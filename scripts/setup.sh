@@ -11,7 +11,7 @@ build_pkgs=(build-essential cmake ninja-build ccache pkg-config git
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
   python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps
-  clang-14 libclang-rt-14-dev llvm-14)
+  clang-14 libclang-rt-14-dev llvm-14 clang-format-14)
 bench_pkgs=(rt-tests)
 
 want=("${build_pkgs[@]}")

@@ -84,15 +84,17 @@ Candidate throat_erosion(const plant::Plant& base) {
   Candidate c;
   c.name = "throat_erosion";
   const double e = value_of(base, "throat_erosion", "proportional_rate_per_s");
-  c.description = "the throat area grows (or shrinks, deposits) linearly over the run, by a fixed area per second or "
-                  "in proportion to the area";
+  c.description =
+      "the throat area grows (or shrinks, deposits) linearly over the run, by a fixed area per second or "
+      "in proportion to the area";
   c.attach = [](const plant::Plant& p) {
     return add_block(p, "throat_erosion", "{rate_mm2_per_s: 0, proportional_rate_per_s: 0}");
   };
   // Additive (A + r t) and proportional (A (1 + e t)): the same count of parameters, so the
   // criterion picks the form that fits; they differ where the valve opening changes.
-  c.variants = {{"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}},
-                {"proportional", {{"throat_erosion", "proportional_rate_per_s", -0.05, 0.05, 5e-4, {std::isfinite(e) ? e : 0.0}}}}};
+  c.variants = {
+      {"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}},
+      {"proportional", {{"throat_erosion", "proportional_rate_per_s", -0.05, 0.05, 5e-4, {std::isfinite(e) ? e : 0.0}}}}};
   return c;
 }
 
@@ -165,8 +167,8 @@ Candidate burn_rate(const plant::Plant& base) {
   return c;
 }
 
-const std::vector<std::string> kBuiltin = {"backlash_change", "valve_offset",    "throat_erosion", "sensor_lag",
-                                           "transport_delay", "sensor_bias",     "motor_dynamics", "burn_rate"};
+const std::vector<std::string> kBuiltin = {"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
+                                           "transport_delay", "sensor_bias",  "motor_dynamics", "burn_rate"};
 
 // A registered effect the model lacks, whose defaults all exist: a candidate by itself.
 bool user_candidate(const plant::Plant& base, const std::string& kind, const plant::EffectInfo& info) {
@@ -177,10 +179,8 @@ bool user_candidate(const plant::Plant& base, const std::string& kind, const pla
     case plant::Stage::transmission:
     case plant::Stage::throat:
     case plant::Stage::chamber:
-    case plant::Stage::sensor_noise:
-      return false;
-    default:
-      break;
+    case plant::Stage::sensor_noise: return false;
+    default: break;
   }
   try {
     const auto e = info.from_yaml(cfg::Node::load_string("{}", kind));
@@ -248,8 +248,8 @@ plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>
 }
 
 std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only) {
-  std::vector<Candidate> all = {backlash_change(base), valve_offset(base),  throat_erosion(base), sensor_lag(base),
-                                transport_delay(base), sensor_bias(base),   motor_dynamics(base), burn_rate(base)};
+  std::vector<Candidate> all = {backlash_change(base), valve_offset(base), throat_erosion(base), sensor_lag(base),
+                                transport_delay(base), sensor_bias(base),  motor_dynamics(base), burn_rate(base)};
   for (const auto& kind : plant::effect_names()) {
     const plant::EffectInfo* info = plant::find_effect(kind);
     if (info && user_candidate(base, kind, *info)) all.push_back(from_registry(kind, *info));

@@ -21,9 +21,8 @@ using units::kPaPerKpa;
 
 // Replays row by row and feeds the analyzer. `next` yields chunks of rows in file order.
 template <class NextChunk>
-ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRows& first, NextChunk&& next,
-                                  AnalyzerOptions opt, ReplayInfo* info, const std::filesystem::path& file,
-                                  std::size_t first_line) {
+ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRows& first, NextChunk&& next, AnalyzerOptions opt,
+                                  ReplayInfo* info, const std::filesystem::path& file, std::size_t first_line) {
   const plant::Plant quiet = noise_free(model);
   const ReplayStart start = estimate_start(first);
   (void)first_line;
@@ -53,8 +52,10 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
       // must stop here, not turn every metric into NaN.
       if (!std::isfinite(yhat)) {
         char b[200];
-        std::snprintf(b, sizeof b, ": the model's prediction is not finite at t_s = %.9g (data row %zu): the model "
-                      "diverges on this input", t, row);
+        std::snprintf(b, sizeof b,
+                      ": the model's prediction is not finite at t_s = %.9g (data row %zu): the model "
+                      "diverges on this input",
+                      t, row);
         throw std::runtime_error(file.string() + b);
       }
       if (enc) {
@@ -85,8 +86,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
                     "uses the encoder, so this does not enter the error above.",
                     mc.rmse_deg, mc.max_abs_deg, mc.t_at_max_s);
     } else {
-      std::snprintf(b, sizeof b, "Drive: the drive model fed with the command follows the encoder (%.3g deg RMS).",
-                    mc.rmse_deg);
+      std::snprintf(b, sizeof b, "Drive: the drive model fed with the command follows the encoder (%.3g deg RMS).", mc.rmse_deg);
     }
     r.signature.push_back(b);
   }
@@ -134,8 +134,8 @@ ResidualReport compare_file(const plant::Plant& model, const std::filesystem::pa
   if (frac > 0) {
     opt.expected_rows = static_cast<std::size_t>(static_cast<double>(reader.rows_read()) / frac);
     const double span = first.t_s.back() - first.t_s.front();
-    opt.expected_duration_s = span / std::max<double>(1.0, static_cast<double>(first.size() - 1)) *
-                              static_cast<double>(opt.expected_rows);
+    opt.expected_duration_s =
+        span / std::max<double>(1.0, static_cast<double>(first.size() - 1)) * static_cast<double>(opt.expected_rows);
   }
   auto last_report = Clock::now();
   auto next = [&](MeasurementRows& rows) {
@@ -182,24 +182,39 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
       Series{.name = "measured", .x = r.series.measured_mpa.t_s, .y = r.series.measured_mpa.value, .color = "#1f77b4"},
       Series{.name = model_label, .x = r.series.model_mpa.t_s, .y = r.series.model_mpa.value, .color = "#d62728"}};
   if (!r.series.reference_mpa.t_s.empty()) {
-    pressure.push_back(Series{.name = "reference", .x = r.series.reference_mpa.t_s, .y = r.series.reference_mpa.value,
-                              .color = "#7f7f7f", .style = Series::Style::step, .dashed = true});
+    pressure.push_back(Series{.name = "reference",
+                              .x = r.series.reference_mpa.t_s,
+                              .y = r.series.reference_mpa.value,
+                              .color = "#7f7f7f",
+                              .style = Series::Style::step,
+                              .dashed = true});
   }
   doc.figure(Figure{.title = "Pressure: measured vs " + model_label + " (shaded: where the model fails)",
-                    .x_label = "time [s]", .y_label = "pressure [MPa]", .series = pressure, .bands = bands,
-                    .group = group, .height_px = 300});
-  const double s3 = 3 * r.noise_sigma_pa / kpa;
-  doc.figure(Figure{.title = "Residual: measured - " + model_label, .x_label = "time [s]", .y_label = "residual [kPa]",
-                    .series = {Series{.name = "residual", .x = r.series.residual_kpa.t_s, .y = r.series.residual_kpa.value,
-                                      .color = "#9467bd"}},
+                    .x_label = "time [s]",
+                    .y_label = "pressure [MPa]",
+                    .series = pressure,
                     .bands = bands,
-                    .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}, {0, "", false}},
-                    .group = group, .height_px = 220});
-  doc.figure(Figure{.title = "Drive angle (encoder if logged, else command)", .x_label = "time [s]",
-                    .y_label = "angle [deg]",
-                    .series = {Series{.name = "drive", .x = r.series.drive_deg.t_s, .y = r.series.drive_deg.value,
-                                      .color = "#2ca02c"}},
-                    .bands = bands, .group = group, .height_px = 160});
+                    .group = group,
+                    .height_px = 300});
+  const double s3 = 3 * r.noise_sigma_pa / kpa;
+  doc.figure(
+      Figure{.title = "Residual: measured - " + model_label,
+             .x_label = "time [s]",
+             .y_label = "residual [kPa]",
+             .series = {Series{
+                 .name = "residual", .x = r.series.residual_kpa.t_s, .y = r.series.residual_kpa.value, .color = "#9467bd"}},
+             .bands = bands,
+             .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}, {0, "", false}},
+             .group = group,
+             .height_px = 220});
+  doc.figure(
+      Figure{.title = "Drive angle (encoder if logged, else command)",
+             .x_label = "time [s]",
+             .y_label = "angle [deg]",
+             .series = {Series{.name = "drive", .x = r.series.drive_deg.t_s, .y = r.series.drive_deg.value, .color = "#2ca02c"}},
+             .bands = bands,
+             .group = group,
+             .height_px = 160});
 
   // Error by regime.
   report::Bars bars{.title = "Error by regime", .y_label = "error [kPa]", .categories = {}, .groups = {}};
@@ -237,39 +252,53 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   doc.heading("Residual diagnostics", 3);
   doc.columns_begin(2);
   doc.figure(Figure{.title = "Autocorrelation of the residual (99 % bounds of white noise)",
-                    .x_label = "lag [s]", .y_label = "autocorrelation [-]",
+                    .x_label = "lag [s]",
+                    .y_label = "autocorrelation [-]",
                     .series = {Series{.name = "residual ACF", .x = d.acf_lag_s, .y = d.acf, .color = "#9467bd"}},
-                    .hlines = {{d.acf_bound, "+99 %", true}, {-d.acf_bound, "-99 %", true}}, .height_px = 220});
+                    .hlines = {{d.acf_bound, "+99 %", true}, {-d.acf_bound, "-99 %", true}},
+                    .height_px = 220});
   doc.figure(Figure{.title = "Cross-correlation: drive increments -> residual (99 % bounds)",
-                    .x_label = "lag [s] (positive: input leads)", .y_label = "cross-correlation [-]",
+                    .x_label = "lag [s] (positive: input leads)",
+                    .y_label = "cross-correlation [-]",
                     .series = {Series{.name = "input-residual", .x = d.xcf_lag_s, .y = d.xcf, .color = "#8c564b"}},
-                    .hlines = {{d.xcf_bound, "+99 %", true}, {-d.xcf_bound, "-99 %", true}}, .height_px = 220});
+                    .hlines = {{d.xcf_bound, "+99 %", true}, {-d.xcf_bound, "-99 %", true}},
+                    .height_px = 220});
   {
     std::vector<Band> peak_bands;
-    for (const auto& pk : d.peaks) peak_bands.push_back({pk.hz * 0.97, pk.hz * 1.03, text::num(pk.hz, 3) + " Hz", "rgba(255,160,0,0.35)"});
-    doc.figure(Figure{.title = "Residual spectrum (Welch, Hann); peaks marked", .x_label = "frequency [Hz]",
+    for (const auto& pk : d.peaks)
+      peak_bands.push_back({pk.hz * 0.97, pk.hz * 1.03, text::num(pk.hz, 3) + " Hz", "rgba(255,160,0,0.35)"});
+    doc.figure(Figure{.title = "Residual spectrum (Welch, Hann); peaks marked",
+                      .x_label = "frequency [Hz]",
                       .y_label = "PSD [kPa^2/Hz]",
                       .series = {Series{.name = "residual PSD", .x = d.psd_hz, .y = d.psd_kpa2_per_hz, .color = "#17becf"}},
-                      .bands = peak_bands, .x_log = true, .y_log = true, .height_px = 220});
+                      .bands = peak_bands,
+                      .x_log = true,
+                      .y_log = true,
+                      .height_px = 220});
   }
   {
     std::vector<double> open_kpa, close_kpa;
     for (double v : d.after_opening_mean_pa) open_kpa.push_back(v / kpa);
     for (double v : d.after_closing_mean_pa) close_kpa.push_back(v / kpa);
     doc.figure(Figure{.title = "Mean residual after motion reversals (" + std::to_string(r.reversals) + " reversals)",
-                      .x_label = "time since reversal [s]", .y_label = "mean residual [kPa]",
+                      .x_label = "time since reversal [s]",
+                      .y_label = "mean residual [kPa]",
                       .series = {Series{.name = "into opening", .x = d.since_reversal_s, .y = open_kpa, .color = "#2ca02c"},
                                  Series{.name = "into closing", .x = d.since_reversal_s, .y = close_kpa, .color = "#d62728"}},
-                      .hlines = {{0, "", false}}, .height_px = 220});
+                      .hlines = {{0, "", false}},
+                      .height_px = 220});
   }
   auto binned = [&](const Binned& b, const std::string& title) {
     std::vector<double> mean, rmsv;
     for (double v : b.mean_pa) mean.push_back(v / kpa);
     for (double v : b.rms_pa) rmsv.push_back(v / kpa);
-    doc.figure(Figure{.title = title, .x_label = b.quantity + " [" + b.unit + "]", .y_label = "residual [kPa]",
+    doc.figure(Figure{.title = title,
+                      .x_label = b.quantity + " [" + b.unit + "]",
+                      .y_label = "residual [kPa]",
                       .series = {Series{.name = "mean", .x = b.x, .y = mean, .color = "#1f77b4"},
                                  Series{.name = "RMS", .x = b.x, .y = rmsv, .color = "#ff7f0e", .dashed = true}},
-                      .hlines = {{0, "", false}}, .height_px = 220});
+                      .hlines = {{0, "", false}},
+                      .height_px = 220});
   };
   binned(d.vs_time, "Residual against time (per window)");
   binned(d.vs_burned, "Residual against burned propellant (model)");
@@ -278,8 +307,7 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   doc.columns_end();
   if (!d.peaks.empty()) {
     std::vector<std::vector<std::string>> rows;
-    for (const auto& pk : d.peaks)
-      rows.push_back({text::num(pk.hz, 4), text::num(100 * pk.power_share, 3), pk.name});
+    for (const auto& pk : d.peaks) rows.push_back({text::num(pk.hz, 4), text::num(100 * pk.power_share, 3), pk.name});
     doc.table({"peak [Hz]", "share of residual power [%]", "most likely"}, rows);
   }
 }
@@ -310,8 +338,10 @@ ResidualReport run_compare(const CompareOptions& o) {
   j["data_file"] = o.data_file.string();
   j["encoder"] = info.has_encoder;
   j["reference"] = info.has_reference;
-  j["start"] = {{"t0_s", info.start.t0_s}, {"p0_mpa", units::pa_to_mpa(info.start.p0_pa)},
-                {"motor0_deg", units::rad_to_deg(info.start.motor0_rad)}, {"rows_averaged", info.start.rows_averaged}};
+  j["start"] = {{"t0_s", info.start.t0_s},
+                {"p0_mpa", units::pa_to_mpa(info.start.p0_pa)},
+                {"motor0_deg", units::rad_to_deg(info.start.motor0_rad)},
+                {"rows_averaged", info.start.rows_averaged}};
   j["wall_s"] = info.wall_s;
   detail::write_text(o.out_dir / "compare.json", j.dump(2) + "\n");
 

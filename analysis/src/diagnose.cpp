@@ -23,17 +23,17 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Selection thresholds (see diagnose.hpp).
-constexpr double kBicMargin = -10;          // very strong evidence (Kass & Raftery)
-constexpr double kMinExcessShare = 0.25;    // of the model's excess error power
-constexpr double kMinNoiseShare = 0.05;     // of N sigma^2
-constexpr std::size_t kRefineTop = 2;       // candidates refined on every row per round
+constexpr double kBicMargin = -10;        // very strong evidence (Kass & Raftery)
+constexpr double kMinExcessShare = 0.25;  // of the model's excess error power
+constexpr double kMinNoiseShare = 0.05;   // of N sigma^2
+constexpr std::size_t kRefineTop = 2;     // candidates refined on every row per round
 constexpr int kCoarseIter = 12, kGridIter = 2, kRefineIter = 3, kJointIter = 8;
-constexpr double kCompetitive = 1.2;        // variants within 20 % of their best get a full-data look
-constexpr std::size_t kGridCoarse = 16;      // grid values of the zoom search's first level
-constexpr std::size_t kGridZoom = 8;         // values per later level
-constexpr std::size_t kBeam = 3;            // first choices followed when the best one is not enough
-constexpr double kFloorTolerance = 1.1;     // RSS within 10 % of N sigma^2: at the noise floor
-constexpr double kSkipAtFloor = 1.03;       // RSS within 3 %: no candidate can earn its place
+constexpr double kCompetitive = 1.2;     // variants within 20 % of their best get a full-data look
+constexpr std::size_t kGridCoarse = 16;  // grid values of the zoom search's first level
+constexpr std::size_t kGridZoom = 8;     // values per later level
+constexpr std::size_t kBeam = 3;         // first choices followed when the best one is not enough
+constexpr double kFloorTolerance = 1.1;  // RSS within 10 % of N sigma^2: at the noise floor
+constexpr double kSkipAtFloor = 1.03;    // RSS within 3 %: no candidate can earn its place
 
 // Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
 template <class Fn>
@@ -77,8 +77,8 @@ struct VariantFit {
   const FreeParam* grid = nullptr;
   double grid_value = kNaN;
   std::vector<double> values, sigma;  // continuous
-  double rss_coarse = kInf;  // on the decimated copy
-  double rss_full = kInf;    // on every row
+  double rss_coarse = kInf;           // on the decimated copy
+  double rss_full = kInf;             // on every row
   bool refined = false;
   // The accepted effects' continuous values from the joint refine with this candidate (in the
   // order of apply_added); empty: they were held at their values.
@@ -102,8 +102,10 @@ plant::Plant model_for(const plant::Plant& attached, const VariantFit& v, double
 // vf's variant's parameters: the grid one (at most one) and the continuous ones.
 void split_params(const Candidate& cand, VariantFit& vf) {
   for (const auto& p : cand.variants[vf.variant].params) {
-    if (p.grid) vf.grid = &p;
-    else vf.continuous.push_back(p);
+    if (p.grid)
+      vf.grid = &p;
+    else
+      vf.continuous.push_back(p);
   }
 }
 
@@ -147,7 +149,8 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
       });
       for (std::size_t j = 0; j < level.size(); ++j) {
         vf.evaluations += evals[j];
-        if (results[j].rss < best) best = results[j].rss, best_i = level[j], vf.grid_value = values[level[j]], vf.values = results[j].values;
+        if (results[j].rss < best)
+          best = results[j].rss, best_i = level[j], vf.grid_value = values[level[j]], vf.values = results[j].values;
       }
       if (std::isfinite(best)) warm = vf.values;
       if (stride == 1 || !std::isfinite(best)) break;
@@ -208,11 +211,12 @@ CandidateResult describe(const Candidate& cand, const VariantFit& vf, const plan
   c.evaluations = vf.evaluations;
   for (std::size_t i = 0; i < vf.continuous.size(); ++i) {
     const auto& p = vf.continuous[i];
-    c.parameters.push_back({p.effect, p.key, vf.values.empty() ? kNaN : vf.values[i],
-                            i < vf.sigma.size() ? vf.sigma[i] : kNaN, value_of(base, p.effect, p.key), false});
+    c.parameters.push_back({p.effect, p.key, vf.values.empty() ? kNaN : vf.values[i], i < vf.sigma.size() ? vf.sigma[i] : kNaN,
+                            value_of(base, p.effect, p.key), false});
   }
   if (vf.grid) {
-    c.parameters.push_back({vf.grid->effect, vf.grid->key, vf.grid_value, kNaN, value_of(base, vf.grid->effect, vf.grid->key), true});
+    c.parameters.push_back(
+        {vf.grid->effect, vf.grid->key, vf.grid_value, kNaN, value_of(base, vf.grid->effect, vf.grid->key), true});
   }
   c.why_not = vf.note;
   return c;
@@ -385,7 +389,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
       if (p.grid) return true;
     return false;
   };
-  std::stable_sort(jobs.begin(), jobs.end(), [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
+  std::stable_sort(jobs.begin(), jobs.end(),
+                   [&](const VariantFit& a, const VariantFit& b) { return has_grid(a) && !has_grid(b); });
   parallel_for(jobs.size(), ctx.threads, [&](std::size_t i) { fit_variant(ctx, current, *pool[jobs[i].candidate], jobs[i]); });
   // Every row for the variants that are competitive on the decimated copy (within 20 % of their
   // candidate's best variant there); the others cannot be the candidate's best.
@@ -396,8 +401,10 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     for (std::size_t i = 0; i < jobs.size(); ++i) {
       VariantFit& j = jobs[i];
       if (j.refined || !std::isfinite(j.rss_coarse)) continue;
-      if (j.rss_coarse <= kCompetitive * best_coarse[j.candidate]) todo.push_back(i);
-      else j.note = "another variant of this effect fits clearly better";
+      if (j.rss_coarse <= kCompetitive * best_coarse[j.candidate])
+        todo.push_back(i);
+      else
+        j.note = "another variant of this effect fits clearly better";
     }
     parallel_for(todo.size(), ctx.threads,
                  [&](std::size_t i) { evaluate_full(ctx, current, *pool[jobs[todo[i]].candidate], jobs[todo[i]]); });
@@ -509,8 +516,9 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
       Round done;
       done.rss_before_pa2 = path.rss;
       done.fit_before_pct = fit_percent(path.rss, su.spread, su.ctx.full.size());
-      done.note = "the model is at the noise floor (RSS within 3 % of N sigma^2): no candidate can remove 5 % of the "
-                  "noise power, so none is fitted";
+      done.note =
+          "the model is at the noise floor (RSS within 3 % of N sigma^2): no candidate can remove 5 % of the "
+          "noise power, so none is fitted";
       path.rounds.push_back(std::move(done));
       return;
     }
@@ -620,11 +628,11 @@ void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, s
     const Variant& current = cand.variants[chosen.variant];
     for (std::size_t vi = 0; vi < cand.variants.size(); ++vi) {
       const Variant& simpler = cand.variants[vi];
-      const bool nested = vi != chosen.variant && simpler.params.size() < current.params.size() &&
-                          std::all_of(simpler.params.begin(), simpler.params.end(), [&](const FreeParam& p) {
-                            return std::any_of(current.params.begin(), current.params.end(),
-                                               [&](const FreeParam& q) { return same(p, q); });
-                          });
+      const bool nested =
+          vi != chosen.variant && simpler.params.size() < current.params.size() &&
+          std::all_of(simpler.params.begin(), simpler.params.end(), [&](const FreeParam& p) {
+            return std::any_of(current.params.begin(), current.params.end(), [&](const FreeParam& q) { return same(p, q); });
+          });
       if (!nested) continue;
       // The simpler variant starts from the chosen one's values of the parameters they share.
       VariantFit f;
@@ -711,7 +719,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
       d.not_identifiable.push_back(
           {c.name, std::string("the file has the motor encoder, which the replay uses in place of the motor model: "
                                "whatever happens between the command and the motor never reaches the predicted "
-                               "pressure.") + seen});
+                               "pressure.") +
+                       seen});
     } else {
       pool.push_back(&c);
     }
@@ -740,8 +749,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
       p.rounds.back().added = first.earning[b].cand->name;
       p.added.push_back(first.earning[b]);
       if (s.progress) {
-        std::fprintf(stderr, "diagnose: round 1: %s %s (%.1f s)\n", b == 0 ? "adds" : "also tries", first.earning[b].cand->name.c_str(),
-                     std::chrono::duration<double>(Clock::now() - t_start).count());
+        std::fprintf(stderr, "diagnose: round 1: %s %s (%.1f s)\n", b == 0 ? "adds" : "also tries",
+                     first.earning[b].cand->name.c_str(), std::chrono::duration<double>(Clock::now() - t_start).count());
       }
       continue_path(su, base0, pool, p, s.max_rounds, d.evaluations);
       const bool done = p.rss <= kFloorTolerance * su.noise_rss;
@@ -789,7 +798,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     for (const auto& rd : d.rounds) {
       if (rd.added != c.effect) continue;
       for (const auto& r : rd.ranking) {
-        if (r.effect == c.effect) c.fit_before_pct = r.fit_before_pct, c.delta_bic = r.delta_bic, c.excess_explained = r.excess_explained;
+        if (r.effect == c.effect)
+          c.fit_before_pct = r.fit_before_pct, c.delta_bic = r.delta_bic, c.excess_explained = r.excess_explained;
       }
     }
     d.added.push_back(c);
@@ -841,20 +851,19 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
 
   // The verdict in words.
   auto& out = d.summary;
-  const std::string fit_line = "Fit " + text::fixed(d.fit_before_pct, 2) + " % -> " + text::fixed(d.fit_after_pct, 2) +
-                               " % (noise floor " + text::fixed(d.noise_floor_fit_pct, 2) + " %); RMSE " +
-                               text::num(d.rmse_before_pa / units::kPaPerKpa, 3) + " -> " +
-                               text::num(d.rmse_after_pa / units::kPaPerKpa, 3) + " kPa (noise " +
-                               text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) + " kPa)" +
-                               (files.size() > 1 ? ", over all " + std::to_string(files.size()) + " files." : ".");
+  const std::string fit_line =
+      "Fit " + text::fixed(d.fit_before_pct, 2) + " % -> " + text::fixed(d.fit_after_pct, 2) + " % (noise floor " +
+      text::fixed(d.noise_floor_fit_pct, 2) + " %); RMSE " + text::num(d.rmse_before_pa / units::kPaPerKpa, 3) + " -> " +
+      text::num(d.rmse_after_pa / units::kPaPerKpa, 3) + " kPa (noise " + text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) +
+      " kPa)" + (files.size() > 1 ? ", over all " + std::to_string(files.size()) + " files." : ".");
   // Several files: say what was shared, and how each file ends.
   auto per_file = [&](bool after) {
     if (files.size() < 2) return;
     std::string line = "Per file:";
     for (std::size_t i = 0; i < d.files.size(); ++i) {
       const ResidualReport& r = after ? d.files[i].after : d.files[i].before;
-      line += (i ? "; " : " ") + std::string("file ") + std::to_string(i + 1) + " " + text::fixed(r.fit_pct, 2) +
-              " % (floor " + text::fixed(r.noise_floor_fit_pct, 2) + " %)";
+      line += (i ? "; " : " ") + std::string("file ") + std::to_string(i + 1) + " " + text::fixed(r.fit_pct, 2) + " % (floor " +
+              text::fixed(r.noise_floor_fit_pct, 2) + " %)";
     }
     out.push_back(line + ".");
   };
@@ -873,20 +882,21 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
           if (p.file >= 0)
             per_file_list += (per_file_list.empty() ? "" : ", ") + p.key + " (file " + std::to_string(p.file + 1) + ", " +
                              text::num(p.value, 4) + " s after its first row)";
-      out.push_back("Fitted to " + std::to_string(files.size()) + " files of one rig together (in the order they were run): " +
-                    (per_file_list.empty()
-                         ? std::string("every parameter above is shared by all of them")
-                         : "every parameter above is shared by all of them except the step time, which is per file: " +
-                               per_file_list + "; the files before it have the gap before the step, the files after "
-                               "it the gap after the step") +
-                    "; erosion and drifts count from each file's first row.");
+      out.push_back(
+          "Fitted to " + std::to_string(files.size()) + " files of one rig together (in the order they were run): " +
+          (per_file_list.empty()
+               ? std::string("every parameter above is shared by all of them")
+               : "every parameter above is shared by all of them except the step time, which is per file: " + per_file_list +
+                     "; the files before it have the gap before the step, the files after "
+                     "it the gap after the step") +
+          "; erosion and drifts count from each file's first row.");
     }
     out.push_back(fit_line);
     per_file(true);
     for (const auto& c : d.correlations) {
       if (!c.indistinguishable) continue;
-      out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a +
-                    " and " + c.key_b + " correlate at " + text::num(c.rho, 3) +
+      out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a + " and " +
+                    c.key_b + " correlate at " + text::num(c.rho, 3) +
                     " in the joint fit and neither is pinned to 10 % of its change (a change of one is largely undone "
                     "by the other); a run with other motion or pressure levels separates them.");
     }
@@ -902,7 +912,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
       out.push_back("Partly explained: each effect above earned its place, but the residual is still " +
                     text::num(d.rmse_after_pa / d.noise_sigma_pa, 3) +
                     " times the noise, so something else is missing, and the effects found may stand in for it. "
-                    "What remains: " + remains);
+                    "What remains: " +
+                    remains);
     }
   } else if (at_noise_floor(d.rmse_before_pa, d.noise_sigma_pa)) {
     d.verdict = "nothing_missing";
@@ -912,8 +923,9 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     per_file(false);
   } else {
     d.verdict = "unexplained";
-    out.push_back("No candidate explains the residual: none earns its place, so none is named. The missing effect is "
-                  "something else; its signature:");
+    out.push_back(
+        "No candidate explains the residual: none earns its place, so none is named. The missing effect is "
+        "something else; its signature:");
     for (std::size_t i = 0; i < d.files.size(); ++i) {
       if (files.size() > 1) out.push_back("File " + std::to_string(i + 1) + ":");
       for (const auto& line : d.files[i].before.signature) out.push_back(line);

@@ -137,13 +137,15 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["rounds"] = rounds;
   nlohmann::json paths = nlohmann::json::array();
   for (const auto& p : d.paths)
-    paths.push_back({{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)},
-                     {"chosen", p.chosen}});
+    paths.push_back(
+        {{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)}, {"chosen", p.chosen}});
   j["paths_followed"] = paths;
   j["revisions"] = d.revisions;
   nlohmann::json corr = nlohmann::json::array();
   for (const auto& c : d.correlations) {
-    corr.push_back({{"a", c.effect_a + "." + c.key_a}, {"b", c.effect_b + "." + c.key_b}, {"rho", c.rho},
+    corr.push_back({{"a", c.effect_a + "." + c.key_a},
+                    {"b", c.effect_b + "." + c.key_b},
+                    {"rho", c.rho},
                     {"indistinguishable", c.indistinguishable}});
   }
   j["parameter_correlations"] = corr;
@@ -160,8 +162,9 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["before"]["regimes"] = detail::residual_to_json(d.before)["regimes"];
   j["after"]["regimes"] = detail::residual_to_json(d.after)["regimes"];
   j["method"] = {{"coarse_decimation", d.decimation},
-                 {"criterion", "dBIC = N_eff ln(RSS_c/RSS_model) + k ln(N_eff); earns its place if dBIC < -10, it "
-                               "removes >= 25 % of the excess error power over N sigma^2 and >= 5 % of N sigma^2"},
+                 {"criterion",
+                  "dBIC = N_eff ln(RSS_c/RSS_model) + k ln(N_eff); earns its place if dBIC < -10, it "
+                  "removes >= 25 % of the excess error power over N sigma^2 and >= 5 % of N sigma^2"},
                  {"replays", d.evaluations},
                  {"wall_s", d.wall_s}};
   return j.dump(2) + "\n";
@@ -204,10 +207,12 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
   }
   const auto& b = f.before.series;
   const auto& a = f.after.series;
-  std::vector<Series> overlay = {Series{.name = "measured", .x = b.measured_mpa.t_s, .y = b.measured_mpa.value, .color = "#1f77b4"},
-                                 Series{.name = "model before", .x = b.model_mpa.t_s, .y = b.model_mpa.value, .color = "#d62728"}};
+  std::vector<Series> overlay = {
+      Series{.name = "measured", .x = b.measured_mpa.t_s, .y = b.measured_mpa.value, .color = "#1f77b4"},
+      Series{.name = "model before", .x = b.model_mpa.t_s, .y = b.model_mpa.value, .color = "#d62728"}};
   if (d.explained)
-    overlay.push_back(Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
+    overlay.push_back(
+        Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
   std::vector<report::Band> bands;
   for (const auto& span : f.before.failing) bands.push_back({span.first, span.second, "model before fails", ""});
   // Change points of the residual before (where in time something changed), as in compare's report.
@@ -215,17 +220,28 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
   for (const double t : f.before.change_points_s)
     bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
   doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
-                    .x_label = "time [s]", .y_label = "pressure [MPa]", .series = overlay, .bands = bands,
-                    .group = group, .height_px = 300});
-  std::vector<Series> residuals = {Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
+                    .x_label = "time [s]",
+                    .y_label = "pressure [MPa]",
+                    .series = overlay,
+                    .bands = bands,
+                    .group = group,
+                    .height_px = 300});
+  std::vector<Series> residuals = {
+      Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
   if (d.explained)
     residuals.push_back(Series{.name = "residual after", .x = a.residual_kpa.t_s, .y = a.residual_kpa.value, .color = "#2ca02c"});
   const double s3 = 3 * f.before.noise_sigma_pa / kKpa;
-  doc.figure(Figure{.title = "Residual before and after", .x_label = "time [s]", .y_label = "residual [kPa]",
-                    .series = residuals, .bands = bands, .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
-                    .group = group, .height_px = 240});
+  doc.figure(Figure{.title = "Residual before and after",
+                    .x_label = "time [s]",
+                    .y_label = "residual [kPa]",
+                    .series = residuals,
+                    .bands = bands,
+                    .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
+                    .group = group,
+                    .height_px = 240});
   {
-    report::Bars bars{.title = "RMS error by regime, before and after", .y_label = "RMS error [kPa]", .categories = {}, .groups = {}};
+    report::Bars bars{
+        .title = "RMS error by regime, before and after", .y_label = "RMS error [kPa]", .categories = {}, .groups = {}};
     std::vector<double> before, after;
     for (std::size_t i = 0; i < f.before.regimes.size(); ++i) {
       bars.categories.push_back(f.before.regimes[i].name);
@@ -235,7 +251,6 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
     bars.groups = {{"before", before}, {"after", after}};
     doc.bars(bars);
   }
-
 }
 
 }  // namespace
@@ -270,7 +285,8 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
   if (d.explained) {
     for (std::size_t i = 0; i < d.files.size(); ++i) {
       const std::string name = i < data_files.size() ? data_files[i].filename().string() : std::to_string(i + 1);
-      add_before_after(doc, d, d.files[i], several ? "Before and after: file " + std::to_string(i + 1) + ", " + name : "Before and after",
+      add_before_after(doc, d, d.files[i],
+                       several ? "Before and after: file " + std::to_string(i + 1) + ", " + name : "Before and after",
                        several ? "time" + std::to_string(i + 1) : "time");
     }
   }
@@ -303,14 +319,17 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
               rows);
     if (ri == 0) {
       doc.bars(report::Bars{.title = "Round 1: share of the excess error (above the noise) each candidate explains",
-                            .y_label = "excess explained [%]", .categories = cats, .groups = {{"explained", explained}},
+                            .y_label = "excess explained [%]",
+                            .categories = cats,
+                            .groups = {{"explained", explained}},
                             .height_px = 220});
     }
   }
   if (d.paths.size() > 1) {
     doc.heading("Paths followed", 3);
-    doc.paragraph("The best single effect did not reach the noise floor, so the search followed the top first choices "
-                  "that earn their place, each greedily, and kept the path with the lowest BIC.");
+    doc.paragraph(
+        "The best single effect did not reach the noise floor, so the search followed the top first choices "
+        "that earn their place, each greedily, and kept the path with the lowest BIC.");
     std::vector<std::vector<std::string>> rows;
     for (const auto& p : d.paths)
       rows.push_back({text::join(p.effects, " + "), text::fixed(p.fit_pct, 2), text::num(p.bic, 4), p.chosen ? "chosen" : ""});
@@ -324,7 +343,8 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
   }
   for (std::size_t i = 0; i < d.files.size(); ++i) {
     const std::string which = several ? ": file " + std::to_string(i + 1) : "";
-    doc.heading((d.explained ? "Where the fitted model still differs" : "Where the model fails (the residual's signature)") + which);
+    doc.heading((d.explained ? "Where the fitted model still differs" : "Where the model fails (the residual's signature)") +
+                which);
     const ResidualReport& last = d.explained ? d.files[i].after : d.files[i].before;
     doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
     add_residual_sections(doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model");
@@ -363,8 +383,8 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
     if (!d.rounds.empty()) {
       std::printf("  round 1 ranking         variant              fit after  dBIC        earns\n");
       for (const auto& c : d.rounds.front().ranking) {
-        std::printf("  %-22s %-20s %8.2f %% %11.4g  %s\n", c.effect.c_str(), c.variant.c_str(), c.fit_after_pct,
-                    c.delta_bic, c.earns_place ? "yes" : "no");
+        std::printf("  %-22s %-20s %8.2f %% %11.4g  %s\n", c.effect.c_str(), c.variant.c_str(), c.fit_after_pct, c.delta_bic,
+                    c.earns_place ? "yes" : "no");
       }
     }
     for (const auto& n : d.not_identifiable) std::printf("  not identifiable with the encoder: %s\n", n.effect.c_str());

@@ -35,8 +35,12 @@ nlohmann::json numbers(const std::vector<double>& v, double scale = 1) {
 nlohmann::json binned_json(const Binned& b) {
   nlohmann::json samples = nlohmann::json::array();
   for (auto s : b.samples) samples.push_back(s);
-  return {{"quantity", b.quantity}, {"unit", b.unit}, {"x", numbers(b.x)}, {"mean_kpa", numbers(b.mean_pa, 1 / kKpa)},
-          {"rms_kpa", numbers(b.rms_pa, 1 / kKpa)}, {"samples", samples}};
+  return {{"quantity", b.quantity},
+          {"unit", b.unit},
+          {"x", numbers(b.x)},
+          {"mean_kpa", numbers(b.mean_pa, 1 / kKpa)},
+          {"rms_kpa", numbers(b.rms_pa, 1 / kKpa)},
+          {"samples", samples}};
 }
 
 }  // namespace
@@ -69,9 +73,13 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
   j["regimes"] = regimes;
   nlohmann::json windows = nlohmann::json::array();
   for (const auto& w : r.windows) {
-    windows.push_back({{"t0_s", number(w.t0_s)}, {"t1_s", number(w.t1_s)}, {"rmse_kpa", number(w.error.rmse_pa / kKpa)},
-                       {"bias_kpa", number(w.error.bias_pa / kKpa)}, {"max_abs_kpa", number(w.error.max_abs_pa / kKpa)},
-                       {"samples", w.error.samples}, {"motion", w.regime}});
+    windows.push_back({{"t0_s", number(w.t0_s)},
+                       {"t1_s", number(w.t1_s)},
+                       {"rmse_kpa", number(w.error.rmse_pa / kKpa)},
+                       {"bias_kpa", number(w.error.bias_pa / kKpa)},
+                       {"max_abs_kpa", number(w.error.max_abs_pa / kKpa)},
+                       {"samples", w.error.samples},
+                       {"motion", w.regime}});
   }
   nlohmann::json worst = nlohmann::json::array();
   for (auto i : r.worst) worst.push_back(windows[i]);
@@ -82,8 +90,10 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
   j["failing_spans"] = failing;
   nlohmann::json segments = nlohmann::json::array();
   for (const auto& g : r.segments)
-    segments.push_back({{"t0_s", number(g.t0_s)}, {"t1_s", number(g.t1_s)}, {"rmse_kpa", number(g.rmse_pa / kKpa)},
-                         {"at_noise_floor", g.at_floor}});
+    segments.push_back({{"t0_s", number(g.t0_s)},
+                        {"t1_s", number(g.t1_s)},
+                        {"rmse_kpa", number(g.rmse_pa / kKpa)},
+                        {"at_noise_floor", g.at_floor}});
   j["segments"] = segments;
   j["change_points_s"] = r.change_points_s;
   j["reversals"] = r.reversals;
@@ -91,26 +101,36 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
   const Diagnostics& d = r.diagnostics;
   nlohmann::json peaks = nlohmann::json::array();
   for (const auto& p : d.peaks) peaks.push_back({{"hz", p.hz}, {"power_share", p.power_share}, {"name", p.name}});
-  j["diagnostics"] = {
-      {"sample_period_s", d.dt_s},
-      {"whiteness",
-       {{"white", d.white}, {"bound_99", number(d.acf_bound)}, {"share_of_lags_outside", number(d.acf_outside_share)},
-        {"correlation_time_s", number(d.tau_int_samples * d.dt_s)}, {"effective_samples", number(d.n_eff)},
-        {"lag_s", numbers(d.acf_lag_s)}, {"acf", numbers(d.acf)}}},
-      {"input_correlation",
-       {{"input", "drive-angle increments (encoder if logged, else command)"},
-        {"correlated", d.input_correlated}, {"bound_99", number(d.xcf_bound)}, {"max_abs", number(d.xcf_max_abs)},
-        {"lag_at_max_s", number(d.xcf_max_lag_s)}, {"lag_s", numbers(d.xcf_lag_s)}, {"xcf", numbers(d.xcf)}}},
-      {"spectrum",
-       {{"hz", numbers(d.psd_hz)}, {"psd_kpa2_per_hz", numbers(d.psd_kpa2_per_hz)}, {"peaks", peaks},
-        {"low_frequency_share", number(d.low_frequency_share)}}},
-      {"after_reversal",
-       {{"t_since_s", numbers(d.since_reversal_s)}, {"into_opening_mean_kpa", numbers(d.after_opening_mean_pa, 1 / kKpa)},
-        {"into_closing_mean_kpa", numbers(d.after_closing_mean_pa, 1 / kKpa)}}},
-      {"vs_time", binned_json(d.vs_time)},
-      {"vs_burned_mass", binned_json(d.vs_burned)},
-      {"vs_dpdt", binned_json(d.vs_dpdt)},
-      {"vs_pressure", binned_json(d.vs_pressure)}};
+  j["diagnostics"] = {{"sample_period_s", d.dt_s},
+                      {"whiteness",
+                       {{"white", d.white},
+                        {"bound_99", number(d.acf_bound)},
+                        {"share_of_lags_outside", number(d.acf_outside_share)},
+                        {"correlation_time_s", number(d.tau_int_samples * d.dt_s)},
+                        {"effective_samples", number(d.n_eff)},
+                        {"lag_s", numbers(d.acf_lag_s)},
+                        {"acf", numbers(d.acf)}}},
+                      {"input_correlation",
+                       {{"input", "drive-angle increments (encoder if logged, else command)"},
+                        {"correlated", d.input_correlated},
+                        {"bound_99", number(d.xcf_bound)},
+                        {"max_abs", number(d.xcf_max_abs)},
+                        {"lag_at_max_s", number(d.xcf_max_lag_s)},
+                        {"lag_s", numbers(d.xcf_lag_s)},
+                        {"xcf", numbers(d.xcf)}}},
+                      {"spectrum",
+                       {{"hz", numbers(d.psd_hz)},
+                        {"psd_kpa2_per_hz", numbers(d.psd_kpa2_per_hz)},
+                        {"peaks", peaks},
+                        {"low_frequency_share", number(d.low_frequency_share)}}},
+                      {"after_reversal",
+                       {{"t_since_s", numbers(d.since_reversal_s)},
+                        {"into_opening_mean_kpa", numbers(d.after_opening_mean_pa, 1 / kKpa)},
+                        {"into_closing_mean_kpa", numbers(d.after_closing_mean_pa, 1 / kKpa)}}},
+                      {"vs_time", binned_json(d.vs_time)},
+                      {"vs_burned_mass", binned_json(d.vs_burned)},
+                      {"vs_dpdt", binned_json(d.vs_dpdt)},
+                      {"vs_pressure", binned_json(d.vs_pressure)}};
   j["signature"] = r.signature;
   if (r.motor.present) {
     j["motor_channel"] = {{"what", "encoder - drive model fed with the command (the pressure replay uses the encoder)"},
@@ -124,12 +144,11 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
 }
 
 void add_summary_table(report::Document& doc, const ResidualReport& r) {
-  doc.table({"fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "at [s]", "bias [kPa]", "noise sigma [kPa]",
-             "rows", "duration [s]"},
+  doc.table({"fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "at [s]", "bias [kPa]", "noise sigma [kPa]", "rows",
+             "duration [s]"},
             {{text::fixed(r.fit_pct, 2), text::fixed(r.noise_floor_fit_pct, 2), text::num(r.error.rmse_pa / kKpa, 4),
-              text::num(r.error.max_abs_pa / kKpa, 4), text::num(r.error.t_at_max_s, 5),
-              text::num(r.error.bias_pa / kKpa, 3), text::num(r.noise_sigma_pa / kKpa, 3), std::to_string(r.rows),
-              text::num(r.duration_s, 5)}});
+              text::num(r.error.max_abs_pa / kKpa, 4), text::num(r.error.t_at_max_s, 5), text::num(r.error.bias_pa / kKpa, 3),
+              text::num(r.noise_sigma_pa / kKpa, 3), std::to_string(r.rows), text::num(r.duration_s, 5)}});
 }
 
 std::string summary_text(const ResidualReport& r, const std::string& model_name) {

@@ -53,8 +53,7 @@ void MeasurementRows::append(const MeasurementRows& o) {
   cat(p_ref_pa, o.p_ref_pa);
 }
 
-MeasurementReader::MeasurementReader(const std::filesystem::path& file)
-    : file_(file), reader_(file, measurement_request()) {
+MeasurementReader::MeasurementReader(const std::filesystem::path& file) : file_(file), reader_(file, measurement_request()) {
   has_encoder_ = reader_.header().present[3];
   has_reference_ = reader_.header().present[4];
 }
@@ -107,8 +106,8 @@ void MeasurementReader::check_rows(const CsvChunk& c) {
       if (values.empty()) continue;
       const double a = values[r];
       if (std::abs(a) > L::kMaxAngleDeg) {
-        std::snprintf(b, sizeof b, "%.6g deg is more than a turn from zero (the valve travels 0-30 deg; at most +-%.0f deg)",
-                      a, L::kMaxAngleDeg);
+        std::snprintf(b, sizeof b, "%.6g deg is more than a turn from zero (the valve travels 0-30 deg; at most +-%.0f deg)", a,
+                      L::kMaxAngleDeg);
         fail_at(line, telemetry::name(angle), b);
       }
     }

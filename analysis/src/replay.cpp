@@ -38,9 +38,7 @@ double ReplayData::span_s(std::size_t i) const {
   return e > b ? t_s[e - 1] - t_s[b] : 0.0;
 }
 
-bool is_event_time(std::string_view effect, std::string_view key) {
-  return effect == "backlash_change" && key == "step_time_s";
-}
+bool is_event_time(std::string_view effect, std::string_view key) { return effect == "backlash_change" && key == "step_time_s"; }
 
 plant::Plant segment_model(const plant::Plant& model, const ReplayData& data, std::size_t i) {
   if (data.segments.size() < 2) return model;
@@ -75,9 +73,8 @@ ReplayData replay_data(const std::vector<const Measurement*>& files) {
     if (r.theta_motor_rad.empty() == enc)
       throw std::invalid_argument("replay_data: files with and without the encoder column cannot be replayed together");
     const std::size_t b = d.size();
-    const double offset = d.segments.empty() ? 0.0
-                                             : d.segments.back().clock_offset_s + d.span_s(d.segments.size() - 1) +
-                                                   ReplayData::kRunPauseS;
+    const double offset =
+        d.segments.empty() ? 0.0 : d.segments.back().clock_offset_s + d.span_s(d.segments.size() - 1) + ReplayData::kRunPauseS;
     d.segments.push_back({b, estimate_start(r), offset});
     d.t_s.insert(d.t_s.end(), r.t_s.begin(), r.t_s.end());
     d.y_pa.insert(d.y_pa.end(), r.p_meas_pa.begin(), r.p_meas_pa.end());

@@ -22,18 +22,18 @@ using cplx = std::complex<double>;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // --- tunables, each with its reason -------------------------------------------------------------
-constexpr double kVelocityWindowS = 0.010;       // drive velocity over 10 ms: smooths encoder steps
-constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
-constexpr double kReversalHysteresisRad = 0.1 * units::kRadPerDeg; // a reversal retreats > 0.1 deg
-constexpr double kAfterReversalS = 0.5;          // "the first 0.5 s after each reversal": where backlash shows
-constexpr double kLockedSpanS = 1.0, kLockedBinS = 0.01;  // event-locked residual after reversals
-constexpr std::size_t kMaxWindows = 512;         // time windows merge pairwise beyond this
-constexpr std::size_t kBlock = 16384;            // correlation block (zero-padded to 2x)
-constexpr std::size_t kMaxLag = 1000;            // correlation lags kept
-constexpr std::size_t kWhitenessLags = 200;      // lags 1..200 tested against the 99 % bounds
+constexpr double kVelocityWindowS = 0.010;                          // drive velocity over 10 ms: smooths encoder steps
+constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;    // 0.5 deg/s: noise creep is slower
+constexpr double kReversalHysteresisRad = 0.1 * units::kRadPerDeg;  // a reversal retreats > 0.1 deg
+constexpr double kAfterReversalS = 0.5;                             // "the first 0.5 s after each reversal": where backlash shows
+constexpr double kLockedSpanS = 1.0, kLockedBinS = 0.01;            // event-locked residual after reversals
+constexpr std::size_t kMaxWindows = 512;                            // time windows merge pairwise beyond this
+constexpr std::size_t kBlock = 16384;                               // correlation block (zero-padded to 2x)
+constexpr std::size_t kMaxLag = 1000;                               // correlation lags kept
+constexpr std::size_t kWhitenessLags = 200;                         // lags 1..200 tested against the 99 % bounds
 constexpr double kZ99 = 2.576;
 constexpr std::size_t kPressureBins = 256;
-constexpr double kDpdtScalePaS = 5e4;            // asinh bins of dp/dt around 0.05 MPa/s
+constexpr double kDpdtScalePaS = 5e4;  // asinh bins of dp/dt around 0.05 MPa/s
 constexpr double kDpdtBinWidth = 0.5;
 constexpr int kDpdtBins = 40;
 constexpr std::size_t kSeriesBuckets = 4000;
@@ -123,7 +123,7 @@ class LogHistogram {
  private:
   static constexpr double kLo = 1e-3;  // Pa
   static constexpr double kPerDecade = 100;
-  static constexpr int kBins = 1000;   // 1e-3 .. 1e7 Pa
+  static constexpr int kBins = 1000;  // 1e-3 .. 1e7 Pa
   std::array<std::size_t, kBins> bins_{};
   std::size_t zero_ = 0, total_ = 0;
 };
@@ -158,7 +158,8 @@ class SecondDifferenceNoise {
       char b[200];
       std::snprintf(b, sizeof b,
                     "1.4826 * median|second difference of p_meas| / sqrt(6), the median read as grouped data of a "
-                    "reading quantised in %.4g kPa steps", q / units::kPaPerKpa);
+                    "reading quantised in %.4g kPa steps",
+                    q / units::kPaPerKpa);
       return b;
     }
     if (hist_.median() > 0) return "1.4826 * median|second difference of p_meas| / sqrt(6)";
@@ -294,9 +295,9 @@ struct ResidualAnalyzer::Impl {
   // Motion classification (from the drive angle).
   std::array<std::pair<double, double>, 64> ring{};
   std::size_t ring_n = 0, ring_head = 0;
-  int dir = 0;             // hysteresis direction: +1 opening, -1 closing, 0 not yet moved
+  int dir = 0;  // hysteresis direction: +1 opening, -1 closing, 0 not yet moved
   double ext = 0, amin = 0, amax = 0;
-  double ext_t = 0;        // time of the extreme `ext`
+  double ext_t = 0;  // time of the extreme `ext`
   double last_rev_t = -1e300;
   std::vector<std::pair<double, double>> recent = std::vector<std::pair<double, double>>(4096);  // (t, e)
   std::size_t recent_head = 0, recent_n = 0;
@@ -376,8 +377,10 @@ struct ResidualAnalyzer::Impl {
     if (dir == 0) {
       amin = std::min(amin, a);
       amax = std::max(amax, a);
-      if (a - amin > kReversalHysteresisRad) dir = +1, ext = a, ext_t = t;
-      else if (amax - a > kReversalHysteresisRad) dir = -1, ext = a, ext_t = t;
+      if (a - amin > kReversalHysteresisRad)
+        dir = +1, ext = a, ext_t = t;
+      else if (amax - a > kReversalHysteresisRad)
+        dir = -1, ext = a, ext_t = t;
     } else if (dir > 0) {
       if (a >= ext) ext = a, ext_t = t;
       if (a < ext - kReversalHysteresisRad) reversal(-1, a, t);
@@ -415,8 +418,10 @@ struct ResidualAnalyzer::Impl {
     constexpr double h = 1e3;  // 1 kPa
     if (ref_dir == 0) {
       if (n == 0) ref_ext = p;
-      if (p > ref_ext + h) ref_dir = +1, ref_ext = p;
-      else if (p < ref_ext - h) ref_dir = -1, ref_ext = p;
+      if (p > ref_ext + h)
+        ref_dir = +1, ref_ext = p;
+      else if (p < ref_ext - h)
+        ref_dir = -1, ref_ext = p;
     } else if (ref_dir > 0) {
       ref_ext = std::max(ref_ext, p);
       if (p < ref_ext - h) ref_dir = -1, ref_ext = p, ++ref_reversals;
@@ -469,7 +474,7 @@ struct ResidualAnalyzer::Impl {
     for (std::size_t l = 0; l <= lags; ++l) {
       acc_ee[l] += auto_spec[l].real();
       acc_uu[l] += auto_spec[l].imag();
-      acc_ue[kMaxLag + l] += cross[l].real();                   // sum u(k) e(k + l)
+      acc_ue[kMaxLag + l] += cross[l].real();                    // sum u(k) e(k + l)
       if (l > 0) acc_ue[kMaxLag - l] += cross[nfft - l].real();  // sum u(k) e(k - l)
     }
     corr_n += m;
@@ -595,7 +600,8 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   regime("holding", "drive still (|velocity| < 0.5 deg/s over 10 ms)", motion[0]);
   regime("opening", "drive opening the valve (velocity > +0.5 deg/s)", motion[1]);
   regime("closing", "drive closing the valve (velocity < -0.5 deg/s)", motion[2]);
-  regime("after_reversal", "first 0.5 s after the drive reverses (from its turning point; a reversal retreats > 0.1 deg)", after_rev);
+  regime("after_reversal", "first 0.5 s after the drive reverses (from its turning point; a reversal retreats > 0.1 deg)",
+         after_rev);
   // Low/high pressure: split at the median measured pressure (from the fine histogram).
   {
     Acc lo, hi;
@@ -680,8 +686,7 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   }
   r.reversals = reversals;
   r.motion_cycle_hz = r.duration_s > 0 && reversals >= 2 ? static_cast<double>(reversals) / (2 * r.duration_s) : 0;
-  r.reference_cycle_hz =
-      r.duration_s > 0 && ref_reversals >= 2 ? static_cast<double>(ref_reversals) / (2 * r.duration_s) : 0;
+  r.reference_cycle_hz = r.duration_s > 0 && ref_reversals >= 2 ? static_cast<double>(ref_reversals) / (2 * r.duration_s) : 0;
 
   finish_diagnostics(r);
   find_segments(r);
@@ -880,14 +885,16 @@ void ResidualAnalyzer::Impl::name_peaks(ResidualReport& r) {
       pk.name = fmt("harmonic %.0f of the motion cycle (%.3g Hz: the drive reverses every %.3g s on average)", h,
                     r.motion_cycle_hz, 0.5 / r.motion_cycle_hz);
     } else if (driven) {
-      pk.name = fmt("periodic component at %.3g Hz (period %.3g s), not in the reference; the drive moves at this "
-                    "frequency too (the controller chasing it): an oscillation the model lacks (combustion, structure, "
-                    "a disturbance), or a limit cycle",
-                    pk.hz, 1.0 / pk.hz);
+      pk.name =
+          fmt("periodic component at %.3g Hz (period %.3g s), not in the reference; the drive moves at this "
+              "frequency too (the controller chasing it): an oscillation the model lacks (combustion, structure, "
+              "a disturbance), or a limit cycle",
+              pk.hz, 1.0 / pk.hz);
     } else {
-      pk.name = fmt("periodic component at %.3g Hz (period %.3g s) that no input carries: an oscillation the model "
-                    "lacks (combustion, structure, a disturbance)",
-                    pk.hz, 1.0 / pk.hz);
+      pk.name =
+          fmt("periodic component at %.3g Hz (period %.3g s) that no input carries: an oscillation the model "
+              "lacks (combustion, structure, a disturbance)",
+              pk.hz, 1.0 / pk.hz);
     }
     d.peaks.push_back(pk);
   }
@@ -980,8 +987,8 @@ std::string confinement_sentence(const ResidualReport& r) {
     for (const auto& x : g)
       if (!x.at_floor) bad = &x;
     return fmt("The error is confined to %.3g-%.3g s", bad->t0_s, bad->t1_s) +
-           fmt(" (RMS %.3g kPa there); before and after it is at the noise floor: something changed at %.3g s", bad->rmse_pa / kpa,
-               bad->t0_s) +
+           fmt(" (RMS %.3g kPa there); before and after it is at the noise floor: something changed at %.3g s",
+               bad->rmse_pa / kpa, bad->t0_s) +
            fmt(" and recovered at %.3g s.", bad->t1_s);
   }
   if (failing == 1 && last_bad) {
@@ -991,9 +998,10 @@ std::string confinement_sentence(const ResidualReport& r) {
            " and did not recover before the end of the file.";
   }
   if (failing == 1 && first_bad) {
-    return fmt("The error is confined to the start of the run, up to %.3g s (RMS %.3g kPa); after it the model is at the "
-               "noise floor.",
-               g.front().t1_s, g.front().rmse_pa / kpa);
+    return fmt(
+        "The error is confined to the start of the run, up to %.3g s (RMS %.3g kPa); after it the model is at the "
+        "noise floor.",
+        g.front().t1_s, g.front().rmse_pa / kpa);
   }
   return "The error comes and goes: above the noise in " + spans + "; at the noise floor in between.";
 }
@@ -1008,12 +1016,12 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   if (at_noise_floor(rmse, sigma)) {
     out.push_back(fmt("At the noise floor: RMS error %.3g kPa against measurement noise %.3g kPa.", rmse / kpa, sigma / kpa));
   } else {
-    out.push_back(fmt("RMS error %.3g kPa is %.3g times the measurement noise (%.3g kPa).", rmse / kpa, rmse / sigma,
-                      sigma / kpa));
+    out.push_back(
+        fmt("RMS error %.3g kPa is %.3g times the measurement noise (%.3g kPa).", rmse / kpa, rmse / sigma, sigma / kpa));
   }
   if (std::abs(r.error.bias_pa) > 0.5 * rmse && rmse > 1.5 * sigma) {
-    out.push_back(fmt("Mostly a constant offset: bias %+.3g kPa (measured above the model when positive).",
-                      r.error.bias_pa / kpa));
+    out.push_back(
+        fmt("Mostly a constant offset: bias %+.3g kPa (measured above the model when positive).", r.error.bias_pa / kpa));
   }
   // Regimes: the one where the error is largest relative to the whole.
   const Regime* worst = nullptr;
@@ -1041,10 +1049,12 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   const Regime *early = find("early"), *late = find("late");
   if (early && late && rmse > 1.5 * sigma && early->error.samples && late->error.samples) {
     const double ratio = late->error.rmse_pa / std::max(early->error.rmse_pa, 1.0);
-    if (ratio > 1.5) out.push_back(fmt("Grows over the run: RMS %.3g kPa in the first half, %.3g kPa in the second (a drift).",
-                                       early->error.rmse_pa / kpa, late->error.rmse_pa / kpa));
-    else if (ratio < 1 / 1.5) out.push_back(fmt("Shrinks over the run: RMS %.3g kPa in the first half, %.3g kPa in the second.",
-                                                early->error.rmse_pa / kpa, late->error.rmse_pa / kpa));
+    if (ratio > 1.5)
+      out.push_back(fmt("Grows over the run: RMS %.3g kPa in the first half, %.3g kPa in the second (a drift).",
+                        early->error.rmse_pa / kpa, late->error.rmse_pa / kpa));
+    else if (ratio < 1 / 1.5)
+      out.push_back(fmt("Shrinks over the run: RMS %.3g kPa in the first half, %.3g kPa in the second.",
+                        early->error.rmse_pa / kpa, late->error.rmse_pa / kpa));
   }
   const Diagnostics& d = r.diagnostics;
   for (const auto& pk : d.peaks) {
@@ -1074,7 +1084,8 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
                                   : ": the residual follows the drive (the model answers the drive's motion wrongly).";
       }
       out.push_back(fmt("Correlated with the drive motion: peak cross-correlation %.2f at lag %+.0f ms (bound %.2g)",
-                        d.xcf_max_abs, 1e3 * d.xcf_max_lag_s, d.xcf_bound) + why);
+                        d.xcf_max_abs, 1e3 * d.xcf_max_lag_s, d.xcf_bound) +
+                    why);
     } else {
       out.push_back("Not correlated with the drive motion (cross-correlation inside the 99 % bounds).");
     }

@@ -16,8 +16,8 @@
 
 #include "hil/analysis/compare.hpp"
 #include "hil/analysis/diagnose.hpp"
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/config.hpp"
 #include "hil/csv_writer.hpp"
 #include "hil/plant/registry.hpp"
@@ -83,8 +83,8 @@ void bench_compare(const fs::path& dir) {
   o.quiet = true;
   const auto r = hil::analysis::run_compare(o);
   const double wall = seconds_since(t0);
-  std::printf("compare: %zu rows in %.2f s (%.2f M rows/s), fit %.2f %% (floor %.2f %%), peak RSS %ld MB (was %ld MB)\n",
-              r.rows, wall, r.rows / wall / 1e6, r.fit_pct, r.noise_floor_fit_pct, peak_rss_kb() / 1024, rss0 / 1024);
+  std::printf("compare: %zu rows in %.2f s (%.2f M rows/s), fit %.2f %% (floor %.2f %%), peak RSS %ld MB (was %ld MB)\n", r.rows,
+              wall, r.rows / wall / 1e6, r.fit_pct, r.noise_floor_fit_pct, peak_rss_kb() / 1024, rss0 / 1024);
 }
 
 void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& name,
@@ -104,10 +104,11 @@ void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& na
   const double wall = seconds_since(t0);
   std::string found;
   for (const auto& a : d.added) found += (found.empty() ? "" : " + ") + a.effect;
-  std::printf("diagnose %s: %zu rows, %u threads, %.1f s (%d replays, coarse copy 1:%zu), found %s, fit %.2f -> %.2f %% "
-              "(floor %.2f %%), peak RSS %ld MB\n",
-              name.c_str(), d.rows, threads, wall, d.evaluations, d.decimation, found.empty() ? "nothing" : found.c_str(),
-              d.before.fit_pct, d.after.fit_pct, d.noise_floor_fit_pct, peak_rss_kb() / 1024);
+  std::printf(
+      "diagnose %s: %zu rows, %u threads, %.1f s (%d replays, coarse copy 1:%zu), found %s, fit %.2f -> %.2f %% "
+      "(floor %.2f %%), peak RSS %ld MB\n",
+      name.c_str(), d.rows, threads, wall, d.evaluations, d.decimation, found.empty() ? "nothing" : found.c_str(),
+      d.before.fit_pct, d.after.fit_pct, d.noise_floor_fit_pct, peak_rss_kb() / 1024);
 }
 
 }  // namespace
@@ -118,9 +119,12 @@ int main(int argc, char** argv) {
   std::string only;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--keep" && i + 1 < argc) keep = argv[++i];
-    else if (a == "--threads" && i + 1 < argc) threads = static_cast<unsigned>(std::stoul(argv[++i]));
-    else if (a == "--only" && i + 1 < argc) only = argv[++i];
+    if (a == "--keep" && i + 1 < argc)
+      keep = argv[++i];
+    else if (a == "--threads" && i + 1 < argc)
+      threads = static_cast<unsigned>(std::stoul(argv[++i]));
+    else if (a == "--only" && i + 1 < argc)
+      only = argv[++i];
     else {
       std::fprintf(stderr, "usage: bench_analysis [--keep DIR] [--threads N] [--only compare|diagnose|three]\n");
       return 2;
@@ -141,7 +145,8 @@ int main(int argc, char** argv) {
   }
   if (only.empty() || only == "diagnose") {
     bench_diagnose(dir, threads, "no-effect", [](const hil::plant::Plant& p) { return p; });
-    bench_diagnose(dir, threads, "one-effect", [](const hil::plant::Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.03"); });
+    bench_diagnose(dir, threads, "one-effect",
+                   [](const hil::plant::Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.03"); });
     bench_diagnose(dir, threads, "two-effects", [](const hil::plant::Plant& p) {
       return with_block(with_block(p, "valve_offset", "offset_deg: 1.2"), "sensor_lag", "time_constant_s: 0.03");
     });

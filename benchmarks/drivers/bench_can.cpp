@@ -70,8 +70,10 @@ void sync_tpdo_round_trip(int n) {
     const auto t0 = Clock::now();
     [[maybe_unused]] auto w = ::write(s, &sync, sizeof sync);
     can_frame r{};
-    if (::read(s, &r, sizeof r) == sizeof r) rtt.push_back(us_since(t0));
-    else ++lost;
+    if (::read(s, &r, sizeof r) == sizeof r)
+      rtt.push_back(us_since(t0));
+    else
+      ++lost;
   }
   ::close(s);
   bench::print_stats("sync_to_tpdo_rtt (raw master, emulator)", rtt);
@@ -93,8 +95,7 @@ void client_write_to_feedback(int n) {
     const auto seq = client.read(Clock::now(), 1ms).sequence;
     const auto t0 = Clock::now();
     client.write(t0, 1ms, {0.0, true, false});
-    while (client.read(Clock::now(), 1ms).sequence == seq && us_since(t0) < 1e6) {
-    }
+    while (client.read(Clock::now(), 1ms).sequence == seq && us_since(t0) < 1e6) {}
     lat.push_back(us_since(t0));
     std::this_thread::sleep_for(200us);
   }
@@ -158,9 +159,10 @@ double throughput(int n, int rate_fps) {  // returns frames/s achieved, 0 if any
   done = true;
   receiver.join();
   char name[64];
-  std::snprintf(name, sizeof name, "vcan_throughput %s", rate_fps > 0 ? ("paced " + std::to_string(rate_fps) + "/s").c_str() : "unpaced");
-  std::printf("%-40s sent=%d in %.3f s = %.0f frames/s, received=%u, lost=%u (gaps %u, kernel drops %u), tx retries=%u\n",
-              name, n, secs, n / secs, received, static_cast<unsigned>(n) - received, gaps, dropped, send_fail);
+  std::snprintf(name, sizeof name, "vcan_throughput %s",
+                rate_fps > 0 ? ("paced " + std::to_string(rate_fps) + "/s").c_str() : "unpaced");
+  std::printf("%-40s sent=%d in %.3f s = %.0f frames/s, received=%u, lost=%u (gaps %u, kernel drops %u), tx retries=%u\n", name,
+              n, secs, n / secs, received, static_cast<unsigned>(n) - received, gaps, dropped, send_fail);
   std::fflush(stdout);
   ::close(rx);
   ::close(tx);
@@ -177,7 +179,7 @@ int main(int argc, char** argv) {
   throughput(n * 40, 0);
   double best = 0;
   for (int rate : {8000, 16000, 32000, 64000, 128000}) {  // 8000/s is about a saturated 1 Mbit/s bus
-    const double achieved = throughput(rate, rate);      // one second each
+    const double achieved = throughput(rate, rate);       // one second each
     if (achieved == 0) break;
     best = achieved;
   }

@@ -18,14 +18,14 @@
 #include <string>
 #include <thread>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/plant_service.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/plant_service.hpp"
 #include "hil/drv/can_loopback.hpp"
 #include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/modbus_emulator.hpp"
-#include "hil/bench/rig_config.hpp"
-#include "hil/bench/rt_thread.hpp"
-#include "hil/bench/runner.hpp"
+#include "hil/bench/rt/rig_config.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/server/runner.hpp"
 
 using namespace hil::bench;
 
@@ -40,7 +40,8 @@ std::string replace(std::string text, const std::string& from, const std::string
 // The simulator side of the CAN rig, in this process.
 struct CanChain {
   CanChain(const Campaign& c, const std::string& iface, const hil::drv::CanTransportFactory& bus)
-      : raised(std::in_place, 75), plant(config(c)),
+      : raised(std::in_place, 75),
+        plant(config(c)),
         drive(emulator(iface), plant.add_drive(), bus),
         transducer(link(), hil::drv::RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_transducer_map.yaml"),
                    plant.transducer()) {
@@ -71,9 +72,13 @@ struct CanChain {
   // The rig file: configs/rigs/can.yaml's devices on this chain.
   std::string rig_yaml(const std::string& iface) const {
     return "kind: can\ndescription: benchmark\ndevices:\n"
-           "  drive:\n    cia402: {interface: " + iface + ", node_id: 5, units: {counts_per_rev: 131072}}\n"
-           "  transducer:\n    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(transducer.port()) +
-           ", poll_period_ms: 2}, register_map: " HIL_SOURCE_DIR "/drivers/configs/modbus_transducer_map.yaml}\n"
+           "  drive:\n    cia402: {interface: " +
+           iface +
+           ", node_id: 5, units: {counts_per_rev: 131072}}\n"
+           "  transducer:\n    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " +
+           std::to_string(transducer.port()) +
+           ", poll_period_ms: 2}, register_map: " HIL_SOURCE_DIR
+           "/drivers/configs/modbus_transducer_map.yaml}\n"
            "    max_age_ms: 4\n"
            "loop: {priority: 80, cpu: 1, io_priority: 70}\n"
            "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 10000, p_max_mpa: 2.5, p_min_mpa: 0.2,\n"
@@ -95,15 +100,24 @@ int run(int argc, char** argv) {
   std::string can;   // the CAN rig: "loopback" or a SocketCAN interface
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--hz") hz = std::stod(v);
-    else if (a == "--seconds") seconds = std::stod(v);
-    else if (a == "--priority") priority = std::stoi(v);
-    else if (a == "--cpu") cpu = std::stoi(v);
-    else if (a == "--rig") rig_file = v;
-    else if (a == "--keep") keep = v;
-    else if (a == "--can") can = v;
+    if (a == "--hz")
+      hz = std::stod(v);
+    else if (a == "--seconds")
+      seconds = std::stod(v);
+    else if (a == "--priority")
+      priority = std::stoi(v);
+    else if (a == "--cpu")
+      cpu = std::stoi(v);
+    else if (a == "--rig")
+      rig_file = v;
+    else if (a == "--keep")
+      keep = v;
+    else if (a == "--can")
+      can = v;
     else {
-      std::fprintf(stderr, "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR] [--can loopback|IFACE]\n");
+      std::fprintf(stderr,
+                   "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR] [--can "
+                   "loopback|IFACE]\n");
       return 2;
     }
   }
@@ -155,20 +169,23 @@ int run(int argc, char** argv) {
   const auto& w = loop["wake_latency_us"];
   const auto& c = loop["compute_us"];
   if (!can.empty()) {
-    std::printf("CAN rig (%s): rig read us p50 %.2f p99 %.2f max %.1f | rig write us p50 %.2f p99 %.2f max %.1f | stale periods %lld\n",
-                can.c_str(), loop["rig_read_us"]["p50_us"].get<double>(), loop["rig_read_us"]["p99_us"].get<double>(),
-                loop["rig_read_us"]["max_us"].get<double>(), loop["rig_write_us"]["p50_us"].get<double>(),
-                loop["rig_write_us"]["p99_us"].get<double>(), loop["rig_write_us"]["max_us"].get<double>(),
-                loop["missed_reads"].get<long long>());
+    std::printf(
+        "CAN rig (%s): rig read us p50 %.2f p99 %.2f max %.1f | rig write us p50 %.2f p99 %.2f max %.1f | stale periods %lld\n",
+        can.c_str(), loop["rig_read_us"]["p50_us"].get<double>(), loop["rig_read_us"]["p99_us"].get<double>(),
+        loop["rig_read_us"]["max_us"].get<double>(), loop["rig_write_us"]["p50_us"].get<double>(),
+        loop["rig_write_us"]["p99_us"].get<double>(), loop["rig_write_us"]["max_us"].get<double>(),
+        loop["missed_reads"].get<long long>());
   }
-  std::printf("hilbench loop  %5.0f Hz %3.0f s  %s%s: wake-up latency us: min %.1f p50 %.1f p99 %.1f p99.9 %.1f max %.1f | "
-              "compute us: p50 %.2f p99 %.2f max %.1f | overruns %lld (deadlines skipped %lld) in %lld periods | rows written %lld lost %lld | %s\n",
-              hz, seconds, loop["sched"].get<std::string>().c_str(), mlock.empty() ? ", mlockall" : "", w["min_us"].get<double>(),
-              w["p50_us"].get<double>(), w["p99_us"].get<double>(), w["p99_9_us"].get<double>(), w["max_us"].get<double>(),
-              c["p50_us"].get<double>(), c["p99_us"].get<double>(), c["max_us"].get<double>(), loop["overruns"].get<long long>(),
-              loop["skipped_deadlines"].get<long long>(),
-              loop["periods"].get<long long>(), run["telemetry"]["rows_written"].get<long long>(),
-              run["telemetry"]["rows_lost"].get<long long>(), run["outcome"].get<std::string>().c_str());
+  std::printf(
+      "hilbench loop  %5.0f Hz %3.0f s  %s%s: wake-up latency us: min %.1f p50 %.1f p99 %.1f p99.9 %.1f max %.1f | "
+      "compute us: p50 %.2f p99 %.2f max %.1f | overruns %lld (deadlines skipped %lld) in %lld periods | rows written %lld lost "
+      "%lld | %s\n",
+      hz, seconds, loop["sched"].get<std::string>().c_str(), mlock.empty() ? ", mlockall" : "", w["min_us"].get<double>(),
+      w["p50_us"].get<double>(), w["p99_us"].get<double>(), w["p99_9_us"].get<double>(), w["max_us"].get<double>(),
+      c["p50_us"].get<double>(), c["p99_us"].get<double>(), c["max_us"].get<double>(), loop["overruns"].get<long long>(),
+      loop["skipped_deadlines"].get<long long>(), loop["periods"].get<long long>(),
+      run["telemetry"]["rows_written"].get<long long>(), run["telemetry"]["rows_lost"].get<long long>(),
+      run["outcome"].get<std::string>().c_str());
   if (keep.empty()) std::filesystem::remove_all(runs_dir);
   return run["telemetry"]["rows_lost"].get<long long>() == 0 && run["outcome"] == "completed" ? 0 : 1;
 }

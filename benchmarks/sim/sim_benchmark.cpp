@@ -6,8 +6,8 @@
 
 #include <filesystem>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
 
 namespace {
 

@@ -60,8 +60,8 @@ void check_tree(const YAML::Node& node, const std::string& origin, std::size_t& 
   if (++visited > 1'000'000) throw Error(origin + ": more than a million YAML nodes (aliases?); refused");
   if (depth > kMaxDepth) {
     const YAML::Mark at = node.Mark();
-    throw Error(origin + ":" + std::to_string(at.line + 1) + ":" + std::to_string(at.column + 1) +
-                ": nested more than " + std::to_string(kMaxDepth) + " levels deep (an alias inside its own anchor?); refused");
+    throw Error(origin + ":" + std::to_string(at.line + 1) + ":" + std::to_string(at.column + 1) + ": nested more than " +
+                std::to_string(kMaxDepth) + " levels deep (an alias inside its own anchor?); refused");
   }
   if (node.IsSequence()) {
     for (const auto& item : node) check_tree(item, origin, visited, depth + 1);
@@ -107,8 +107,8 @@ Node Node::load_file(const std::filesystem::path& file) {
   try {
     return Node(checked(YAML::Load(in), file.string()), shared, "", YAML::Mark());
   } catch (const YAML::Exception& e) {
-    throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" +
-                std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+    throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
+                ": YAML syntax: " + e.msg);
   }
 }
 
@@ -117,8 +117,8 @@ Node Node::load_string(std::string_view text, const std::string& origin) {
   try {
     return Node(checked(YAML::Load(std::string(text)), origin), shared, "", YAML::Mark());
   } catch (const YAML::Exception& e) {
-    throw Error(origin + ":" + std::to_string(e.mark.line + 1) + ":" +
-                std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+    throw Error(origin + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
+                ": YAML syntax: " + e.msg);
   }
 }
 
@@ -129,8 +129,7 @@ Node Node::child(const YAML::Node& value, std::string path, YAML::Mark mark) con
 void Node::fail(std::string_view message) const {
   std::string where = file_->string();
   if (mark_.line >= 0) where += ":" + std::to_string(line()) + ":" + std::to_string(column());
-  throw Error(where + ": " + (path_.empty() ? std::string("(top level)") : path_) + ": " +
-              std::string(message));
+  throw Error(where + ": " + (path_.empty() ? std::string("(top level)") : path_) + ": " + std::string(message));
 }
 
 void Node::require(bool ok, std::string_view why) const {
@@ -161,8 +160,7 @@ std::optional<Node> Node::find(std::string_view key) const {
   for (auto it = node_.begin(); it != node_.end(); ++it) {
     if (it->first.Scalar() != key) continue;
     // Errors about a value point at its key: that is the line a person edits.
-    return child(it->second, path_.empty() ? std::string(key) : path_ + "." + std::string(key),
-                 it->first.Mark());
+    return child(it->second, path_.empty() ? std::string(key) : path_ + "." + std::string(key), it->first.Mark());
   }
   return std::nullopt;
 }
@@ -263,7 +261,8 @@ std::filesystem::path Node::resolve_path(const std::string& relative) const {
 bool plain_name(std::string_view name) {
   if (name.empty() || name.size() > 100 || name.front() == '.') return false;
   return std::all_of(name.begin(), name.end(), [](char ch) {
-    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-' || ch == '.';
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-' ||
+           ch == '.';
   });
 }
 

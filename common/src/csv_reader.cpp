@@ -31,8 +31,7 @@ void split(std::string_view line, std::vector<std::string_view>& fields) {
 
 }  // namespace
 
-CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request)
-    : path_(file), request_(std::move(request)) {
+CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request) : path_(file), request_(std::move(request)) {
   header_.file = file;
   std::error_code ec;
   if (std::filesystem::is_directory(file, ec)) throw CsvError(file.string() + ": is a folder, not a CSV file");
@@ -164,8 +163,8 @@ bool CsvReader::next(CsvChunk& chunk, std::size_t max_rows) {
       const char* first = cell.data();
       if (!cell.empty() && cell.front() == '+') ++first;
       const auto [ptr, ec] = std::from_chars(first, cell.data() + cell.size(), v);
-      const std::string& name = c < request_.required.size() ? request_.required[c]
-                                                             : request_.optional[c - request_.required.size()];
+      const std::string& name =
+          c < request_.required.size() ? request_.required[c] : request_.optional[c - request_.required.size()];
       if (cell.empty() || ec != std::errc() || ptr != cell.data() + cell.size() || !std::isfinite(v)) {
         fail(line_no_, static_cast<std::size_t>(field_of_[c]) + 1,
              "column '" + name + "': not a number: '" + std::string(cell) + "'");

@@ -34,7 +34,9 @@ ControllerParams validated(ControllerParams p) {
 }  // namespace
 
 Controller::Controller(const ControllerParams& params)
-    : p_(validated(params)), robust_(p_.robust, p_.chamber), motor_keep_(physics::servo_keep(p_.period_s, p_.motor.time_constant_s)) {}
+    : p_(validated(params)),
+      robust_(p_.robust, p_.chamber),
+      motor_keep_(physics::servo_keep(p_.period_s, p_.motor.time_constant_s)) {}
 
 ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
   ControllerState s;
@@ -77,8 +79,7 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   const double near = gap_before / 2 - p_.robust.intention_deadband_rad - 1e-12;
   if (s.presume_wait > 0) --s.presume_wait;
   const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
-  const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad,
-                              tau_s, s.volume_m3, presumed};
+  const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad, tau_s, s.volume_m3, presumed};
   const ObserverOutputs obs = p_.observer == ObserverKind::paper ? paper_.step(s.paper, obs_in) : robust_.step(s.robust, obs_in);
 
   // The estimate: law (10) for the paper observer, measured gaps for the robust one. With
@@ -111,7 +112,8 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
       s.gap_pos_rad += out.comp_rad;
       s.boost_rad = p_.traverse_boost * out.comp_rad;
       // The drive needs the crossing at its slew limit plus a few lags to really get there.
-      s.presume_wait = std::lround((std::abs(out.comp_rad) / p_.motor.rate_limit_rad_s + 3 * p_.motor.time_constant_s) / p_.period_s);
+      s.presume_wait =
+          std::lround((std::abs(out.comp_rad) / p_.motor.rate_limit_rad_s + 3 * p_.motor.time_constant_s) / p_.period_s);
     }
     s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
   }

@@ -84,8 +84,8 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
   out.gap_rad = 0.5 * (a + b);
   cost(w, extreme_rad, dir, skip, out.gap_rad, &out.rms_rad, &out.excursion_rad);
   // A best fit at the edge of the search range, or one whose valve barely moved, is no measurement.
-  out.ok = out.gap_rad > 0.5 * cell && out.gap_rad < gap_max_rad_ - 0.5 * cell &&
-           out.excursion_rad >= kMinExcursion * out.rms_rad;
+  out.ok =
+      out.gap_rad > 0.5 * cell && out.gap_rad < gap_max_rad_ - 0.5 * cell && out.excursion_rad >= kMinExcursion * out.rms_rad;
   return out;
 }
 

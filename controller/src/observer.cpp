@@ -14,19 +14,19 @@ int sign(double v) noexcept { return (v > 0) - (v < 0); }
 // ----------------------------------------------------------------------------- paper, eq. (3)-(4)
 ObserverOutputs PaperObserver::step(PaperObserverState& s, const ObserverInputs& in) const noexcept {
   ObserverOutputs out;
-  out.intention = sign(in.cmd_step_rad);                     // (3)
+  out.intention = sign(in.cmd_step_rad);  // (3)
   const double dp = in.p_meas_pa - s.p_prev_pa;
   s.p_prev_pa = in.p_meas_pa;
   const int before = s.touch;
   if ((before == -1 && out.intention == +1) || (before == +1 && out.intention == -1)) {
-    s.touch = 0;                                             // (4), first line
+    s.touch = 0;  // (4), first line
   } else if (before == 0 && dp > 0) {
-    s.touch = -1;                                            // pressure up: valve being closed
+    s.touch = -1;  // pressure up: valve being closed
   } else if (before == 0 && dp < 0) {
-    s.touch = +1;                                            // pressure down: valve being opened
+    s.touch = +1;  // pressure down: valve being opened
   }
   out.touch = s.touch;
-  if (before != 0 && s.touch == 0) out.kick = -before;       // (7): -sigma from +1, +sigma from -1
+  if (before != 0 && s.touch == 0) out.kick = -before;                              // (7): -sigma from +1, +sigma from -1
   out.transition_travel_rad = std::abs(in.cmd_step_rad) * (1 - std::abs(s.touch));  // (10)
   return out;
 }
@@ -193,8 +193,8 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
 void RobustObserver::measure(RobustObserverState& s, ObserverOutputs& out) const noexcept {
   const bool motion_goes_on = !out.reversed;
   s.fit_at = -1;
-  const GapFit::Result r = fit_.fit(s.history, s.transition_extreme_at, s.transition_extreme_rad, s.touch,
-                                    lead_samples_, skip_samples_);
+  const GapFit::Result r =
+      fit_.fit(s.history, s.transition_extreme_at, s.transition_extreme_rad, s.touch, lead_samples_, skip_samples_);
   if (!r.ok) {
     if (motion_goes_on && --s.fit_tries_left > 0) s.fit_at = s.history.count - 1 + after_samples_;  // look again later
     return;

@@ -66,8 +66,10 @@ bool BusStateTracker::update(const CanErrorInfo& e) {
   } else if (e.restarted || e.back_to_active) {
     next = BusState::error_active;
   } else if (state_ != BusState::bus_off) {
-    if (e.error_passive) next = BusState::error_passive;
-    else if (e.error_warning && state_ == BusState::error_active) next = BusState::error_warning;
+    if (e.error_passive)
+      next = BusState::error_passive;
+    else if (e.error_warning && state_ == BusState::error_active)
+      next = BusState::error_warning;
   }
   const bool changed = next != state_;
   state_ = next;

@@ -17,8 +17,7 @@ struct LoopbackBus::Endpoint {
   bool passes(const CanFrame& f) const {
     if (f.error) return true;  // every endpoint asks for error frames, as SocketCanTransport does
     if (filters.empty()) return true;
-    return std::any_of(filters.begin(), filters.end(),
-                       [&](const CanFilter& c) { return (f.id & c.mask) == (c.id & c.mask); });
+    return std::any_of(filters.begin(), filters.end(), [&](const CanFilter& c) { return (f.id & c.mask) == (c.id & c.mask); });
   }
 };
 

@@ -86,7 +86,7 @@ SdoReply parse_sdo_reply(const CanFrame& f) {
   r.sub = f.data[3];
   const std::uint8_t cs = f.data[0];
   switch (cs >> 5) {
-    case 2:  // upload response
+    case 2:                // upload response
       if (!(cs & 0x02)) {  // not expedited: the server starts a segmented transfer
         r.kind = SdoReply::Kind::unsupported;
         return r;
@@ -95,16 +95,12 @@ SdoReply parse_sdo_reply(const CanFrame& f) {
       r.size = (cs & 0x01) ? static_cast<std::uint8_t>(4 - ((cs >> 2) & 0x03)) : 4;
       r.value = get_le(&f.data[4], r.size);
       return r;
-    case 3:
-      r.kind = SdoReply::Kind::download;
-      return r;
+    case 3: r.kind = SdoReply::Kind::download; return r;
     case 4:
       r.kind = SdoReply::Kind::abort;
       r.value = get_le(&f.data[4], 4);
       return r;
-    default:
-      r.kind = SdoReply::Kind::unsupported;
-      return r;
+    default: r.kind = SdoReply::Kind::unsupported; return r;
   }
 }
 
@@ -225,17 +221,17 @@ std::string_view emcy_class_name(std::uint16_t c) {
 }
 
 std::string describe(const Emcy& e) {
-  static constexpr const char* kBits[8] = {"generic", "current", "voltage", "temperature",
+  static constexpr const char* kBits[8] = {"generic",       "current",        "voltage",  "temperature",
                                            "communication", "device profile", "reserved", "manufacturer"};
   std::string reg;
   for (int b = 0; b < 8; ++b) {
     if (e.error_register & (1u << b)) reg += (reg.empty() ? "" : ", ") + std::string(kBits[b]);
   }
   char buf[160];
-  std::snprintf(buf, sizeof buf, "EMCY 0x%04X (%.*s), register 0x%02X (%s), manufacturer %02X %02X %02X %02X %02X",
-                e.error_code, static_cast<int>(emcy_class_name(e.error_code).size()), emcy_class_name(e.error_code).data(),
-                e.error_register, reg.empty() ? "none" : reg.c_str(), e.manufacturer[0], e.manufacturer[1],
-                e.manufacturer[2], e.manufacturer[3], e.manufacturer[4]);
+  std::snprintf(buf, sizeof buf, "EMCY 0x%04X (%.*s), register 0x%02X (%s), manufacturer %02X %02X %02X %02X %02X", e.error_code,
+                static_cast<int>(emcy_class_name(e.error_code).size()), emcy_class_name(e.error_code).data(), e.error_register,
+                reg.empty() ? "none" : reg.c_str(), e.manufacturer[0], e.manufacturer[1], e.manufacturer[2], e.manufacturer[3],
+                e.manufacturer[4]);
   return buf;
 }
 

@@ -28,9 +28,7 @@ using std::chrono::milliseconds;
 
 // ---- units and config ------------------------------------------------------------------------
 
-double DriveUnits::rad_per_count() const {
-  return sign * 2.0 * std::numbers::pi / (counts_per_rev * gear_ratio);
-}
+double DriveUnits::rad_per_count() const { return sign * 2.0 * std::numbers::pi / (counts_per_rev * gear_ratio); }
 
 std::int32_t DriveUnits::to_counts(double position_rad) const noexcept {
   const double c = std::nearbyint(position_rad / rad_per_count());
@@ -64,8 +62,8 @@ milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback,
 }  // namespace
 
 Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units",
-                "timeouts", "bus_off", "disable_unused_pdos", "limits"});
+  n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units", "timeouts", "bus_off",
+                "disable_unused_pdos", "limits"});
   Cia402Config c;
   c.interface = n.text("interface");
   const long long node = n.at("node_id").integer();
@@ -76,8 +74,10 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto s = n.find("sync_period_us")) s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
   c.sync_period = std::chrono::microseconds(sync_us);
   const std::string src = n.text("sync_source", "timer");
-  if (src == "loop") c.sync_source = SyncSource::loop;
-  else if (src != "timer") n.at("sync_source").fail("must be 'timer' or 'loop', got '" + src + "'");
+  if (src == "loop")
+    c.sync_source = SyncSource::loop;
+  else if (src != "timer")
+    n.at("sync_source").fail("must be 'timer' or 'loop', got '" + src + "'");
   if (auto hb = n.find("heartbeat")) {
     hb->allow_keys({"producer_ms", "timeout_ms"});
     c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer);
@@ -98,10 +98,14 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto b = n.find("bus_off")) {
     b->allow_keys({"policy", "recover_after_ms"});
     const std::string p = b->text("policy", "wait");
-    if (p == "report") c.bus_off_policy = BusOffPolicy::report;
-    else if (p == "wait") c.bus_off_policy = BusOffPolicy::wait;
-    else if (p == "recover") c.bus_off_policy = BusOffPolicy::recover;
-    else b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
+    if (p == "report")
+      c.bus_off_policy = BusOffPolicy::report;
+    else if (p == "wait")
+      c.bus_off_policy = BusOffPolicy::wait;
+    else if (p == "recover")
+      c.bus_off_policy = BusOffPolicy::recover;
+    else
+      b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
     c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
@@ -222,10 +226,14 @@ struct Cia402Drive::Impl {
       on_error_frame(f);
     } else {
       ++h.rx_frames;
-      if (f.id == kHeartbeat + n) on_heartbeat(f);
-      else if (f.id == kTpdo1 + n) on_tpdo(f);
-      else if (f.id == kSdoTx + n) on_sdo(f);
-      else if (f.id == kEmcy + n) on_emcy(f);
+      if (f.id == kHeartbeat + n)
+        on_heartbeat(f);
+      else if (f.id == kTpdo1 + n)
+        on_tpdo(f);
+      else if (f.id == kSdoTx + n)
+        on_sdo(f);
+      else if (f.id == kEmcy + n)
+        on_emcy(f);
     }
     publish();
   }
@@ -360,8 +368,10 @@ struct Cia402Drive::Impl {
     sdo_timer.cancel();
     auto req = std::move(sdo_active);
     sdo_active.reset();
-    if (err) req->done.set_exception(err);
-    else req->done.set_value(value);
+    if (err)
+      req->done.set_exception(err);
+    else
+      req->done.set_value(value);
     sdo_next();
   }
 
@@ -484,7 +494,6 @@ struct Cia402Drive::Impl {
     });
     fut.wait();
   }
-
 };
 
 Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : impl_(std::make_unique<Impl>(std::move(config))) {
@@ -583,8 +592,10 @@ void Cia402Drive::configure() {
   if (m.cfg.disable_unused_pdos) {
     for (std::uint32_t k = 1; k <= 3; ++k) {
       const auto r = static_cast<std::uint16_t>(0x1400 + k), t = static_cast<std::uint16_t>(0x1800 + k);
-      optional_write(r, 1, kCobIdInvalid | (rpdo + 0x100 * k), 4, "RPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
-      optional_write(t, 1, kCobIdInvalid | (tpdo + 0x100 * k), 4, "TPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
+      optional_write(r, 1, kCobIdInvalid | (rpdo + 0x100 * k), 4,
+                     "RPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
+      optional_write(t, 1, kCobIdInvalid | (tpdo + 0x100 * k), 4,
+                     "TPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
     }
   }
   sdo_write(cia402::kModesOfOperation, 0, static_cast<std::uint8_t>(cia402::kModeCsp), 1);
@@ -608,9 +619,7 @@ void Cia402Drive::configure() {
   }
   const auto& lim = m.cfg.limits;
   const double rpc = std::abs(m.cfg.units.rad_per_count());
-  const auto counts = [rpc](double x) {
-    return static_cast<std::uint32_t>(std::min(std::nearbyint(x / rpc), 4294967294.0));
-  };
+  const auto counts = [rpc](double x) { return static_cast<std::uint32_t>(std::min(std::nearbyint(x / rpc), 4294967294.0)); };
   if (lim.following_error_window_rad > 0) {
     optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
                    "no following error window to set");
@@ -641,8 +650,8 @@ void Cia402Drive::configure() {
   });
   if (!up) {
     throw DriveError(m.who + ": not operational with TPDOs flowing within " + std::to_string(m.cfg.boot_timeout.count()) +
-                     " ms of NMT start (last heartbeat state " +
-                     std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) + ")");
+                     " ms of NMT start (last heartbeat state " + std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) +
+                     ")");
   }
 }
 
@@ -655,8 +664,8 @@ void Cia402Drive::activate() {
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
   if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
     throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
-                     " ms (state: " + std::string(cia402::to_string(state())) + "; last error: " +
-                     std::string(health().last_error_text()) + ")");
+                     " ms (state: " + std::string(cia402::to_string(state())) +
+                     "; last error: " + std::string(health().last_error_text()) + ")");
   }
 }
 
@@ -674,8 +683,8 @@ void Cia402Drive::quick_stop() {
   m.target = static_cast<std::uint8_t>(cia402::Target::quick_stop);
   if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switch_on_disabled; })) {
     throw DriveError(m.who + ": quick stop did not end in switch on disabled within " +
-                     std::to_string(m.cfg.transition_timeout.count()) + " ms (state: " +
-                     std::string(cia402::to_string(state())) + ")");
+                     std::to_string(m.cfg.transition_timeout.count()) + " ms (state: " + std::string(cia402::to_string(state())) +
+                     ")");
   }
 }
 
@@ -695,7 +704,7 @@ DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl
 
 FeedbackFreshness Cia402Drive::freshness() const noexcept {
   return impl_->cfg.sync_source == Cia402Config::SyncSource::loop ? FeedbackFreshness::reply_to_each_write
-                                                                   : FeedbackFreshness::polled;
+                                                                  : FeedbackFreshness::polled;
 }
 
 cia402::State Cia402Drive::state() const noexcept { return static_cast<cia402::State>(impl_->state_now.load()); }

@@ -100,16 +100,15 @@ struct Cia402DriveEmulator::Impl {
   std::uint16_t last_cw = 0;
   std::uint32_t flood_id = 1;
   int flood_per_ms = 0;
-  Clock::time_point mode_written{};                    // when 0x6060 last changed
-  Clock::time_point following_since{};                 // outside the following error window since
+  Clock::time_point mode_written{};     // when 0x6060 last changed
+  Clock::time_point following_since{};  // outside the following error window since
   bool following_out = false;
-  Clock::time_point qs_t0{};                           // quick stop ramp: start, position, speed
+  Clock::time_point qs_t0{};  // quick stop ramp: start, position, speed
   double qs_p0 = 0, qs_v0 = 0;
 
   Impl(Cia402EmulatorConfig c, DriveModel& m) : cfg(std::move(c)), model(m), n(cfg.node_id) {}
 
-  void def(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size, bool writable,
-           bool mappable = false) {
+  void def(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size, bool writable, bool mappable = false) {
     od[key(index, sub)] = {value, size, writable, mappable};
   }
   std::uint32_t get(std::uint16_t index, std::uint8_t sub) { return od.at(key(index, sub)).value; }
@@ -324,19 +323,28 @@ struct Cia402DriveEmulator::Impl {
           if (shutdown) state = State::ready_to_switch_on;
           break;
         case State::ready_to_switch_on:
-          if (switch_on) state = State::switched_on;
-          else if (enable) state = State::operation_enabled;
-          else if (disable_voltage || quick_stop) state = State::switch_on_disabled;
+          if (switch_on)
+            state = State::switched_on;
+          else if (enable)
+            state = State::operation_enabled;
+          else if (disable_voltage || quick_stop)
+            state = State::switch_on_disabled;
           break;
         case State::switched_on:
-          if (enable) state = State::operation_enabled;
-          else if (shutdown) state = State::ready_to_switch_on;
-          else if (disable_voltage || quick_stop) state = State::switch_on_disabled;
+          if (enable)
+            state = State::operation_enabled;
+          else if (shutdown)
+            state = State::ready_to_switch_on;
+          else if (disable_voltage || quick_stop)
+            state = State::switch_on_disabled;
           break;
         case State::operation_enabled:
-          if (switch_on) state = State::switched_on;
-          else if (shutdown) state = State::ready_to_switch_on;
-          else if (disable_voltage) state = State::switch_on_disabled;
+          if (switch_on)
+            state = State::switched_on;
+          else if (shutdown)
+            state = State::ready_to_switch_on;
+          else if (disable_voltage)
+            state = State::switch_on_disabled;
           else if (quick_stop && cfg.quick_stop_ramp) {
             state = State::quick_stop_active;
             qs_t0 = Clock::now();
@@ -359,7 +367,8 @@ struct Cia402DriveEmulator::Impl {
     const auto target = static_cast<std::int32_t>(get(cia402::kTargetPosition, 0));
     if (state == State::quick_stop_active) {
       // The quick stop ramp (0x6085), then switch on disabled (0x605A = 2).
-      const double a = std::abs(cfg.units.to_rad(static_cast<std::int32_t>(std::min<std::uint32_t>(get(cia402::kQuickStopDeceleration, 0), 0x7FFFFFFF))));
+      const double a = std::abs(cfg.units.to_rad(
+          static_cast<std::int32_t>(std::min<std::uint32_t>(get(cia402::kQuickStopDeceleration, 0), 0x7FFFFFFF))));
       const double t = std::chrono::duration<double>(Clock::now() - qs_t0).count();
       const double t_stop = a > 0 ? std::abs(qs_v0) / a : 0.0;
       const double tt = std::min(t, t_stop);
@@ -370,12 +379,14 @@ struct Cia402DriveEmulator::Impl {
       model.command(following ? cfg.units.to_rad(target) : s.position_rad, following);
     }
     s = model.sample();
-    if (following && cfg.following_error) check_following_error(target, cfg.units.to_counts(s.position_rad));
-    else following_out = false;
+    if (following && cfg.following_error)
+      check_following_error(target, cfg.units.to_counts(s.position_rad));
+    else
+      following_out = false;
     set(cia402::kPositionActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.position_rad)));
     set(cia402::kVelocityActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.velocity_rad_s)));
     std::uint16_t sw = statusword_for(state) | 0x0200;  // remote
-    if (following) sw |= 0x1000;                       // CSP: drive follows the command value
+    if (following) sw |= 0x1000;                        // CSP: drive follows the command value
     set(cia402::kStatusword, 0, sw);
     state_now = static_cast<std::uint8_t>(state);
   }
@@ -494,8 +505,13 @@ Cia402DriveEmulator::Cia402DriveEmulator(Cia402EmulatorConfig config, DriveModel
   auto& m = *impl_;
   if (!transport) transport = SocketCanTransport::factory(m.cfg.interface);
   const std::uint32_t n = m.n;
-  m.tr = transport(m.io, {{kNmt, 0x7FF}, {kSync, 0x7FF}, {kSdoRx + n, 0x7FF}, {kRpdo1 + n, 0x7FF},
-                          {kRpdo1 + 0x100 + n, 0x7FF}, {kRpdo1 + 0x200 + n, 0x7FF}, {kRpdo1 + 0x300 + n, 0x7FF}});
+  m.tr = transport(m.io, {{kNmt, 0x7FF},
+                          {kSync, 0x7FF},
+                          {kSdoRx + n, 0x7FF},
+                          {kRpdo1 + n, 0x7FF},
+                          {kRpdo1 + 0x100 + n, 0x7FF},
+                          {kRpdo1 + 0x200 + n, 0x7FF},
+                          {kRpdo1 + 0x300 + n, 0x7FF}});
   m.tr->start([&m](const CanFrame& f) { m.on_frame(f); });
   asio::post(m.io, [&m] { m.boot(true); });
   m.thread = std::thread([&m] { m.io.run(); });
@@ -559,8 +575,10 @@ void Cia402DriveEmulator::flood(bool on, std::uint32_t id, int frames_per_ms) {
   asio::post(m.io, [&m, on, id, frames_per_ms] {
     m.flood_id = id;
     m.flood_per_ms = on ? frames_per_ms : 0;
-    if (on) m.arm_flood();
-    else m.flood_timer.cancel();
+    if (on)
+      m.arm_flood();
+    else
+      m.flood_timer.cancel();
   });
 }
 

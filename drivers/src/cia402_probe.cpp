@@ -46,11 +46,13 @@ Cia402Probe probe(Cia402Drive& client) {
   const auto modes = read(cia402::kSupportedDriveModes, 0, "supported drive modes", false).value;
   read(0x1017, 0, "producer heartbeat time", true);
   for (std::uint16_t k = 0; k < 4; ++k) {
-    p.rpdos += read(static_cast<std::uint16_t>(0x1400 + k), 1, "RPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
+    p.rpdos +=
+        read(static_cast<std::uint16_t>(0x1400 + k), 1, "RPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
     if (k == 0) read(0x1600, 0, "RPDO1 mapping count", true);
   }
   for (std::uint16_t k = 0; k < 4; ++k) {
-    p.tpdos += read(static_cast<std::uint16_t>(0x1800 + k), 1, "TPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
+    p.tpdos +=
+        read(static_cast<std::uint16_t>(0x1800 + k), 1, "TPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
     if (k == 0) read(0x1A00, 0, "TPDO1 mapping count", true);
   }
   read(cia402::kControlword, 0, "controlword", true);
@@ -80,8 +82,9 @@ Cia402Probe probe(Cia402Drive& client) {
   }
   const double deg_per_count = std::abs(cfg.units.rad_per_count()) * 180 / std::numbers::pi;
   char line[256];
-  p.plan.push_back("map RPDO1 = controlword 0x6040 + target position 0x607A, TPDO1 = statusword 0x6041 + position actual "
-                   "0x6064, both on every SYNC");
+  p.plan.push_back(
+      "map RPDO1 = controlword 0x6040 + target position 0x607A, TPDO1 = statusword 0x6041 + position actual "
+      "0x6064, both on every SYNC");
   if (cfg.disable_unused_pdos) {
     std::snprintf(line, sizeof line, "invalidate the other PDOs it has (%d RPDO, %d TPDO of 4 each)", p.rpdos - 1, p.tpdos - 1);
     p.plan.push_back(line);
@@ -119,7 +122,8 @@ Cia402Probe probe(Cia402Drive& client) {
     p.plan.push_back(std::string("quick stop option code 0x605A = ") + std::to_string(static_cast<std::int16_t>(*qs_option)) +
                      (*qs_option == 2 || *qs_option == 6 ? " (quick stop ramp)" : ""));
   }
-  if (qs_dec && lim.quick_stop_deceleration_rad_s2 > 0) p.plan.push_back("write quick stop deceleration 0x6085 from the drive file");
+  if (qs_dec && lim.quick_stop_deceleration_rad_s2 > 0)
+    p.plan.push_back("write quick stop deceleration 0x6085 from the drive file");
   if (!qs_dec) p.lacks.push_back("0x6085 quick stop deceleration (optional)");
   return p;
 }
@@ -139,8 +143,9 @@ std::string Cia402Probe::report() const {
     }
     s += line;
   }
-  std::snprintf(line, sizeof line, "PDOs: %d RPDO, %d TPDO; cyclic synchronous position: %s\n", rpdos, tpdos,
-                find(0x6502, 0) && find(0x6502, 0)->value ? (csp_supported ? "supported" : "NOT supported") : "not declared (no 0x6502)");
+  std::snprintf(
+      line, sizeof line, "PDOs: %d RPDO, %d TPDO; cyclic synchronous position: %s\n", rpdos, tpdos,
+      find(0x6502, 0) && find(0x6502, 0)->value ? (csp_supported ? "supported" : "NOT supported") : "not declared (no 0x6502)");
   s += line;
   s += "configure() will:\n";
   for (const auto& l : plan) s += "  - " + l + "\n";

@@ -63,8 +63,10 @@ ModbusLinkConfig ModbusLinkConfig::from_yaml(const cfg::Node& n) {
                 "response_timeout_ms", "poll_period_ms", "reconnect"});
   ModbusLinkConfig c;
   const std::string t = n.text("transport", "tcp");
-  if (t == "rtu") c.transport = Transport::rtu;
-  else if (t != "tcp") n.at("transport").fail("must be tcp or rtu, got '" + t + "'");
+  if (t == "rtu")
+    c.transport = Transport::rtu;
+  else if (t != "tcp")
+    n.at("transport").fail("must be tcp or rtu, got '" + t + "'");
   if (c.transport == Transport::tcp) {
     c.host = n.text("host", c.host);
     c.port = static_cast<int>(n.at("port").integer());
@@ -93,8 +95,8 @@ ModbusLinkConfig ModbusLinkConfig::from_yaml(const cfg::Node& n) {
 
 std::string ModbusLinkConfig::describe() const {
   if (transport == Transport::tcp) return "tcp " + host + ":" + std::to_string(port) + " unit " + std::to_string(unit_id);
-  return "rtu " + device + " " + std::to_string(baud) + " " + std::to_string(data_bits) + parity +
-         std::to_string(stop_bits) + " unit " + std::to_string(unit_id);
+  return "rtu " + device + " " + std::to_string(baud) + " " + std::to_string(data_bits) + parity + std::to_string(stop_bits) +
+         " unit " + std::to_string(unit_id);
 }
 
 ModbusDriveConfig ModbusDriveConfig::from_yaml(const cfg::Node& n) {
@@ -447,7 +449,8 @@ struct ModbusDrive::Impl {
       if (!poller.write(target, words)) return false;
       last_target[0] = words[0], last_target[1] = words[1];
     }
-    std::uint16_t ctl[2] = {static_cast<std::uint16_t>((enable ? 1u << bit_enable : 0u) | (reset_pulse ? 1u << bit_reset : 0u)), 0};
+    std::uint16_t ctl[2] = {static_cast<std::uint16_t>((enable ? 1u << bit_enable : 0u) | (reset_pulse ? 1u << bit_reset : 0u)),
+                            0};
     if (fresh || ctl[0] != last_control) {
       if (!poller.write(control, ctl)) return false;
       last_control = ctl[0];

@@ -133,8 +133,10 @@ class ModbusServer {
       if (::select(maxfd + 1, &rd, nullptr, nullptr, &tv) <= 0) continue;
       if (!tcp()) {
         const int rc = modbus_receive(ctx_, query.data());
-        if (rc > 0) handle(query.data(), rc);
-        else if (rc < 0) modbus_flush(ctx_);
+        if (rc > 0)
+          handle(query.data(), rc);
+        else if (rc < 0)
+          modbus_flush(ctx_);
         continue;
       }
       if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {

@@ -18,8 +18,10 @@ std::uint32_t join(const std::uint16_t* w, WordOrder o) {
 }
 void split(std::uint32_t v, std::uint16_t* w, WordOrder o) {
   const auto hi = static_cast<std::uint16_t>(v >> 16), lo = static_cast<std::uint16_t>(v);
-  if (o == WordOrder::big) w[0] = hi, w[1] = lo;
-  else w[0] = lo, w[1] = hi;
+  if (o == WordOrder::big)
+    w[0] = hi, w[1] = lo;
+  else
+    w[0] = lo, w[1] = hi;
 }
 template <class T>
 T saturate(double x) {
@@ -67,22 +69,33 @@ RegisterMap RegisterMap::from_yaml(const cfg::Node& node) {
     Register r;
     r.name = name;
     const std::string table = n.text("table");
-    if (table == "holding") r.table = RegisterTable::holding;
-    else if (table == "input") r.table = RegisterTable::input;
-    else n.at("table").fail("must be holding or input, got '" + table + "'");
+    if (table == "holding")
+      r.table = RegisterTable::holding;
+    else if (table == "input")
+      r.table = RegisterTable::input;
+    else
+      n.at("table").fail("must be holding or input, got '" + table + "'");
     const long long addr = n.at("address").integer();
     n.at("address").require(addr >= 0 && addr <= 65535, "a register address is 0..65535");
     r.address = static_cast<std::uint16_t>(addr);
     const std::string type = n.text("type");
-    if (type == "int16") r.type = RegisterType::int16;
-    else if (type == "uint16") r.type = RegisterType::uint16;
-    else if (type == "int32") r.type = RegisterType::int32;
-    else if (type == "uint32") r.type = RegisterType::uint32;
-    else if (type == "float32") r.type = RegisterType::float32;
-    else n.at("type").fail("must be int16, uint16, int32, uint32 or float32, got '" + type + "'");
+    if (type == "int16")
+      r.type = RegisterType::int16;
+    else if (type == "uint16")
+      r.type = RegisterType::uint16;
+    else if (type == "int32")
+      r.type = RegisterType::int32;
+    else if (type == "uint32")
+      r.type = RegisterType::uint32;
+    else if (type == "float32")
+      r.type = RegisterType::float32;
+    else
+      n.at("type").fail("must be int16, uint16, int32, uint32 or float32, got '" + type + "'");
     const std::string order = n.text("word_order", "big");
-    if (order == "little") r.word_order = WordOrder::little;
-    else if (order != "big") n.at("word_order").fail("must be big (high word first) or little, got '" + order + "'");
+    if (order == "little")
+      r.word_order = WordOrder::little;
+    else if (order != "big")
+      n.at("word_order").fail("must be big (high word first) or little, got '" + order + "'");
     if (r.words() == 1 && n.has("word_order")) n.at("word_order").fail("a 16-bit register has no word order");
     r.scale = n.number("scale", 1.0);
     if (auto s = n.find("scale")) s->require(r.scale != 0.0, "must not be 0");

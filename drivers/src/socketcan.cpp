@@ -96,8 +96,9 @@ struct SocketCanTransport::Impl {
           timespec ts;
           std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
           // The kernel stamps with CLOCK_REALTIME; move it onto the steady clock by its age.
-          const auto kernel = std::chrono::system_clock::time_point(std::chrono::duration_cast<std::chrono::system_clock::duration>(
-              std::chrono::seconds(ts.tv_sec) + std::chrono::nanoseconds(ts.tv_nsec)));
+          const auto kernel =
+              std::chrono::system_clock::time_point(std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                  std::chrono::seconds(ts.tv_sec) + std::chrono::nanoseconds(ts.tv_nsec)));
           const auto age = std::chrono::system_clock::now() - kernel;
           if (age >= std::chrono::nanoseconds(0) && age < std::chrono::seconds(1)) f.rx_time -= age;
         }

@@ -51,13 +51,13 @@ std::vector<double> read_params(const cfg::Node& block, std::span<const ParamSpe
 
 void check_params(std::string_view kind, std::span<const ParamSpec> specs, std::span<const double> values) {
   if (values.size() != specs.size()) {
-    throw std::invalid_argument(std::string(kind) + ": expected " + std::to_string(specs.size()) +
-                                " parameters, got " + std::to_string(values.size()));
+    throw std::invalid_argument(std::string(kind) + ": expected " + std::to_string(specs.size()) + " parameters, got " +
+                                std::to_string(values.size()));
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {
     if (!in_range(specs[i], values[i])) {
-      throw std::invalid_argument(std::string(kind) + "." + std::string(specs[i].key) + " = " + num(values[i]) +
-                                  ": must be in " + range_text(specs[i]));
+      throw std::invalid_argument(std::string(kind) + "." + std::string(specs[i].key) + " = " + num(values[i]) + ": must be in " +
+                                  range_text(specs[i]));
     }
   }
 }

@@ -32,8 +32,7 @@ constexpr double kSearchHiRad = 1.0;
 }  // namespace
 
 Plant::Plant(std::vector<std::shared_ptr<const Effect>> effects) : effects_(std::move(effects)) {
-  std::stable_sort(effects_.begin(), effects_.end(),
-                   [](const auto& a, const auto& b) { return a->stage() < b->stage(); });
+  std::stable_sort(effects_.begin(), effects_.end(), [](const auto& a, const auto& b) { return a->stage() < b->stage(); });
   for (std::size_t i = 0; i < effects_.size(); ++i) {
     for (std::size_t j = 0; j < i; ++j) {
       if (effects_[i]->kind() == effects_[j]->kind()) {

@@ -53,8 +53,7 @@ std::vector<HiddenCase> cases() {
     return hil::test::reference_random(seed + shift, lo, hi, dwell_lo, dwell_hi);
   };
   auto add = [&](std::string name, std::string effect, std::vector<Expect> params, std::uint64_t seed, std::string ref,
-                 bool encoder, double noise_kpa, std::string compensation,
-                 std::function<Plant(const Plant&)> truth) {
+                 bool encoder, double noise_kpa, std::string compensation, std::function<Plant(const Plant&)> truth) {
     Scenario s;
     s.name = std::move(name);
     s.seed = seed + shift;
@@ -78,14 +77,14 @@ std::vector<HiddenCase> cases() {
       [](const Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.03"); });
   add("transport_delay", "transport_delay", {{"delay_s", 0.025}}, 106, reference_random(13, 0.9, 1.5, 1.5, 3.5), false, 2.0,
       "adaptive", [](const Plant& p) { return with_block(p, "transport_delay", "delay_s: 0.025"); });
-  add("sensor_bias", "sensor_bias", {{"offset_kpa", 30}, {"gain", 1.03}}, 107, reference_ramps(1.0, 1.5, 6.0), true, 3.0,
-      "none", [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 30, gain: 1.03}"); });
-  add("servo_lag", "motor_dynamics", {{"time_constant_s", 0.035}}, 108, reference_square(1.0, 1.5, 2.0), false, 2.0,
-      "adaptive", [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.035); });
+  add("sensor_bias", "sensor_bias", {{"offset_kpa", 30}, {"gain", 1.03}}, 107, reference_ramps(1.0, 1.5, 6.0), true, 3.0, "none",
+      [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 30, gain: 1.03}"); });
+  add("servo_lag", "motor_dynamics", {{"time_constant_s", 0.035}}, 108, reference_square(1.0, 1.5, 2.0), false, 2.0, "adaptive",
+      [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.035); });
   // The rate limit shows only when the drive is asked to move fast: large reference steps, and
   // the compensator's jumps across the gap.
-  add("servo_rate", "motor_dynamics", {{"rate_limit_deg_s", 25}}, 109, reference_square(0.9, 1.6, 3.0), false, 2.0,
-      "adaptive", [](const Plant& p) { return with_param(p, "motor_servo", "rate_limit_deg_s", 25); });
+  add("servo_rate", "motor_dynamics", {{"rate_limit_deg_s", 25}}, 109, reference_square(0.9, 1.6, 3.0), false, 2.0, "adaptive",
+      [](const Plant& p) { return with_param(p, "motor_servo", "rate_limit_deg_s", 25); });
   add("burn_rate_a", "burn_rate", {{"burn_rate_mm_s_at_1mpa", 5.4}}, 110, reference_square(0.95, 1.35, 3.5), true, 2.0,
       "adaptive", [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.4); });
   add("burn_rate_n", "burn_rate", {{"pressure_exponent", 0.40}}, 111, reference_random(21, 0.9, 1.6, 2.0, 4.0), false, 2.0,
@@ -126,9 +125,8 @@ TEST_P(HiddenEffect, TopRankedIsTheHiddenOneAndTheErrorFalls) {
   const double before = d.at("fit_before_pct").get<double>(), after = d.at("fit_after_pct").get<double>();
   EXPECT_GE(after, floor - 1.0) << why;
   EXPECT_GT(after, before) << why;
-  std::printf("[ %s ] fit before %.2f %%, after %.2f %%, noise floor %.2f %%, encoder %s, %.1f s\n",
-              c.scenario.name.c_str(), before, after, floor, c.scenario.encoder ? "yes" : "no",
-              d.at("method").at("wall_s").get<double>());
+  std::printf("[ %s ] fit before %.2f %%, after %.2f %%, noise floor %.2f %%, encoder %s, %.1f s\n", c.scenario.name.c_str(),
+              before, after, floor, c.scenario.encoder ? "yes" : "no", d.at("method").at("wall_s").get<double>());
 
   // Add it and watch the error fall: compare on the written model.
   const auto nominal = hil::test::run_compare(hil::test::nominal_model(), data, dir.path() / "cmp_nominal");
@@ -173,8 +171,7 @@ TEST(HiddenEffects, TwoEffectsAreFoundInTurn) {
   EXPECT_EQ(d.at("verdict"), "explained") << why;
   std::printf("[ two effects ] fit %.2f -> %.2f %% (floor %.2f %%), %s then %s\n", d.at("fit_before_pct").get<double>(),
               d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>(),
-              d.at("added")[0].at("effect").get<std::string>().c_str(),
-              d.at("added")[1].at("effect").get<std::string>().c_str());
+              d.at("added")[0].at("effect").get<std::string>().c_str(), d.at("added")[1].at("effect").get<std::string>().c_str());
 }
 
 TEST(HiddenEffects, AnEffectOutsideTheListIsNotNamed) {
@@ -183,9 +180,7 @@ TEST(HiddenEffects, AnEffectOutsideTheListIsNotNamed) {
   s.name = "oscillation";
   s.seed = 113 + seed_shift();
   s.reference_yaml = hil::test::reference_square(1.0, 1.45, 3.0);
-  s.truth = [](const Plant& p) {
-    return with_block(p, "test_chamber_oscillation", "{amplitude_kpa: 12, frequency_hz: 11.3}");
-  };
+  s.truth = [](const Plant& p) { return with_block(p, "test_chamber_oscillation", "{amplitude_kpa: 12, frequency_hz: 11.3}"); };
   const fs::path data = hil::test::make_measurement(s, dir.path());
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), data, dir.path() / "diag", dir.path() / "fitted.yaml");
   const std::string why = hil::test::brief(d);

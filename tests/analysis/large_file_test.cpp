@@ -35,12 +35,12 @@ TEST(LargeFile, AnHourAtOneKilohertzStreamsWithBoundedMemory) {
   double last_fraction = 0;
   const auto t0 = std::chrono::steady_clock::now();
   hil::analysis::ReplayInfo info;
-  const auto r = hil::analysis::compare_file(hil::plant::Plant::load(hil::test::nominal_model()), data, &info,
-                                             [&](double f, std::size_t) {
-                                               ++progress_calls;
-                                               EXPECT_GE(f, last_fraction);
-                                               last_fraction = f;
-                                             });
+  const auto r =
+      hil::analysis::compare_file(hil::plant::Plant::load(hil::test::nominal_model()), data, &info, [&](double f, std::size_t) {
+        ++progress_calls;
+        EXPECT_GE(f, last_fraction);
+        last_fraction = f;
+      });
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const long grew_kb = vm_hwm_kb() - hwm0;
   EXPECT_EQ(r.rows, 3600000u);

@@ -73,7 +73,8 @@ std::vector<MultiCase> cases() {
   // With the encoder: without it a 20 ms sensor lag plus a 0.4 deg offset is matched at the noise
   // floor by a 16 ms transport delay plus a sensor offset and gain (both delay the pressure's
   // answer to the command; see analysis/README.md, pairs that cannot be told apart).
-  add("offset_erosion_lag", 302, reference_random(73, 0.95, 1.45, 2.0, 4.0), true, 2.0,
+  add(
+      "offset_erosion_lag", 302, reference_random(73, 0.95, 1.45, 2.0, 4.0), true, 2.0,
       [](const Plant& p) {
         return with_block(with_block(with_block(p, "valve_offset", "offset_deg: 0.4"), "throat_erosion", "rate_mm2_per_s: 0.4"),
                           "sensor_lag", "time_constant_s: 0.02");
@@ -82,11 +83,12 @@ std::vector<MultiCase> cases() {
       true);
   add("bias_and_burn_rate", 303, reference_square(0.95, 1.4, 2.8), true, 2.0,
       [](const Plant& p) {
-        return with_param(with_block(p, "sensor_bias", "{offset_kpa: -20, gain: 1.0}"), "gas_generator",
-                          "burn_rate_mm_s_at_1mpa", 5.35);
+        return with_param(with_block(p, "sensor_bias", "{offset_kpa: -20, gain: 1.0}"), "gas_generator", "burn_rate_mm_s_at_1mpa",
+                          5.35);
       },
       {{"sensor_bias", "offset_kpa", -20}, {"burn_rate", "burn_rate_mm_s_at_1mpa", 5.35}});
-  add("offset_and_delay", 304, reference_random(75, 0.9, 1.5, 1.5, 3.0), false, 2.0,
+  add(
+      "offset_and_delay", 304, reference_random(75, 0.9, 1.5, 1.5, 3.0), false, 2.0,
       [](const Plant& p) {
         return with_block(with_block(p, "valve_offset", "offset_deg: -0.8"), "transport_delay", "delay_s: 0.03");
       },
@@ -105,19 +107,29 @@ std::vector<MultiCase> cases() {
     Truth truth;
   };
   const std::vector<One> ones = {
-      {"gap", [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.6"); }, {"backlash_change", "gap_deg", 1.6}},
-      {"offset", [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: 0.7"); }, {"valve_offset", "offset_deg", 0.7}},
-      {"erosion", [](const Plant& p) { return with_block(p, "throat_erosion", "rate_mm2_per_s: 0.4"); },
+      {"gap",
+       [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.6"); },
+       {"backlash_change", "gap_deg", 1.6}},
+      {"offset",
+       [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: 0.7"); },
+       {"valve_offset", "offset_deg", 0.7}},
+      {"erosion",
+       [](const Plant& p) { return with_block(p, "throat_erosion", "rate_mm2_per_s: 0.4"); },
        {"throat_erosion", "rate_mm2_per_s", 0.4}},
-      {"lag", [](const Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.025"); },
+      {"lag",
+       [](const Plant& p) { return with_block(p, "sensor_lag", "time_constant_s: 0.025"); },
        {"sensor_lag", "time_constant_s", 0.025}},
-      {"delay", [](const Plant& p) { return with_block(p, "transport_delay", "delay_s: 0.03"); },
+      {"delay",
+       [](const Plant& p) { return with_block(p, "transport_delay", "delay_s: 0.03"); },
        {"transport_delay", "delay_s", 0.03}},
-      {"bias", [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 20, gain: 1.0}"); },
+      {"bias",
+       [](const Plant& p) { return with_block(p, "sensor_bias", "{offset_kpa: 20, gain: 1.0}"); },
        {"sensor_bias", "offset_kpa", 20}},
-      {"servo", [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.04); },
+      {"servo",
+       [](const Plant& p) { return with_param(p, "motor_servo", "time_constant_s", 0.04); },
        {"motor_dynamics", "time_constant_s", 0.04}},
-      {"burn", [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.3); },
+      {"burn",
+       [](const Plant& p) { return with_param(p, "gas_generator", "burn_rate_mm_s_at_1mpa", 5.3); },
        {"burn_rate", "burn_rate_mm_s_at_1mpa", 5.3}},
   };
   std::uint64_t seed = 400;
@@ -127,7 +139,8 @@ std::vector<MultiCase> cases() {
       // The profile's seed is the pair's seed before it is counted up (as the matrix was measured).
       auto profile = reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5);
       ++seed;
-      add("pair_" + ones[i].tag + "_" + ones[j].tag, seed, std::move(profile), false, 2.0,
+      add(
+          "pair_" + ones[i].tag + "_" + ones[j].tag, seed, std::move(profile), false, 2.0,
           [a, b](const Plant& p) { return b(a(p)); }, {ones[i].truth, ones[j].truth}, true);
     }
   // Triples and quadruples without a pair that Limits names as not told apart from pressure
@@ -138,11 +151,12 @@ std::vector<MultiCase> cases() {
     std::vector<std::string> tags;
     bool by_default = false;
   };
-  const std::vector<Group> groups = {
-      {{"gap", "erosion", "lag"}, true}, {{"gap", "bias", "lag"}},      {{"gap", "delay", "erosion"}},
-      {{"gap", "servo", "bias"}},        {{"offset", "lag", "gap"}},    {{"erosion", "bias", "delay"}},
-      {{"gap", "delay", "bias"}},        {{"offset", "delay", "gap"}},  {{"gap", "erosion", "lag", "bias"}},
-      {{"gap", "delay", "bias", "erosion"}}, {{"gap", "offset", "lag", "servo"}}, {{"gap", "erosion", "servo", "bias"}, true}};
+  const std::vector<Group> groups = {{{"gap", "erosion", "lag"}, true},   {{"gap", "bias", "lag"}},
+                                     {{"gap", "delay", "erosion"}},       {{"gap", "servo", "bias"}},
+                                     {{"offset", "lag", "gap"}},          {{"erosion", "bias", "delay"}},
+                                     {{"gap", "delay", "bias"}},          {{"offset", "delay", "gap"}},
+                                     {{"gap", "erosion", "lag", "bias"}}, {{"gap", "delay", "bias", "erosion"}},
+                                     {{"gap", "offset", "lag", "servo"}}, {{"gap", "erosion", "servo", "bias"}, true}};
   seed = 600;
   for (const auto& [g, by_default] : groups) {
     std::vector<std::function<Plant(const Plant&)>> apply;
@@ -155,7 +169,8 @@ std::vector<MultiCase> cases() {
       name += "_" + tag;
     }
     ++seed;
-    add(name, seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
+    add(
+        name, seed, reference_random(seed + 50, 0.9, 1.55, 1.5, 3.5), false, 2.0,
         [apply](const Plant& p) {
           Plant q = p;
           for (const auto& f : apply) q = f(q);
@@ -240,8 +255,10 @@ TEST(MultiEffect, ErosionFormIsPickedByTheCriterion) {
     const auto& a = d.at("added")[0];
     EXPECT_EQ(a.at("effect"), "throat_erosion") << why;
     EXPECT_EQ(a.at("variant"), proportional ? "proportional" : "rate") << why;
-    if (proportional) EXPECT_NEAR(hil::test::param(a, "proportional_rate_per_s"), 0.006, 0.15 * 0.006) << why;
-    else EXPECT_NEAR(hil::test::param(a, "rate_mm2_per_s"), 0.45, 0.15 * 0.45) << why;
+    if (proportional)
+      EXPECT_NEAR(hil::test::param(a, "proportional_rate_per_s"), 0.006, 0.15 * 0.006) << why;
+    else
+      EXPECT_NEAR(hil::test::param(a, "rate_mm2_per_s"), 0.45, 0.15 * 0.45) << why;
     EXPECT_GE(d.at("fit_after_pct").get<double>(), d.at("noise_floor_fit_pct").get<double>() - 1.0) << why;
     std::printf("[ %s ] %s\n", s.name.c_str(), why.c_str());
   }

@@ -114,8 +114,9 @@ TEST(MultiFile, AGapThatSteppedDuringTheSecondRunIsFoundInThatRun) {
     hil::test::LabLog log = run_log("chipped", i, 931, true);
     // The truth's clock is the file's (it starts at t0_s).
     const std::string gap = i == 0 ? "gap_deg: 1.0"
-                            : i == 1 ? "{gap_deg: 1.0, step_deg: 0.8, step_time_s: " + std::to_string(log.t0_s + kStepAfterS) + "}"
-                                     : "gap_deg: 1.8";
+                            : i == 1
+                                ? "{gap_deg: 1.0, step_deg: 0.8, step_time_s: " + std::to_string(log.t0_s + kStepAfterS) + "}"
+                                : "gap_deg: 1.8";
     log.truth = [gap](const Plant& p) { return with_block(p, "backlash_change", gap); };
     log.command_deg = hil::test::command_triangle(8.0, 13.0, 20.0, 0.0);
     files.push_back(hil::test::make_lab_log(log, dir.path()));

@@ -5,8 +5,8 @@
 #include <memory>
 #include <stdexcept>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/config.hpp"
 #include "hil/csv_writer.hpp"
 #include "hil/plant/registry.hpp"
@@ -19,8 +19,8 @@ std::filesystem::path nominal_model() { return std::filesystem::path(HIL_SOURCE_
 std::string reference_square(double low, double high, double half, double from) {
   char b[300];
   std::snprintf(b, sizeof b,
-                "  initial_mpa: %g\n  profile:\n    - square: {from_s: %g, half_period_s: %g, low_mpa: %g, high_mpa: %g}\n",
-                low, from, half, low, high);
+                "  initial_mpa: %g\n  profile:\n    - square: {from_s: %g, half_period_s: %g, low_mpa: %g, high_mpa: %g}\n", low,
+                from, half, low, high);
   return b;
 }
 
@@ -60,8 +60,8 @@ plant::Plant with_param(const plant::Plant& p, const std::string& kind, const st
 }
 
 std::filesystem::path make_measurement(const Scenario& s, const std::filesystem::path& dir) {
-  std::string yaml = "name: " + s.name + "\nplant: " + nominal_model().string() + "\nduration_s: " +
-                     std::to_string(s.duration_s) + "\nperiod_ms: 1\nseed: " + std::to_string(s.seed) +
+  std::string yaml = "name: " + s.name + "\nplant: " + nominal_model().string() +
+                     "\nduration_s: " + std::to_string(s.duration_s) + "\nperiod_ms: 1\nseed: " + std::to_string(s.seed) +
                      "\nsensor_noise_kpa: " + std::to_string(s.noise_kpa) + "\nreference:\n" + s.reference_yaml +
                      "controller:\n  observer: robust\nruns:\n  - name: run\n    compensation: " + s.compensation + "\n";
   bench::Campaign c = bench::load_campaign_text(yaml, s.name + ".yaml", dir);

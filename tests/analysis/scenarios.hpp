@@ -19,11 +19,11 @@ struct Scenario {
   double duration_s = 30;
   std::uint64_t seed = 1;
   double noise_kpa = 2.0;
-  std::string reference_yaml;              // the campaign's `reference:` block (indented 2)
-  std::string compensation = "adaptive";   // none | constant | adaptive
-  bool encoder = true;                     // write theta_motor_deg
-  bool reference_column = true;            // write p_ref_mpa
-  bool extra_columns = false;              // add columns a reader must ignore
+  std::string reference_yaml;             // the campaign's `reference:` block (indented 2)
+  std::string compensation = "adaptive";  // none | constant | adaptive
+  bool encoder = true;                    // write theta_motor_deg
+  bool reference_column = true;           // write p_ref_mpa
+  bool extra_columns = false;             // add columns a reader must ignore
   // Truth = nominal (with the campaign's noise) changed by this.
   std::function<plant::Plant(const plant::Plant&)> truth = [](const plant::Plant& p) { return p; };
 };

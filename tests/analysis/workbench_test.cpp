@@ -17,8 +17,8 @@
 #include "hil/analysis/measurement.hpp"
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/units.hpp"
@@ -96,7 +96,8 @@ TEST(MeasurementFile, EmptyAndHeaderOnlyFilesAreClearErrors) {
   EXPECT_NE(e.find(empty.string() + ":1:1"), std::string::npos) << e;
   EXPECT_NE(e.find("empty"), std::string::npos) << e;
   const auto header = dir.write("header.csv", "# source: x\n\nt_s,theta_cmd_deg,p_meas_mpa\n");
-  for (const std::string& e2 : {error_of([&] { load_measurement(header); }), error_of([&] { compare_file(nominal(), header); })}) {
+  for (const std::string& e2 :
+       {error_of([&] { load_measurement(header); }), error_of([&] { compare_file(nominal(), header); })}) {
     EXPECT_NE(e2.find(header.string() + ":4:1"), std::string::npos) << e2;
     EXPECT_NE(e2.find("only 0 data row(s)"), std::string::npos) << e2;
   }
@@ -150,8 +151,7 @@ TEST(MeasurementFile, TimeJumpsAndSlowLogsAreRefusedAtTheirLine) {
   }
   // A 10 s sample period: the second row is already a gap.
   auto f = dir.write("slow10.csv", head + rows_with(100, 10.0));
-  EXPECT_NE(error_of([&] { load_measurement(f); }).find(f.string() + ":3:1: column 't_s': a gap of 10 s"),
-            std::string::npos);
+  EXPECT_NE(error_of([&] { load_measurement(f); }).find(f.string() + ":3:1: column 't_s': a gap of 10 s"), std::string::npos);
   // 0.1 s per row: no single gap, but the log outruns one row per 20 ms from row 63 on
   // (t = 6.3 s > 5 s + 63 * 20 ms).
   f = dir.write("slow01.csv", head + rows_with(200, 0.1));
@@ -198,19 +198,25 @@ TEST(MeasurementFile, NonsenseReadingsAreRefusedNamingFileLineAndColumn) {
       {"huge.csv", head + huge, ":2:3: column 'p_meas_mpa': ", "outside what a chamber-pressure transducer reads"},
       {"cell.csv", head + rows_with(500, 1e-3, 321, "1e308"), ":323:3: column 'p_meas_mpa': ", "1e+308 MPa is outside"},
       {"negative.csv", head + rows_with(500, 1e-3, 40, "-5"), ":42:3: column 'p_meas_mpa': ", "-5 MPa is outside"},
-      {"cmd.csv", head + [] {
-         std::string s = rows_with(500, 1e-3);
-         return s.replace(s.find("11.41174", 30 * 20), 8, "1e300");
-       }(), ":24:2: column 'theta_cmd_deg': ", "1e+300 deg is more than a turn"},
-      {"motor.csv", "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg\n" + [] {
-         std::string s;
-         for (int i = 0; i < 500; ++i) {
-           char b[100];
-           std::snprintf(b, sizeof b, "%.3f,11.4,%.6f,%s\n", i * 1e-3, 1 + 1e-3 * std::sin(i), i == 77 ? "-4000" : "11.4");
-           s += b;
-         }
-         return s;
-       }(), ":79:4: column 'theta_motor_deg': ", "-4000 deg is more than a turn"},
+      {"cmd.csv",
+       head +
+           [] {
+             std::string s = rows_with(500, 1e-3);
+             return s.replace(s.find("11.41174", 30 * 20), 8, "1e300");
+           }(),
+       ":24:2: column 'theta_cmd_deg': ", "1e+300 deg is more than a turn"},
+      {"motor.csv",
+       "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg\n" +
+           [] {
+             std::string s;
+             for (int i = 0; i < 500; ++i) {
+               char b[100];
+               std::snprintf(b, sizeof b, "%.3f,11.4,%.6f,%s\n", i * 1e-3, 1 + 1e-3 * std::sin(i), i == 77 ? "-4000" : "11.4");
+               s += b;
+             }
+             return s;
+           }(),
+       ":79:4: column 'theta_motor_deg': ", "-4000 deg is more than a turn"},
   };
   for (const Case& c : cases) {
     const auto f = dir.write(c.name, c.body);
@@ -535,15 +541,15 @@ TEST(Replay, WithAnEncoderTheDriveIsCheckedSeparately) {
   // Without the delay the drive model follows the encoder.
   s.name = "nominal_with_encoder";
   s.truth = [](const hil::plant::Plant& p) { return p; };
-  const auto c2 = hil::test::run_compare(hil::test::nominal_model(), hil::test::make_measurement(s, dir.path()),
-                                         dir.path() / "cmp2");
+  const auto c2 =
+      hil::test::run_compare(hil::test::nominal_model(), hil::test::make_measurement(s, dir.path()), dir.path() / "cmp2");
   EXPECT_TRUE(c2.at("motor_channel").at("matches").get<bool>()) << c2.at("motor_channel");
 }
 
 TEST(Replay, CandidatesAreTheBuiltInEightPlusUserEffects) {
   const auto names = hil::analysis::builtin_candidate_names();
-  EXPECT_EQ(names, (std::vector<std::string>{"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
-                                             "transport_delay", "sensor_bias", "motor_dynamics", "burn_rate"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"backlash_change", "valve_offset", "throat_erosion", "sensor_lag", "transport_delay",
+                                             "sensor_bias", "motor_dynamics", "burn_rate"}));
   const auto all = hil::analysis::candidates_for(hil::analysis::noise_free(nominal()));
   EXPECT_EQ(all.size(), names.size());  // this test binary registers no user effect
   EXPECT_THROW(hil::analysis::candidates_for(nominal(), {"valve_ofset"}), std::invalid_argument);

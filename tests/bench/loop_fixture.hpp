@@ -6,9 +6,9 @@
 #include <memory>
 #include <vector>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/rt_loop.hpp"
-#include "hil/bench/sim_rig.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/rt/sim_rig.hpp"
 #include "temp_file.hpp"
 
 namespace hil::test {
@@ -38,14 +38,14 @@ inline Clock::time_point fake_now() noexcept { return Clock::time_point{}; }
 
 // A RunLoop on a SimRig with rings big enough for the whole run unless told otherwise.
 struct LoopHarness {
-  explicit LoopHarness(const bench::Campaign& campaign, const std::string& run = "adaptive",
-                       bench::SafetyConfig safety = {}, bench::LoopConfig loop_cfg = {}, std::size_t ring = 1 << 15)
+  explicit LoopHarness(const bench::Campaign& campaign, const std::string& run = "adaptive", bench::SafetyConfig safety = {},
+                       bench::LoopConfig loop_cfg = {}, std::size_t ring = 1 << 15)
       : c(campaign), telemetry(ring), events(1024), requests(64) {
     rig.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
     rig.activate();
     period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s));
-    loop = std::make_unique<bench::RunLoop>(c, run_named(c, run), rig, safety, loop_cfg, period, telemetry, events,
-                                            requests, &fake_now);
+    loop = std::make_unique<bench::RunLoop>(c, run_named(c, run), rig, safety, loop_cfg, period, telemetry, events, requests,
+                                            &fake_now);
     loop->begin(t0);
   }
   // One period; `late` makes it end that long after its deadline. False once the run ended.

@@ -4,8 +4,8 @@
 
 #include <fstream>
 
-#include "hil/bench/recorder.hpp"
-#include "hil/bench/runner.hpp"
+#include "hil/bench/rt/recorder.hpp"
+#include "hil/bench/server/runner.hpp"
 #include "hil/csv_reader.hpp"
 #include "loop_fixture.hpp"
 
@@ -15,7 +15,8 @@ using namespace std::chrono_literals;
 TEST(Recorder, WritesEveryRowAndEvent) {
   hil::test::TempDir dir;
   std::atomic<long> seen{0};
-  Recorder rec(dir.path(), {{"campaign", "x"}}, 256, [&](const TelemetryRecord&) { ++seen; }, 10ms);
+  Recorder rec(
+      dir.path(), {{"campaign", "x"}}, 256, [&](const TelemetryRecord&) { ++seen; }, 10ms);
   // More rows than the ring holds: the producer waits for room here (a test, not the loop).
   for (int i = 0; i < 5000; ++i) {
     TelemetryRecord r;
@@ -84,7 +85,8 @@ TEST(Recorder, HardwareRigFilesLeaveTheTruthOut) {
   ASSERT_TRUE(rec.telemetry().try_push(r));
   EXPECT_EQ(rec.finish(), "");
   hil::CsvHeader header;
-  const auto chunk = hil::read_csv(dir.path() / "telemetry.csv", {{"t_s", "theta_cmd_deg", "p_meas_mpa", "loop_flags"}, {}, "t_s"}, &header);
+  const auto chunk =
+      hil::read_csv(dir.path() / "telemetry.csv", {{"t_s", "theta_cmd_deg", "p_meas_mpa", "loop_flags"}, {}, "t_s"}, &header);
   EXPECT_EQ(chunk.rows(), 1u);
   EXPECT_EQ(header.names.size(), hil::telemetry::kLoopColumns - 3);
   for (const char* truth : {"theta_valve_deg", "gap_true_deg", "p_chamber_mpa"}) {
@@ -94,8 +96,8 @@ TEST(Recorder, HardwareRigFilesLeaveTheTruthOut) {
 
 // run.json's outcome names round-trip, and their order is how a campaign picks its worst run's.
 TEST(RunOutcome, NamesRoundTripAndOrderByHowBad) {
-  for (const Outcome o : {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted,
-                          Outcome::running})
+  for (const Outcome o :
+       {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted, Outcome::running})
     EXPECT_EQ(outcome_from(to_string(o)), o) << to_string(o);
   EXPECT_EQ(to_string(Outcome::aborted), "aborted");
   EXPECT_EQ(outcome_from("exploded"), Outcome::error);  // a name it does not know is not "completed"

@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "hil/bench/device_rig.hpp"
-#include "hil/bench/rig_config.hpp"
-#include "hil/bench/rig_registry.hpp"
-#include "hil/bench/sim_rig.hpp"
+#include "hil/bench/rt/device_rig.hpp"
+#include "hil/bench/rt/rig_config.hpp"
+#include "hil/bench/rt/rig_registry.hpp"
+#include "hil/bench/rt/sim_rig.hpp"
 #include "loop_fixture.hpp"
 #include "test_parts.hpp"
 
@@ -196,7 +196,8 @@ TEST(ComposedRig, ReadsAndWritesThroughAPositionDriveAndAPressureSensor) {
   EXPECT_NE(h.last_error_text().find("(limit 10.0 ms)"), std::string_view::npos) << h.last_error_text();
   // ... and a drive's feedback older than its limit too, the drive named first.
   EXPECT_EQ(rig.read(Clock::now() + 50ms, 1ms, rd), bench::RigStatus::stale);
-  EXPECT_NE(rig.health().last_error_text().find("drive: newest feedback"), std::string_view::npos) << rig.health().last_error_text();
+  EXPECT_NE(rig.health().last_error_text().find("drive: newest feedback"), std::string_view::npos)
+      << rig.health().last_error_text();
   EXPECT_NE(rig.health().last_error_text().find("(limit 40.0 ms)"), std::string_view::npos) << rig.health().last_error_text();
   made.sensor->set_pressure(1.6e6);
   made.drive->poll();

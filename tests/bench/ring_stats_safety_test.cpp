@@ -4,10 +4,10 @@
 #include <random>
 #include <thread>
 
-#include "hil/bench/loop_stats.hpp"
-#include "hil/bench/rt_thread.hpp"
-#include "hil/bench/safety.hpp"
-#include "hil/bench/spsc_ring.hpp"
+#include "hil/bench/rt/loop_stats.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/rt/safety.hpp"
+#include "hil/bench/rt/spsc_ring.hpp"
 #include "hil/config.hpp"
 
 using namespace hil::bench;

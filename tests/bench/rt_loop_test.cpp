@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/units.hpp"
 #include "loop_fixture.hpp"
 
@@ -76,8 +76,7 @@ TEST(SimulatedRun, HasNoInterlocks) {
   SafetyConfig strict;
   strict.p_max_pa = 1.2e6;
   LoopHarness bench(c, "adaptive", strict);
-  while (bench.step()) {
-  }
+  while (bench.step()) {}
   EXPECT_EQ(bench.loop->trip(), Trip::overpressure);
 
   const auto rows = simulated(c, "adaptive");
@@ -103,8 +102,7 @@ TEST(RunLoop, GapChangeReachesThePlantAndTheEvents) {
   LoopHarness h(short_campaign(2.0));
   for (int i = 0; i < 500; ++i) h.step();
   ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::set_gap, .value = deg_to_rad(2.5)}));
-  while (h.step()) {
-  }
+  while (h.step()) {}
   const auto rows = h.rows();
   ASSERT_EQ(rows.size(), 2000u);
   EXPECT_DOUBLE_EQ(rows[499].step.gap_true_rad, deg_to_rad(1.0));
@@ -158,8 +156,7 @@ TEST(RunLoop, SafeAngleRampsAtTheSafeRate) {
   LoopHarness h(short_campaign(3.0), "adaptive", safety);
   for (int i = 0; i < 100; ++i) h.step();
   ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::abort}));
-  while (h.step()) {
-  }
+  while (h.step()) {}
   EXPECT_EQ(h.loop->trip(), Trip::operator_abort);
   const auto rows = h.rows();
   for (std::size_t i = 101; i < rows.size(); ++i) {
@@ -176,8 +173,7 @@ TEST(RunLoop, OverpressureTripsAfterTheDebounce) {
   LoopHarness h(short_campaign(2.0), "adaptive", safety);
   for (int i = 0; i < 200; ++i) h.step();
   ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::bias, .value = 1.0e6}));
-  while (h.step()) {
-  }
+  while (h.step()) {}
   EXPECT_EQ(h.loop->trip(), Trip::overpressure);
   EXPECT_NEAR(h.loop->trip_t_s(), 0.202, 1e-9);  // readings 200, 201, 202 are over
   EXPECT_GT(h.loop->trip_value(), 1.8e6);
@@ -189,9 +185,11 @@ TEST(RunLoop, SensorFaultsShapeTheReading) {
   for (int i = 0; i < 100; ++i) h.step();
   ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::stuck, .duration_s = 0.1}));
   for (int i = 0; i < 200; ++i) h.step();
-  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::noise, .value = 50e3, .duration_s = 0.1}));
+  ASSERT_TRUE(h.requests.try_push(
+      {.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::noise, .value = 50e3, .duration_s = 0.1}));
   for (int i = 0; i < 200; ++i) h.step();
-  ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::dropout, .duration_s = 0.002}));
+  ASSERT_TRUE(
+      h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::dropout, .duration_s = 0.002}));
   for (int i = 0; i < 10; ++i) h.step();
   const auto rows = h.rows();
   for (int i = 100; i < 200; ++i) {
@@ -230,8 +228,7 @@ TEST(RunLoop, LimitsClampTheCommand) {
   safety.cmd_min_rad = deg_to_rad(8.0);  // the run starts near 11 deg and closes to ~4 deg at 2.5 s
   safety.rate_limit_rad_s = deg_to_rad(100);
   LoopHarness h(short_campaign(4.0), "adaptive", safety);
-  while (h.step()) {
-  }
+  while (h.step()) {}
   const auto rows = h.rows();
   bool limited = false;
   for (std::size_t i = 1; i < rows.size(); ++i) {
@@ -266,8 +263,7 @@ TEST(RunLoop, OverrunPolicyAbortTripsAfterNInARow) {
 
 TEST(RunLoop, OverrunPolicyCountNeverTrips) {
   LoopHarness h(short_campaign(0.5));
-  while (h.step(1200us)) {
-  }
+  while (h.step(1200us)) {}
   EXPECT_EQ(h.loop->end(), LoopEnd::completed);
   EXPECT_EQ(h.loop->overruns(), 500);
 }
@@ -276,8 +272,7 @@ TEST(RunLoop, FullRingCountsTheLossAndNeverBlocks) {
   LoopConfig run_on;
   run_on.recording_fault = RecordingFaultPolicy::count;
   LoopHarness h(short_campaign(1.0), "adaptive", {}, run_on, 64);
-  while (h.step()) {
-  }
+  while (h.step()) {}
   EXPECT_EQ(h.loop->end(), LoopEnd::completed);
   EXPECT_EQ(h.loop->rows_pushed(), 64u);
   EXPECT_EQ(h.loop->rows_lost(), 1000u - 64u);
@@ -287,8 +282,7 @@ TEST(RunLoop, FullRingCountsTheLossAndNeverBlocks) {
 // By default a run that cannot be recorded does not go on: the full ring trips the next period.
 TEST(RunLoop, FullRingTripsToTheSafeStateByDefault) {
   LoopHarness h(short_campaign(1.0), "adaptive", {}, {}, 64);
-  while (h.step()) {
-  }
+  while (h.step()) {}
   EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
   EXPECT_EQ(h.loop->trip(), Trip::recording);
   EXPECT_NEAR(h.loop->trip_t_s(), 0.065, 1e-9);  // row 64 (t = 0.064 s) found the ring full
@@ -306,8 +300,7 @@ TEST(RunLoop, ARecorderThatCannotWriteTripsOrIsCountedAsConfigured) {
     h.loop->watch_recording(&failed);
     for (int i = 0; i < 100; ++i) ASSERT_TRUE(h.step());
     failed = true;  // the recorder's disk is full
-    while (h.step()) {
-    }
+    while (h.step()) {}
     if (policy == RecordingFaultPolicy::safe_state) {
       EXPECT_EQ(h.loop->end(), LoopEnd::tripped);
       EXPECT_EQ(h.loop->trip(), Trip::recording);
@@ -331,8 +324,7 @@ TEST(RunLoop, StopEndsAtTheNextPeriod) {
 
 TEST(RunLoop, TimingStatisticsComeFromTheGivenTimes) {
   LoopHarness h(short_campaign(0.2));
-  while (h.step(37us)) {
-  }
+  while (h.step(37us)) {}
   const TimingSummary s = h.loop->compute_time().summary();
   EXPECT_EQ(s.count, 200);
   EXPECT_NEAR(s.p50_us, 37, 37 * 0.016);
@@ -372,7 +364,8 @@ TEST(RunLoop, ShapedTargetsStayWithinTheDriveLimits) {
     if (std::abs(rows[i].step.theta_cmd_rad - rows[i - 1].step.theta_cmd_rad) > deg_to_rad(60) * dt) last_jump = i;
     if (i < last_jump + 100) continue;
     double c = 0;  // the command's fastest speed over the last 100 ms
-    for (std::size_t j = i - 99; j <= i; ++j) c = std::max(c, std::abs(rows[j].step.theta_cmd_rad - rows[j - 1].step.theta_cmd_rad) / dt);
+    for (std::size_t j = i - 99; j <= i; ++j)
+      c = std::max(c, std::abs(rows[j].step.theta_cmd_rad - rows[j - 1].step.theta_cmd_rad) / dt);
     ASSERT_LE(std::abs(rows[i].theta_target_rad - rows[i].step.theta_cmd_rad), c * c / (2 * amax) + 2 * c * dt + deg_to_rad(1e-3))
         << i << " c " << c;
     ++checked;
@@ -380,8 +373,7 @@ TEST(RunLoop, ShapedTargetsStayWithinTheDriveLimits) {
   EXPECT_GT(checked, 3500u);  // most of the run: jumps come only at reversals
 
   LoopHarness plain(short_campaign(0.5), "adaptive");
-  while (plain.step()) {
-  }
+  while (plain.step()) {}
   for (const auto& r : plain.rows()) ASSERT_EQ(r.theta_target_rad, r.step.theta_cmd_rad);
 }
 
@@ -406,9 +398,10 @@ TEST(RunLoop, ShapingCostsTheStallOfTheServoLagOnly) {
   const RunSummary a = run({}), b = run(shaped);
   ASSERT_EQ(a.reversals.size(), b.reversals.size());
   const double per_a = a.stall_s_total / a.reversals.size(), per_b = b.stall_s_total / b.reversals.size();
-  std::printf("paper_adaptive/adaptive on the sim rig: stall per reversal %.4f s unshaped, %.4f s shaped (%+.0f %%); "
-              "IAE %.4f / %.4f MPa s\n",
-              per_a, per_b, 100 * (per_b / per_a - 1), a.iae_mpa_s, b.iae_mpa_s);
+  std::printf(
+      "paper_adaptive/adaptive on the sim rig: stall per reversal %.4f s unshaped, %.4f s shaped (%+.0f %%); "
+      "IAE %.4f / %.4f MPa s\n",
+      per_a, per_b, 100 * (per_b / per_a - 1), a.iae_mpa_s, b.iae_mpa_s);
   EXPECT_LT(per_b, 1.5 * per_a);
   EXPECT_LT(b.iae_mpa_s, 1.1 * a.iae_mpa_s);
 }

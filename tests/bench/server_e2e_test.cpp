@@ -9,9 +9,9 @@
 #include <set>
 #include <thread>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/run_report.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/run_report.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/csv_reader.hpp"
 #include "loop_fixture.hpp"
 #include "server_process.hpp"
@@ -26,8 +26,9 @@ constexpr std::uint32_t kSafeStateFlag = 1u << 6;  // LoopFlag kFlagSafeState
 
 // Every row of a run's telemetry, strictly parsed (a bad cell or a time going back throws).
 hil::CsvChunk read_telemetry(const std::filesystem::path& run_dir) {
-  return hil::read_csv(run_dir / "telemetry.csv",
-                       {{"t_s", "theta_cmd_deg", "p_meas_mpa", "gap_true_deg", "loop_flags", "wake_latency_us", "compute_us"}, {}, "t_s"});
+  return hil::read_csv(
+      run_dir / "telemetry.csv",
+      {{"t_s", "theta_cmd_deg", "p_meas_mpa", "gap_true_deg", "loop_flags", "wake_latency_us", "compute_us"}, {}, "t_s"});
 }
 
 const json* find_event(const std::vector<json>& events, const std::string& kind) {
@@ -68,7 +69,8 @@ TEST(ServerEndToEnd, PaperAdaptiveWithGapInjectionAndLiveTelemetry) {
   ASSERT_EQ(started.status, 202) << started.body;
 
   // Watch telemetry arrive, then change the gap at ~3 s.
-  json s = hil::test::wait_status(api, [](const json& x) { return hil::test::status_t(x) >= 3.0; }, 30s);
+  json s = hil::test::wait_status(
+      api, [](const json& x) { return hil::test::status_t(x) >= 3.0; }, 30s);
   ASSERT_GE(hil::test::status_t(s), 3.0) << s.dump(2);
   {
     std::lock_guard lock(mutex);
@@ -78,7 +80,8 @@ TEST(ServerEndToEnd, PaperAdaptiveWithGapInjectionAndLiveTelemetry) {
   ASSERT_EQ(injected.status, 202) << injected.body;
 
   // Status while running: state, campaign, progress, loop statistics, the active fault.
-  s = hil::test::wait_status(api, [](const json& x) { return !x.value("faults", json::array()).empty(); }, 5s);
+  s = hil::test::wait_status(
+      api, [](const json& x) { return !x.value("faults", json::array()).empty(); }, 5s);
   EXPECT_EQ(s["state"], "running");
   EXPECT_EQ(s["campaign"], "paper_adaptive");
   EXPECT_EQ(s["run"], "adaptive");
@@ -92,7 +95,8 @@ TEST(ServerEndToEnd, PaperAdaptiveWithGapInjectionAndLiveTelemetry) {
   EXPECT_EQ(s["telemetry"]["rows_lost"], 0);
 
   // Let it finish.
-  s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 40s);
+  s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 40s);
   ASSERT_EQ(s["state"], "idle") << s.dump(2);
   EXPECT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
   ws.join();
@@ -150,7 +154,8 @@ TEST(ServerEndToEnd, SigtermMidRunAbortsSafelyAndKeepsEveryRow) {
   ServerProcess server;
   const auto api = server.client();
   ASSERT_EQ(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(10)}}).status, 202);
-  const json s = hil::test::wait_status(api, [](const json& x) { return hil::test::status_t(x) >= 1.5; }, 20s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return hil::test::status_t(x) >= 1.5; }, 20s);
   const double t_before = hil::test::status_t(s);
   ASSERT_GE(t_before, 1.5);
   const auto rc = server.terminate(10s);
@@ -187,10 +192,12 @@ TEST(ServerEndToEnd, WatchdogReachesTheSafeStateWithinThreePeriods) {
   ServerProcess server;
   const auto api = server.client();
   ASSERT_EQ(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(6)}}).status, 202);
-  hil::test::wait_status(api, [](const json& x) { return hil::test::status_t(x) >= 1.0; }, 20s);
+  hil::test::wait_status(
+      api, [](const json& x) { return hil::test::status_t(x) >= 1.0; }, 20s);
   const auto r = api.post("/api/inject/rig", {{"mode", "silent"}});
   ASSERT_EQ(r.status, 202) << r.body;
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 20s);
   ASSERT_EQ(s["state"], "idle");
   EXPECT_EQ(s["last"]["outcome"], "aborted");
 
@@ -234,13 +241,15 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptiv"}}), 404, "did you mean 'paper_adaptive'");
   expect_error(api.post("/api/start", {{"campaign", "../../etc/passwd"}}), 404, "");
   expect_error(api.post("/api/start", {{"campaign_yaml", "name: x\nduration_s: [1\n"}}), 400, "posted campaign");
-  expect_error(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(2) + "bogus_key: 1\n"}}), 400, "bogus_key");
+  expect_error(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(2) + "bogus_key: 1\n"}}), 400,
+               "bogus_key");
   expect_error(api.request("POST", "/api/start", "name: x\n", "application/yaml"), 400, "posted campaign");
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rigg", "sim"}}), 400, "did you mean 'rig'");
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "can0"}}), 404, "not a rig");
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"runs", {"adaptiv"}}}), 400, "did you mean 'adaptive'");
-  expect_error(api.request("POST", "/api/start", "{\"campaign_yaml\": \"" + std::string(2 << 20, 'x') + "\"}", "application/json"),
-               413, "limit");
+  expect_error(
+      api.request("POST", "/api/start", "{\"campaign_yaml\": \"" + std::string(2 << 20, 'x') + "\"}", "application/json"), 413,
+      "limit");
   expect_error(api.post("/api/inject/gap", {{"gap_deg", 2}}), 409, "no campaign is running");
   expect_error(api.post("/api/stop", json::object()), 409, "");
   expect_error(api.post("/api/abort", json::object()), 409, "");
@@ -270,7 +279,8 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   const auto started = api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(30)}});
   ASSERT_EQ(started.status, 202) << started.body;
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}}), 409, "is running");
-  hil::test::wait_status(api, [](const json& x) { return x["state"] == "running"; }, 10s);
+  hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "running"; }, 10s);
   expect_error(api.post("/api/inject/sensor", {{"mode", "wobble"}}), 400, "stuck, dropout, bias or noise");
   expect_error(api.post("/api/inject/gap", {{"gap_deg", -1}}), 400, "0..10");
   expect_error(api.post("/api/inject/gap", {{"gap_deg", "two"}}), 400, "number");
@@ -283,7 +293,8 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   EXPECT_EQ(api.get("/api/health").status, 200);
   const auto aborted = api.post("/api/abort", {{"reason", "end of test"}});
   EXPECT_EQ(aborted.status, 202) << aborted.body;
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 10s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 10s);
   EXPECT_EQ(s["last"]["outcome"], "aborted");
   EXPECT_EQ(s["last"]["reason"], "operator abort: end of test");
   const auto events = hil::test::read_jsonl(hil::test::only_run(server.runs_dir()) / "events.jsonl");
@@ -326,7 +337,8 @@ TEST(ServerEndToEnd, CtlStartsAndFollowsWithAProgressBar) {
   std::ofstream(yaml) << hil::test::short_campaign_yaml(2, "two_seconds");
   const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
   const auto log = server.dir() / "ctl.log";
-  const pid_t pid = hil::test::spawn({hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--speed", "2"}, log);
+  const pid_t pid =
+      hil::test::spawn({hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--speed", "2"}, log);
   const auto rc = hil::test::wait_exit(pid, 30s);
   ASSERT_TRUE(rc.has_value());
   const std::string out = hil::test::slurp(log);
@@ -351,8 +363,10 @@ TEST(ServerEndToEnd, ReportOfRecordedRunsMatchesTheSimulation) {
   ServerProcess server;
   const auto api = server.client();
   const std::string yaml = hil::test::short_campaign_yaml(6, "review");
-  ASSERT_EQ(api.request("POST", "/api/start", json{{"campaign_yaml", yaml}, {"speed", 10}}.dump(), "application/json").status, 202);
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 60s);
+  ASSERT_EQ(api.request("POST", "/api/start", json{{"campaign_yaml", yaml}, {"speed", 10}}.dump(), "application/json").status,
+            202);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 60s);
   ASSERT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
   std::vector<std::filesystem::path> dirs;
   for (const auto& e : std::filesystem::directory_iterator(server.runs_dir())) dirs.push_back(e.path());
@@ -360,8 +374,9 @@ TEST(ServerEndToEnd, ReportOfRecordedRunsMatchesTheSimulation) {
   ASSERT_EQ(dirs.size(), 2u);
 
   const auto log = server.dir() / "report.log";
-  const pid_t pid = hil::test::spawn({hil::test::hilbench_exe(), "report", dirs[0].string(), dirs[1].string(), "--out",
-                                      (server.dir() / "review.html").string()}, log);
+  const pid_t pid = hil::test::spawn(
+      {hil::test::hilbench_exe(), "report", dirs[0].string(), dirs[1].string(), "--out", (server.dir() / "review.html").string()},
+      log);
   ASSERT_EQ(hil::test::wait_exit(pid, 60s), 0) << hil::test::slurp(log);
   EXPECT_NE(hil::test::slurp(log).find("completed"), std::string::npos) << hil::test::slurp(log);
   EXPECT_GT(std::filesystem::file_size(server.dir() / "review.html"), 10000u);

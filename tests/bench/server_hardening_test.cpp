@@ -5,7 +5,6 @@
 // say what happened.
 #include <gtest/gtest.h>
 
-
 #include <fstream>
 #include <thread>
 
@@ -47,21 +46,22 @@ TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
   ServerProcess server;
   const auto api = server.client();
   ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3), "application/json").status, 202);
-  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 0.3; }, 20s);
+  hil::test::wait_status(
+      api, [](const json& s) { return hil::test::status_t(s) > 0.3; }, 20s);
 
   struct Bad {
     std::string method, target, body;
     int status;
   };
   const Bad bad[] = {
-      {"POST", "/api/start", "{\"campaign\": \"\xff\xfe\"}", 400},    // invalid UTF-8 in a string value
-      {"POST", "/api/start", "{\"\xff\": 1}", 400},                    // ... in a key
+      {"POST", "/api/start", "{\"campaign\": \"\xff\xfe\"}", 400},  // invalid UTF-8 in a string value
+      {"POST", "/api/start", "{\"\xff\": 1}", 400},                 // ... in a key
       {"POST", "/api/start", "{\"campaign\": \"x\", \"speed\": 1e400}", 400},
-      {"GET", "/api/runs?runs=%ff", "", 200},                          // an unknown query key is ignored
+      {"GET", "/api/runs?runs=%ff", "", 200},  // an unknown query key is ignored
       {"GET", "/api/runs/%ff", "", 404},
       {"GET", "/api/runs/%ff/%fe", "", 404},
-      {"GET", "/api/\xff\xfe", "", 404},                               // raw bytes in the path
-      {"POST", "/api/abort", "{\"reason\": \"\xc3\"}", 400},           // truncated UTF-8
+      {"GET", "/api/\xff\xfe", "", 404},                      // raw bytes in the path
+      {"POST", "/api/abort", "{\"reason\": \"\xc3\"}", 400},  // truncated UTF-8
       {"POST", "/api/inject/\xff", "{}", 404},
   };
   for (const auto& b : bad) {
@@ -70,7 +70,8 @@ TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
     EXPECT_NO_THROW((void)reply.json()) << reply.body;  // always a JSON answer
   }
   EXPECT_EQ(api.get("/api/health").status, 200);
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 30s);
   EXPECT_EQ(s["last"]["outcome"], "completed") << s.dump(2);
   const auto run = json::parse(hil::test::slurp(hil::test::only_run(server.runs_dir()) / "run.json"));
   EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
@@ -87,7 +88,8 @@ TEST(ServerHardening, APostedCampaignCannotReadFilesOutsideTheBench) {
     const auto reply = api.post("/api/start", {{"campaign_yaml", yaml}});
     EXPECT_EQ(reply.status, 400) << reply.body;
     EXPECT_NE(reply.body.find("may only name a plant file inside"), std::string::npos) << reply.body;
-    for (const char* leak : {"TOP-SECRET", "root:", "do not show"}) EXPECT_EQ(reply.body.find(leak), std::string::npos) << reply.body;
+    for (const char* leak : {"TOP-SECRET", "root:", "do not show"})
+      EXPECT_EQ(reply.body.find(leak), std::string::npos) << reply.body;
   }
   // A plant path that is a folder is the client's mistake: 400, not 500.
   std::string yaml = hil::test::short_campaign_yaml(1);
@@ -112,9 +114,11 @@ TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
 
   // The disk fills up while a run is under way: the loop trips to its safe state and ends.
   ASSERT_EQ(api.request("POST", "/api/start", campaign_request(20), "application/json").status, 202);
-  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+  hil::test::wait_status(
+      api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
   disk.fill();
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 30s);
   ASSERT_EQ(s["state"], "idle") << s.dump(2);
   EXPECT_EQ(s["last"]["outcome"], "aborted") << s.dump(2);
   const std::string reason = s["last"]["reason"];
@@ -147,7 +151,9 @@ TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
   EXPECT_EQ(on_full.status, 507) << on_full.body;
   disk.unfill();
   EXPECT_EQ(api.request("POST", "/api/start", campaign_request(1), "application/json").status, 202);
-  EXPECT_EQ(hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 30s)["last"]["outcome"], "completed");
+  EXPECT_EQ(hil::test::wait_status(
+                api, [](const json& x) { return x["state"] == "idle"; }, 30s)["last"]["outcome"],
+            "completed");
 }
 
 TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDisk) {
@@ -157,7 +163,8 @@ TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDi
     ServerProcess first({"--runs-dir", runs.string()});
     const auto api = first.client();
     ASSERT_EQ(api.request("POST", "/api/start", campaign_request(60), "application/json").status, 202);
-    hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+    hil::test::wait_status(
+        api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
     ASSERT_EQ(::kill(first.pid(), SIGKILL), 0);
     ASSERT_TRUE(hil::test::wait_exit(first.pid(), 10s).has_value());
   }
@@ -185,9 +192,10 @@ TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDi
 TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {
   hil::test::TempDir dir;
   for (const char* blank : {"   ", "short", "has space inside"}) {
-    const pid_t pid = hil::test::spawn({hil::test::hilbench_exe(), "serve", "--listen", "127.0.0.1:0", "--token", blank, "--configs",
-                                        hil::test::source_path("configs").string(), "--runs-dir", (dir.path() / "runs").string()},
-                                       dir.path() / "log");
+    const pid_t pid =
+        hil::test::spawn({hil::test::hilbench_exe(), "serve", "--listen", "127.0.0.1:0", "--token", blank, "--configs",
+                          hil::test::source_path("configs").string(), "--runs-dir", (dir.path() / "runs").string()},
+                         dir.path() / "log");
     const auto rc = hil::test::wait_exit(pid, 10s);
     ASSERT_TRUE(rc.has_value());
     EXPECT_EQ(*rc, 1) << blank;
@@ -210,13 +218,15 @@ TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   ServerProcess server;
   const auto api = server.client();
   ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
-  hil::test::wait_status(api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  hil::test::wait_status(
+      api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
   const auto first = api.post("/api/abort", {{"reason", "first"}}).json();
   const auto second = api.post("/api/abort", {{"reason", "second"}}).json();
   EXPECT_EQ(first["reason"], "operator abort: first");
   EXPECT_EQ(second["reason"], "operator abort: first");
   EXPECT_TRUE(second.contains("note"));
-  const json s = hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 20s);
   EXPECT_EQ(s["last"]["reason"], "operator abort: first");
 }
 
@@ -245,7 +255,8 @@ TEST(ServerHardening, ASlowWebSocketReaderIsToldInBandWhatItMissed) {
   EXPECT_GE(dropped["total"].get<long>(), dropped["messages"].get<long>());
   EXPECT_NE(dropped["why"].get<std::string>().find("telemetry.csv is the lossless record"), std::string::npos);
   api.post("/api/abort", {{"reason", "test done"}});
-  hil::test::wait_status(api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 20s);
 }
 
 }  // namespace

@@ -18,7 +18,7 @@
 
 #include <gtest/gtest.h>
 
-#include "hil/bench/api_client.hpp"
+#include "hil/bench/server/api_client.hpp"
 #include "temp_file.hpp"
 
 extern char** environ;
@@ -66,9 +66,11 @@ class ServerProcess {
  public:
   explicit ServerProcess(std::vector<std::string> extra = {}, std::string token = "") : token_(std::move(token)) {
     log_ = dir_.path() / "server.log";
-    std::vector<std::string> argv = {hilbench_exe(), "serve", "--listen", "127.0.0.1:0",
-                                     "--configs", source_path("configs").string(),
-                                     "--runs-dir", runs_dir().string(), "--port-file", (dir_.path() / "port").string()};
+    std::vector<std::string> argv = {hilbench_exe(), "serve",
+                                     "--listen",     "127.0.0.1:0",
+                                     "--configs",    source_path("configs").string(),
+                                     "--runs-dir",   runs_dir().string(),
+                                     "--port-file",  (dir_.path() / "port").string()};
     for (auto& a : extra) argv.push_back(std::move(a));
     if (!token_.empty()) argv.insert(argv.end(), {"--token", token_});
     pid_ = spawn(argv, log_);
@@ -88,7 +90,8 @@ class ServerProcess {
         wait_exit(pid_, std::chrono::seconds(5));
       }
     }
-    if (::testing::Test::HasFailure()) std::fprintf(stderr, "---- server log ----\n%s--------------------\n", slurp(log_).c_str());
+    if (::testing::Test::HasFailure())
+      std::fprintf(stderr, "---- server log ----\n%s--------------------\n", slurp(log_).c_str());
   }
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
@@ -124,7 +127,8 @@ inline std::filesystem::path only_run(const std::filesystem::path& runs_dir) {
   for (const auto& e : std::filesystem::directory_iterator(runs_dir)) {
     if (e.is_directory()) dirs.push_back(e.path());
   }
-  if (dirs.size() != 1) throw std::runtime_error("expected one run folder in " + runs_dir.string() + ", found " + std::to_string(dirs.size()));
+  if (dirs.size() != 1)
+    throw std::runtime_error("expected one run folder in " + runs_dir.string() + ", found " + std::to_string(dirs.size()));
   return dirs.front();
 }
 
@@ -139,10 +143,13 @@ inline std::vector<nlohmann::json> read_jsonl(const std::filesystem::path& file)
 // reference alternates 1.0 / 1.5 MPa every second from 0.5 s. Its plant path resolves from the
 // server's campaigns folder.
 inline std::string short_campaign_yaml(double duration_s, const std::string& name = "short_adaptive") {
-  return "name: " + name + "\n"
+  return "name: " + name +
+         "\n"
          "description: a short test campaign\n"
          "plant: ../plant/nominal.yaml\n"
-         "duration_s: " + std::to_string(duration_s) + "\n"
+         "duration_s: " +
+         std::to_string(duration_s) +
+         "\n"
          "period_ms: 1\n"
          "seed: 1\n"
          "sensor_noise_kpa: 2.0\n"
@@ -173,8 +180,6 @@ nlohmann::json wait_status(const bench::ApiClient& api, Pred pred, std::chrono::
   return s;
 }
 
-inline double status_t(const nlohmann::json& s) {
-  return s.contains("progress") ? s["progress"].value("t_s", 0.0) : 0.0;
-}
+inline double status_t(const nlohmann::json& s) { return s.contains("progress") ? s["progress"].value("t_s", 0.0) : 0.0; }
 
 }  // namespace hil::test

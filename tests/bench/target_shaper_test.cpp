@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "hil/bench/target_shaper.hpp"
+#include "hil/bench/rt/target_shaper.hpp"
 
 using hil::bench::ShapingLimits;
 using hil::bench::TargetShaper;

@@ -5,7 +5,7 @@
 #include <regex>
 #include <sstream>
 
-#include "hil/bench/campaign.hpp"
+#include "hil/bench/campaign/campaign.hpp"
 #include "hil/config.hpp"
 #include "hil/units.hpp"
 #include "support/temp_file.hpp"
@@ -67,9 +67,10 @@ TEST(CampaignConfig, WrongType) {
 
 TEST(CampaignConfig, MissingField) {
   expect_error(load_with("runs:", "rnus:"), "rnus", "unknown key 'rnus'");
-  const Loaded l = load_with("  - name: none                   # the paper's original integral controller\n"
-                             "    compensation: none\n",
-                             "  - name: none\n");
+  const Loaded l = load_with(
+      "  - name: none                   # the paper's original integral controller\n"
+      "    compensation: none\n",
+      "  - name: none\n");
   expect_error(l, "runs[0]", "missing required key 'compensation'");
 }
 
@@ -105,8 +106,8 @@ TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {
   ss << in.rdbuf();
   std::string plant = std::regex_replace(ss.str(), std::regex("pressure_exponent: 0\\.35"), "pressure_exponent: 1.2");
   const auto plant_file = dir.write("plant/bad_plant.yaml", plant);
-  std::string text = std::regex_replace(paper_adaptive_text(), std::regex("plant: [^ ]+nominal\\.yaml"),
-                                        "plant: " + plant_file.string());
+  std::string text =
+      std::regex_replace(paper_adaptive_text(), std::regex("plant: [^ ]+nominal\\.yaml"), "plant: " + plant_file.string());
   try {
     (void)hil::bench::load_campaign(dir.write("c.yaml", text));
     FAIL();
@@ -120,8 +121,8 @@ TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {
 
 TEST(CampaignConfig, PlantThatIsAFolderNamesTheKeyAndTheFolder) {
   hil::test::TempDir dir;
-  std::string text = std::regex_replace(paper_adaptive_text(), std::regex("plant: [^ ]+nominal\\.yaml"),
-                                        "plant: " + dir.path().string());
+  std::string text =
+      std::regex_replace(paper_adaptive_text(), std::regex("plant: [^ ]+nominal\\.yaml"), "plant: " + dir.path().string());
   try {
     (void)hil::bench::load_campaign(dir.write("c.yaml", text));
     FAIL();
@@ -199,10 +200,9 @@ TEST(CampaignProfiles, EveryItemKindBuildsTheScheduleItSays) {
 // target); a start with no possible move at all is refused naming the item.
 std::string random_campaign(double initial_mpa, const std::string& directions, double min_change, int seed) {
   return "plant: " + hil::test::source_path("configs/plant/nominal.yaml").string() +
-         "\nduration_s: 200\nseed: " + std::to_string(seed) + "\nreference:\n  initial_mpa: " +
-         std::to_string(initial_mpa) + "\n  profile:\n    - random: {from_s: 1, min_mpa: 0.9, max_mpa: 1.6, min_change_mpa: " +
-         std::to_string(min_change) + ", dwell_s: [1, 2], directions: " + directions + "}\n" +
-         "runs:\n  - {name: a, compensation: none}\n";
+         "\nduration_s: 200\nseed: " + std::to_string(seed) + "\nreference:\n  initial_mpa: " + std::to_string(initial_mpa) +
+         "\n  profile:\n    - random: {from_s: 1, min_mpa: 0.9, max_mpa: 1.6, min_change_mpa: " + std::to_string(min_change) +
+         ", dwell_s: [1, 2], directions: " + directions + "}\n" + "runs:\n  - {name: a, compensation: none}\n";
 }
 
 TEST(CampaignProfiles, RandomItemFromOutsideItsRangeEnds) {

@@ -8,8 +8,8 @@
 
 #include <numeric>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "support/temp_file.hpp"
 
 using namespace hil::bench;
@@ -63,9 +63,9 @@ TEST_P(PaperClaims, AdaptiveLearnsAndRelearns) {
   const Campaign c = campaign("paper_adaptive", GetParam());
   const auto none = run(c, "none"), ad = run(c, "adaptive");
   const auto a = stall(none), b = stall(ad);
-  ASSERT_EQ(b.size(), 7u);  // reversals at 2.5, 5, 7.5, 10 | 12.5, 15, 17.5 s
-  EXPECT_EQ(ad.reversals[0].gap_est_deg, 0.0);                 // starts knowing nothing
-  EXPECT_NEAR(ad.reversals[1].gap_est_deg, 1.0, 0.1);          // learned at the first reversal
+  ASSERT_EQ(b.size(), 7u);                             // reversals at 2.5, 5, 7.5, 10 | 12.5, 15, 17.5 s
+  EXPECT_EQ(ad.reversals[0].gap_est_deg, 0.0);         // starts knowing nothing
+  EXPECT_NEAR(ad.reversals[1].gap_est_deg, 1.0, 0.1);  // learned at the first reversal
   for (std::size_t i = 1; i <= 3; ++i) EXPECT_LE(b[i], 0.2 * a[i]) << "reversal " << i;
   const double settled = (b[1] + b[2] + b[3]) / 3;
   EXPECT_GT(b[4], 3 * settled) << "the stall reappears after the growth (12.5 s)";

@@ -1,4 +1,4 @@
-#include "hil/bench/schedule.hpp"
+#include "hil/bench/campaign/schedule.hpp"
 
 #include <gtest/gtest.h>
 

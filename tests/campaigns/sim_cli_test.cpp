@@ -27,8 +27,8 @@ std::string slurp(const std::filesystem::path& p) {
 
 TEST(SimCli, PaperAdaptiveWritesTelemetrySummariesAndReport) {
   hil::test::TempDir out;
-  const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_adaptive.yaml").string() +
-                             " --out " + out.path().string());
+  const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_adaptive.yaml").string() + " --out " +
+                             out.path().string());
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("report: "), std::string::npos);
   const auto dir = out.path() / "paper_adaptive";
@@ -46,11 +46,11 @@ TEST(SimCli, PaperAdaptiveWritesTelemetrySummariesAndReport) {
     EXPECT_EQ(data.rows(), 18000u) << run;
     for (bool present : header.present) EXPECT_TRUE(present) << run;
     EXPECT_NEAR(data.values[0].back(), 17.999, 1e-9);
-    EXPECT_NEAR(data.values[6].back(), 2.0, 1e-9);   // the gap grew to 2 deg at 12 s
+    EXPECT_NEAR(data.values[6].back(), 2.0, 1e-9);  // the gap grew to 2 deg at 12 s
     EXPECT_NEAR(data.values[6].front(), 1.0, 1e-9);
     const auto summary = nlohmann::json::parse(slurp(dir / run / "summary.json"));
-    for (const char* key : {"iae_mpa_s", "stall_s_per_reversal", "gap_est_final_deg", "gap_true_final_deg",
-                            "touch_state_changes", "compensation_events"}) {
+    for (const char* key : {"iae_mpa_s", "stall_s_per_reversal", "gap_est_final_deg", "gap_true_final_deg", "touch_state_changes",
+                            "compensation_events"}) {
       EXPECT_TRUE(summary.contains(key)) << run << " " << key;
     }
     EXPECT_EQ(summary["stall_s_per_reversal"].size(), 7u);  // reversals at 2.5, 5, ..., 17.5 s
@@ -101,8 +101,8 @@ TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
                              " --sensor-noise-kpa 0 --runs constant --quiet --out " + out.path().string());
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_FALSE(std::filesystem::exists(out.path() / "paper_constant" / "none"));
-  const auto data = hil::read_csv(out.path() / "paper_constant" / "constant" / "telemetry.csv",
-                                  {{"p_meas_mpa"}, {"p_chamber_mpa"}, ""});
+  const auto data =
+      hil::read_csv(out.path() / "paper_constant" / "constant" / "telemetry.csv", {{"p_meas_mpa"}, {"p_chamber_mpa"}, ""});
   for (std::size_t i = 0; i < data.rows(); i += 97) ASSERT_NEAR(data.values[0][i], data.values[1][i], 1e-6);
 }
 
@@ -160,8 +160,8 @@ TEST(Cli, TheLastOfARepeatedOptionCounts) {
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.output.find("--sensor-noise-kpa 7e16: "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("6e16"), std::string::npos) << r.output;
-  const auto bad = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
-                               " --sensor-noise-kpa=-1");
+  const auto bad =
+      run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() + " --sensor-noise-kpa=-1");
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.output.find("--sensor-noise-kpa: cannot be negative, got -1"), std::string::npos) << bad.output;
 }

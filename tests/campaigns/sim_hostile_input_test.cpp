@@ -25,8 +25,11 @@ namespace {
 
 // A short valid campaign with the given lines replacing its defaults (the plant is the shipped one).
 std::string campaign_yaml(const std::string& name_line, const std::string& extra = "", const std::string& runs = "") {
-  return name_line + "\n"
-         "plant: " + source_path("configs/plant/nominal.yaml").string() + "\n"
+  return name_line +
+         "\n"
+         "plant: " +
+         source_path("configs/plant/nominal.yaml").string() +
+         "\n"
          "duration_s: 1\n"
          "reference: {initial_mpa: 1.0, profile: [{step: {at_s: 0.3, to_mpa: 1.2}}]}\n" +
          extra + "runs:\n" + (runs.empty() ? "  - {name: none, compensation: none}\n" : runs);
@@ -85,7 +88,8 @@ TEST(SimHostileInput, AbsurdNumbersAreRefusedBeforeAnythingRuns) {
   const Case cases[] = {
       {campaign_yaml("name: x").replace(campaign_yaml("name: x").find("duration_s: 1"), 13, "duration_s: 1e308"),
        "duration_s: must be > 0 and at most 604800 s"},
-      {campaign_yaml("name: x", "gap: {initial_deg: 1e308}\n"), "gap.initial_deg: a gap of 1e+308 deg is more than the backlash effect allows"},
+      {campaign_yaml("name: x", "gap: {initial_deg: 1e308}\n"),
+       "gap.initial_deg: a gap of 1e+308 deg is more than the backlash effect allows"},
       {campaign_yaml("name: x", "gap: {changes: [{step: {at_s: 0.5, to_deg: 500}}]}\n"), "a gap of 500 deg is more than"},
       {campaign_yaml("name: x", "seed: 1\nseed: 2\n"), "duplicate key 'seed'"},
   };

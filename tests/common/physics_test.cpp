@@ -26,7 +26,7 @@ GasGenerator nominal() {
 
 TEST(Physics, BurnCoefficientGivesTheRateAtOneMegapascalAndItsPowerLaw) {
   const double a_si = hil::physics::burn_coeff_si(5.0, 0.35);
-  EXPECT_NEAR(a_si * std::pow(1e6, 0.35), 5e-3, 1e-15);                          // 5 mm/s at 1 MPa
+  EXPECT_NEAR(a_si * std::pow(1e6, 0.35), 5e-3, 1e-15);                        // 5 mm/s at 1 MPa
   EXPECT_NEAR(a_si * std::pow(2e6, 0.35), 5e-3 * std::pow(2.0, 0.35), 1e-15);  // r ~ P^n
 }
 

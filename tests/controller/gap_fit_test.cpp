@@ -15,8 +15,8 @@ namespace {
 constexpr double kDeg = M_PI / 180;
 
 // The motor rests on the old flank (pushing in -dir), turns at `turn`, crosses at `speed`.
-GapFit::History history(double gap, int dir, double speed_deg_s, double noise_deg, int turn, int n,
-                        std::int64_t* extreme, double* extreme_rad) {
+GapFit::History history(double gap, int dir, double speed_deg_s, double noise_deg, int turn, int n, std::int64_t* extreme,
+                        double* extreme_rad) {
   const double alpha = 1 - std::exp(-1e-3 / 0.015);
   GapFit::History h;
   std::mt19937 rng(7);
@@ -76,8 +76,7 @@ TEST(GapFit, ReversalBeforeTheLeadFitsFromTheFirstSample) {
     std::int64_t ext;
     double ext_rad;
     const double gap_deg = 1.3;
-    g->h = history(gap_deg * kDeg, dir, 8.0, 0.02, 30, 30 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext,
-                   &ext_rad);
+    g->h = history(gap_deg * kDeg, dir, 8.0, 0.02, 30, 30 + static_cast<int>(gap_deg / 8.0 * 1000) + 120, &ext, &ext_rad);
     ASSERT_LT(ext, 50);
     const auto r = fit.fit(g->h, ext, ext_rad, dir, 50, 30);
     ASSERT_TRUE(r.ok) << "dir " << dir;

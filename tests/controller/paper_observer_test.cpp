@@ -46,8 +46,8 @@ TEST(PaperObserver, TouchStateFollowsEquation4) {
 TEST(PaperObserver, AdaptiveIncrementIsCommandTravelInTransition) {
   PaperObserver o;
   auto s = o.initial_state(1, 1e6);
-  EXPECT_DOUBLE_EQ(o.step(s, in(-2e-6, 1e6)).transition_travel_rad, 2e-6);  // entered transition
-  EXPECT_DOUBLE_EQ(o.step(s, in(-3e-6, 1e6)).transition_travel_rad, 3e-6);  // still in it
+  EXPECT_DOUBLE_EQ(o.step(s, in(-2e-6, 1e6)).transition_travel_rad, 2e-6);     // entered transition
+  EXPECT_DOUBLE_EQ(o.step(s, in(-3e-6, 1e6)).transition_travel_rad, 3e-6);     // still in it
   EXPECT_DOUBLE_EQ(o.step(s, in(-4e-6, 1e6 + 1)).transition_travel_rad, 0.0);  // touch again
 }
 

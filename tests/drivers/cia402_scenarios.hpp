@@ -78,7 +78,8 @@ class TestLoop {
 struct Rig {
   Rig(const CanTransportFactory& factory, Cia402Config cfg, const std::function<void(Cia402EmulatorConfig&)>& variant = {})
       : emulator(emulator_config(cfg, variant), model, factory), client(cfg, factory) {}
-  static Cia402EmulatorConfig emulator_config(const Cia402Config& cfg, const std::function<void(Cia402EmulatorConfig&)>& variant) {
+  static Cia402EmulatorConfig emulator_config(const Cia402Config& cfg,
+                                              const std::function<void(Cia402EmulatorConfig&)>& variant) {
     Cia402EmulatorConfig e{cfg.interface, cfg.node_id, cfg.units};
     if (variant) variant(e);
     return e;
@@ -316,8 +317,8 @@ inline bool has_note(const Cia402Drive& c, const std::string& part) {
 }
 
 // Configures, enables and moves the drive; `check` looks at what configure() left.
-inline void variant_runs(const CanTransportFactory& f, std::uint8_t node, const std::function<void(Cia402EmulatorConfig&)>& variant,
-                         const std::function<void(Rig&)>& check) {
+inline void variant_runs(const CanTransportFactory& f, std::uint8_t node,
+                         const std::function<void(Cia402EmulatorConfig&)>& variant, const std::function<void(Rig&)>& check) {
   Rig r(f, test_config(node), variant);
   r.client.configure();
   check(r);
@@ -331,29 +332,35 @@ inline void variant_runs(const CanTransportFactory& f, std::uint8_t node, const 
 
 // CiA 301 asks for one PDO each way; a drive with two has no 0x1402/0x1403/0x1802/0x1803.
 inline void variant_two_pdos_each_way(const CanTransportFactory& f, std::uint8_t node) {
-  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.pdos = 2; }, [](Rig& r) {
-    EXPECT_FALSE(r.emulator.object(0x1402, 1).has_value());
-    EXPECT_EQ(r.emulator.object(0x1401, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);  // the one it has: off
-    EXPECT_EQ(r.emulator.object(0x1801, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);
-    EXPECT_TRUE(has_note(r.client, "0x1402:01 absent"));
-    EXPECT_TRUE(has_note(r.client, "0x1803:01 absent"));
-  });
+  variant_runs(
+      f, node, [](Cia402EmulatorConfig& e) { e.pdos = 2; },
+      [](Rig& r) {
+        EXPECT_FALSE(r.emulator.object(0x1402, 1).has_value());
+        EXPECT_EQ(r.emulator.object(0x1401, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);  // the one it has: off
+        EXPECT_EQ(r.emulator.object(0x1801, 1).value() & canopen::kCobIdInvalid, canopen::kCobIdInvalid);
+        EXPECT_TRUE(has_note(r.client, "0x1402:01 absent"));
+        EXPECT_TRUE(has_note(r.client, "0x1803:01 absent"));
+      });
 }
 
 // 0x60C2 is optional in CiA 402: a drive without it takes its period from SYNC.
 inline void variant_no_interpolation_period(const CanTransportFactory& f, std::uint8_t node) {
-  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.interpolation_period = false; }, [](Rig& r) {
-    EXPECT_FALSE(r.emulator.object(0x60C2, 1).has_value());
-    EXPECT_TRUE(has_note(r.client, "0x60C2:01 absent"));
-  });
+  variant_runs(
+      f, node, [](Cia402EmulatorConfig& e) { e.interpolation_period = false; },
+      [](Rig& r) {
+        EXPECT_FALSE(r.emulator.object(0x60C2, 1).has_value());
+        EXPECT_TRUE(has_note(r.client, "0x60C2:01 absent"));
+      });
 }
 
 // 0x6061 follows 0x6060 5 ms later: the client polls it (up to transition_ms).
 inline void variant_delayed_mode_display(const CanTransportFactory& f, std::uint8_t node) {
-  variant_runs(f, node, [](Cia402EmulatorConfig& e) { e.mode_display_delay = 5ms; }, [](Rig& r) {
-    EXPECT_EQ(r.emulator.object(0x6061, 0), 8u);
-    EXPECT_TRUE(r.client.configure_notes().empty());
-  });
+  variant_runs(
+      f, node, [](Cia402EmulatorConfig& e) { e.mode_display_delay = 5ms; },
+      [](Rig& r) {
+        EXPECT_EQ(r.emulator.object(0x6061, 0), 8u);
+        EXPECT_TRUE(r.client.configure_notes().empty());
+      });
   // A drive that never shows the mode fails after transition_ms, naming the object.
   auto cfg = test_config(node);
   cfg.transition_timeout = 300ms;
@@ -473,7 +480,8 @@ inline void emcy_text_survives_the_fault(const CanTransportFactory& f, std::uint
   ASSERT_TRUE(eventually([&] { return r.client.health().last_emcy_code == 0x8611; }));
   const std::string text(r.client.health().last_error_text());
   EXPECT_NE(text.find("EMCY 0x8611 (following error), register 0x21 (generic, device profile), manufacturer 01 02 03 04 05"),
-            std::string::npos) << text;
+            std::string::npos)
+      << text;
 }
 
 }  // namespace hil::drv::test

@@ -106,7 +106,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
   }
   // Every injected frame must be taken in by the client's I/O thread (or it hangs or lost one).
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(8);  // below -timeout=10, generous on a busy machine
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::seconds(8);  // below -timeout=10, generous on a busy machine
   while (client.taken() < before + injected) {
     if (std::chrono::steady_clock::now() > deadline) {
       std::fprintf(stderr, "\nFINDING: the CiA 402 client took %llu of %llu frames within 8 s\n",

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "fuzz_support.hpp"
-#include "hil/bench/campaign.hpp"
+#include "hil/bench/campaign/campaign.hpp"
 #include "hil/config.hpp"
 #include "hil/plant/plant.hpp"
 
@@ -43,14 +43,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static hil::fuzz::InputFile plant_file("plant.yaml");
   const std::string text(reinterpret_cast<const char*>(data), size);
 
-  hil::fuzz::expect_clear_errors<hil::cfg::Error>("cfg::Node::load_string", [&] {
-    visit(hil::cfg::Node::load_string(text, "fuzz.yaml"), 0);
-  });
+  hil::fuzz::expect_clear_errors<hil::cfg::Error>("cfg::Node::load_string",
+                                                  [&] { visit(hil::cfg::Node::load_string(text, "fuzz.yaml"), 0); });
   hil::fuzz::expect_clear_errors<hil::cfg::Error>("bench::load_campaign_text", [&] {
     (void)hil::bench::load_campaign_text(text, "fuzz.yaml", HIL_SOURCE_DIR "/configs/campaigns");
   });
-  hil::fuzz::expect_clear_errors<hil::cfg::Error>("plant::Plant::load", [&] {
-    (void)hil::plant::Plant::load(plant_file.write(data, size));
-  });
+  hil::fuzz::expect_clear_errors<hil::cfg::Error>("plant::Plant::load",
+                                                  [&] { (void)hil::plant::Plant::load(plant_file.write(data, size)); });
   return 0;
 }

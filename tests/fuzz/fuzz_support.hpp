@@ -32,8 +32,8 @@ void expect_clear_errors(const char* what, Fn&& fn) {
   } catch (const std::exception& e) {
     const bool clear = ((dynamic_cast<const Clear*>(&e) != nullptr) || ...);
     if (clear && e.what()[0] != '\0') return;
-    std::fprintf(stderr, "\nFINDING in %s: %s exception of type %s: %s\n", what, clear ? "empty" : "unexpected",
-                 typeid(e).name(), e.what());
+    std::fprintf(stderr, "\nFINDING in %s: %s exception of type %s: %s\n", what, clear ? "empty" : "unexpected", typeid(e).name(),
+                 e.what());
     std::abort();
   } catch (...) {
     std::fprintf(stderr, "\nFINDING in %s: an exception not derived from std::exception\n", what);

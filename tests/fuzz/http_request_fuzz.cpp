@@ -14,7 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
-#include "hil/bench/runner.hpp"
+#include "hil/bench/server/runner.hpp"
 #include "server/api_server.hpp"
 
 namespace {
@@ -55,8 +55,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (server.runner->running()) {
     try {
       server.runner->abort("fuzz input done");
-    } catch (const hil::bench::Conflict&) {
-    }
+    } catch (const hil::bench::Conflict&) {}
     server.runner->wait();
   }
   if (answer.status >= 500 || answer.status < 200) {

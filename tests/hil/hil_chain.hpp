@@ -18,12 +18,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/plant_service.hpp"
-#include "hil/bench/rig_config.hpp"
-#include "hil/bench/rt_thread.hpp"
-#include "hil/bench/runner.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/plant_service.hpp"
+#include "hil/bench/rt/rig_config.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/server/runner.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/modbus_emulator.hpp"
@@ -45,24 +45,30 @@ inline const bench::Campaign& paper_adaptive_campaign() {
 // 1.0 / 1.5 MPa every 2.5 s from 2.5 s). gap_step_s > 0: the gap grows 1 -> 2 deg then.
 // period_ms: the control period dT.
 inline bench::Campaign short_paper_campaign(double duration_s, double gap_step_s = 0, double period_ms = 1) {
-  std::string yaml = "name: short_paper\n"
-                     "plant: ../plant/nominal.yaml\n"
-                     "duration_s: " + std::to_string(duration_s) + "\n"
-                     "period_ms: " + std::to_string(period_ms) + "\n"
-                     "seed: 1\n"
-                     "sensor_noise_kpa: 2.0\n"
-                     "reference:\n"
-                     "  initial_mpa: 1.0\n" +
-                     (duration_s > 2.5 ? "  profile:\n"
-                                         "    - square: {from_s: 2.5, half_period_s: 2.5, low_mpa: 1.0, high_mpa: 1.5}\n"
-                                       : "") +
-                     "gap:\n"
-                     "  initial_deg: 1.0\n";
+  std::string yaml =
+      "name: short_paper\n"
+      "plant: ../plant/nominal.yaml\n"
+      "duration_s: " +
+      std::to_string(duration_s) +
+      "\n"
+      "period_ms: " +
+      std::to_string(period_ms) +
+      "\n"
+      "seed: 1\n"
+      "sensor_noise_kpa: 2.0\n"
+      "reference:\n"
+      "  initial_mpa: 1.0\n" +
+      (duration_s > 2.5 ? "  profile:\n"
+                          "    - square: {from_s: 2.5, half_period_s: 2.5, low_mpa: 1.0, high_mpa: 1.5}\n"
+                        : "") +
+      "gap:\n"
+      "  initial_deg: 1.0\n";
   if (gap_step_s > 0) yaml += "  changes:\n    - step: {at_s: " + std::to_string(gap_step_s) + ", to_deg: 2.0}\n";
-  yaml += "runs:\n"
-          "  - name: adaptive\n"
-          "    compensation: adaptive\n"
-          "    initial_gap_deg: 0\n";
+  yaml +=
+      "runs:\n"
+      "  - name: adaptive\n"
+      "    compensation: adaptive\n"
+      "    initial_gap_deg: 0\n";
   return bench::load_campaign_text(yaml, "short_paper (test)", source_path("configs/campaigns"));
 }
 
@@ -71,11 +77,13 @@ inline const drv::DriveUnits kUnits{131072, 1.0, 1};  // as drivers/configs/cia4
 
 // The simulator side: the campaign's plant in real time behind the three emulators.
 struct SimulatorSide {
-  SimulatorSide(const bench::Campaign& c, const drv::CanTransportFactory& can_transport, const std::string& can_interface = "vcan0")
+  SimulatorSide(const bench::Campaign& c, const drv::CanTransportFactory& can_transport,
+                const std::string& can_interface = "vcan0")
       : plant(config(c)),
         can(drv::Cia402EmulatorConfig{can_interface, kNode, kUnits}, plant.add_drive(), can_transport),
         drive(tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_drive_map.yaml")), plant.add_drive()),
-        transducer(tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")), plant.transducer()) {
+        transducer(tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")),
+                   plant.transducer()) {
     plant.start();
     io_sched.reset();
   }
@@ -114,16 +122,21 @@ inline std::string can_drive_yaml(const std::string& interface = "vcan0", const 
                                   int heartbeat_timeout_ms = kBusyHeartbeatTimeoutMs, const std::string& limits = "") {
   return "    cia402: {interface: " + interface + ", node_id: 5, units: {counts_per_rev: 131072},\n" +
          (limits.empty() ? std::string() : "             limits: " + limits + ",\n") +
-         "             heartbeat: {producer_ms: 20, timeout_ms: " + std::to_string(heartbeat_timeout_ms) + "},\n"
+         "             heartbeat: {producer_ms: 20, timeout_ms: " + std::to_string(heartbeat_timeout_ms) +
+         "},\n"
          "             timeouts: {boot_ms: 10000, sdo_ms: 500, sdo_retries: 2, transition_ms: 3000},\n"
-         "             bus_off: {policy: " + bus_off_policy + ", recover_after_ms: 200}}\n";
+         "             bus_off: {policy: " +
+         bus_off_policy + ", recover_after_ms: 200}}\n";
 }
 inline std::string modbus_device_yaml(int port, const std::string& map, double max_age_ms = 4, int response_timeout_ms = 100) {
   return "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(port) +
          ", poll_period_ms: 2, response_timeout_ms: " + std::to_string(response_timeout_ms) +
          ", reconnect: {initial_ms: 20, max_ms: 200}},\n"
-         "             register_map: " + source_path("drivers/configs/" + map).string() + "}\n"
-         "    max_age_ms: " + std::to_string(max_age_ms) + "\n";
+         "             register_map: " +
+         source_path("drivers/configs/" + map).string() +
+         "}\n"
+         "    max_age_ms: " +
+         std::to_string(max_age_ms) + "\n";
 }
 
 // The watchdog: 500 periods by default here, so that it ends a run whose chain broke, not one the
@@ -144,10 +157,11 @@ inline std::string rig_yaml(const std::string& kind, const std::string& drive, c
   std::string y = "kind: " + kind + "\ndescription: test rig\ndevices:\n  drive:\n" + drive;
   if (!transducer.empty()) y += "  transducer:\n" + transducer;
   y += "loop: {priority: " + std::to_string(o.priority) + ", cpu: " + std::to_string(o.cpu) +
-       ", io_priority: " + std::to_string(o.io_priority) + (o.loop_extra.empty() ? "" : ", " + o.loop_extra) + "}\n"
+       ", io_priority: " + std::to_string(o.io_priority) + (o.loop_extra.empty() ? "" : ", " + o.loop_extra) +
+       "}\n"
        "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 10000, p_max_mpa: 2.5, p_min_mpa: 0.2,\n"
-       "         watchdog_misses: " + std::to_string(o.watchdog_misses) + ", safe_state: hold, safe_hold_ms: " +
-       std::to_string(o.safe_hold_ms) + "}\n";
+       "         watchdog_misses: " +
+       std::to_string(o.watchdog_misses) + ", safe_state: hold, safe_hold_ms: " + std::to_string(o.safe_hold_ms) + "}\n";
   return y;
 }
 // Client timeouts of a rig file: the defaults of the device entries above (a heartbeat of 1 s, a
@@ -222,7 +236,9 @@ class Bench {
 // What a run left on disk, every telemetry row parsed strictly.
 struct RunFiles {
   explicit RunFiles(const std::filesystem::path& d, bool truth = false) : dir(d) {
-    if (getenv("HIL_KEEP_RUN")) std::filesystem::copy(d, std::filesystem::path(getenv("HIL_KEEP_RUN")) / d.filename(), std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
+    if (getenv("HIL_KEEP_RUN"))
+      std::filesystem::copy(d, std::filesystem::path(getenv("HIL_KEEP_RUN")) / d.filename(),
+                            std::filesystem::copy_options::recursive | std::filesystem::copy_options::overwrite_existing);
     std::ifstream in(d / "run.json");
     run = json::parse(in);
     std::ifstream ev(d / "events.jsonl");

@@ -26,10 +26,10 @@
 #include <thread>
 #include <vector>
 
-#include "hil/bench/campaign.hpp"
-#include "hil/bench/device_rig.hpp"
-#include "hil/bench/rt_loop.hpp"
-#include "hil/bench/sim.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/device_rig.hpp"
+#include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/drv/canopen.hpp"
 #include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/modbus_emulator.hpp"
@@ -41,7 +41,8 @@ using bench::Clock;
 
 // The rig the file's kind makes (its registered recipe, as make_rig), as the DeviceRig it is: the
 // tests also look at its drive's raw feedback.
-inline std::unique_ptr<bench::DeviceRig> make_device_rig(const bench::RigConfig& rc, const drv::CanTransportFactory& can_transport = {}) {
+inline std::unique_ptr<bench::DeviceRig> make_device_rig(const bench::RigConfig& rc,
+                                                         const drv::CanTransportFactory& can_transport = {}) {
   std::unique_ptr<bench::Rig> rig = bench::make_rig(rc, can_transport);
   if (dynamic_cast<bench::DeviceRig*>(rig.get()) == nullptr) throw std::logic_error("a " + rc.kind + " rig is no DeviceRig");
   return std::unique_ptr<bench::DeviceRig>(static_cast<bench::DeviceRig*>(rig.release()));
@@ -51,8 +52,7 @@ inline std::unique_ptr<bench::DeviceRig> make_device_rig(const bench::RigConfig&
 // transducer emulator (as its pressure model), stepped only when the harness says.
 class LockstepPlant final : public drv::DriveModel, public drv::PressureModel {
  public:
-  explicit LockstepPlant(const bench::Campaign& c)
-      : plant_(c.plant), state_(plant_->make_state(c.seed)), period_s_(c.period_s) {
+  explicit LockstepPlant(const bench::Campaign& c) : plant_(c.plant), state_(plant_->make_state(c.seed)), period_s_(c.period_s) {
     plant_->settle(state_, c.reference_pa.at(0.0), plant::kNaN, 0.0, c.gap_rad.at(0.0));
   }
   // Emulator threads.
@@ -121,7 +121,8 @@ struct LockstepSide {
                const std::string& interface = "vcan0")
       : plant(c),
         can(drv::Cia402EmulatorConfig{interface, kNode, kUnits}, plant, can_transport),
-        transducer(SimulatorSide::tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")), plant),
+        transducer(SimulatorSide::tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")),
+                   plant),
         sync(std::move(sync_fn)) {}
   LockstepPlant plant;
   drv::Cia402DriveEmulator can;
@@ -148,7 +149,9 @@ inline std::string lockstep_can_rig_yaml(const LockstepSide& s, const std::strin
   const std::string transducer =
       "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(s.transducer.port()) +
       ", poll_period_ms: 1, response_timeout_ms: 1000, reconnect: {initial_ms: 20, max_ms: 200}},\n"
-      "             register_map: " + source_path("drivers/configs/modbus_transducer_map.yaml").string() + "}\n"
+      "             register_map: " +
+      source_path("drivers/configs/modbus_transducer_map.yaml").string() +
+      "}\n"
       "    max_age_ms: 4\n";
   return rig_yaml("can", can_drive_yaml(interface), transducer, o);
 }
@@ -218,8 +221,8 @@ inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::strin
   bench::Schedule::Cursor gap_cursor;
   for (std::size_t k = 0;; ++k) {
     if (k > 0 && !wait_state(rig_shows_plant)) {
-      res.error = "period " + std::to_string(k) + ": the rig did not show the plant's state: " +
-                  std::string(rig.health().last_error_text());
+      res.error = "period " + std::to_string(k) +
+                  ": the rig did not show the plant's state: " + std::string(rig.health().last_error_text());
       break;
     }
     loop.cycle(seen, seen);
@@ -249,8 +252,8 @@ inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::strin
 }
 
 // The CAN rig in lock-step with `side` (encoder counts both ways).
-inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, LockstepSide& side, const std::string& rig_text,
-                                   const drv::CanTransportFactory& can_transport) {
+inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, LockstepSide& side,
+                                   const std::string& rig_text, const drv::CanTransportFactory& can_transport) {
   const auto through_counts = [](double rad) { return kUnits.to_rad(kUnits.to_counts(rad)); };
   return run_lockstep_on(c, run, side.plant, side.sync, rig_text, can_transport, through_counts, through_counts);
 }
@@ -262,7 +265,8 @@ struct ModbusLockstepSide {
       : plant(c),
         drive_map(drv::RegisterMap::load(source_path("drivers/configs/modbus_drive_map.yaml"))),
         drive(SimulatorSide::tcp(0), drive_map, plant),
-        transducer(SimulatorSide::tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")), plant) {}
+        transducer(SimulatorSide::tcp(0), drv::RegisterMap::load(source_path("drivers/configs/modbus_transducer_map.yaml")),
+                   plant) {}
   // A value through one of the drive's registers, as the far side decodes it.
   double through(const std::string& reg, double physical) const {
     const drv::Register& r = drive_map.at(reg);
@@ -281,10 +285,13 @@ inline std::string lockstep_modbus_rig_yaml(const ModbusLockstepSide& s) {
   const auto device = [](int port, const std::string& map) {
     return "    modbus: {link: {transport: tcp, host: 127.0.0.1, port: " + std::to_string(port) +
            ", poll_period_ms: 1, response_timeout_ms: 1000, reconnect: {initial_ms: 20, max_ms: 200}},\n"
-           "             register_map: " + source_path("drivers/configs/" + map).string() + "}\n"
+           "             register_map: " +
+           source_path("drivers/configs/" + map).string() +
+           "}\n"
            "    max_age_ms: 4\n";
   };
-  return rig_yaml("modbus", device(s.drive.port(), "modbus_drive_map.yaml"), device(s.transducer.port(), "modbus_transducer_map.yaml"), o);
+  return rig_yaml("modbus", device(s.drive.port(), "modbus_drive_map.yaml"),
+                  device(s.transducer.port(), "modbus_transducer_map.yaml"), o);
 }
 
 inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& run, ModbusLockstepSide& side) {
@@ -299,10 +306,10 @@ inline LockstepResult run_lockstep(const bench::Campaign& c, const std::string& 
 // valve and chamber step in its read() with the encoder angle, as in a real run. Period k: wait
 // until the client holds a TPDO newer than the last period's write showing the motor's encoder
 // counts -> cycle -> wait until the emulator handed target k to the motor -> step it -> SYNC.
-inline LockstepResult run_lockstep_hybrid(const bench::Campaign& c, const std::string& run, LockstepPlant& motor,
-                                          const std::function<void()>& sync_fn, const std::string& rig_text,
-                                          const drv::CanTransportFactory& can_transport,
-                                          const std::function<void(std::size_t, bench::SpscRing<bench::LoopRequest>&)>& before_cycle = {}) {
+inline LockstepResult run_lockstep_hybrid(
+    const bench::Campaign& c, const std::string& run, LockstepPlant& motor, const std::function<void()>& sync_fn,
+    const std::string& rig_text, const drv::CanTransportFactory& can_transport,
+    const std::function<void(std::size_t, bench::SpscRing<bench::LoopRequest>&)>& before_cycle = {}) {
   LockstepResult res;
   const bench::RunSpec* spec = nullptr;
   for (const auto& r : c.runs) {
@@ -350,7 +357,8 @@ inline LockstepResult run_lockstep_hybrid(const bench::Campaign& c, const std::s
   bench::Schedule::Cursor gap_cursor;
   for (std::size_t k = 0;; ++k) {
     if (k > 0 && !wait_state(drive_shows_motor)) {
-      res.error = "period " + std::to_string(k) + ": the drive did not show the motor: " + std::string(rig.health().last_error_text());
+      res.error =
+          "period " + std::to_string(k) + ": the drive did not show the motor: " + std::string(rig.health().last_error_text());
       break;
     }
     if (before_cycle) before_cycle(k, requests);  // operator requests, as the API would push them
@@ -386,7 +394,8 @@ struct LockstepDiff {
   double p_max_abs_pa = 0, p_rms_pa = 0, motor_max_abs_rad = 0, cmd_max_abs_rad = 0;
   double percent = 0;  // RMS pressure difference in % of the reference's range
 };
-inline LockstepDiff compare_lockstep(const bench::Campaign& c, const std::string& run, const std::vector<bench::TelemetryRecord>& rows) {
+inline LockstepDiff compare_lockstep(const bench::Campaign& c, const std::string& run,
+                                     const std::vector<bench::TelemetryRecord>& rows) {
   const bench::RunSpec* spec = nullptr;
   for (const auto& r : c.runs) {
     if (r.name == run) spec = &r;

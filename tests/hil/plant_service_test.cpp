@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "drivers/cia402_scenarios.hpp"
-#include "hil/bench/plant_service.hpp"
+#include "hil/bench/rt/plant_service.hpp"
 #include "hil/drv/can_loopback.hpp"
 #include "hil/drv/modbus.hpp"
 #include "hil/drv/modbus_emulator.hpp"
@@ -55,12 +55,13 @@ TEST(PlantService, CanDriveMovesThePlant) {
   ASSERT_TRUE(eventually([&] { return std::abs(loop.position_rad.load() - start) < deg_to_rad(0.01); }));
   loop.target_rad = start + deg_to_rad(2.0);
   // 2 deg at 60 deg/s plus the lag: the motor gets there within a second, the valve opens 2 deg.
-  ASSERT_TRUE(eventually([&] { return std::abs(service.sample().theta_motor_rad - (start + deg_to_rad(2.0))) < deg_to_rad(0.01); }, 5s));
+  ASSERT_TRUE(
+      eventually([&] { return std::abs(service.sample().theta_motor_rad - (start + deg_to_rad(2.0))) < deg_to_rad(0.01); }, 5s));
   std::this_thread::sleep_for(800ms);  // several chamber time constants
   const auto s = service.sample();
   EXPECT_NEAR(units::rad_to_deg(s.theta_valve_rad - s.theta_motor_rad), -0.5, 1e-6);  // still on the opening flank
-  EXPECT_LT(s.p_chamber_pa, 0.93e6);  // 13 deg instead of 11 deg: about 0.88 MPa
-  EXPECT_NEAR(loop.position_rad.load(), s.theta_motor_rad, deg_to_rad(0.05));  // the encoder reports the motor
+  EXPECT_LT(s.p_chamber_pa, 0.93e6);                                                  // 13 deg instead of 11 deg: about 0.88 MPa
+  EXPECT_NEAR(loop.position_rad.load(), s.theta_motor_rad, deg_to_rad(0.05));         // the encoder reports the motor
 }
 
 // The same with the Modbus drive and transducer clients, and a gap programme on the plant's clock.

@@ -150,10 +150,11 @@ inline void drive_silent(const FaultSetup& s) {
   const auto c = short_paper_campaign(4, 0, s.period_ms);
   SimulatorSide side(c, s.can_transport, s.can_interface);
   Bench b(s.can_transport);
-  const std::string rig = rig_yaml("can", can_drive_yaml(s.can_interface, "recover", 5000),
-                                   modbus_device_yaml(side.transducer.port(), "modbus_transducer_map.yaml"),
-                                   fault_rig(200, kSilentDriveWatchdog));
-  const RunFiles f = run_with_fault(b, c, rig, "watchdog", [&] { side.can.set_silent(true); }, [&] { side.can.set_silent(false); });
+  const std::string rig =
+      rig_yaml("can", can_drive_yaml(s.can_interface, "recover", 5000),
+               modbus_device_yaml(side.transducer.port(), "modbus_transducer_map.yaml"), fault_rig(200, kSilentDriveWatchdog));
+  const RunFiles f = run_with_fault(
+      b, c, rig, "watchdog", [&] { side.can.set_silent(true); }, [&] { side.can.set_silent(false); });
   expect_safe_stop(f, "watchdog", "drive: no TPDO since the last SYNC", c.period_s, kSilentDriveWatchdog);
 }
 
@@ -165,12 +166,19 @@ inline void emcy_fault(const FaultSetup& s) {
   Bench b(s.can_transport);
   const std::string rig = can_rig_yaml(side, fault_rig(), s.can_interface);
   const RunFiles f = run_with_fault(
-      b, c, rig, "rig fault", [&] { side.can.raise_emcy(0x8611, 0x20, {0x10, 0x27, 0x00, 0x00, 0x00}); }, [] {});
+      b, c, rig, "rig fault",
+      [&] {
+        side.can.raise_emcy(0x8611, 0x20, {0x10, 0x27, 0x00, 0x00, 0x00});
+      },
+      [] {});
   expect_safe_stop(f, "rig fault", "drive: CiA 402 drive node 5", c.period_s, RigOptions{}.watchdog_misses);
   const std::string reason = f.run["reason"].get<std::string>();
   EXPECT_NE(reason.find("drive entered fault: EMCY 0x8611 (following error), register 0x21 (generic, device profile), "
-                        "manufacturer 10 27 00 00 00"), std::string::npos) << reason;
-  expect_next_campaign_completes(b, s, can_rig_yaml(side, {}, s.can_interface, "recover", kRelaxedTimeouts));  // activate() resets the fault
+                        "manufacturer 10 27 00 00 00"),
+            std::string::npos)
+      << reason;
+  expect_next_campaign_completes(
+      b, s, can_rig_yaml(side, {}, s.can_interface, "recover", kRelaxedTimeouts));  // activate() resets the fault
 }
 
 // Bus-off: detected (the client latches it from the error frame), reported (trip detail),
@@ -205,8 +213,10 @@ inline void sdo_abort(const FaultSetup& s) {
   const RunFiles f(b.runs().back());
   EXPECT_EQ(f.run["outcome"], "error");
   const std::string reason = f.run["reason"];
-  EXPECT_NE(reason.find("rig 'test_rig_1' setup: CiA 402 drive node 5 on " + s.can_interface + ": SDO write 0x6060:00: abort 0x08000022"),
-            std::string::npos) << reason;
+  EXPECT_NE(reason.find("rig 'test_rig_1' setup: CiA 402 drive node 5 on " + s.can_interface +
+                        ": SDO write 0x6060:00: abort 0x08000022"),
+            std::string::npos)
+      << reason;
   EXPECT_NE(reason.find("present device state"), std::string::npos) << reason;
   const json* err = f.event("rig_error");
   ASSERT_NE(err, nullptr);

@@ -6,10 +6,10 @@
 #include <gtest/gtest.h>
 
 #include "alloc_counter.hpp"
-#include "hil/bench/device_rig.hpp"
+#include "hil/bench/rt/device_rig.hpp"
 #include "hil/drv/canopen.hpp"
-#include "hil/bench/rt_thread.hpp"
-#include "hil/bench/sim_rig.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/rt/sim_rig.hpp"
 #include "hil/drv/can_loopback.hpp"
 #include "servo_test_model.hpp"
 #include "hil/units.hpp"
@@ -57,10 +57,11 @@ TEST(RigConfig, ShippedRigFilesLoad) {
 
 TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
   TempDir dir;
-  const auto rc = bench::load_rig_config(dir.write("rigs/m.yaml",
+  const auto rc = bench::load_rig_config(dir.write(
+      "rigs/m.yaml",
       "kind: modbus\ndevices:\n  drive:\n    modbus: " + source_path("drivers/configs/modbus_drive.yaml").string() +
-      "\n  transducer:\n    modbus: " + source_path("drivers/configs/modbus_transducer.yaml").string() + "\n" + kSafety));
-  EXPECT_EQ(rc.devices.drive_max_age, std::chrono::milliseconds(4));       // polls every 2 ms
+          "\n  transducer:\n    modbus: " + source_path("drivers/configs/modbus_transducer.yaml").string() + "\n" + kSafety));
+  EXPECT_EQ(rc.devices.drive_max_age, std::chrono::milliseconds(4));        // polls every 2 ms
   EXPECT_EQ(rc.devices.transducer_max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
 }
 
@@ -68,22 +69,23 @@ TEST(RigConfig, ErrorsNameFileLineAndKey) {
   const std::string drive = source_path("drivers/configs/cia402_drive.yaml").string();
   const std::string mdrive = source_path("drivers/configs/modbus_drive.yaml").string();
   const std::string pg = source_path("drivers/configs/modbus_transducer.yaml").string();
-  auto has = [](const std::string& what, const std::string& part) {
-    EXPECT_NE(what.find(part), std::string::npos) << what;
-  };
+  auto has = [](const std::string& what, const std::string& part) { EXPECT_NE(what.find(part), std::string::npos) << what; };
   std::string e = config_error("kind: cann\n" + kSafety);
   has(e, "bad.yaml:1:");
   has(e, "did you mean 'can'");
   e = config_error("kind: can\n" + kSafety);
   has(e, "devices");
-  e = config_error("kind: modbus\ndevices:\n  drive:\n    cia402: " + drive + "\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  e = config_error("kind: modbus\ndevices:\n  drive:\n    cia402: " + drive + "\n  transducer:\n    modbus: " + pg + "\n" +
+                   kSafety);
   has(e, "bad.yaml:4:");
   has(e, "devices.drive.cia402");
   has(e, "needs a Modbus drive");
-  e = config_error("kind: can\ndevices:\n  drive:\n    cia402: " + drive + "\n    max_age_ms: 3\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  e = config_error("kind: can\ndevices:\n  drive:\n    cia402: " + drive +
+                   "\n    max_age_ms: 3\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
   has(e, "bad.yaml:5:");
   has(e, "no TPDO arrived since the last SYNC");
-  e = config_error("kind: hybrid\ndevices:\n  drive:\n    modbus: " + mdrive + "\n  transducer:\n    modbus: " + pg + "\n" + kSafety);
+  e = config_error("kind: hybrid\ndevices:\n  drive:\n    modbus: " + mdrive + "\n  transducer:\n    modbus: " + pg + "\n" +
+                   kSafety);
   has(e, "devices.transducer");
   has(e, "simulates the chamber");
   e = config_error("kind: can\ndevices:\n  drive:\n    cia402: " + drive + "\n  transducr:\n    modbus: " + pg + "\n" + kSafety);
@@ -141,8 +143,9 @@ TEST(DeviceRig, ReadWriteHealthDoNotAllocate) {
   for (const std::string kind : {"can", "modbus", "hybrid", "hybrid (Modbus drive)"}) {
     const std::string text = kind == "can"      ? can_rig_yaml(side)
                              : kind == "modbus" ? modbus_rig_yaml(side)
-                             : kind == "hybrid" ? rig_yaml("hybrid", can_drive_yaml(), "")
-                                                : rig_yaml("hybrid", modbus_device_yaml(side.drive.port(), "modbus_drive_map.yaml"), "");
+                             : kind == "hybrid"
+                                 ? rig_yaml("hybrid", can_drive_yaml(), "")
+                                 : rig_yaml("hybrid", modbus_device_yaml(side.drive.port(), "modbus_drive_map.yaml"), "");
     TempDir dir;
     const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/r.yaml", text)), bus.factory());
     bench::DeviceRig& rig = *owned_rig;
@@ -241,10 +244,11 @@ TEST(CanRig, PaperAdaptiveInLockstepMatchesTheSimulation) {
   for (std::size_t i = 0; i < r.rows.size(); ++i) ASSERT_EQ(r.rows[i].flags & ~bench::kFlagCmdLimited, 0u) << "row " << i;
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
   const double count_rad = 2 * std::numbers::pi / kUnits.counts_per_rev;
-  std::printf("CAN rig in lock-step (loopback bus): %zu periods in %.1f s wall; pressure RMS difference to the simulation "
-              "%.3f kPa = %.4f %% of the range (max %.3f kPa); motor max %.2f counts; command max %.2f counts\n",
-              r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3, d.motor_max_abs_rad / count_rad,
-              d.cmd_max_abs_rad / count_rad);
+  std::printf(
+      "CAN rig in lock-step (loopback bus): %zu periods in %.1f s wall; pressure RMS difference to the simulation "
+      "%.3f kPa = %.4f %% of the range (max %.3f kPa); motor max %.2f counts; command max %.2f counts\n",
+      r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3, d.motor_max_abs_rad / count_rad,
+      d.cmd_max_abs_rad / count_rad);
   EXPECT_LT(d.percent, 0.1);  // measured 0.018 % (0.09 kPa RMS against 2 kPa of sensor noise), at load 8 on 2 cores
 }
 
@@ -260,8 +264,10 @@ TEST(ModbusRig, ShortPaperInLockstepMatchesTheSimulation) {
   ASSERT_EQ(r.rows.size(), 8000u);
   EXPECT_EQ(r.missed, 0);
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
-  std::printf("Modbus rig in lock-step: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
-              "%.4f %% of the range (max %.3f kPa)\n", r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
+  std::printf(
+      "Modbus rig in lock-step: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
+      "%.4f %% of the range (max %.3f kPa)\n",
+      r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
   EXPECT_LT(d.percent, 0.1);
 }
 
@@ -276,8 +282,9 @@ TEST(HybridRig, ProgrammedGapChangeWithARealDriveMatchesTheSimulation) {
   LockstepPlant motor(campaign);
   drv::Cia402DriveEmulator drive(drv::Cia402EmulatorConfig{"vcan0", kNode, kUnits}, motor, bus.factory());
   RigOptions o = lockstep_rig_options();
-  const LockstepResult r = run_lockstep_hybrid(campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
-                                               rig_yaml("hybrid", can_drive_yaml(), "", o), bus.factory());
+  const LockstepResult r = run_lockstep_hybrid(
+      campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); }, rig_yaml("hybrid", can_drive_yaml(), "", o),
+      bus.factory());
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), 8000u);
@@ -292,9 +299,10 @@ TEST(HybridRig, ProgrammedGapChangeWithARealDriveMatchesTheSimulation) {
   }
   EXPECT_GT(units::rad_to_deg(hi - lo), 3.0);  // the motor really moved
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
-  std::printf("hybrid rig in lock-step (loopback CAN drive): %zu periods in %.1f s wall; pressure RMS difference to the "
-              "simulation %.3f kPa = %.4f %% of the range (max %.3f kPa)\n",
-              r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
+  std::printf(
+      "hybrid rig in lock-step (loopback CAN drive): %zu periods in %.1f s wall; pressure RMS difference to the "
+      "simulation %.3f kPa = %.4f %% of the range (max %.3f kPa)\n",
+      r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
   EXPECT_LT(d.percent, 0.1);
 }
 
@@ -310,7 +318,8 @@ TEST(HybridRig, OperatorGapChangeMovesTheFlanksInLockstep) {
   RigOptions o = lockstep_rig_options();
   const LockstepResult r = run_lockstep_hybrid(
       campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); }, rig_yaml("hybrid", can_drive_yaml(), "", o),
-      bus.factory(), [](std::size_t k, bench::SpscRing<bench::LoopRequest>& requests) {
+      bus.factory(),
+      [](std::size_t k, bench::SpscRing<bench::LoopRequest>& requests) {
         if (k == 500) {
           ASSERT_TRUE(requests.try_push({.kind = bench::LoopRequest::Kind::set_gap, .value = units::deg_to_rad(2.5)}));
         }
@@ -379,9 +388,9 @@ TEST(HybridRig, ShapedTargetsKeepAFollowingErrorDriveOutOfFault) {
   RigOptions o = lockstep_rig_options();
   o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";
   const std::string limits = "{following_error_window_deg: 1, following_error_timeout_ms: 0}";
-  const LockstepResult r = run_lockstep_hybrid(campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
-                                               rig_yaml("hybrid", can_drive_yaml("vcan0", "recover", 100, limits), "", o),
-                                               bus.factory());
+  const LockstepResult r = run_lockstep_hybrid(
+      campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
+      rig_yaml("hybrid", can_drive_yaml("vcan0", "recover", 100, limits), "", o), bus.factory());
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), 18000u);
@@ -396,12 +405,13 @@ TEST(HybridRig, ShapedTargetsKeepAFollowingErrorDriveOutOfFault) {
   EXPECT_GT(largest_jump, units::deg_to_rad(1.0));  // the controller did jump: unshaped, this was a following error
   EXPECT_LT(largest_lead, units::deg_to_rad(1.0));  // the drive's target never led its position by the window
   const auto shaped = m.finish();
-  const auto sim = bench::summarise_run(campaign, *std::find_if(campaign.runs.begin(), campaign.runs.end(),
-                                                                [](const auto& x) { return x.name == "adaptive"; }));
+  const auto sim = bench::summarise_run(
+      campaign, *std::find_if(campaign.runs.begin(), campaign.runs.end(), [](const auto& x) { return x.name == "adaptive"; }));
   const double per_shaped = shaped.stall_s_total / shaped.reversals.size(), per_sim = sim.stall_s_total / sim.reversals.size();
-  std::printf("hybrid rig, following-error window 1 deg, shaped targets (60 deg/s, 30000 deg/s^2): no drive fault; largest "
-              "command jump %.2f deg, largest target lead %.3f deg; stall per reversal %.4f s against %.4f s unshaped in "
-              "simulation (%+.0f %%)\n",
-              units::rad_to_deg(largest_jump), units::rad_to_deg(largest_lead), per_shaped, per_sim, 100 * (per_shaped / per_sim - 1));
+  std::printf(
+      "hybrid rig, following-error window 1 deg, shaped targets (60 deg/s, 30000 deg/s^2): no drive fault; largest "
+      "command jump %.2f deg, largest target lead %.3f deg; stall per reversal %.4f s against %.4f s unshaped in "
+      "simulation (%+.0f %%)\n",
+      units::rad_to_deg(largest_jump), units::rad_to_deg(largest_lead), per_shaped, per_sim, 100 * (per_shaped / per_sim - 1));
   EXPECT_LT(per_shaped, 1.2 * per_sim);  // measured +10 %
 }

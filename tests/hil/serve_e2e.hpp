@@ -22,11 +22,21 @@ class PlantProcess {
   PlantProcess(const std::filesystem::path& campaign, std::vector<std::string> devices, const std::filesystem::path& dir) {
     log_ = dir / "plant.log";
     port_file_ = dir / "plant_ports.json";
-    std::vector<std::string> argv = {hilbench_exe(), "plant", "--campaign", campaign.string(), "--port-file",
-                                     port_file_.string(), "--rt-priority", "75", "--quiet",
-                                     "--can-config", source_path("drivers/configs/cia402_emulator.yaml").string(),
-                                     "--drive-map", source_path("drivers/configs/modbus_drive_map.yaml").string(),
-                                     "--transducer-map", source_path("drivers/configs/modbus_transducer_map.yaml").string()};
+    std::vector<std::string> argv = {hilbench_exe(),
+                                     "plant",
+                                     "--campaign",
+                                     campaign.string(),
+                                     "--port-file",
+                                     port_file_.string(),
+                                     "--rt-priority",
+                                     "75",
+                                     "--quiet",
+                                     "--can-config",
+                                     source_path("drivers/configs/cia402_emulator.yaml").string(),
+                                     "--drive-map",
+                                     source_path("drivers/configs/modbus_drive_map.yaml").string(),
+                                     "--transducer-map",
+                                     source_path("drivers/configs/modbus_transducer_map.yaml").string()};
     argv.insert(argv.end(), devices.begin(), devices.end());
     pid_ = spawn(argv, log_);
     for (int i = 0; i < 6000 && !std::filesystem::exists(port_file_); ++i) {  // 60 s: the VM is slow to start
@@ -103,14 +113,14 @@ inline ServeResult serve_paper_adaptive(double period_ms, const std::vector<std:
   for (std::size_t i = 0; i < f.csv.rows(); ++i) r.stale_periods += (f.flags(i) & kFlagReadMissed) != 0;
   r.diff = compare_with_simulation(campaign, "adaptive", f.csv);
   const auto& loop = f.run["loop"];
-  std::printf("%s rig through hilbench serve, dT %.3g ms: pressure RMS difference to the simulation %.2f kPa = %.2f %% of the "
-              "%.2f MPa range (max %.1f kPa); stale periods %ld of %zu; wake-up p50/p99/max %.1f/%.1f/%.0f us, "
-              "compute p99 %.1f us, overruns %lld, skipped deadlines %lld\n",
-              f.run["rig"]["kind"].get<std::string>().c_str(), period_ms, r.diff.rms_mpa * 1e3, r.diff.percent,
-              r.diff.range_mpa, r.diff.max_abs_mpa * 1e3, r.stale_periods, f.csv.rows(),
-              loop["wake_latency_us"]["p50_us"].get<double>(), loop["wake_latency_us"]["p99_us"].get<double>(),
-              loop["wake_latency_us"]["max_us"].get<double>(), loop["compute_us"]["p99_us"].get<double>(),
-              loop["overruns"].get<long long>(), loop["skipped_deadlines"].get<long long>());
+  std::printf(
+      "%s rig through hilbench serve, dT %.3g ms: pressure RMS difference to the simulation %.2f kPa = %.2f %% of the "
+      "%.2f MPa range (max %.1f kPa); stale periods %ld of %zu; wake-up p50/p99/max %.1f/%.1f/%.0f us, "
+      "compute p99 %.1f us, overruns %lld, skipped deadlines %lld\n",
+      f.run["rig"]["kind"].get<std::string>().c_str(), period_ms, r.diff.rms_mpa * 1e3, r.diff.percent, r.diff.range_mpa,
+      r.diff.max_abs_mpa * 1e3, r.stale_periods, f.csv.rows(), loop["wake_latency_us"]["p50_us"].get<double>(),
+      loop["wake_latency_us"]["p99_us"].get<double>(), loop["wake_latency_us"]["max_us"].get<double>(),
+      loop["compute_us"]["p99_us"].get<double>(), loop["overruns"].get<long long>(), loop["skipped_deadlines"].get<long long>());
   return r;
 }
 

@@ -63,8 +63,10 @@ TEST(VcanCanRig, LockstepMatchesTheSimulation) {
   ASSERT_EQ(r.rows.size(), static_cast<std::size_t>(std::lround(campaign.duration_s / campaign.period_s)));
   EXPECT_EQ(r.missed, 0);
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
-  std::printf("CAN rig in lock-step on vcan0: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
-              "%.4f %% of the range (max %.3f kPa)\n", r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
+  std::printf(
+      "CAN rig in lock-step on vcan0: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
+      "%.4f %% of the range (max %.3f kPa)\n",
+      r.rows.size(), r.wall_s, d.p_rms_pa * 1e-3, d.percent, d.p_max_abs_pa * 1e-3);
   EXPECT_LT(d.percent, 0.2);
 }
 
@@ -82,12 +84,13 @@ TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
   const pid_t candump = spawn({"/usr/bin/candump", "-t", "z", "vcan0"}, dump);
   RigOptions o;
   o.watchdog_misses = 1000000;  // never within the run: stalls of the loaded VM are not under test here
-  const ServeResult r = serve_paper_adaptive(g_period_ms, {"--can", "vcan0", "--modbus", "tcp:127.0.0.1:0", "--period-ms", "1"}, [&](const PlantProcess& p) {
-    // A device's own timeouts as generous as the watchdog: a reply 100 ms late in a loaded VM is
-    // the machine, not the device (the fault tests check those timeouts).
-    return rig_yaml("can", can_drive_yaml("vcan0", "recover", 2000),
-                    modbus_device_yaml(p.transducer_port(), "modbus_transducer_map.yaml", 4, 2000), o);
-  });
+  const ServeResult r = serve_paper_adaptive(
+      g_period_ms, {"--can", "vcan0", "--modbus", "tcp:127.0.0.1:0", "--period-ms", "1"}, [&](const PlantProcess& p) {
+        // A device's own timeouts as generous as the watchdog: a reply 100 ms late in a loaded VM is
+        // the machine, not the device (the fault tests check those timeouts).
+        return rig_yaml("can", can_drive_yaml("vcan0", "recover", 2000),
+                        modbus_device_yaml(p.transducer_port(), "modbus_transducer_map.yaml", 4, 2000), o);
+      });
   kill(candump, SIGTERM);
   wait_exit(candump, std::chrono::seconds(5));
   EXPECT_EQ(r.run["rig"]["kind"], "can");
@@ -116,7 +119,8 @@ TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
 TEST(VcanDriveProbe, ProbesEachVariantWithoutMovingIt) {
   ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
   TempDir dir;
-  const auto rig = dir.write("rigs/probe.yaml", rig_yaml("can", can_drive_yaml("vcan0"), modbus_device_yaml(1503, "modbus_transducer_map.yaml")));
+  const auto rig = dir.write("rigs/probe.yaml",
+                             rig_yaml("can", can_drive_yaml("vcan0"), modbus_device_yaml(1503, "modbus_transducer_map.yaml")));
   const auto run = [&](const std::vector<std::string>& args, const std::string& name) {
     const auto out = dir.path() / (name + ".txt");
     std::vector<std::string> argv = {hilbench_exe(), "drive"};
@@ -135,11 +139,21 @@ TEST(VcanDriveProbe, ProbesEachVariantWithoutMovingIt) {
     std::vector<std::string> expect;
   };
   const std::vector<Variant> variants = {
-      {"full", [](drv::Cia402EmulatorConfig&) {}, {"PDOs: 4 RPDO, 4 TPDO", "0x1018:01 vendor id", "0x00000ABC", "verdict: usable"}},
-      {"two_pdos", [](drv::Cia402EmulatorConfig& e) { e.pdos = 2; }, {"PDOs: 2 RPDO, 2 TPDO", "invalidate the other PDOs it has (1 RPDO, 1 TPDO", "verdict: usable"}},
-      {"no_60c2", [](drv::Cia402EmulatorConfig& e) { e.interpolation_period = false; }, {"0x60C2 interpolation time period (optional", "verdict: usable"}},
-      {"following_error", [](drv::Cia402EmulatorConfig& e) { e.following_error = true; }, {"following error window 0x6065 is off", "verdict: usable"}},
-      {"quick_stop_ramp", [](drv::Cia402EmulatorConfig& e) { e.quick_stop_ramp = true; }, {"0x605A = 2 (quick stop ramp)", "verdict: usable"}},
+      {"full",
+       [](drv::Cia402EmulatorConfig&) {},
+       {"PDOs: 4 RPDO, 4 TPDO", "0x1018:01 vendor id", "0x00000ABC", "verdict: usable"}},
+      {"two_pdos",
+       [](drv::Cia402EmulatorConfig& e) { e.pdos = 2; },
+       {"PDOs: 2 RPDO, 2 TPDO", "invalidate the other PDOs it has (1 RPDO, 1 TPDO", "verdict: usable"}},
+      {"no_60c2",
+       [](drv::Cia402EmulatorConfig& e) { e.interpolation_period = false; },
+       {"0x60C2 interpolation time period (optional", "verdict: usable"}},
+      {"following_error",
+       [](drv::Cia402EmulatorConfig& e) { e.following_error = true; },
+       {"following error window 0x6065 is off", "verdict: usable"}},
+      {"quick_stop_ramp",
+       [](drv::Cia402EmulatorConfig& e) { e.quick_stop_ramp = true; },
+       {"0x605A = 2 (quick stop ramp)", "verdict: usable"}},
   };
   for (const auto& v : variants) {
     drv::FirstOrderServoTestModel motor(0.01, 1.0, 0.25);

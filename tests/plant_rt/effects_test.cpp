@@ -104,12 +104,12 @@ TEST(Effects, ThroatErosionGrowsAreaLinearly) {
   const double a0 = st.s.throat_area_m2, m = st.s.theta_motor_rad;
   for (int k = 0; k < 10000; ++k) eroding.step(st, {m, m, kNaN}, 1e-3);
   EXPECT_NEAR((st.s.throat_area_m2 - a0) * 1e6, 5.0, 1e-6);  // 0.5 mm^2/s for 10 s
-  EXPECT_LT(st.s.p_chamber_pa, 0.95e6);                       // a bigger throat, a lower pressure
+  EXPECT_LT(st.s.p_chamber_pa, 0.95e6);                      // a bigger throat, a lower pressure
 }
 
 TEST(Effects, BacklashChangeStepAndDrift) {
-  const Plant plant = quiet(nominal()).with(
-      make("backlash_change", "gap_deg: 1.2\nstep_time_s: 1.9995\nstep_deg: 0.5\ndrift_deg_per_s: 0.01\n"));
+  const Plant plant =
+      quiet(nominal()).with(make("backlash_change", "gap_deg: 1.2\nstep_time_s: 1.9995\nstep_deg: 0.5\ndrift_deg_per_s: 0.01\n"));
   PlantState st = plant.make_state(1);
   plant.settle(st, 1.0e6);
   EXPECT_NEAR(rad_to_deg(st.s.gap_rad), 1.2, 1e-12);

@@ -11,9 +11,9 @@ using namespace hil::plant;
 
 TEST(PlantRealtime, StepDoesNotAllocateWithEveryEffect) {
   Plant plant = Plant::load(hil::test::source_path("configs/plant/nominal.yaml"));
-  for (const char* extra : {"transport_delay:\n  delay_s: 0.02\n", "sensor_lag:\n  time_constant_s: 0.01\n",
-                            "sensor_bias:\n  offset_kpa: 3\n", "valve_offset:\n  offset_deg: 0.3\n",
-                            "throat_erosion:\n  rate_mm2_per_s: 0.1\n", "backlash_change:\n  gap_deg: 1.1\n"}) {
+  for (const char* extra :
+       {"transport_delay:\n  delay_s: 0.02\n", "sensor_lag:\n  time_constant_s: 0.01\n", "sensor_bias:\n  offset_kpa: 3\n",
+        "valve_offset:\n  offset_deg: 0.3\n", "throat_erosion:\n  rate_mm2_per_s: 0.1\n", "backlash_change:\n  gap_deg: 1.1\n"}) {
     const auto node = hil::cfg::Node::load_string(extra, "extra.yaml");
     const auto [name, block] = node.entries().front();
     plant = plant.with(find_effect(name)->from_yaml(block));

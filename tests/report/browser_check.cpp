@@ -50,11 +50,22 @@ std::string run_chromium(std::vector<std::string> extra, const fs::path& out, st
   if (::mkdtemp(tmpl.data()) == nullptr) return "cannot create a Chromium profile folder";
   const fs::path profile = tmpl;
   const fs::path err_file = profile / "stderr.txt";
-  std::vector<std::string> args = {chromium.string(), "--headless", "--no-sandbox", "--disable-gpu",
-      "--disable-quic", "--no-first-run", "--disable-background-networking",
-      "--disable-component-update", "--disable-sync", "--disable-extensions",
-      "--disable-dev-shm-usage", "--no-default-browser-check", "--mute-audio", "--hide-scrollbars",
-      "--force-device-scale-factor=1", "--user-data-dir=" + profile.string()};
+  std::vector<std::string> args = {chromium.string(),
+                                   "--headless",
+                                   "--no-sandbox",
+                                   "--disable-gpu",
+                                   "--disable-quic",
+                                   "--no-first-run",
+                                   "--disable-background-networking",
+                                   "--disable-component-update",
+                                   "--disable-sync",
+                                   "--disable-extensions",
+                                   "--disable-dev-shm-usage",
+                                   "--no-default-browser-check",
+                                   "--mute-audio",
+                                   "--hide-scrollbars",
+                                   "--force-device-scale-factor=1",
+                                   "--user-data-dir=" + profile.string()};
   args.insert(args.end(), extra.begin(), extra.end());
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
@@ -96,8 +107,7 @@ std::string run_chromium(std::vector<std::string> extra, const fs::path& out, st
     std::string tail = read_all(err_file);
     if (tail.size() > 1500) tail = tail.substr(tail.size() - 1500);
     error = "Chromium failed (" +
-            (WIFEXITED(status) ? "exit " + std::to_string(WEXITSTATUS(status))
-                               : "signal " + std::to_string(WTERMSIG(status))) +
+            (WIFEXITED(status) ? "exit " + std::to_string(WEXITSTATUS(status)) : "signal " + std::to_string(WTERMSIG(status))) +
             "): " + tail;
   }
   std::error_code ec;
@@ -145,8 +155,8 @@ std::string BrowserResult::summary() const {
   if (!error.empty()) s << "error: " << error << "; ";
   int rendered = 0, empty = 0;
   for (const auto& c : canvases) rendered += c.rendered, empty += c.empty;
-  s << "plots=" << plots << " plot_errors=" << plot_errors << " canvases=" << canvases.size()
-    << " rendered=" << rendered << " empty=" << empty << " min_ink=" << min_ink;
+  s << "plots=" << plots << " plot_errors=" << plot_errors << " canvases=" << canvases.size() << " rendered=" << rendered
+    << " empty=" << empty << " min_ink=" << min_ink;
   if (!first_error.empty()) s << " first_error=\"" << first_error << '"';
   return s.str();
 }
@@ -164,9 +174,7 @@ BrowserResult check_report_in_chromium(const fs::path& html, std::chrono::second
     return r;
   }
   const fs::path out = fs::temp_directory_path() / ("hil-dom-" + std::to_string(::getpid()) + ".html");
-  r.error = run_chromium({"--window-size=1400,2000", "--virtual-time-budget=10000", "--dump-dom",
-                          file_url(html)},
-                         out, timeout);
+  r.error = run_chromium({"--window-size=1400,2000", "--virtual-time-budget=10000", "--dump-dom", file_url(html)}, out, timeout);
   r.dom = read_all(out);
   std::error_code ec;
   fs::remove(out, ec);
@@ -204,8 +212,7 @@ std::string screenshot_in_chromium(const fs::path& html, const fs::path& png, in
   fs::remove(png, ec);
   const fs::path out = fs::temp_directory_path() / ("hil-shot-" + std::to_string(::getpid()) + ".txt");
   std::string error = run_chromium({"--window-size=" + std::to_string(width) + "," + std::to_string(height),
-                                    "--virtual-time-budget=10000",
-                                    "--screenshot=" + fs::absolute(png).string(), file_url(html)},
+                                    "--virtual-time-budget=10000", "--screenshot=" + fs::absolute(png).string(), file_url(html)},
                                    out, timeout);
   fs::remove(out, ec);
   if (error.empty() && !fs::exists(png)) error = "Chromium wrote no screenshot to " + png.string();

@@ -18,13 +18,13 @@ struct CanvasInfo {
 };
 
 struct BrowserResult {
-  std::string error;        // empty when Chromium ran and the page published its counters
-  int plots = -1;           // <body data-plots>: plots rendered
-  int plot_errors = -1;     // <body data-plot-errors>: exceptions caught while rendering
-  std::string first_error;  // <body data-plot-error-first>
+  std::string error;                 // empty when Chromium ran and the page published its counters
+  int plots = -1;                    // <body data-plots>: plots rendered
+  int plot_errors = -1;              // <body data-plot-errors>: exceptions caught while rendering
+  std::string first_error;           // <body data-plot-error-first>
   std::vector<CanvasInfo> canvases;  // each <canvas class="hil-plot">, in page order
-  long min_ink = -1;        // smallest ink over the canvases not marked empty (-1: none)
-  std::string dom;          // the DOM after the scripts ran, for further assertions
+  long min_ink = -1;                 // smallest ink over the canvases not marked empty (-1: none)
+  std::string dom;                   // the DOM after the scripts ran, for further assertions
 
   // Ran, no errors, every canvas rendered, and every non-empty one drew something.
   bool ok() const;
@@ -43,8 +43,7 @@ BrowserResult check_report_in_chromium(const std::filesystem::path& html,
                                        std::chrono::seconds timeout = std::chrono::seconds(120));
 
 // Saves a PNG of the page's first width x height pixels; returns an error text, empty on success.
-std::string screenshot_in_chromium(const std::filesystem::path& html, const std::filesystem::path& png,
-                                   int width = 1400, int height = 2000,
-                                   std::chrono::seconds timeout = std::chrono::seconds(120));
+std::string screenshot_in_chromium(const std::filesystem::path& html, const std::filesystem::path& png, int width = 1400,
+                                   int height = 2000, std::chrono::seconds timeout = std::chrono::seconds(120));
 
 }  // namespace hil::test

@@ -48,15 +48,23 @@ int add_validation(Document& doc) {
 
   doc.heading("Model validation: measured vs model");
   doc.note("No candidate effect explains the residual in failing window 1.", true);
-  doc.figure(Figure{.title = "Pressure: measured vs model", .x_label = "time [s]", .y_label = "pressure [MPa]",
+  doc.figure(Figure{.title = "Pressure: measured vs model",
+                    .x_label = "time [s]",
+                    .y_label = "pressure [MPa]",
                     .series = {Series{.name = "measured", .x = t, .y = meas}, Series{.name = "model", .x = t, .y = model}},
-                    .bands = failing, .group = "validation"});
-  doc.figure(Figure{.title = "Residual", .x_label = "time [s]", .y_label = "residual [MPa]",
+                    .bands = failing,
+                    .group = "validation"});
+  doc.figure(Figure{.title = "Residual",
+                    .x_label = "time [s]",
+                    .y_label = "residual [MPa]",
                     .series = {Series{.name = "measured - model", .x = t, .y = resid}},
-                    .bands = failing, .hlines = {{0.05, "+tolerance"}, {-0.05, "-tolerance"}},
-                    .group = "validation", .height_px = 200});
+                    .bands = failing,
+                    .hlines = {{0.05, "+tolerance"}, {-0.05, "-tolerance"}},
+                    .group = "validation",
+                    .height_px = 200});
 
-  doc.bars(Bars{.title = "RMS error by regime", .y_label = "RMS error [MPa]",
+  doc.bars(Bars{.title = "RMS error by regime",
+                .y_label = "RMS error [MPa]",
                 .categories = {"free motion", "closing contact", "opening contact", "gap change", "steady state"},
                 .groups = {{"constant compensator", {0.021, 0.034, 0.052, 0.081, 0.012}},
                            {"adaptive compensator", {0.019, 0.022, 0.025, 0.031, 0.011}}}});
@@ -69,7 +77,9 @@ int add_validation(Document& doc) {
   }
   const double bound = 1.96 / std::sqrt(static_cast<double>(n));
   doc.columns_begin(2);
-  doc.figure(Figure{.title = "Residual autocorrelation", .x_label = "lag [s]", .y_label = "autocorrelation",
+  doc.figure(Figure{.title = "Residual autocorrelation",
+                    .x_label = "lag [s]",
+                    .y_label = "autocorrelation",
                     .series = {Series{.name = "ACF", .x = lag_s, .y = acf}},
                     .hlines = {{bound, "95 % bound"}, {-bound, ""}}});
   std::vector<double> f_hz(4097), psd(4097);
@@ -77,8 +87,12 @@ int add_validation(Document& doc) {
     f_hz[k] = static_cast<double>(k) * 500.0 / 4096;  // includes the 0 Hz bin, left out on log axes
     psd[k] = 1e-4 / (1 + std::pow(f_hz[k] / 2.0, 2)) + 1e-8 + (std::abs(f_hz[k] - 0.95) < 0.1 ? 3e-4 : 0);
   }
-  doc.figure(Figure{.title = "Residual spectrum", .x_label = "frequency [Hz]", .y_label = "PSD [MPa²/Hz]",
-                    .series = {Series{.name = "residual PSD", .x = f_hz, .y = psd}}, .x_log = true, .y_log = true});
+  doc.figure(Figure{.title = "Residual spectrum",
+                    .x_label = "frequency [Hz]",
+                    .y_label = "PSD [MPa²/Hz]",
+                    .series = {Series{.name = "residual PSD", .x = f_hz, .y = psd}},
+                    .x_log = true,
+                    .y_log = true});
   doc.columns_end();
 
   std::vector<double> sv, sr;
@@ -87,7 +101,9 @@ int add_validation(Document& doc) {
     sv.push_back(valve[i]);
     sr.push_back(resid[i]);
   }
-  doc.figure(Figure{.title = "Residual vs valve angle", .x_label = "valve angle [deg]", .y_label = "residual [MPa]",
+  doc.figure(Figure{.title = "Residual vs valve angle",
+                    .x_label = "valve angle [deg]",
+                    .y_label = "residual [MPa]",
                     .series = {Series{.name = "samples", .x = sv, .y = sr, .style = Series::Style::points}}});
   doc.table({"rank", "candidate effect", "explained variance [%]", "parameter", "BIC change"},
             {{"1", "Coulomb friction on the valve stem", "41.2", "0.18 N·m", "-312.5"},
@@ -100,8 +116,12 @@ int add_validation(Document& doc) {
     std::vector<double> r(n);
     const double scale = std::string(which) == "before" ? 1.0 : 0.3;
     for (std::size_t i = 0; i < n; ++i) r[i] = std::isnan(resid[i]) ? NAN : resid[i] * scale;
-    doc.figure(Figure{.title = std::string("Residual ") + which, .x_label = "time [s]", .y_label = "residual [MPa]",
-                      .series = {Series{.name = which, .x = t, .y = r}}, .bands = failing, .group = "validation",
+    doc.figure(Figure{.title = std::string("Residual ") + which,
+                      .x_label = "time [s]",
+                      .y_label = "residual [MPa]",
+                      .series = {Series{.name = which, .x = t, .y = r}},
+                      .bands = failing,
+                      .group = "validation",
                       .height_px = 180});
   }
   doc.columns_end();
@@ -117,28 +137,43 @@ int add_stress(Document& doc) {
     hour.y[i] = 3 + 0.5 * std::sin(static_cast<double>(i) * 2e-5) + 0.01 * std::sin(static_cast<double>(i)) +
                 (i % 400000 == 200000 ? 0.8 : 0.0);
   }
-  doc.figure(Figure{.title = "One hour at 1 kHz (decimated with min/max per bucket)", .x_label = "time [s]",
-                    .y_label = "pressure [MPa]", .series = {std::move(hour)}});
-  doc.figure(Figure{.title = "Empty series", .x_label = "time [s]", .y_label = "pressure [MPa]",
-                    .series = {Series{.name = "nothing recorded"}}, .height_px = 120});
-  doc.figure(Figure{.title = "Hostile name </script><b>", .x_label = "x </script>", .y_label = "y",
-                    .series = {Series{.name = "</script><script>throw 1</script>", .x = {0, 1, 2, 3},
-                                      .y = {1, 3, NAN, 2}, .style = Series::Style::step}},
-                    .height_px = 140});
+  doc.figure(Figure{.title = "One hour at 1 kHz (decimated with min/max per bucket)",
+                    .x_label = "time [s]",
+                    .y_label = "pressure [MPa]",
+                    .series = {std::move(hour)}});
+  doc.figure(Figure{.title = "Empty series",
+                    .x_label = "time [s]",
+                    .y_label = "pressure [MPa]",
+                    .series = {Series{.name = "nothing recorded"}},
+                    .height_px = 120});
+  doc.figure(Figure{
+      .title = "Hostile name </script><b>",
+      .x_label = "x </script>",
+      .y_label = "y",
+      .series = {Series{
+          .name = "</script><script>throw 1</script>", .x = {0, 1, 2, 3}, .y = {1, 3, NAN, 2}, .style = Series::Style::step}},
+      .height_px = 140});
   doc.columns_begin(3);
-  doc.bars(Bars{.title = "Bias by regime (negative, missing)", .y_label = "bias [MPa]",
+  doc.bars(Bars{.title = "Bias by regime (negative, missing)",
+                .y_label = "bias [MPa]",
                 .categories = {"free motion", "closing contact with a long name", "opening", "gap"},
                 .groups = {{"before", {-0.02, 0.015, NAN, -0.04}}, {"after", {-0.005, 0.004, 0.001, -0.01}}},
                 .height_px = 220});
-  doc.figure(Figure{.title = "Constant and single points", .x_label = "time [s]", .y_label = "gap [deg]",
+  doc.figure(Figure{.title = "Constant and single points",
+                    .x_label = "time [s]",
+                    .y_label = "gap [deg]",
                     .series = {Series{.name = "constant", .x = {0, 1, 2, 3}, .y = {2, 2, 2, 2}},
                                Series{.name = "one point", .x = {1.5}, .y = {2.1}, .style = Series::Style::points}},
                     .height_px = 220});
   std::vector<double> fx, fy;
   for (int k = 1; k < 3000; ++k) fx.push_back(0.01 * k), fy.push_back(1e-3 * std::pow(0.01 * k, -1.5) * (1 + 0.3 * std::sin(k)));
-  doc.figure(Figure{.title = "Scatter on log axes", .x_label = "frequency [Hz]", .y_label = "gain",
+  doc.figure(Figure{.title = "Scatter on log axes",
+                    .x_label = "frequency [Hz]",
+                    .y_label = "gain",
                     .series = {Series{.name = "samples", .x = fx, .y = fy, .style = Series::Style::points}},
-                    .x_log = true, .y_log = true, .height_px = 220});
+                    .x_log = true,
+                    .y_log = true,
+                    .height_px = 220});
   doc.columns_end();
   return 6;
 }
@@ -198,7 +233,8 @@ TEST(ReportInChromium, InteractionsWork) {
 TEST(ReportInChromium, HelperReportsABrokenPlot) {
   Document doc("broken");
   doc.figure(Figure{.title = "fine", .x_label = "x", .y_label = "y", .series = {Series{.name = "s", .x = {0, 1}, .y = {0, 1}}}});
-  doc.figure(Figure{.title = "broken", .x_label = "x", .y_label = "y", .series = {Series{.name = "s", .x = {0, 1}, .y = {0, 1}}}});
+  doc.figure(
+      Figure{.title = "broken", .x_label = "x", .y_label = "y", .series = {Series{.name = "s", .x = {0, 1}, .y = {0, 1}}}});
   std::string page = doc.html();
   const auto second = page.find("\"kind\":\"plot\"", page.find("\"kind\":\"plot\"") + 1);
   ASSERT_NE(second, std::string::npos);

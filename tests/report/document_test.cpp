@@ -46,8 +46,8 @@ struct TempDir {
 
 Document small_doc() {
   Document doc("small");
-  doc.figure(Figure{.title = "f", .x_label = "time [s]", .y_label = "y",
-                    .series = {Series{.name = "s", .x = {0, 1, 2}, .y = {1, 2, 3}}}});
+  doc.figure(Figure{
+      .title = "f", .x_label = "time [s]", .y_label = "y", .series = {Series{.name = "s", .x = {0, 1, 2}, .y = {1, 2, 3}}}});
   return doc;
 }
 
@@ -59,10 +59,15 @@ TEST(Document, HostileTextCannotBreakThePage) {
   doc.paragraph("<b>bold</b> & <i>it</i>");
   doc.note("<img src=x onerror=alert(1)>", true);
   doc.table({"<th>"}, {{"<td>"}, {"</table>"}});
-  doc.figure(Figure{.title = "</figure><script>alert(2)</script>", .x_label = "</script>", .y_label = "<b>y</b>",
-                    .series = {Series{.name = "</script><script>alert(3)</script>", .x = {0, 1}, .y = {0, 1},
+  doc.figure(Figure{.title = "</figure><script>alert(2)</script>",
+                    .x_label = "</script>",
+                    .y_label = "<b>y</b>",
+                    .series = {Series{.name = "</script><script>alert(3)</script>",
+                                      .x = {0, 1},
+                                      .y = {0, 1},
                                       .color = "red\"></canvas><script>alert(4)</script>"}},
-                    .bands = {{0, 1, "<!-- band", ""}}, .hlines = {{0.5, "</script>"}}});
+                    .bands = {{0, 1, "<!-- band", ""}},
+                    .hlines = {{0.5, "</script>"}}});
   doc.bars(Bars{.title = "<b>", .y_label = "<i>", .categories = {"</script>"}, .groups = {{"<g>", {1.0}}}});
   const std::string page = doc.html();
   EXPECT_EQ(page.find("<b>"), std::string::npos);
@@ -79,10 +84,8 @@ TEST(Document, HostileTextCannotBreakThePage) {
 
 TEST(Document, RejectsMismatchedData) {
   Document doc("bad");
-  EXPECT_THROW(doc.figure(Figure{.title = "t", .series = {Series{.name = "s", .x = {0, 1}, .y = {0}}}}),
-               std::invalid_argument);
-  EXPECT_THROW(doc.bars(Bars{.title = "b", .categories = {"a", "b"}, .groups = {{"g", {1.0}}}}),
-               std::invalid_argument);
+  EXPECT_THROW(doc.figure(Figure{.title = "t", .series = {Series{.name = "s", .x = {0, 1}, .y = {0}}}}), std::invalid_argument);
+  EXPECT_THROW(doc.bars(Bars{.title = "b", .categories = {"a", "b"}, .groups = {{"g", {1.0}}}}), std::invalid_argument);
   EXPECT_THROW(doc.columns_end(), std::logic_error);
   doc.columns_begin(2);
   EXPECT_THROW(doc.columns_begin(2), std::logic_error);
@@ -173,8 +176,10 @@ TEST(DocumentSize, CampaignReportIsSmallAndQuick) {
   const auto size = fs::file_size(dir.path / "report.html");
   const double build_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   const double write_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
-  std::printf("campaign report (3 runs x 18 s at 1 kHz, 12 figures): %.0f kB; "
-              "build %.1f ms, write %.1f ms\n", static_cast<double>(size) / 1e3, build_ms, write_ms);
+  std::printf(
+      "campaign report (3 runs x 18 s at 1 kHz, 12 figures): %.0f kB; "
+      "build %.1f ms, write %.1f ms\n",
+      static_cast<double>(size) / 1e3, build_ms, write_ms);
   EXPECT_LT(size, 3'000'000u);
 }
 
@@ -192,8 +197,8 @@ TEST(DocumentSize, HourAt1kHzDecimatesQuickly) {
   doc.figure(fig);
   const auto t1 = std::chrono::steady_clock::now();
   const auto page = doc.html();
-  std::printf("3.6 M-point series: figure() %.1f ms, page %.0f kB\n",
-              std::chrono::duration<double, std::milli>(t1 - t0).count(), static_cast<double>(page.size()) / 1e3);
+  std::printf("3.6 M-point series: figure() %.1f ms, page %.0f kB\n", std::chrono::duration<double, std::milli>(t1 - t0).count(),
+              static_cast<double>(page.size()) / 1e3);
   EXPECT_LT(page.size(), 400'000u);
   EXPECT_NE(page.find("\"n\":3600000"), std::string::npos);
 }

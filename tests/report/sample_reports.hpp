@@ -62,40 +62,47 @@ inline void add_campaign(report::Document& doc, const std::vector<CampaignRun>& 
   for (int k = 0; k < runs; ++k) doc.heading("Run " + std::to_string(k + 1), 3);
   for (int k = 0; k < runs; ++k) {
     const auto& r = data[static_cast<std::size_t>(k)];
-    doc.figure(Figure{.title = "Pressure", .x_label = "time [s]", .y_label = "pressure [MPa]",
-                      .series = {Series{.name = "measured", .x = r.t_s, .y = r.p_mpa},
-                                 Series{.name = "reference", .x = r.t_s, .y = r.p_ref_mpa,
-                                        .style = Series::Style::step, .dashed = true}},
-                      .group = "campaign"});
+    doc.figure(Figure{
+        .title = "Pressure",
+        .x_label = "time [s]",
+        .y_label = "pressure [MPa]",
+        .series = {Series{.name = "measured", .x = r.t_s, .y = r.p_mpa},
+                   Series{.name = "reference", .x = r.t_s, .y = r.p_ref_mpa, .style = Series::Style::step, .dashed = true}},
+        .group = "campaign"});
   }
   for (int k = 0; k < runs; ++k) {
     const auto& r = data[static_cast<std::size_t>(k)];
     doc.figure(Figure{.title = "Touch state (0 free, 1 closing side, 2 opening side)",
-                      .x_label = "time [s]", .y_label = "state",
-                      .series = {Series{.name = "touch", .x = r.t_s, .y = r.touch,
-                                        .style = Series::Style::step}},
-                      .group = "campaign", .height_px = 150});
+                      .x_label = "time [s]",
+                      .y_label = "state",
+                      .series = {Series{.name = "touch", .x = r.t_s, .y = r.touch, .style = Series::Style::step}},
+                      .group = "campaign",
+                      .height_px = 150});
   }
   for (int k = 0; k < runs; ++k) {
     const auto& r = data[static_cast<std::size_t>(k)];
-    doc.figure(Figure{.title = "Motor vs valve angle", .x_label = "time [s]", .y_label = "angle [deg]",
-                      .series = {Series{.name = "motor", .x = r.t_s, .y = r.motor_deg},
-                                 Series{.name = "valve", .x = r.t_s, .y = r.valve_deg}},
-                      .group = "campaign"});
+    doc.figure(Figure{
+        .title = "Motor vs valve angle",
+        .x_label = "time [s]",
+        .y_label = "angle [deg]",
+        .series = {Series{.name = "motor", .x = r.t_s, .y = r.motor_deg}, Series{.name = "valve", .x = r.t_s, .y = r.valve_deg}},
+        .group = "campaign"});
   }
   for (int k = 0; k < runs; ++k) {
     const auto& r = data[static_cast<std::size_t>(k)];
-    doc.figure(Figure{.title = "Gap estimate vs true gap", .x_label = "time [s]", .y_label = "gap [deg]",
-                      .series = {Series{.name = "estimate", .x = r.t_s, .y = r.gap_est_deg},
-                                 Series{.name = "true", .x = r.t_s, .y = r.gap_true_deg,
-                                        .style = Series::Style::step, .dashed = true}},
-                      .group = "campaign"});
+    doc.figure(
+        Figure{.title = "Gap estimate vs true gap",
+               .x_label = "time [s]",
+               .y_label = "gap [deg]",
+               .series = {Series{.name = "estimate", .x = r.t_s, .y = r.gap_est_deg},
+                          Series{.name = "true", .x = r.t_s, .y = r.gap_true_deg, .style = Series::Style::step, .dashed = true}},
+               .group = "campaign"});
   }
   doc.columns_end();
   std::vector<std::vector<std::string>> rows;
   for (int k = 0; k < runs; ++k) {
-    rows.push_back({"run " + std::to_string(k + 1), std::to_string(0.012 + 0.003 * k), "1.85",
-                    std::to_string(3 + k), k == 2 ? "FAIL" : "pass"});
+    rows.push_back({"run " + std::to_string(k + 1), std::to_string(0.012 + 0.003 * k), "1.85", std::to_string(3 + k),
+                    k == 2 ? "FAIL" : "pass"});
   }
   doc.heading("Metrics", 3);
   doc.table({"run", "RMS error [MPa]", "settling time [s]", "overshoots", "verdict"}, rows);

@@ -23,13 +23,11 @@ class SmallDisk {
   void fill() const {
     std::ofstream out(at_ / "filler", std::ios::binary);
     const std::string block(1 << 16, 'x');
-    while (out.write(block.data(), static_cast<std::streamsize>(block.size()))) {
-    }
+    while (out.write(block.data(), static_cast<std::streamsize>(block.size()))) {}
     out.clear();
     out.close();  // the last partial block
     std::ofstream small(at_ / "filler2", std::ios::binary);
-    for (int i = 0; i < 1 << 16 && small.put('x'); ++i) {
-    }
+    for (int i = 0; i < 1 << 16 && small.put('x'); ++i) {}
   }
   void unfill() const {
     std::filesystem::remove(at_ / "filler");

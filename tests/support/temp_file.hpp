@@ -33,8 +33,6 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-inline std::filesystem::path source_path(const std::string& relative) {
-  return std::filesystem::path(HIL_SOURCE_DIR) / relative;
-}
+inline std::filesystem::path source_path(const std::string& relative) { return std::filesystem::path(HIL_SOURCE_DIR) / relative; }
 
 }  // namespace hil::test

@@ -14,8 +14,7 @@ namespace hil::report::detail {
 namespace {
 
 constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
-constexpr double kPow10[] = {1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 1e3,
-                             1e4,  1e5,  1e6,  1e7,  1e8, 1e9, 1e10};
+constexpr double kPow10[] = {1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10};
 double pow10(int e) { return kPow10[e + 4]; }  // e in [-4, 10]
 
 constexpr auto kDigitPairsTable = [] {
@@ -82,8 +81,8 @@ char* format_number(char* out, double v) {
   return out;
 }
 
-Decimated decimate(std::span<const double> x, std::span<const double> y, std::size_t max_buckets,
-                   Thin thin, bool x_log, bool y_log) {
+Decimated decimate(std::span<const double> x, std::span<const double> y, std::size_t max_buckets, Thin thin, bool x_log,
+                   bool y_log) {
   const std::size_t n = std::min(x.size(), y.size());
   const std::size_t buckets = std::max<std::size_t>(max_buckets, 1);
   // NaN compares false, so a NaN is not "dropped" but becomes a gap below.
@@ -153,8 +152,7 @@ Decimated decimate(std::span<const double> x, std::span<const double> y, std::si
         if (imin == kNone || y[i] < y[imin]) imin = i;
         if (imax == kNone || y[i] > y[imax]) imax = i;
       }
-      std::array<std::size_t, 5> pick = {b == 0 ? 0 : kNone, imin, imax, gap,
-                                         b + 1 == buckets ? n - 1 : kNone};
+      std::array<std::size_t, 5> pick = {b == 0 ? 0 : kNone, imin, imax, gap, b + 1 == buckets ? n - 1 : kNone};
       std::sort(pick.begin(), pick.end());
       for (std::size_t k = 0; k < pick.size() && pick[k] != kNone; ++k) {
         if (k == 0 || pick[k] != pick[k - 1]) emit(pick[k]);
@@ -168,9 +166,8 @@ Decimated decimate(std::span<const double> x, std::span<const double> y, std::si
   out.x.reserve(m);
   out.y.reserve(m);
   for (std::size_t i = 0; i < m; ++i) {
-    const bool interior = i > 0 && i + 1 < m && kept.y[i - 1] == kept.y[i] &&
-                          kept.y[i] == kept.y[i + 1] && kept.x[i - 1] <= kept.x[i] &&
-                          kept.x[i] <= kept.x[i + 1];
+    const bool interior = i > 0 && i + 1 < m && kept.y[i - 1] == kept.y[i] && kept.y[i] == kept.y[i + 1] &&
+                          kept.x[i - 1] <= kept.x[i] && kept.x[i] <= kept.x[i + 1];
     if (!interior) out.x.push_back(kept.x[i]), out.y.push_back(kept.y[i]);
   }
   return out;
@@ -206,8 +203,7 @@ std::string html_escape(std::string_view text) {
 }
 
 std::string json_string(std::string_view text) {
-  const std::string dumped = nlohmann::json(std::string(text))
-                                 .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  const std::string dumped = nlohmann::json(std::string(text)).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   std::string out;
   out.reserve(dumped.size());
   for (char c : dumped) {

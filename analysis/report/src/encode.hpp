@@ -27,8 +27,8 @@ enum class Thin { line, points };
 // points: if n > 2 * max_buckets, keeps the first point in each cell of a 256 x 256 grid over the
 // data's bounding box (the scatter's shape survives, its density does not).
 // Points with x <= 0 (x_log) or y <= 0 (y_log) are left out without a gap.
-Decimated decimate(std::span<const double> x, std::span<const double> y, std::size_t max_buckets,
-                   Thin thin, bool x_log, bool y_log);
+Decimated decimate(std::span<const double> x, std::span<const double> y, std::size_t max_buckets, Thin thin, bool x_log,
+                   bool y_log);
 
 // Appends `v` as a JSON array of format_number values.
 void append_numbers(std::string& out, std::span<const double> v);

@@ -36,9 +36,8 @@ void append_number(std::string& out, double v) {
 void append_series(std::string& out, const Series& s, bool x_log, bool y_log) {
   const auto thin = s.style == Series::Style::points ? detail::Thin::points : detail::Thin::line;
   const auto d = detail::decimate(s.x, s.y, kMaxBuckets, thin, x_log, y_log);
-  out += "{\"name\":" + json_string(s.name) + ",\"color\":" + json_string(s.color) +
-         ",\"style\":\"" + style_name(s.style) + "\",\"dashed\":" + (s.dashed ? "true" : "false") +
-         ",\"n\":" + std::to_string(s.x.size()) + ",\"x\":";
+  out += "{\"name\":" + json_string(s.name) + ",\"color\":" + json_string(s.color) + ",\"style\":\"" + style_name(s.style) +
+         "\",\"dashed\":" + (s.dashed ? "true" : "false") + ",\"n\":" + std::to_string(s.x.size()) + ",\"x\":";
   detail::append_numbers(out, d.x);
   out += ",\"y\":";
   detail::append_numbers(out, d.y);
@@ -50,8 +49,8 @@ constexpr std::string_view kDataOpen = "<script type=\"application/json\" class=
 constexpr std::string_view kDataClose = "</script></figure>";
 
 std::string figure_head(const std::string& kind, int id, const std::string& title) {
-  return "<figure class=\"hil-fig hil-" + kind + "\" id=\"fig" + std::to_string(id) +
-         "\"><figcaption>" + html_escape(title) + "</figcaption>";
+  return "<figure class=\"hil-fig hil-" + kind + "\" id=\"fig" + std::to_string(id) + "\"><figcaption>" + html_escape(title) +
+         "</figcaption>";
 }
 
 bool looks_numeric(const std::string& cell) {
@@ -93,8 +92,7 @@ void Document::heading(std::string text, int level) {
 void Document::paragraph(std::string text) { block("<p>" + html_escape(text) + "</p>"); }
 
 void Document::note(std::string text, bool warning) {
-  block(std::string("<div class=\"hil-note") + (warning ? " hil-warn" : "") + "\" role=\"note\">" +
-        html_escape(text) + "</div>");
+  block(std::string("<div class=\"hil-note") + (warning ? " hil-warn" : "") + "\" role=\"note\">" + html_escape(text) + "</div>");
 }
 
 void Document::table(std::vector<std::string> header, std::vector<std::vector<std::string>> rows) {
@@ -116,9 +114,8 @@ void Document::table(std::vector<std::string> header, std::vector<std::vector<st
 void Document::figure(const Figure& fig) {
   for (const auto& s : fig.series) {
     if (s.x.size() != s.y.size()) {
-      throw std::invalid_argument("report figure '" + fig.title + "': series '" + s.name + "' has " +
-                                  std::to_string(s.x.size()) + " x but " +
-                                  std::to_string(s.y.size()) + " y values");
+      throw std::invalid_argument("report figure '" + fig.title + "': series '" + s.name + "' has " + std::to_string(s.x.size()) +
+                                  " x but " + std::to_string(s.y.size()) + " y values");
     }
   }
   // Encoded straight into body_: the data is the bulk of the page, copies of it cost time.
@@ -128,10 +125,9 @@ void Document::figure(const Figure& fig) {
     std::string& json = body_;
     json += figure_head("plot", next_id_++, fig.title);
     json += kDataOpen;
-    json += "{\"kind\":\"plot\",\"xLabel\":" + json_string(fig.x_label) +
-            ",\"yLabel\":" + json_string(fig.y_label) + ",\"group\":" + json_string(fig.group) +
-            ",\"xLog\":" + (fig.x_log ? "true" : "false") + ",\"yLog\":" +
-            (fig.y_log ? "true" : "false") + ",\"height\":" + std::to_string(std::max(fig.height_px, 80)) +
+    json += "{\"kind\":\"plot\",\"xLabel\":" + json_string(fig.x_label) + ",\"yLabel\":" + json_string(fig.y_label) +
+            ",\"group\":" + json_string(fig.group) + ",\"xLog\":" + (fig.x_log ? "true" : "false") +
+            ",\"yLog\":" + (fig.y_log ? "true" : "false") + ",\"height\":" + std::to_string(std::max(fig.height_px, 80)) +
             ",\"series\":[";
     for (std::size_t i = 0; i < fig.series.size(); ++i) {
       if (i > 0) json += ',';
@@ -165,14 +161,12 @@ void Document::figure(const Figure& fig) {
 void Document::bars(const Bars& chart) {
   for (const auto& [name, values] : chart.groups) {
     if (values.size() != chart.categories.size()) {
-      throw std::invalid_argument("report bars '" + chart.title + "': group '" + name + "' has " +
-                                  std::to_string(values.size()) + " values for " +
-                                  std::to_string(chart.categories.size()) + " categories");
+      throw std::invalid_argument("report bars '" + chart.title + "': group '" + name + "' has " + std::to_string(values.size()) +
+                                  " values for " + std::to_string(chart.categories.size()) + " categories");
     }
   }
   std::string json = "{\"kind\":\"bars\",\"yLabel\":" + json_string(chart.y_label) +
-                     ",\"height\":" + std::to_string(std::max(chart.height_px, 80)) +
-                     ",\"categories\":[";
+                     ",\"height\":" + std::to_string(std::max(chart.height_px, 80)) + ",\"categories\":[";
   for (std::size_t i = 0; i < chart.categories.size(); ++i) {
     if (i > 0) json += ',';
     json += json_string(chart.categories[i]);
@@ -185,15 +179,13 @@ void Document::bars(const Bars& chart) {
     json += '}';
   }
   json += "]}";
-  block(figure_head("bars", next_id_++, chart.title) + std::string(kDataOpen) + json +
-        std::string(kDataClose));
+  block(figure_head("bars", next_id_++, chart.title) + std::string(kDataOpen) + json + std::string(kDataClose));
 }
 
 void Document::columns_begin(int n) {
   if (columns_ > 0) throw std::logic_error("report: columns_begin inside columns (no nesting)");
   columns_ = std::clamp(n, 1, 6);
-  body_ += "<div class=\"hil-cols\" style=\"grid-template-columns:repeat(" +
-           std::to_string(columns_) + ",minmax(0,1fr))\">\n";
+  body_ += "<div class=\"hil-cols\" style=\"grid-template-columns:repeat(" + std::to_string(columns_) + ",minmax(0,1fr))\">\n";
 }
 
 void Document::columns_end() {
@@ -205,17 +197,19 @@ void Document::columns_end() {
 std::string Document::page_head() const {
   std::string head;
   head.reserve(detail::kReportCss.size() + 1024);
-  head += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
-          "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
-          "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
+  head +=
+      "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+      "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
+      "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
   head += html_escape(title_);
   head += "</title>\n<style>\n";
   head += detail::kReportCss;
   head += "</style>\n</head>\n<body>\n<header class=\"hil-header\"><h1>";
   head += html_escape(title_);
-  head += "</h1><p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
-          "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; "
-          "click a legend entry to hide it, double-click to show it alone.</p></header>\n<main>\n";
+  head +=
+      "</h1><p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
+      "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; "
+      "click a legend entry to hide it, double-click to show it alone.</p></header>\n<main>\n";
   return head;
 }
 
@@ -247,8 +241,7 @@ void Document::write(const std::filesystem::path& file) const {
     if (fd < 0 && errno != EEXIST) break;
   }
   if (fd < 0) {
-    throw std::system_error(errno, std::generic_category(),
-                            "report: cannot create a temporary file next to " + file.string());
+    throw std::system_error(errno, std::generic_category(), "report: cannot create a temporary file next to " + file.string());
   }
   int err = 0;
   for (const std::string* part : {&head, &body_, &tail}) {

@@ -1,4 +1,4 @@
-#include "hil/bench/api_client.hpp"
+#include "hil/bench/server/api_client.hpp"
 
 #include <fstream>
 
@@ -175,8 +175,7 @@ void ApiClient::stream(const std::string& target, const std::function<bool(const
     beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(2));
     try {
       run_op(io, [&](auto handler) { ws.async_close(websocket::close_code::normal, handler); });
-    } catch (const boost::system::system_error&) {
-    }
+    } catch (const boost::system::system_error&) {}
   } catch (const boost::system::system_error& e) {
     if (e.code() == websocket::error::closed) return;
     throw ApiUnreachable("WebSocket " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());

@@ -142,7 +142,6 @@ bool constant_time_equal(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
-
 std::vector<std::string> yaml_stems(const std::filesystem::path& dir) {
   std::vector<std::string> out;
   std::error_code ec;
@@ -212,15 +211,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   void run(Request req, double rate_hz) {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
-    ws_.set_option(websocket::stream_base::decorator(
-        [](websocket::response_type& res) { res.set(http::field::server, "hilbench"); }));
+    ws_.set_option(
+        websocket::stream_base::decorator([](websocket::response_type& res) { res.set(http::field::server, "hilbench"); }));
     ws_.async_accept(req, [self = shared_from_this(), rate_hz](beast::error_code ec) {
       if (ec) return;
       const json hello = {{"type", "hello"}, {"rate_hz", rate_hz}, {"columns", [] {
-                            json names = json::array();
-                            for (const auto& c : telemetry_columns(ColumnSet::all)) names.push_back(c.name);
-                            return names;
-                          }()}};
+                                                                      json names = json::array();
+                                                                      for (const auto& c : telemetry_columns(ColumnSet::all))
+                                                                        names.push_back(c.name);
+                                                                      return names;
+                                                                    }()}};
       self->send(std::make_shared<const std::string>(dump_json(hello)));
       self->hub_.subscribe(self, rate_hz);
       self->read();
@@ -255,7 +255,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       // The client learns in-band what it missed, once there is room to tell it.
       if (self->dropped_unreported_ > 0 && self->queue_.size() < kWsQueueLimit / 2) {
         self->queue_.push_back(std::make_shared<const std::string>(
-            dump_json({{"type", "dropped"}, {"messages", self->dropped_unreported_}, {"total", self->dropped_},
+            dump_json({{"type", "dropped"},
+                       {"messages", self->dropped_unreported_},
+                       {"total", self->dropped_},
                        {"why", "this client read slower than the telemetry was sent; telemetry.csv is the lossless record"}})));
         self->dropped_unreported_ = 0;
       }
@@ -318,7 +320,8 @@ void TelemetryHub::publish_row(const TelemetryRecord& r) {
   json j = {{"type", "row"}};
   const auto values = telemetry_row(r);
   const auto& columns = telemetry_columns(ColumnSet::all);
-  for (std::size_t i = 0; i < columns.size(); ++i) j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
+  for (std::size_t i = 0; i < columns.size(); ++i)
+    j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
   const auto message = std::make_shared<const std::string>(dump_json(j));
   for (const auto& session : due) session->send(message);
 }
@@ -387,9 +390,9 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
   const auto names = yaml_stems(options.rigs_dir);
   if (!cfg::plain_name(name) || std::find(names.begin(), names.end(), name) == names.end()) {
     const std::string hint = cfg::closest(name, names);
-    throw ApiError{http::status::not_found, "unknown rig",
-                   "'" + name + "' is not a rig in " + options.rigs_dir.string() +
-                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+    throw ApiError{
+        http::status::not_found, "unknown rig",
+        "'" + name + "' is not a rig in " + options.rigs_dir.string() + (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
   }
   try {
     return load_rig_config(options.rigs_dir / (name + ".yaml"));
@@ -480,12 +483,14 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   }
   try {
     if (yaml_body || body.contains("campaign_yaml")) {
-      if (body.contains("campaign")) throw ApiError{http::status::bad_request, "bad request", "give 'campaign' or 'campaign_yaml', not both"};
+      if (body.contains("campaign"))
+        throw ApiError{http::status::bad_request, "bad request", "give 'campaign' or 'campaign_yaml', not both"};
       s.campaign = load_campaign_text(yaml, "posted campaign", options.campaigns_dir, options.campaigns_dir.parent_path());
       s.source = "posted";
     } else {
       if (!body.contains("campaign")) {
-        throw ApiError{http::status::bad_request, "bad request", "give 'campaign' (a name from GET /api/campaigns) or 'campaign_yaml'"};
+        throw ApiError{http::status::bad_request, "bad request",
+                       "give 'campaign' (a name from GET /api/campaigns) or 'campaign_yaml'"};
       }
       const std::string name = field<std::string>(body, "campaign", "");
       const auto names = yaml_stems(options.campaigns_dir);
@@ -523,7 +528,8 @@ Reply ApiServer::Impl::inject(const std::string& what, const json& body) {
   using K = LoopRequest::Kind;
   auto duration = [&] {
     const double d = body.contains("duration_s") ? number_field(body, "duration_s") : 0.0;
-    if (d < 0 || d > 86400) throw ApiError{http::status::bad_request, "bad field", "'duration_s' must be 0..86400 (0 = until cleared)"};
+    if (d < 0 || d > 86400)
+      throw ApiError{http::status::bad_request, "bad field", "'duration_s' must be 0..86400 (0 = until cleared)"};
     return d;
   };
   if (what == "gap") {
@@ -573,8 +579,9 @@ Reply ApiServer::Impl::inject(const std::string& what, const json& body) {
     r.kind = K::clear_faults;
   } else {
     const std::string hint = cfg::closest(what, {"gap", "sensor", "drive", "rig", "clear"});
-    throw ApiError{http::status::not_found, "unknown injection",
-                   "'" + what + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + "; use gap, sensor, drive, rig or clear"};
+    throw ApiError{
+        http::status::not_found, "unknown injection",
+        "'" + what + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + "; use gap, sensor, drive, rig or clear"};
   }
   try {
     runner.inject(r);
@@ -637,7 +644,10 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
   Reply r;
   r.file = path;
   const auto ext = path.extension().string();
-  r.content_type = ext == ".csv" ? "text/csv" : ext == ".json" ? "application/json" : ext == ".jsonl" ? "application/x-ndjson" : "application/octet-stream";
+  r.content_type = ext == ".csv"     ? "text/csv"
+                   : ext == ".json"  ? "application/json"
+                   : ext == ".jsonl" ? "application/x-ndjson"
+                                     : "application/octet-stream";
   r.extra_header = "attachment; filename=\"" + file + "\"";
   return r;
 }
@@ -671,7 +681,9 @@ const Route kRoutes[] = {
        return json_reply(http::status::ok, api.runner.status());
      }},
     {http::verb::post, "/api/start", "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
-     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) { return api.start(req, t); }},
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) {
+       return api.start(req, t);
+     }},
     {http::verb::post, "/api/stop", "end the campaign after the run's current period",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.stop(); }},
     {http::verb::post, "/api/abort", "safe state now, then end the campaign: {reason}",
@@ -685,7 +697,9 @@ const Route kRoutes[] = {
     {http::verb::get, "/api/runs/{id}", "a run's record and its files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
     {http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
-     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run_file(a[0], a[1]); }},
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
+       return api.run_file(a[0], a[1]);
+     }},
     {http::verb::get, "/api/telemetry", "live telemetry: a WebSocket, ?rate_hz=N",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) -> Reply {
        throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
@@ -723,7 +737,8 @@ std::string route_list() {
 Reply route_index() {
   json list = json::array();
   for (const auto& r : kRoutes) {
-    list.push_back({{"method", std::string(http::to_string(r.method))}, {"path", std::string(r.path)}, {"summary", std::string(r.summary)}});
+    list.push_back(
+        {{"method", std::string(http::to_string(r.method))}, {"path", std::string(r.path)}, {"summary", std::string(r.summary)}});
   }
   return json_reply(http::status::ok, {{"endpoints", list}});
 }
@@ -743,8 +758,10 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
                    std::string(req.method_string()) + " " + std::string(req.target()) + ": use " +
                        std::string(http::to_string(other_method->method))};
   }
-  if (t.path.empty() || t.path[0] != "api") throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
-  throw ApiError{http::status::not_found, "not found", std::string(req.target()) + " is no endpoint; see GET /api: " + route_list()};
+  if (t.path.empty() || t.path[0] != "api")
+    throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
+  throw ApiError{http::status::not_found, "not found",
+                 std::string(req.target()) + " is no endpoint; see GET /api: " + route_list()};
 }
 
 Reply ApiServer::Impl::stop() {
@@ -775,7 +792,8 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
   Reply reply;
   if (!authorised(req, t)) {
     spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
-    return error_reply(http::status::unauthorized, "unauthorized", "this server requires 'Authorization: Bearer <token>' on every request");
+    return error_reply(http::status::unauthorized, "unauthorized",
+                       "this server requires 'Authorization: Bearer <token>' on every request");
   }
   if (websocket::is_upgrade(req)) {
     reply = error_reply(http::status::bad_request, "WebSocket upgrade not possible here", "connect to /api/telemetry over TCP");
@@ -818,7 +836,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_->body_limit(api_->options.max_body_bytes);
     parser_->header_limit(16 * 1024);
     stream_.expires_after(std::chrono::seconds(60));
-    http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
+    http::async_read(stream_, buffer_, *parser_,
+                     [self = shared_from_this()](beast::error_code ec, std::size_t) { self->on_read(ec); });
   }
 
  private:
@@ -857,7 +876,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         rate = -1;
       }
     }
-    if (!(rate > 0 && rate <= 5000)) return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
+    if (!(rate > 0 && rate <= 5000))
+      return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
     std::make_shared<WsSession>(stream_.release_socket(), api_->hub)->run(std::move(req), rate);
   }
 
@@ -867,8 +887,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       beast::error_code ec;
       body.open(reply.file.c_str(), beast::file_mode::scan, ec);
       if (ec) return send(error_reply(http::status::internal_server_error, "cannot read file", ec.message()), keep_alive);
-      auto res = std::make_shared<http::response<http::file_body>>(
-          std::piecewise_construct, std::make_tuple(std::move(body)), std::make_tuple(http::status::ok, 11));
+      auto res = std::make_shared<http::response<http::file_body>>(std::piecewise_construct, std::make_tuple(std::move(body)),
+                                                                   std::make_tuple(http::status::ok, 11));
       res->set(http::field::content_type, reply.content_type);
       res->set(http::field::content_disposition, reply.extra_header);
       res->keep_alive(keep_alive);
@@ -933,8 +953,8 @@ ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& r
   if (!options.token.empty()) {
     // A token is one printable word: a blank one would let '?token=%20' in, and one with spaces
     // or control characters cannot travel in a header intact.
-    const bool printable = std::all_of(options.token.begin(), options.token.end(),
-                                       [](char ch) { return ch > 0x20 && ch < 0x7f; });
+    const bool printable =
+        std::all_of(options.token.begin(), options.token.end(), [](char ch) { return ch > 0x20 && ch < 0x7f; });
     if (!printable) {
       throw std::invalid_argument("the token must be printable ASCII without spaces (got " +
                                   std::to_string(options.token.size()) + " characters that are not)");
@@ -952,7 +972,9 @@ ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& r
   a.open(endpoint.protocol());
   a.set_option(asio::socket_base::reuse_address(true));
   a.bind(endpoint, ec);
-  if (ec) throw std::runtime_error("cannot listen on " + impl_->options.address + ":" + std::to_string(impl_->options.port) + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("cannot listen on " + impl_->options.address + ":" + std::to_string(impl_->options.port) + ": " +
+                             ec.message());
   a.listen(asio::socket_base::max_listen_connections);
   impl_->accept();
 }

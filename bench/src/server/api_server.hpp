@@ -15,14 +15,14 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <nlohmann/json.hpp>
 
-#include "hil/bench/runner.hpp"
+#include "hil/bench/server/runner.hpp"
 
 namespace hil::bench {
 
 struct ApiOptions {
   std::string address = "127.0.0.1";
-  unsigned short port = 8470;            // 0: any free port (see ApiServer::port)
-  std::string token;                     // when set, every request must carry it
+  unsigned short port = 8470;  // 0: any free port (see ApiServer::port)
+  std::string token;           // when set, every request must carry it
   std::filesystem::path campaigns_dir = "configs/campaigns";
   std::filesystem::path rigs_dir = "configs/rigs";
   std::filesystem::path runs_dir = "runs";

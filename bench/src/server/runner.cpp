@@ -1,4 +1,4 @@
-#include "hil/bench/runner.hpp"
+#include "hil/bench/server/runner.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -14,9 +14,9 @@
 
 #include <spdlog/spdlog.h>
 
-#include "hil/bench/recorder.hpp"
-#include "hil/bench/rig_registry.hpp"
-#include "hil/bench/rt_thread.hpp"
+#include "hil/bench/rt/recorder.hpp"
+#include "hil/bench/rt/rig_registry.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
 #include "hil/units.hpp"
@@ -141,18 +141,13 @@ std::string describe_trip(const RunLoop& loop) {
     case Trip::underpressure:
       return fmt("underpressure: p_meas %.4f MPa below the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
                  units::pa_to_mpa(loop.trip_limit()), t);
-    case Trip::watchdog:
-      return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t);
-    case Trip::rig_fault:
-      return fmt("rig fault at t = %.3f s: ", t) + std::string(loop.trip_detail());
+    case Trip::watchdog: return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t);
+    case Trip::rig_fault: return fmt("rig fault at t = %.3f s: ", t) + std::string(loop.trip_detail());
     case Trip::overruns:
       return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
-    case Trip::operator_abort:
-      return "operator abort";
-    case Trip::recording:
-      return fmt("recording: telemetry could not be recorded at t = %.3f s", t);
-    case Trip::none:
-      break;
+    case Trip::operator_abort: return "operator abort";
+    case Trip::recording: return fmt("recording: telemetry could not be recorded at t = %.3f s", t);
+    case Trip::none: break;
   }
   return "none";
 }
@@ -180,7 +175,8 @@ json faults_json(const LoopSnapshot& s) {
     if (s.sensor == SensorFault::stuck) f["held_mpa"] = units::pa_to_mpa(s.sensor_value);
     faults.push_back(f);
   }
-  if (s.flags & kFlagDriveFault) faults.push_back({{"kind", "drive"}, {"mode", "ignores_commands"}, {"until_s", until(s.drive_until_s)}});
+  if (s.flags & kFlagDriveFault)
+    faults.push_back({{"kind", "drive"}, {"mode", "ignores_commands"}, {"until_s", until(s.drive_until_s)}});
   if (s.flags & kFlagRigFault) faults.push_back({{"kind", "rig"}, {"mode", "silent"}});
   return faults;
 }
@@ -200,8 +196,8 @@ std::string_view to_string(Outcome o) noexcept {
 }
 
 Outcome outcome_from(std::string_view text) noexcept {
-  for (const Outcome o : {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted,
-                          Outcome::running})
+  for (const Outcome o :
+       {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted, Outcome::running})
     if (to_string(o) == text) return o;
   return Outcome::error;
 }
@@ -269,7 +265,8 @@ void CampaignRunner::start(StartRequest request) {
   if (kind == nullptr) throw std::invalid_argument(request.rig.file.string() + ": " + unknown_rig_kind_text(request.rig.kind));
   const bool simulated = kind->capabilities.simulated, programmable_gap = kind->capabilities.programmable_gap;
   if (!simulated && request.speed != 1.0) {
-    throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
+    throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind +
+                                ")");
   }
   {
     std::lock_guard lock(mutex_);
@@ -285,9 +282,10 @@ void CampaignRunner::start(StartRequest request) {
     const auto space = std::filesystem::space(o_.runs_dir, ec);
     if (ec) throw InsufficientStorage("cannot use the runs folder " + o_.runs_dir.string() + ": " + ec.message());
     if (static_cast<double>(space.available) < need) {
-      throw InsufficientStorage(fmt("the runs folder has %.1f MB free; this campaign's record needs about %.1f MB (%.0f telemetry rows)",
-                                    static_cast<double>(space.available) / 1e6, need / 1e6, rows) +
-                                " in " + o_.runs_dir.string());
+      throw InsufficientStorage(
+          fmt("the runs folder has %.1f MB free; this campaign's record needs about %.1f MB (%.0f telemetry rows)",
+              static_cast<double>(space.available) / 1e6, need / 1e6, rows) +
+          " in " + o_.runs_dir.string());
     }
   }
   if (thread_.joinable()) thread_.join();  // the previous campaign's thread, already finishing
@@ -363,16 +361,22 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
     }
     if (outcome_from(a->finished.back()["outcome"].get<std::string>()) != Outcome::completed) break;
   }
-  json last = {{"campaign", a->req.campaign.name}, {"source", a->req.source}, {"rig", a->req.rig.name},
-               {"started_utc", utc_iso(a->started_utc)}, {"finished_utc", utc_iso(SysClock::now())},
-               {"runs", a->finished}, {"outcome", to_string(Outcome::completed)}, {"reason", nullptr}};
+  json last = {{"campaign", a->req.campaign.name},
+               {"source", a->req.source},
+               {"rig", a->req.rig.name},
+               {"started_utc", utc_iso(a->started_utc)},
+               {"finished_utc", utc_iso(SysClock::now())},
+               {"runs", a->finished},
+               {"outcome", to_string(Outcome::completed)},
+               {"reason", nullptr}};
   Outcome worst = Outcome::completed;
   for (const auto& r : a->finished) {
     const Outcome o = outcome_from(r["outcome"].get<std::string>());
     if (o > worst) worst = o, last["outcome"] = r["outcome"], last["reason"] = r["reason"];
   }
   if (a->finished.size() < a->runs.size()) last["runs_skipped"] = a->runs.size() - a->finished.size();
-  notice({{"type", "campaign_end"}, {"campaign", a->req.campaign.name}, {"outcome", last["outcome"]}, {"reason", last["reason"]}});
+  notice(
+      {{"type", "campaign_end"}, {"campaign", a->req.campaign.name}, {"outcome", last["outcome"]}, {"reason", last["reason"]}});
   std::lock_guard lock(mutex_);
   last_ = std::move(last);
   active_.reset();
@@ -431,11 +435,18 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
 
   std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
   Recorder rec(dir,
-               {{"source", "hilbench serve"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
+               {{"source", "hilbench serve"},
+                {"campaign", c.name},
+                {"run", run.name},
+                {"rig", rc.name},
                 {"start_utc", utc_iso(start_utc)}},
                static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->knows_truth(),
                rc.loop.cpu);
-  rec.log({{"kind", "run_start"}, {"source", "bench"}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name},
+  rec.log({{"kind", "run_start"},
+           {"source", "bench"},
+           {"campaign", c.name},
+           {"run", run.name},
+           {"rig", rc.name},
            {"speed", a.req.speed}});
   {
     std::lock_guard lock(mutex_);
@@ -478,10 +489,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     });
     rt = make_realtime(t, rc.loop.priority, rc.loop.cpu);
     if (!rt.warning.empty()) spdlog::warn("loop thread: {}", rt.warning);
-    rec.log({{"kind", "loop_start"}, {"source", "bench"}, {"sched", rt.describe()}, {"warning", rt.warning},
+    rec.log({{"kind", "loop_start"},
+             {"source", "bench"},
+             {"sched", rt.describe()},
+             {"warning", rt.warning},
              {"mlock_warning", o_.mlock_warning},
-             {"cpu_dma_latency", cpu_latency ? (cpu_latency->warning().empty() ? json(rc.loop.cpu_dma_latency_us) : json(cpu_latency->warning()))
-                                             : json(nullptr)}});
+             {"cpu_dma_latency",
+              cpu_latency ? (cpu_latency->warning().empty() ? json(rc.loop.cpu_dma_latency_us) : json(cpu_latency->warning()))
+                          : json(nullptr)}});
     {
       std::lock_guard lock(mutex_);
       a.loop = loop.get();
@@ -490,8 +505,12 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       if (a.abort) requests.try_push({.kind = LoopRequest::Kind::abort});
       if (a.stop) requests.try_push({.kind = LoopRequest::Kind::stop});
     }
-    notice({{"type", "run_start"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
-            {"period_s", c.period_s}, {"duration_s", c.duration_s}});
+    notice({{"type", "run_start"},
+            {"campaign", c.name},
+            {"run", run.name},
+            {"dir", dir.filename().string()},
+            {"period_s", c.period_s},
+            {"duration_s", c.duration_s}});
     go.release();
     t.join();
     std::lock_guard lock(mutex_);
@@ -502,7 +521,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       case LoopEnd::running:
         outcome = Outcome::aborted;
         reason = loop->trip() == Trip::operator_abort ? (a.abort_reason.empty() ? "operator abort" : a.abort_reason)
-                                                       : describe_trip(*loop);
+                                                      : describe_trip(*loop);
         break;
     }
     a.periods_done += loop->periods_run();
@@ -510,8 +529,13 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   json rig_health = nullptr;  // how the rig's devices ended the run (before they are switched off)
   if (loop) {
     const RigHealth h = rig->health();
-    rig_health = {{"connected", h.connected}, {"fault", h.fault}, {"reads", h.reads}, {"stale_reads", h.stale_reads},
-                  {"fault_reads", h.fault_reads}, {"reconnects", h.reconnects}, {"last_error", std::string(h.last_error_text())}};
+    rig_health = {{"connected", h.connected},
+                  {"fault", h.fault},
+                  {"reads", h.reads},
+                  {"stale_reads", h.stale_reads},
+                  {"fault_reads", h.fault_reads},
+                  {"reconnects", h.reconnects},
+                  {"last_error", std::string(h.last_error_text())}};
     rig->deactivate();
   }
   cpu_latency.reset();
@@ -539,7 +563,8 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   info["rig_health"] = rig_health;
   if (loop) {
     if (loop->trip() != Trip::none) {
-      info["trip"] = {{"reason", to_string(loop->trip())}, {"t_s", loop->trip_t_s()},
+      info["trip"] = {{"reason", to_string(loop->trip())},
+                      {"t_s", loop->trip_t_s()},
                       {"value", std::isfinite(loop->trip_value()) ? json(loop->trip_value()) : json(nullptr)},
                       {"limit", std::isfinite(loop->trip_limit()) ? json(loop->trip_limit()) : json(nullptr)}};
     }
@@ -568,13 +593,18 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   try {
     write_json_atomically(dir / "run.json", info);
   } catch (const std::exception& e) {
-    spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome), reason);
+    spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome),
+                  reason);
   }
   run_lock.reset();
-  const json summary = {{"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)},
-                        {"reason", info["reason"]}};
-  notice({{"type", "run_end"}, {"campaign", c.name}, {"run", run.name}, {"dir", dir.filename().string()},
-          {"outcome", to_string(outcome)}, {"reason", info["reason"]}});
+  const json summary = {
+      {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", info["reason"]}};
+  notice({{"type", "run_end"},
+          {"campaign", c.name},
+          {"run", run.name},
+          {"dir", dir.filename().string()},
+          {"outcome", to_string(outcome)},
+          {"reason", info["reason"]}});
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
 }
@@ -612,13 +642,16 @@ json CampaignRunner::status() const {
     s["faults"] = faults_json(snap);
     s["safety"] = {{"safe_state", (snap.flags & kFlagSafeState) != 0},
                    {"trip", snap.trip == Trip::none ? json(nullptr) : json(to_string(snap.trip))}};
-    s["telemetry"] = {{"rows_lost", snap.rows_lost},
-                      {"rows_unwritten", a.recorder ? a.recorder->rows_unwritten() : 0},
-                      {"rows_written", a.recorder ? a.recorder->rows_written() : 0},
-                      {"write_error", a.recorder && a.recorder->failed().load() ? json("the disk refused telemetry") : json(nullptr)},
-                      {"events_lost", snap.events_lost}};
-    s["now"] = {{"t_s", snap.t_s}, {"p_meas_mpa", std::isfinite(snap.p_meas_pa) ? json(units::pa_to_mpa(snap.p_meas_pa)) : json(nullptr)},
-                {"p_ref_mpa", units::pa_to_mpa(snap.p_ref_pa)}, {"theta_cmd_deg", units::rad_to_deg(snap.theta_cmd_rad)},
+    s["telemetry"] = {
+        {"rows_lost", snap.rows_lost},
+        {"rows_unwritten", a.recorder ? a.recorder->rows_unwritten() : 0},
+        {"rows_written", a.recorder ? a.recorder->rows_written() : 0},
+        {"write_error", a.recorder && a.recorder->failed().load() ? json("the disk refused telemetry") : json(nullptr)},
+        {"events_lost", snap.events_lost}};
+    s["now"] = {{"t_s", snap.t_s},
+                {"p_meas_mpa", std::isfinite(snap.p_meas_pa) ? json(units::pa_to_mpa(snap.p_meas_pa)) : json(nullptr)},
+                {"p_ref_mpa", units::pa_to_mpa(snap.p_ref_pa)},
+                {"theta_cmd_deg", units::rad_to_deg(snap.theta_cmd_rad)},
                 {"gap_true_deg", std::isfinite(snap.gap_rad) ? json(units::rad_to_deg(snap.gap_rad)) : json(nullptr)}};
   } else {
     s["state"] = "starting";
@@ -676,8 +709,10 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       }
       if (std::filesystem::is_regular_file(dir / "events.jsonl")) {
         LineFile events(dir / "events.jsonl", /*append=*/true);
-        events.append(json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", info["reason"]},
-                           {"rows_on_disk", rows}}.dump() + "\n");
+        events.append(
+            json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", info["reason"]}, {"rows_on_disk", rows}}
+                .dump() +
+            "\n");
       }
       std::filesystem::remove(dir / ".reserve", ec);
       write_json_atomically(dir / "run.json", info);

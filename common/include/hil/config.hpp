@@ -73,8 +73,7 @@ class Node {
   [[noreturn]] void fail(std::string_view message) const;
 
  private:
-  Node(YAML::Node node, std::shared_ptr<const std::filesystem::path> file, std::string path,
-       YAML::Mark mark)
+  Node(YAML::Node node, std::shared_ptr<const std::filesystem::path> file, std::string path, YAML::Mark mark)
       : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)), mark_(mark) {}
   Node child(const YAML::Node& value, std::string path, YAML::Mark mark) const;
 

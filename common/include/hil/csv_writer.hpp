@@ -35,7 +35,7 @@ class CsvWriter {
   // disk refuses them, the file keeps only whole rows, the buffered rows are dropped (counted in
   // rows_dropped) and this throws std::system_error naming the file.
   void flush();
-  void close();  // flushes and closes; throws as flush does
+  void close();                                       // flushes and closes; throws as flush does
   std::size_t rows_written() const { return rows_; }  // handed in by row()
   std::size_t rows_on_disk() const { return rows_ - rows_buffered_ - rows_dropped_; }
   std::size_t rows_dropped() const { return rows_dropped_; }  // handed in, refused by the disk

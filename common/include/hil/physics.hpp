@@ -62,8 +62,8 @@ struct GasGenerator {
   // pressure p and free volume v change at dp/dt.
   double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3) const noexcept {
     const double mdot_gen = propellant_density_kg_m3 * burning_area_m2 * burn_coeff_si * std::pow(p_pa, pressure_exponent);
-    const double mdot_out = mdot_gen * (1 - volume_growth * p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) -
-                            volume_m3 / rtc_m2_s2 * dpdt_pa_s;
+    const double mdot_out =
+        mdot_gen * (1 - volume_growth * p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) - volume_m3 / rtc_m2_s2 * dpdt_pa_s;
     return mdot_out * cstar_m_s / p_pa;
   }
 };

@@ -32,8 +32,8 @@ enum class Col : std::uint8_t {
 
 struct Column {
   std::string_view name;
-  int decimals;          // fixed-point digits after the decimal point in telemetry.csv
-  bool truth_only;       // only a simulated plant knows it (left out on CAN and Modbus rigs)
+  int decimals;     // fixed-point digits after the decimal point in telemetry.csv
+  bool truth_only;  // only a simulated plant knows it (left out on CAN and Modbus rigs)
   std::string_view meaning;
 };
 
@@ -53,7 +53,9 @@ inline constexpr std::array<Column, 16> kColumns = {{
     {"theta_target_deg", 5, false, "what the drive was sent (the shaped command; the command when not shaped)"},
     {"wake_latency_us", 2, false, "how late the real-time thread woke for this period"},
     {"compute_us", 2, false, "the period's read-step-write time"},
-    {"loop_flags", 0, false, "the period's flags (kFlag* in bench/include/hil/bench/rt_loop.hpp): faults, read missed, command limited, safe state, overrun"},
+    {"loop_flags", 0, false,
+     "the period's flags (kFlag* in bench/include/hil/bench/rt/rt_loop.hpp): faults, read missed, command limited, safe state, "
+     "overrun"},
 }};
 
 // hilbench sim writes t_s .. p_chamber_mpa; the bench's loop adds theta_target_deg .. loop_flags.

@@ -49,9 +49,7 @@ class Backlash final : public ScalarEffect<Backlash> {
     s.gap_rad = std::max(s.gap_rad, 0.0);
     return s.gap_rad;
   }
-  double clamp_stops(double v) const noexcept {
-    return std::clamp(v, units::deg_to_rad(value(1)), units::deg_to_rad(value(2)));
-  }
+  double clamp_stops(double v) const noexcept { return std::clamp(v, units::deg_to_rad(value(1)), units::deg_to_rad(value(2))); }
   static void write(double valve_rad, Signals& s) noexcept {
     s.theta_valve_rad = valve_rad;
     s.theta_throat_rad = valve_rad;

@@ -25,8 +25,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   static constexpr ParamSpec kSpecs[] = {
       {"propellant_density_kg_m3", 0, 1e5, true, false, kNaN, "propellant density rho_p"},
       {"burn_rate_mm_s_at_1mpa", 0, 1e4, true, false, kNaN, "burn-rate coefficient a, r = a (Pg/1 MPa)^n"},
-      {"pressure_exponent", 0, 1, true, true, kNaN,
-       "burn-rate pressure exponent n (n >= 1 has no stable steady state)"},
+      {"pressure_exponent", 0, 1, true, true, kNaN, "burn-rate pressure exponent n (n >= 1 has no stable steady state)"},
       {"burning_area_m2", 0, 1e3, true, false, kNaN, "burning surface Ab"},
       {"cstar_m_s", 0, 1e5, true, false, kNaN, "characteristic velocity c*"},
       {"rtc_m2_s2", 0, 1e8, true, false, kNaN, "R*Tc of the gas"},

@@ -28,8 +28,8 @@ class MotorServo final : public ScalarEffect<MotorServo> {
     if (std::isfinite(s.theta_motor_meas_rad)) {
       x[0] = s.theta_motor_meas_rad;
     } else {
-      x[0] = physics::servo_step_rad(x[0], s.theta_cmd_rad, physics::servo_keep(dt_s, value(0)),
-                                     units::deg_to_rad(value(1)) * dt_s);
+      x[0] =
+          physics::servo_step_rad(x[0], s.theta_cmd_rad, physics::servo_keep(dt_s, value(0)), units::deg_to_rad(value(1)) * dt_s);
     }
     s.theta_motor_rad = x[0];
   }

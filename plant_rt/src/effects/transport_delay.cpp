@@ -51,7 +51,10 @@ class TransportDelay final : public ScalarEffect<TransportDelay> {
     std::size_t lo = 0, hi = count - 1;  // time(hi) <= t_want holds
     while (lo < hi) {
       const std::size_t mid = (lo + hi) / 2;
-      if (time(mid) <= t_want) hi = mid; else lo = mid + 1;
+      if (time(mid) <= t_want)
+        hi = mid;
+      else
+        lo = mid + 1;
     }
     if (lo == 0) {
       s.theta_cmd_rad = cmd(0);

@@ -160,7 +160,7 @@ TEST(ModbusTcp, DriveFaultIsReportedAndReset) {
   d.emulator.raise_fault(0x2310);
   ASSERT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).fault; }));
   EXPECT_FALSE(d.client.read(Clock::now(), 1ms).enabled);
-  EXPECT_EQ(d.client.health().last_emcy_code, 0x2310);  // from the fault_code register
+  EXPECT_EQ(d.client.health().last_emcy_code, 0x2310);    // from the fault_code register
   d.client.write(Clock::now(), 1ms, {0.25, true, true});  // fault-reset edge from the loop
   EXPECT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).enabled; }));
   EXPECT_FALSE(d.client.read(Clock::now(), 1ms).fault);
@@ -175,7 +175,8 @@ TEST(ModbusTcp, ExceptionsAreSurfacedByName) {
   } catch (const ModbusError& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("reading input registers 0..2 (pressure, status): SERVER DEVICE FAILURE (exception 4)"),
-              std::string::npos) << what;
+              std::string::npos)
+        << what;
     EXPECT_NE(what.find("Modbus transducer tcp 127.0.0.1:"), std::string::npos) << what;
   }
   t.emulator.set_exception(0);
@@ -204,7 +205,8 @@ TEST(ModbusTcp, IllegalAddressFromTheServerNamesTheRegister) {
     FAIL();
   } catch (const ModbusError& e) {
     EXPECT_NE(std::string(e.what()).find("reading input registers 100..101 (pressure): ILLEGAL DATA ADDRESS (exception 2)"),
-              std::string::npos) << e.what();
+              std::string::npos)
+        << e.what();
   }
 }
 
@@ -260,7 +262,8 @@ TEST(ModbusTcp, ConfigureNamesTheEndpointWhenNobodyListens) {
   } catch (const ModbusError& e) {
     EXPECT_NE(std::string(e.what()).find("Modbus transducer tcp 127.0.0.1:" + std::to_string(port) +
                                          " unit 1: cannot connect: Connection refused"),
-              std::string::npos) << e.what();
+              std::string::npos)
+        << e.what();
   }
 }
 
@@ -281,8 +284,8 @@ class ModbusRtu : public ::testing::Test {
   void SetUp() override {
     dir_ = std::filesystem::temp_directory_path() / ("hil-rtu-" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir_);
-    socat_ = std::make_unique<Child>(std::vector<std::string>{
-        "socat", "pty,raw,echo=0,link=" + (dir_ / "server").string(), "pty,raw,echo=0,link=" + (dir_ / "client").string()});
+    socat_ = std::make_unique<Child>(std::vector<std::string>{"socat", "pty,raw,echo=0,link=" + (dir_ / "server").string(),
+                                                              "pty,raw,echo=0,link=" + (dir_ / "client").string()});
     ASSERT_TRUE(eventually([&] { return std::filesystem::exists(dir_ / "server") && std::filesystem::exists(dir_ / "client"); }))
         << "socat did not make the pty pair";
     // socat ends when the last opener of a pty closes it; a client that gives up and closes
@@ -348,25 +351,27 @@ TEST(ModbusInterop, ClientsAgainstPymodbusServer) {
   const int port = free_port();
   Child server({"/usr/bin/python3", HIL_SOURCE_DIR "/tests/drivers/modbus/pymodbus_server.py", std::to_string(port), "1.75"});
   // The pymodbus layout puts the transducer at input 10.
-  const auto tmap = RegisterMap::from_yaml(cfg::Node::load_string(
-      "registers:\n  pressure: {table: input, address: 10, type: float32, word_order: big, scale: 1.0e6}\n"
-      "  status: {table: input, address: 12, type: uint16}\n",
-      "pymodbus_transducer_map.yaml"));
+  const auto tmap = RegisterMap::from_yaml(
+      cfg::Node::load_string("registers:\n  pressure: {table: input, address: 10, type: float32, word_order: big, scale: 1.0e6}\n"
+                             "  status: {table: input, address: 12, type: uint16}\n",
+                             "pymodbus_transducer_map.yaml"));
   ModbusTransducer transducer({tcp_link(port), tmap});
-  ASSERT_TRUE(eventually([&] {
-    try {
-      transducer.configure();
-      return true;
-    } catch (const ModbusError&) {
-      return false;  // the python server is still starting
-    }
-  }, 30s));
+  ASSERT_TRUE(eventually(
+      [&] {
+        try {
+          transducer.configure();
+          return true;
+        } catch (const ModbusError&) {
+          return false;  // the python server is still starting
+        }
+      },
+      30s));
   EXPECT_DOUBLE_EQ(transducer.read(Clock::now(), 1ms).pressure_pa, 1.75e6);
   ModbusDrive drive({tcp_link(port), drive_map(), 5000ms});
   drive.configure();
   EXPECT_NEAR(drive.read(Clock::now(), 1ms).position_rad, 0.5, 1e-9);  // 50000 counts of 1e-5 rad
-  drive.activate();  // the server mirrors control bit 0 into status bit 0
-  drive.write(Clock::now(), 1ms, {-0.125, true, false});  // int32 big-endian -12500 -> FFFF CF2C
+  drive.activate();                                                    // the server mirrors control bit 0 into status bit 0
+  drive.write(Clock::now(), 1ms, {-0.125, true, false});               // int32 big-endian -12500 -> FFFF CF2C
   EXPECT_TRUE(eventually([&] { return std::abs(drive.read(Clock::now(), 1ms).position_rad + 0.125) < 1e-9; }));
 }
 

@@ -34,8 +34,7 @@ TEST(CanopenCodec, SdoDownloadCommandSpecifierBySize) {
   EXPECT_EQ(bytes(sdo_download(5, 0x6060, 0, 8, 1)), (std::vector<int>{0x2F, 0x60, 0x60, 0x00, 0x08, 0, 0, 0}));
   EXPECT_EQ(bytes(sdo_download(5, 0x1017, 0, 100, 2)), (std::vector<int>{0x2B, 0x17, 0x10, 0x00, 100, 0, 0, 0}));
   EXPECT_EQ(sdo_download(5, 0x2000, 1, 0x123456, 3).data[0], 0x27);
-  EXPECT_EQ(bytes(sdo_download(5, 0x1600, 1, 0x60400010, 4)),
-            (std::vector<int>{0x23, 0x00, 0x16, 0x01, 0x10, 0x00, 0x40, 0x60}));
+  EXPECT_EQ(bytes(sdo_download(5, 0x1600, 1, 0x60400010, 4)), (std::vector<int>{0x23, 0x00, 0x16, 0x01, 0x10, 0x00, 0x40, 0x60}));
   EXPECT_EQ(sdo_download(5, 0x1600, 1, 0, 4).id, 0x605u);
   EXPECT_EQ(bytes(sdo_upload(5, 0x6064, 0)), (std::vector<int>{0x40, 0x64, 0x60, 0x00, 0, 0, 0, 0}));
 }
@@ -111,11 +110,11 @@ TEST(Cia402, ControlwordSequenceToOperationEnabled) {
   using cia402::State;
   using cia402::Target;
   const auto op = Target::operation_enabled;
-  EXPECT_EQ(cia402::next_controlword(State::switch_on_disabled, op, false), 0x0006);  // shutdown
-  EXPECT_EQ(cia402::next_controlword(State::ready_to_switch_on, op, false), 0x0007);  // switch on
-  EXPECT_EQ(cia402::next_controlword(State::switched_on, op, false), 0x000F);         // enable operation
+  EXPECT_EQ(cia402::next_controlword(State::switch_on_disabled, op, false), 0x0006);                  // shutdown
+  EXPECT_EQ(cia402::next_controlword(State::ready_to_switch_on, op, false), 0x0007);                  // switch on
+  EXPECT_EQ(cia402::next_controlword(State::switched_on, op, false), 0x000F);                         // enable operation
   EXPECT_EQ(cia402::next_controlword(State::operation_enabled, Target::switched_on, false), 0x0007);  // disable op
-  EXPECT_EQ(cia402::next_controlword(State::fault, op, true), 0x0080);   // fault reset
+  EXPECT_EQ(cia402::next_controlword(State::fault, op, true), 0x0080);                                // fault reset
   EXPECT_EQ(cia402::next_controlword(State::fault, op, false), 0x0000);  // bit 7 low for the next edge
   EXPECT_EQ(cia402::next_controlword(State::quick_stop_active, op, false), 0x0000);
   // Quick stop (CiA 402 transition 11): 0x0002 from operation enabled, held while the drive

@@ -71,8 +71,7 @@ TEST(Cia402Config, ErrorsNameFileLineAndKey) {
     Cia402Config::from_yaml(bad);
     FAIL();
   } catch (const cfg::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("drive.yaml:2:1: node_id: a CANopen node id is 1..127"), std::string::npos)
-        << e.what();
+    EXPECT_NE(std::string(e.what()).find("drive.yaml:2:1: node_id: a CANopen node id is 1..127"), std::string::npos) << e.what();
   }
   const auto typo = cfg::Node::load_string("interface: vcan0\nnode_id: 2\nheartbeat: {producer_ms: 100, timeout: 5}\n", "d.yaml");
   try {
@@ -86,7 +85,8 @@ TEST(Cia402Config, ErrorsNameFileLineAndKey) {
 TEST(Cia402Config, LimitsInDegreesAndTheirErrors) {
   const auto ok = cfg::Node::load_string(
       "interface: vcan0\nnode_id: 2\nlimits: {following_error_window_deg: 0.5, following_error_timeout_ms: 20,\n"
-      "  max_profile_velocity_deg_s: 3600, quick_stop_deceleration_deg_s2: 36000}\n", "d.yaml");
+      "  max_profile_velocity_deg_s: 3600, quick_stop_deceleration_deg_s2: 36000}\n",
+      "d.yaml");
   const auto c = Cia402Config::from_yaml(ok);
   EXPECT_NEAR(c.limits.following_error_window_rad, 0.5 * 3.14159265358979 / 180, 1e-12);
   EXPECT_EQ(c.limits.following_error_timeout, std::chrono::milliseconds(20));

@@ -110,14 +110,16 @@ class Candump {
   bool marker(const std::string& frame) {
     const std::string line = " vcan0 " + frame;
     auto sent = Clock::now() - std::chrono::seconds(1);
-    return eventually([&] {
-      if (text().find(line) != std::string::npos) return true;
-      if (Clock::now() - sent > std::chrono::milliseconds(200)) {
-        sent = Clock::now();
-        cansend(frame);
-      }
-      return false;
-    }, std::chrono::seconds(60));
+    return eventually(
+        [&] {
+          if (text().find(line) != std::string::npos) return true;
+          if (Clock::now() - sent > std::chrono::milliseconds(200)) {
+            sent = Clock::now();
+            cansend(frame);
+          }
+          return false;
+        },
+        std::chrono::seconds(60));
   }
   int master_ = -1;
   pid_t pid_ = -1;
@@ -196,11 +198,12 @@ TEST(Cia402Wire, ConfigureAndEnableBytesFollowTheStandard) {
   // PDO mapping in the CiA 301 order: invalidate RPDO1, clear count, map, count, type, validate.
   std::size_t at = hb;
   // (bytes: command specifier, index low, index high, sub-index, data little-endian)
-  for (const char* step : {"605#2300140105020080", "605#2F00160000000000", "605#2300160110004060",
-                           "605#230016022000" "7A60", "605#2F00160002000000", "605#2F00140201000000",
-                           "605#2300140105020000", "605#2300180185010080", "605#2F001A0000000000",
-                           "605#23001A0110004160", "605#23001A0220006460", "605#2F001A0002000000",
-                           "605#2F00180201000000", "605#2300180185010000"}) {
+  for (const char* step :
+       {"605#2300140105020080", "605#2F00160000000000", "605#2300160110004060",
+        "605#230016022000"
+        "7A60",
+        "605#2F00160002000000", "605#2F00140201000000", "605#2300140105020000", "605#2300180185010080", "605#2F001A0000000000",
+        "605#23001A0110004160", "605#23001A0220006460", "605#2F001A0002000000", "605#2F00180201000000", "605#2300180185010000"}) {
     at = find(log, step, at);
     ASSERT_NE(at, std::string::npos) << "missing " << step << "\n" << dump(log);
   }

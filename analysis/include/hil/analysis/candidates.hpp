@@ -22,12 +22,12 @@
 namespace hil::analysis {
 
 struct FreeParam {
-  std::string effect;           // kind of the block holding it
-  std::string key;              // its key in that block (carries the unit)
-  double lo = 0, hi = 0;        // fit range, inside the effect's specs
-  double scale = 1;             // typical size: LM scaling and finite-difference step
+  std::string effect;               // kind of the block holding it
+  std::string key;                  // its key in that block (carries the unit)
+  double lo = 0, hi = 0;            // fit range, inside the effect's specs
+  double scale = 1;                 // typical size: LM scaling and finite-difference step
   std::vector<double> starts = {};  // tried before LM; the best one starts it
-  bool grid = false;            // discontinuous (a step time): searched on a grid, not by LM
+  bool grid = false;                // discontinuous (a step time): searched on a grid, not by LM
   // Grid values from the data (grid parameters only), e.g. every 10 ms of the run.
   std::function<std::vector<double>(const ReplayData&)> grid_values = {};
   // A time constant or delay [s]: its finite-difference step is at least one sample period of the
@@ -38,14 +38,14 @@ struct FreeParam {
 };
 
 struct Variant {
-  std::string name;             // "constant", "drift", "step", "offset and gain", ...
+  std::string name;  // "constant", "drift", "step", "offset and gain", ...
   std::vector<FreeParam> params;
 };
 
 struct Candidate {
-  std::string name;             // effect name as the report and diagnosis.json use it
+  std::string name;  // effect name as the report and diagnosis.json use it
   std::string description;
-  bool command_side = false;    // acts before the motor: invisible when the encoder is replayed
+  bool command_side = false;  // acts before the motor: invisible when the encoder is replayed
   // The base model with this effect at its neutral values (no change to the prediction).
   std::function<plant::Plant(const plant::Plant&)> attach;
   std::vector<Variant> variants;

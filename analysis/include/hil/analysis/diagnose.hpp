@@ -51,11 +51,11 @@ struct CandidateResult {
   double fit_before_pct = 0, fit_after_pct = 0;
   double excess_explained = 0;  // share of the model's excess error power this candidate removes
   double delta_bic = 0;
-  std::size_t k = 0;            // free parameters counted by the criterion
+  std::size_t k = 0;  // free parameters counted by the criterion
   bool earns_place = false;
-  bool refined = false;         // the final fit ran on every row (not only on the decimated copy)
-  std::string why_not;          // when it does not earn its place: which test failed
-  int evaluations = 0;          // replays spent
+  bool refined = false;  // the final fit ran on every row (not only on the decimated copy)
+  std::string why_not;   // when it does not earn its place: which test failed
+  int evaluations = 0;   // replays spent
 };
 
 struct Round {
@@ -84,7 +84,7 @@ struct ParamCorrelation {
   double rho = 0;
   bool indistinguishable = false;
 };
-inline constexpr double kReportCorrelation = 0.5;              // listed from here on
+inline constexpr double kReportCorrelation = 0.5;  // listed from here on
 inline constexpr double kIndistinguishableCorrelation = 0.95;
 inline constexpr double kUnpinnedShare = 0.1;
 
@@ -95,15 +95,15 @@ struct NotIdentifiable {
 // One measurement file of a diagnosis (several: diagnose --data a --data b, files of one rig).
 struct FileFit {
   std::size_t rows = 0;
-  double time_origin_s = 0;              // file time of its row 0: the fitted model's t = 0 for it
+  double time_origin_s = 0;  // file time of its row 0: the fitted model's t = 0 for it
   ResidualReport before, after;
 };
 
 struct Diagnosis {
-  std::size_t rows = 0;                  // all files together
+  std::size_t rows = 0;  // all files together
   bool has_encoder = false;
-  std::size_t decimation = 1;            // rows per row of the copy the coarse fits ran on
-  double time_origin_s = 0;              // file time of row 0: the fitted model's t = 0 (replay.hpp)
+  std::size_t decimation = 1;  // rows per row of the copy the coarse fits ran on
+  double time_origin_s = 0;    // file time of row 0: the fitted model's t = 0 (replay.hpp)
   // Over all files (one file: equal to before/after): the noise is the files' pooled sigma
   // (N sigma^2 = sum of N_i sigma_i^2), the spread pooled about each file's own mean.
   double noise_sigma_pa = 0, noise_floor_fit_pct = 0;
@@ -113,15 +113,15 @@ struct Diagnosis {
   // rate; time-dependent ones (a step time, erosion, a drift) count from each file's first row.
   std::vector<FileFit> files;
   std::vector<Round> rounds;
-  std::vector<CandidateResult> added;    // in the order found, values after the joint refit
-  bool explained = false;               // at least one effect earned its place
-  bool at_noise_floor = false;          // the final model's RMSE is within 10 % of the noise
-  std::string verdict;                  // explained | partly_explained | unexplained | nothing_missing
-  std::vector<Alternative> paths;       // when the search followed several first choices
-  std::vector<std::string> revisions;   // choices the forward-backward revisit changed, in words
+  std::vector<CandidateResult> added;          // in the order found, values after the joint refit
+  bool explained = false;                      // at least one effect earned its place
+  bool at_noise_floor = false;                 // the final model's RMSE is within 10 % of the noise
+  std::string verdict;                         // explained | partly_explained | unexplained | nothing_missing
+  std::vector<Alternative> paths;              // when the search followed several first choices
+  std::vector<std::string> revisions;          // choices the forward-backward revisit changed, in words
   std::vector<ParamCorrelation> correlations;  // |rho| >= kReportCorrelation, between added effects
   std::vector<NotIdentifiable> not_identifiable;
-  std::vector<std::string> summary;      // plain-language verdict
+  std::vector<std::string> summary;  // plain-language verdict
   ResidualReport before, after;
   std::shared_ptr<const plant::Plant> fitted;  // the input model (noise included) with the found effects
   double wall_s = 0;
@@ -129,12 +129,12 @@ struct Diagnosis {
 };
 
 struct DiagnoseSettings {
-  std::vector<std::string> candidates;   // empty: all (built in + user effects)
-  unsigned threads = 0;                  // 0: min(2, hardware)
+  std::vector<std::string> candidates;  // empty: all (built in + user effects)
+  unsigned threads = 0;                 // 0: min(2, hardware)
   int max_rounds = 4;
-  std::size_t coarse_rows = 50000;       // coarse fits run on a decimated copy about this long
-  bool keep_series = true;               // plots for the report
-  bool progress = false;                 // one line per round on stderr
+  std::size_t coarse_rows = 50000;  // coarse fits run on a decimated copy about this long
+  bool keep_series = true;          // plots for the report
+  bool progress = false;            // one line per round on stderr
 };
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& data, const DiagnoseSettings& settings = {});

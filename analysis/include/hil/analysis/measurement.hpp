@@ -62,7 +62,7 @@ class MeasurementReader {
   std::size_t first_line() const { return first_line_; }  // of the last chunk
   std::size_t rows_read() const { return rows_read_; }
   std::size_t first_data_line() const { return first_data_line_; }  // file line of row 0
-  double progress() const;  // fraction of the file's bytes consumed
+  double progress() const;                                          // fraction of the file's bytes consumed
 
  private:
   std::filesystem::path file_;

@@ -82,12 +82,12 @@ class Replayer {
 // (model time = t_s - the segment's first t_s), and one parameter vector serves them all, except
 // event times (a step of the gap), which are per file: see segment_model.
 struct ReplayData {
-  std::vector<double> t_s;          // row times
-  std::vector<double> cmd_held_rad; // [k]: command in force over (t[k-1], t[k]]; [segment begin] unused
-  std::vector<double> motor_rad;    // [k]: encoder at t[k]; empty: no encoder
-  std::vector<double> y_pa;         // measured pressure at t[k]
+  std::vector<double> t_s;           // row times
+  std::vector<double> cmd_held_rad;  // [k]: command in force over (t[k-1], t[k]]; [segment begin] unused
+  std::vector<double> motor_rad;     // [k]: encoder at t[k]; empty: no encoder
+  std::vector<double> y_pa;          // measured pressure at t[k]
   struct Segment {
-    std::size_t begin = 0;          // first row of this file
+    std::size_t begin = 0;  // first row of this file
     ReplayStart start;
     // Where this file starts on the runs' joint clock: the files back to back in the order given,
     // kRunPauseS apart. Event times of a model fitted to several files are on this clock.
@@ -95,7 +95,7 @@ struct ReplayData {
   };
   static constexpr double kRunPauseS = 1.0;
   std::vector<Segment> segments = {Segment{}};  // at least one; in row order
-  std::size_t decimation = 1;       // rows of the original per row here
+  std::size_t decimation = 1;                   // rows of the original per row here
   std::size_t size() const { return t_s.size(); }
   // Rows of segment i: [segment_begin(i), segment_end(i)).
   std::size_t segment_begin(std::size_t i) const { return segments[i].begin; }

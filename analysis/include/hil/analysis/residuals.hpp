@@ -24,14 +24,14 @@ struct Regime {
   std::string name;         // holding, opening, closing, after_reversal, low_pressure, ...
   std::string description;  // how it is defined, one line
   ErrorStats error;
-  double share = 0;         // fraction of all samples in this regime
+  double share = 0;  // fraction of all samples in this regime
 };
 
 struct TimeWindow {
   double t0_s = 0, t1_s = 0;
   ErrorStats error;
-  std::string regime;       // the motion regime most of its samples are in
-  double burned_kg = 0;     // model's burned propellant at the window's end
+  std::string regime;    // the motion regime most of its samples are in
+  double burned_kg = 0;  // model's burned propellant at the window's end
 };
 
 // Mean and RMS of the residual in bins of some quantity.
@@ -54,8 +54,8 @@ struct Diagnostics {
   double acf_bound = 0;
   double acf_outside_share = 0;  // of lags 1..whiteness_lags outside the bounds
   bool white = false;
-  double tau_int_samples = 1;    // integrated autocorrelation time (Geyer's initial positive sequence)
-  double n_eff = 0;              // effective sample size N / tau_int
+  double tau_int_samples = 1;  // integrated autocorrelation time (Geyer's initial positive sequence)
+  double n_eff = 0;            // effective sample size N / tau_int
   // Input-residual cross-correlation (input: drive-angle increments), Bartlett 99 % bound.
   std::vector<double> xcf_lag_s, xcf;
   double xcf_bound = 0, xcf_max_abs = 0, xcf_max_lag_s = 0;
@@ -89,17 +89,17 @@ inline constexpr double kMotorChannelTolDeg = 0.05;  // below this RMS the drive
 struct ResidualReport {
   std::size_t rows = 0;
   double t0_s = 0, duration_s = 0;
-  double fit_pct = 0;              // 100 (1 - |y - yhat| / |y - mean(y)|)
-  double noise_sigma_pa = 0;       // measurement noise, from the data (see noise_method)
+  double fit_pct = 0;         // 100 (1 - |y - yhat| / |y - mean(y)|)
+  double noise_sigma_pa = 0;  // measurement noise, from the data (see noise_method)
   std::string noise_method;
   double noise_floor_fit_pct = 0;  // the fit a perfect model would reach with that noise
   double y_spread_pa = 0;          // |y - mean(y)| / sqrt(N)
   ErrorStats error;
-  double rss_pa2 = 0;              // sum of squared residuals
+  double rss_pa2 = 0;  // sum of squared residuals
   std::vector<Regime> regimes;
   double window_width_s = 0;
-  std::vector<TimeWindow> windows;       // in time order
-  std::vector<std::size_t> worst;        // indices into windows, worst first
+  std::vector<TimeWindow> windows;                 // in time order
+  std::vector<std::size_t> worst;                  // indices into windows, worst first
   std::vector<std::pair<double, double>> failing;  // merged failing spans [t0, t1]
   // The residual's level against time: the run cut where the windows' RMS changes (change points,
   // file time), each segment with its RMS. See residual_segments().
@@ -110,8 +110,8 @@ struct ResidualReport {
   std::vector<Segment> segments;
   std::vector<double> change_points_s;
   std::size_t reversals = 0;
-  double motion_cycle_hz = 0;      // reversals / (2 * duration): the fundamental of the motion
-  double reference_cycle_hz = 0;   // same for p_ref when present
+  double motion_cycle_hz = 0;     // reversals / (2 * duration): the fundamental of the motion
+  double reference_cycle_hz = 0;  // same for p_ref when present
   Diagnostics diagnostics;
   std::vector<std::string> signature;  // plain-language description of the residual
   MotorChannel motor;                  // filled by the replay (compare.hpp)
@@ -121,16 +121,16 @@ struct ResidualReport {
 // One row as the analyzer sees it, SI units.
 struct ResidualSample {
   double t_s, y_pa, yhat_pa;
-  double drive_rad;        // encoder when present, else the command
-  double p_ref_pa;         // NaN when absent
-  double burned_kg;        // model's burned propellant since the start
+  double drive_rad;  // encoder when present, else the command
+  double p_ref_pa;   // NaN when absent
+  double burned_kg;  // model's burned propellant since the start
 };
 
 struct AnalyzerOptions {
   double pressure_lo_pa = 0.2e6, pressure_hi_pa = 5e6;  // histogram range (the model's reach)
-  double expected_duration_s = 0;   // 0: unknown (windows adapt as data arrives)
-  std::size_t expected_rows = 0;    // 0: unknown (sizes the spectrum segments)
-  bool keep_series = true;          // decimated series for plots
+  double expected_duration_s = 0;                       // 0: unknown (windows adapt as data arrives)
+  std::size_t expected_rows = 0;                        // 0: unknown (sizes the spectrum segments)
+  bool keep_series = true;                              // decimated series for plots
 };
 
 class ResidualAnalyzer {

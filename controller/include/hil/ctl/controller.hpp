@@ -38,19 +38,19 @@ struct ControllerParams {
   double period_s = 1e-3;
   Compensation compensation = Compensation::adaptive;
   ObserverKind observer = ObserverKind::robust;
-  double gap_known_rad = 0;      // constant mode: the known sigma
-  double gap_initial_rad = 0;    // adaptive mode: sigma_r(0)
-  double damping_ratio = 0.7;    // zeta of the KI schedule
-  double traverse_boost = 1.0;   // robust: extra command while crossing the gap, x the jump
+  double gap_known_rad = 0;                              // constant mode: the known sigma
+  double gap_initial_rad = 0;                            // adaptive mode: sigma_r(0)
+  double damping_ratio = 0.7;                            // zeta of the KI schedule
+  double traverse_boost = 1.0;                           // robust: extra command while crossing the gap, x the jump
   double contact_overlap_rad = units::deg_to_rad(0.02);  // robust: jump this far past the flank
-  double cmd_min_rad = -0.0873;  // command limits (the valve travel plus the largest gap)
+  double cmd_min_rad = -0.0873;                          // command limits (the valve travel plus the largest gap)
   double cmd_max_rad = 0.6109;
-  bool use_encoder = true;       // motor angle from the drive; otherwise from `motor`
+  bool use_encoder = true;  // motor angle from the drive; otherwise from `motor`
   double volume_initial_m3 = 2e-3;
   ChamberModel chamber;
   MotorModel motor;
   RobustObserverParams robust;
-  void validate() const;         // throws std::invalid_argument naming the parameter
+  void validate() const;  // throws std::invalid_argument naming the parameter
 };
 
 struct ControllerInputs {
@@ -60,28 +60,28 @@ struct ControllerInputs {
 };
 
 struct ControllerOutputs {
-  double theta_cmd_rad = 0;      // what goes to the drive (includes a traverse boost)
-  double comp_rad = 0;           // delta_b applied this step
+  double theta_cmd_rad = 0;  // what goes to the drive (includes a traverse boost)
+  double comp_rad = 0;       // delta_b applied this step
   int touch_state = 0;
   int motion_intention = 0;
-  double gap_est_rad = 0;        // sigma (constant) or sigma_r (adaptive; observe-only with none)
+  double gap_est_rad = 0;  // sigma (constant) or sigma_r (adaptive; observe-only with none)
   double ki_rad_per_pa_s = 0;
-  bool gap_measured = false;     // the robust observer completed a gap measurement this step
+  bool gap_measured = false;  // the robust observer completed a gap measurement this step
 };
 
 struct ControllerState {
   double theta_cmd_rad = 0;
   double gap_est_rad = 0;
-  double volume_m3 = 0;          // integrated from the nominal burn rate and the measured pressure
-  double volume_p_sum_pa = 0;    // pressures since the last volume update (every kVolumeSteps)
+  double volume_m3 = 0;        // integrated from the nominal burn rate and the measured pressure
+  double volume_p_sum_pa = 0;  // pressures since the last volume update (every kVolumeSteps)
   int volume_steps = 0;
-  double sched_p_ref_pa = -1;    // the reference the schedule below was computed for
-  double sched_tau_s_per_m3 = 0; // tau / V at that reference (tau is proportional to V)
-  double sched_ki_m3 = 0;        // KI * V at that reference
+  double sched_p_ref_pa = -1;     // the reference the schedule below was computed for
+  double sched_tau_s_per_m3 = 0;  // tau / V at that reference (tau is proportional to V)
+  double sched_ki_m3 = 0;         // KI * V at that reference
   double motor_model_rad = 0;
-  double gap_pos_rad = 0;        // robust: believed motor position in the gap
-  double boost_rad = 0;          // robust: extra command while the motor crosses the gap
-  long presume_wait = 0;         // robust: steps before the play model's flank may be trusted
+  double gap_pos_rad = 0;  // robust: believed motor position in the gap
+  double boost_rad = 0;    // robust: extra command while the motor crosses the gap
+  long presume_wait = 0;   // robust: steps before the play model's flank may be trusted
   int gap_measurements = 0;
   PaperObserverState paper;
   RobustObserverState robust;
@@ -101,7 +101,7 @@ class Controller {
   ControllerParams p_;
   PaperObserver paper_;
   RobustObserver robust_;
-  double motor_keep_ = 0;  // exp(-dT / tau_m) of the motor model
+  double motor_keep_ = 0;                  // exp(-dT / tau_m) of the motor model
   static constexpr int kVolumeSteps = 10;  // the volume grows slowly: integrate it every 10 steps
 };
 

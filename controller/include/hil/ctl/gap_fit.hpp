@@ -19,7 +19,7 @@ class GapFit {
  public:
   static constexpr std::int64_t kCapacity = 1024;  // samples kept (1 s at 1 kHz)
   static constexpr std::int64_t kMaxWindow = 700;  // samples a fit may use: bounds its cost
-  static constexpr double kMinExcursion = 4;      // in residual RMS
+  static constexpr double kMinExcursion = 4;       // in residual RMS
 
   // The fit's window, copied out of the ring once so the many cost evaluations run contiguous.
   struct Window {
@@ -54,12 +54,11 @@ class GapFit {
   // Fits over samples [extreme - lead, last]: `extreme` is the sample at which the motor turned
   // (last pushing the valve in -dir), `extreme_rad` its angle; dir is the new direction.
   // `skip` samples at the start are simulated but not scored (the filters' start-up).
-  Result fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
-             std::int64_t skip) const noexcept;
+  Result fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead, std::int64_t skip) const noexcept;
 
  private:
-  double cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad,
-              double* rms = nullptr, double* excursion = nullptr) const noexcept;
+  double cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad, double* rms = nullptr,
+              double* excursion = nullptr) const noexcept;
   double alpha_;
   double gap_max_rad_;
 };

@@ -25,12 +25,12 @@ struct ObserverInputs {
 };
 
 struct ObserverOutputs {
-  int touch = 0;        // Tf: -1 negative touch, 0 transition, +1 positive touch
-  int intention = 0;    // Mf: -1, 0, +1
-  int kick = 0;         // paper: direction of the jump eq. (7) owes this step (touch -> transition)
-  bool reversed = false;  // robust: the motion intention flipped this step
+  int touch = 0;                     // Tf: -1 negative touch, 0 transition, +1 positive touch
+  int intention = 0;                 // Mf: -1, 0, +1
+  int kick = 0;                      // paper: direction of the jump eq. (7) owes this step (touch -> transition)
+  bool reversed = false;             // robust: the motion intention flipped this step
   double transition_travel_rad = 0;  // paper law (10): |KI dT dPg| while in transition
-  bool gap_measured = false;    // robust: a gap measurement completed this step
+  bool gap_measured = false;         // robust: a gap measurement completed this step
   double gap_measured_rad = 0;
 };
 
@@ -117,30 +117,29 @@ struct RobustObserverState {
   double d_lp1 = 0, d_lp2 = 0;  // pressure derivative, Pa/s
   double err_lp = 0;            // low-passed pressure error, Pa
   double p_eq_pa = 0;
-  double p_eq_slow_pa = 0;      // P_eq smoothed further: the hold level tracks its extreme
+  double p_eq_slow_pa = 0;  // P_eq smoothed further: the hold level tracks its extreme
   // touch state
   int touch = 0;
-  int extreme_flank = 0;         // the flank whose motor extreme is being tracked
+  int extreme_flank = 0;  // the flank whose motor extreme is being tracked
   bool motor_extreme_valid = false;
-  double motor_extreme_rad = 0;  // extreme raw motor angle on the current flank
+  double motor_extreme_rad = 0;       // extreme raw motor angle on the current flank
   std::int64_t motor_extreme_at = 0;  // its sample number
   int transition_dir = 0;
-  double hold_pa = 0;            // P_eq's extreme on the old side since the reversal
+  double hold_pa = 0;                 // P_eq's extreme on the old side since the reversal
   double transition_extreme_rad = 0;  // motor extreme of the flank just left (for the measurement)
   std::int64_t transition_extreme_at = 0;
   bool transition_extreme_valid = false;
   int confirm = 0;
   // gap measurement after an exit
-  std::int64_t fit_at = -1;      // sample number at which to fit; -1: none pending
-  int fit_tries_left = 0;        // a slow contact may need a longer look before it shows enough
+  std::int64_t fit_at = -1;  // sample number at which to fit; -1: none pending
+  int fit_tries_left = 0;    // a slow contact may need a longer look before it shows enough
   GapFit::History history;
 };
 
 class RobustObserver {
  public:
   RobustObserver(const RobustObserverParams& params, const ChamberModel& chamber);
-  RobustObserverState initial_state(int touch, double theta_cmd_rad, double p_meas_pa,
-                                    double theta_motor_rad) const noexcept;
+  RobustObserverState initial_state(int touch, double theta_cmd_rad, double p_meas_pa, double theta_motor_rad) const noexcept;
   ObserverOutputs step(RobustObserverState& s, const ObserverInputs& in) const noexcept;
   // Standard deviation of P_eq caused by the transducer noise, for a given tau.
   double p_eq_noise_pa(double tau_s) const noexcept;
@@ -151,8 +150,8 @@ class RobustObserver {
  private:
   RobustObserverParams p_;
   ChamberModel chamber_;
-  double alpha_ = 0;                    // per-step factor of each low-pass stage
-  double alpha_slow_ = 0;               // per-step factor of the hold level's extra smoothing
+  double alpha_ = 0;                           // per-step factor of each low-pass stage
+  double alpha_slow_ = 0;                      // per-step factor of the hold level's extra smoothing
   double var_p_ = 0, var_pd_ = 0, var_d_ = 0;  // noise gains of LP(p), cross, LP(dp/dt)
   double error_threshold_pa_ = 0;
   GapFit fit_;

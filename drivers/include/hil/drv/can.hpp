@@ -52,21 +52,20 @@ class CanTransport {
   virtual const std::string& name() const = 0;
 };
 
-using CanTransportFactory =
-    std::function<std::unique_ptr<CanTransport>(boost::asio::io_context&, std::vector<CanFilter>)>;
+using CanTransportFactory = std::function<std::unique_ptr<CanTransport>(boost::asio::io_context&, std::vector<CanFilter>)>;
 
 // What an error frame says (linux/can/error.h), decoded.
 struct CanErrorInfo {
   bool bus_off = false;
-  bool restarted = false;        // controller restarted after bus-off
-  bool error_passive = false;    // rx or tx error counter above 127
-  bool error_warning = false;    // rx or tx error counter above 96
-  bool back_to_active = false;   // controller reports error-active again
+  bool restarted = false;       // controller restarted after bus-off
+  bool error_passive = false;   // rx or tx error counter above 127
+  bool error_warning = false;   // rx or tx error counter above 96
+  bool back_to_active = false;  // controller reports error-active again
   bool controller_problem = false;
   bool tx_timeout = false, lost_arbitration = false, protocol_violation = false;
   bool transceiver = false, no_ack = false, bus_error = false;
   std::uint8_t tx_errors = 0, rx_errors = 0;  // data[6], data[7] when the driver fills them
-  std::string text;  // e.g. "bus-off", "controller problem: rx error-passive"
+  std::string text;                           // e.g. "bus-off", "controller problem: rx error-passive"
 };
 
 CanErrorInfo decode_error_frame(const CanFrame& frame);

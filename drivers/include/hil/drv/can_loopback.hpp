@@ -42,8 +42,7 @@ class LoopbackBus {
 
 class LoopbackTransport final : public CanTransport {
  public:
-  LoopbackTransport(boost::asio::io_context& io, LoopbackBus& bus, std::string name,
-                    std::vector<CanFilter> filters);
+  LoopbackTransport(boost::asio::io_context& io, LoopbackBus& bus, std::string name, std::vector<CanFilter> filters);
   ~LoopbackTransport() override;
   LoopbackTransport(const LoopbackTransport&) = delete;
   LoopbackTransport& operator=(const LoopbackTransport&) = delete;

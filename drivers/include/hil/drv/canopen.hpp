@@ -15,12 +15,12 @@ namespace hil::drv::canopen {
 // Predefined connection set (CiA 301 7.3.5).
 inline constexpr std::uint32_t kNmt = 0x000;
 inline constexpr std::uint32_t kSync = 0x080;
-inline constexpr std::uint32_t kEmcy = 0x080;       // + node
-inline constexpr std::uint32_t kTpdo1 = 0x180;      // + node; TPDO2..4: +0x100 each
-inline constexpr std::uint32_t kRpdo1 = 0x200;      // + node; RPDO2..4: +0x100 each
-inline constexpr std::uint32_t kSdoTx = 0x580;      // server -> client, + node
-inline constexpr std::uint32_t kSdoRx = 0x600;      // client -> server, + node
-inline constexpr std::uint32_t kHeartbeat = 0x700;  // + node
+inline constexpr std::uint32_t kEmcy = 0x080;                // + node
+inline constexpr std::uint32_t kTpdo1 = 0x180;               // + node; TPDO2..4: +0x100 each
+inline constexpr std::uint32_t kRpdo1 = 0x200;               // + node; RPDO2..4: +0x100 each
+inline constexpr std::uint32_t kSdoTx = 0x580;               // server -> client, + node
+inline constexpr std::uint32_t kSdoRx = 0x600;               // client -> server, + node
+inline constexpr std::uint32_t kHeartbeat = 0x700;           // + node
 inline constexpr std::uint32_t kCobIdInvalid = 0x80000000u;  // PDO COB-ID bit 31: PDO does not exist
 
 enum class NmtCommand : std::uint8_t {
@@ -59,8 +59,8 @@ struct SdoReply {
   enum class Kind { upload, download, abort, unsupported, malformed } kind = Kind::malformed;
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
-  std::uint32_t value = 0;   // upload data, or the abort code
-  std::uint8_t size = 0;     // upload data bytes (0 when the server did not say)
+  std::uint32_t value = 0;  // upload data, or the abort code
+  std::uint8_t size = 0;    // upload data bytes (0 when the server did not say)
 };
 // Parses a server reply (0x580+node). A frame shorter than 8 bytes is malformed.
 SdoReply parse_sdo_reply(const CanFrame& f);
@@ -113,7 +113,7 @@ inline constexpr std::uint16_t kFollowingErrorTimeout = 0x6066;  // u16, ms
 inline constexpr std::uint16_t kMaxProfileVelocity = 0x607F;     // u32, velocity units
 inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  // u32, acceleration units
 inline constexpr std::uint16_t kSupportedDriveModes = 0x6502;    // u32, bit 7: csp
-inline constexpr std::int8_t kModeCsp = 8;  // cyclic synchronous position
+inline constexpr std::int8_t kModeCsp = 8;                       // cyclic synchronous position
 
 // Controlword commands (bits 0 switch on, 1 enable voltage, 2 quick stop, 3 enable operation, 7 fault reset).
 inline constexpr std::uint16_t kCwDisableVoltage = 0x0000;

@@ -50,7 +50,7 @@ struct Cia402Config {
   long bitrate = 1000000;  // informational: a real interface is set up with `ip link`; vcan ignores it
   std::chrono::microseconds sync_period{1000};
   enum class SyncSource { timer, loop } sync_source = SyncSource::timer;  // loop: write() triggers SYNC
-  std::chrono::milliseconds heartbeat_producer{100};  // written to the drive's 0x1017
+  std::chrono::milliseconds heartbeat_producer{100};                      // written to the drive's 0x1017
   std::chrono::milliseconds heartbeat_timeout{350};
   DriveUnits units;
   std::chrono::milliseconds boot_timeout{5000};
@@ -64,10 +64,10 @@ struct Cia402Config {
   // lacks the object; all are optional in CiA 402): following error window 0x6065 and timeout
   // 0x6066, max profile velocity 0x607F, quick stop deceleration 0x6085.
   struct Limits {
-    double following_error_window_rad = 0;   // 0: not written
+    double following_error_window_rad = 0;                  // 0: not written
     std::chrono::milliseconds following_error_timeout{-1};  // -1: not written
-    double max_profile_velocity_rad_s = 0;   // 0: not written
-    double quick_stop_deceleration_rad_s2 = 0;  // 0: not written
+    double max_profile_velocity_rad_s = 0;                  // 0: not written
+    double quick_stop_deceleration_rad_s2 = 0;              // 0: not written
   } limits;
 
   // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.

@@ -26,8 +26,8 @@ struct Cia402EmulatorConfig {
   DriveUnits units;  // must match the client's to read the same radians
 
   // How this drive differs from the fullest one; every variant is a legal CiA 301/402 drive.
-  int pdos = 4;                      // RPDOs and TPDOs it has each way, 1..4 (0x1400.., 0x1800..)
-  bool interpolation_period = true;  // has 0x60C2 (optional in CiA 402)
+  int pdos = 4;                                     // RPDOs and TPDOs it has each way, 1..4 (0x1400.., 0x1800..)
+  bool interpolation_period = true;                 // has 0x60C2 (optional in CiA 402)
   std::chrono::milliseconds mode_display_delay{0};  // 0x6061 shows a new 0x6060 this much later
   // Has 0x6065 (window, counts; 0xFFFFFFFF = off, the default) and 0x6066 (timeout, ms) and
   // monitors them in CSP: outside the window for longer than the timeout -> EMCY 0x8611
@@ -64,7 +64,7 @@ class Cia402DriveEmulator {
 
   // Misbehaviour on command, thread-safe.
   void stop_heartbeat(bool stopped);
-  void set_silent(bool silent);  // answer nothing at all: no SDO, PDO, heartbeat, NMT reaction
+  void set_silent(bool silent);                              // answer nothing at all: no SDO, PDO, heartbeat, NMT reaction
   void set_response_delay(std::chrono::microseconds delay);  // SDO replies and TPDOs go out this late
   // Sends EMCY (code, register, manufacturer bytes) and enters fault; a fault reset clears it
   // (and sends EMCY 0x0000).

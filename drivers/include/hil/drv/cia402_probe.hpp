@@ -18,17 +18,17 @@ struct Cia402Probe {
     std::uint16_t index = 0;
     std::uint8_t sub = 0;
     std::string name;
-    bool required = false;              // configure() fails without it
+    bool required = false;               // configure() fails without it
     std::optional<std::uint32_t> value;  // nullopt: the drive aborted the read
     std::uint32_t abort_code = 0;
   };
   std::uint32_t device_type = 0;
-  std::vector<Object> objects;        // identity, modes, the client's objects, the limits
-  int rpdos = 0, tpdos = 0;           // PDO communication objects present (0x1400.., 0x1800..)
-  bool csp_supported = false;         // 0x6502 bit 7 (true when 0x6502 is absent: not declared)
-  std::vector<std::string> plan;      // what configure() will do with this drive
-  std::vector<std::string> lacks;     // what the drive lacks, and what that means
-  bool usable = true;                 // every required object is there and CSP is not ruled out
+  std::vector<Object> objects;     // identity, modes, the client's objects, the limits
+  int rpdos = 0, tpdos = 0;        // PDO communication objects present (0x1400.., 0x1800..)
+  bool csp_supported = false;      // 0x6502 bit 7 (true when 0x6502 is absent: not declared)
+  std::vector<std::string> plan;   // what configure() will do with this drive
+  std::vector<std::string> lacks;  // what the drive lacks, and what that means
+  bool usable = true;              // every required object is there and CSP is not ruled out
 
   const Object* find(std::uint16_t index, std::uint8_t sub) const;
   std::string report() const;  // human-readable, one fact a line

@@ -60,20 +60,20 @@ struct DeviceHealth {
   bool fault = false;           // something the bench must act on; last_error says what
   bool heartbeat_lost = false;  // CAN: no heartbeat within heartbeat_timeout
   BusState bus_state = BusState::error_active;
-  std::uint8_t nmt_state = 0xFF;     // CAN: last heartbeat state byte (0x05 operational); 0xFF unknown
-  std::uint16_t statusword = 0;      // last statusword / status register
-  Clock::time_point last_heartbeat{};  // CAN: last heartbeat; Modbus: last good reply
+  std::uint8_t nmt_state = 0xFF;               // CAN: last heartbeat state byte (0x05 operational); 0xFF unknown
+  std::uint16_t statusword = 0;                // last statusword / status register
+  Clock::time_point last_heartbeat{};          // CAN: last heartbeat; Modbus: last good reply
   std::chrono::nanoseconds heartbeat_age{-1};  // filled by health(): now - last_heartbeat; -1 never
   std::chrono::nanoseconds heartbeat_timeout{0};
-  std::uint64_t tx_frames = 0, rx_frames = 0;       // CAN frames / Modbus requests and replies
-  std::uint64_t tx_failed = 0;                       // frames the interface refused, requests that failed
-  std::uint64_t sync_sent = 0, pdo_received = 0;    // CAN
-  std::uint64_t malformed = 0;                       // frames or replies that broke the protocol
-  std::uint64_t error_frames = 0;                    // CAN error frames
-  std::uint64_t emcy_count = 0;                      // CAN EMCY messages
-  std::uint64_t timeouts = 0;                        // SDO or Modbus request timeouts
-  std::uint64_t aborts_or_exceptions = 0;            // SDO aborts / Modbus exception replies
-  std::uint64_t reconnects = 0;                      // Modbus reconnects, CAN bus-off recoveries
+  std::uint64_t tx_frames = 0, rx_frames = 0;     // CAN frames / Modbus requests and replies
+  std::uint64_t tx_failed = 0;                    // frames the interface refused, requests that failed
+  std::uint64_t sync_sent = 0, pdo_received = 0;  // CAN
+  std::uint64_t malformed = 0;                    // frames or replies that broke the protocol
+  std::uint64_t error_frames = 0;                 // CAN error frames
+  std::uint64_t emcy_count = 0;                   // CAN EMCY messages
+  std::uint64_t timeouts = 0;                     // SDO or Modbus request timeouts
+  std::uint64_t aborts_or_exceptions = 0;         // SDO aborts / Modbus exception replies
+  std::uint64_t reconnects = 0;                   // Modbus reconnects, CAN bus-off recoveries
   std::uint16_t last_emcy_code = 0;
   std::uint8_t last_emcy_register = 0;
   std::array<char, 192> last_error{};  // NUL-terminated; empty when nothing went wrong yet

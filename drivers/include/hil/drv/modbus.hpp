@@ -88,9 +88,9 @@ class ModbusDrive final : public PositionDrive {
   void activate() override;    // enable; waits for the status register's enabled bit
   void deactivate() override;  // disable; waits for it to clear
 
-  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override;  // real-time safe
+  DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override;                       // real-time safe
   void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept override;  // real-time safe
-  DeviceHealth health() const noexcept override;  // real-time safe
+  DeviceHealth health() const noexcept override;                                                             // real-time safe
   // Real-time safe: the I/O thread polls every poll_period, whatever the loop writes.
   FeedbackFreshness freshness() const noexcept override { return FeedbackFreshness::polled; }
 

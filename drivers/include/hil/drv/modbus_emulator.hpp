@@ -16,7 +16,7 @@ namespace hil::drv {
 class ModbusFaults {
  public:
   virtual ~ModbusFaults() = default;
-  virtual void set_silent(bool silent) = 0;  // read requests, answer nothing
+  virtual void set_silent(bool silent) = 0;                              // read requests, answer nothing
   virtual void set_response_delay(std::chrono::microseconds delay) = 0;  // answer late
   // Answer every request with this Modbus exception code (e.g. 2 ILLEGAL DATA ADDRESS,
   // 4 SERVER DEVICE FAILURE, 6 SERVER DEVICE BUSY); 0 answers normally again.

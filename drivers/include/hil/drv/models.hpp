@@ -9,9 +9,9 @@
 namespace hil::drv {
 
 struct DriveModelSample {
-  double position_rad = 0.0;   // load-side (valve) angle, as the drive's encoder reports it
+  double position_rad = 0.0;  // load-side (valve) angle, as the drive's encoder reports it
   double velocity_rad_s = 0.0;
-  bool fault = false;          // the drive's own fault (over-current, following error...)
+  bool fault = false;            // the drive's own fault (over-current, following error...)
   std::uint16_t fault_code = 0;  // CiA 402 / EMCY error code when fault, e.g. 0x2310
 };
 

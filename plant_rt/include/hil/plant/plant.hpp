@@ -25,7 +25,7 @@ namespace hil::plant {
 struct PlantState {
   std::vector<double> x;  // every effect's state, concatenated in chain order
   Rng rng;
-  Signals s;              // signals at time s.t_s
+  Signals s;  // signals at time s.t_s
 };
 
 class Plant {
@@ -44,8 +44,7 @@ class Plant {
   // placed inside the gap where the pressure fits. Throws std::out_of_range when no valve angle
   // reaches the pressure, naming the reachable range.
   // gap_rad: a programmed gap at t0 (NaN: the model's own).
-  void settle(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN, double t0_s = 0,
-              double gap_rad = kNaN) const;
+  void settle(PlantState& state, double p_meas_pa, double theta_cmd_rad = kNaN, double t0_s = 0, double gap_rad = kNaN) const;
   // As settle(), but when no valve angle reaches p_meas_pa the valve rests where the pressure
   // comes closest (with theta_cmd_rad given: on the nearer flank of the gap). Returns the
   // noise-free reading reached. For replaying measurements through a model that disagrees with
@@ -69,13 +68,12 @@ class Plant {
  private:
   // Runs every effect's settle once; returns the noise-free p_meas.
   double settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s, double gap_rad) const;
-  double settle_impl(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad,
-                     bool nearest) const;
+  double settle_impl(PlantState& st, double p_meas_pa, double theta_cmd_rad, double t0_s, double gap_rad, bool nearest) const;
 
   std::vector<std::shared_ptr<const Effect>> effects_;
   std::vector<std::size_t> offsets_;  // start of each effect's state slice
   std::size_t state_size_ = 0;
-  std::size_t first_sensor_ = 0;      // index of the first effect after the chamber
+  std::size_t first_sensor_ = 0;  // index of the first effect after the chamber
 };
 
 }  // namespace hil::plant

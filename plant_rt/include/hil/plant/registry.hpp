@@ -25,8 +25,8 @@ std::vector<std::string> effect_names();
 
 }  // namespace hil::plant
 
-#define HIL_REGISTER_EFFECT(Class, doc_text)                                                    \
-  namespace {                                                                                   \
-  [[maybe_unused]] const bool registered_##Class = ::hil::plant::register_effect(              \
-      {Class::kKind, Class::kStage, &Class::from_yaml, doc_text});                              \
+#define HIL_REGISTER_EFFECT(Class, doc_text)                                                     \
+  namespace {                                                                                    \
+  [[maybe_unused]] const bool registered_##Class =                                               \
+      ::hil::plant::register_effect({Class::kKind, Class::kStage, &Class::from_yaml, doc_text}); \
   }

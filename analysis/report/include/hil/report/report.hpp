@@ -19,9 +19,9 @@ namespace hil::report {
 inline constexpr int kMaxBuckets = 4000;
 
 struct Series {
-  std::string name = "";              // legend text, with unit if it differs from the axis
-  std::vector<double> x = {}, y = {}; // same length; NaN in either breaks the line
-  std::string color = "";             // any CSS colour; empty: the figure's palette in order
+  std::string name = "";                                        // legend text, with unit if it differs from the axis
+  std::vector<double> x = {}, y = {};                           // same length; NaN in either breaks the line
+  std::string color = "";                                       // any CSS colour; empty: the figure's palette in order
   enum class Style { line, step, points } style = Style::line;  // step: holds y until next x
   bool dashed = false;
 };
@@ -43,7 +43,7 @@ struct Figure {
   std::vector<Series> series = {};
   std::vector<Band> bands = {};
   std::vector<HLine> hlines = {};
-  std::string group = "";  // figures with the same non-empty group share x zoom and cursor
+  std::string group = "";             // figures with the same non-empty group share x zoom and cursor
   bool x_log = false, y_log = false;  // on a log axis, values <= 0 are left out
   int height_px = 260;
 };
@@ -89,7 +89,7 @@ class Document {
   std::string title_;
   std::string body_;  // HTML of the blocks so far; figure data already decimated and encoded
   int next_id_ = 0;
-  int columns_ = 0;   // > 0 while inside columns_begin/columns_end
+  int columns_ = 0;  // > 0 while inside columns_begin/columns_end
 };
 
 }  // namespace hil::report

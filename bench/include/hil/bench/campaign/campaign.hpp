@@ -1,0 +1,61 @@
+// A campaign: a plant, a reference profile, a programmed gap, and one or more controller runs to
+// compare, loaded from YAML (configs/campaigns/*.yaml, documented in place). Everything is
+// validated at load: a typo, a wrong type, a missing field or a physically impossible value
+// (dT <= 0, gap < 0, a reference outside the plant's reach, ...) throws cfg::Error naming
+// file, line and key, before anything runs or is written.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "hil/bench/campaign/schedule.hpp"
+#include "hil/ctl/controller.hpp"
+#include "hil/plant/plant.hpp"
+
+namespace hil::cfg {
+class Node;
+}
+
+namespace hil::bench {
+
+struct RunSpec {
+  std::string name;
+  ctl::ControllerParams controller;  // complete, validated
+  int initial_touch = +1;            // the plant starts in positive contact
+};
+
+struct Campaign {
+  std::string name;
+  std::string description;
+  std::filesystem::path file;
+  std::filesystem::path plant_file;
+  std::shared_ptr<const plant::Plant> plant;  // the simulated truth (sensor noise as the campaign says)
+  double duration_s = 0;
+  double period_s = 0;
+  std::uint64_t seed = 1;
+  double sensor_noise_rms_pa = 0;
+  Schedule reference_pa;
+  Schedule gap_rad;
+  std::vector<double> reversals_s;  // reference reversals (the first movement is reversal 1)
+  long reference_moves = 0;         // steps and ramps of the reference, either direction
+  std::vector<RunSpec> runs;
+  std::string yaml_text;  // the file as loaded, for the run's snapshot
+};
+
+Campaign load_campaign(const std::filesystem::path& file);
+// For YAML posted over the API: `origin` names it in errors; relative paths resolve from `base_dir`.
+// A non-empty `plants_root` confines the plant file to that folder (the bench's configs).
+Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
+                            const std::filesystem::path& plants_root = {});
+
+// The same campaign with another transducer noise (0 reproduces the paper's noise-free
+// simulation). The controllers keep what they were told of the transducer.
+Campaign with_sensor_noise(Campaign c, double noise_rms_kpa);
+
+// The controller's design model from a plant (its gas_generator and throat_map blocks).
+ctl::ChamberModel chamber_model_of(const plant::Plant& plant);
+
+}  // namespace hil::bench

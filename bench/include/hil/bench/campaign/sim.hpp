@@ -1,0 +1,118 @@
+// Offline campaigns: the plant and the controller in lock-step, faster than real time
+// (`hilbench sim`). Per run it writes DIR/<campaign>/<run>/telemetry.csv (the measurement schema
+// of physics.md section 4 plus the simulation's internals) and summary.json; per campaign a
+// report.html comparing the runs. Output appears atomically: a campaign folder is complete or
+// absent.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/campaign/run_metrics.hpp"
+#include "hil/bench/rt/sim_rig.hpp"
+#include "hil/bench/rt/telemetry_record.hpp"
+
+namespace hil::bench {
+
+// One run on the simulated rig in simulated time: the bench's own period (RunLoop::cycle) on a
+// SimRig, paced by a counter instead of a clock, as fast as the machine goes, with no interlocks
+// (SafetyConfig::none) and no operator. Every period gives one record.
+class SimulatedRun {
+ public:
+  // Setup: builds and settles the plant at the reference and gap of t = 0, then the controller.
+  SimulatedRun(const Campaign& c, const RunSpec& run);
+  SimulatedRun(const SimulatedRun&) = delete;
+  SimulatedRun& operator=(const SimulatedRun&) = delete;
+
+  // The next period's record; false once the run is over. Real-time safe.
+  bool next(TelemetryRecord& out) noexcept;
+  const RunLoop& loop() const noexcept { return loop_; }
+
+ private:
+  SimRig rig_;
+  SpscRing<TelemetryRecord> telemetry_;
+  SpscRing<LoopEvent> events_;
+  SpscRing<LoopRequest> requests_;
+  RunLoop loop_;
+  Clock::time_point t_{};
+};
+
+// Runs one campaign run; calls on_step(const TelemetryRecord&) every control period. Counts
+// finished steps into steps_done (relaxed, every 1024 steps) when given.
+template <class OnStep>
+void simulate_run(const Campaign& c, const RunSpec& run, OnStep&& on_step, std::atomic<long>* steps_done = nullptr) {
+  SimulatedRun sim(c, run);
+  TelemetryRecord rec;
+  for (long k = 1; sim.next(rec); ++k) {
+    on_step(static_cast<const TelemetryRecord&>(rec));
+    if (steps_done != nullptr && (k & 1023) == 0) steps_done->fetch_add(1024, std::memory_order_relaxed);
+  }
+}
+
+// The reversal metrics of a run without writing anything (tests, benchmarks, the README table).
+RunSummary summarise_run(const Campaign& c, const RunSpec& run);
+
+// A series kept for the report: at most ~2 points per bucket (the bucket's min and max, in time
+// order), so an hour at 1 kHz stays a few thousand points with every spike kept.
+struct ReportSeries {
+  std::string name;
+  std::vector<double> t_s, value;
+};
+
+struct RunOutcome {
+  std::string name;
+  RunSummary summary;
+  std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true, target
+  double wall_s = 0;
+};
+
+// What a run's report and summary are made of, gathered from its records one period at a time:
+// the metrics (RunMetrics) and the min/max-decimated series the report plots. One for
+// `hilbench sim` (while it simulates) and `hilbench report` (from a recorded telemetry.csv).
+class RunDigest {
+ public:
+  explicit RunDigest(const Campaign& c);
+  ~RunDigest();
+  RunDigest(const RunDigest&) = delete;
+  RunDigest& operator=(const RunDigest&) = delete;
+  void add(const TelemetryRecord& r);
+  RunOutcome finish(std::string run_name);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct SimOptions {
+  std::filesystem::path out_dir = "out";
+  bool telemetry = true;
+  bool progress = true;
+  std::vector<std::string> only_runs;  // empty: all
+  // Set (by a signal handler, say) to stop: the campaign throws Cancelled and leaves nothing.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+struct Cancelled : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct CampaignOutcome {
+  std::filesystem::path dir;  // DIR/<campaign>
+  std::vector<RunOutcome> runs;
+  double wall_s = 0;
+  double simulated_s = 0;  // summed over runs
+};
+
+// Throws std::runtime_error on I/O failure (the campaign folder is then left as it was).
+CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options);
+
+}  // namespace hil::bench

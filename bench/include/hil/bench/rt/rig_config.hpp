@@ -1,0 +1,52 @@
+// A rig file (configs/rigs/*.yaml, documented in place): which rig, its devices, its loop
+// (priority, CPU, overrun policy) and its safety interlocks. Validated at load, the device files
+// included: errors name file:line:key.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "hil/bench/rt/rig.hpp"
+#include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/rt/safety.hpp"
+#include "hil/drv/can.hpp"
+#include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/modbus.hpp"
+
+namespace hil::bench {
+
+// The `devices` block of the can, modbus and hybrid rigs: the drive's and the transducer's client
+// configurations (drivers/configs formats, from a file or inline) and when their data is stale.
+struct RigDevices {
+  std::optional<drv::Cia402Config> can_drive;             // drive: {cia402: ...}
+  std::optional<drv::ModbusDriveConfig> modbus_drive;     // drive: {modbus: ...}
+  std::optional<drv::ModbusTransducerConfig> transducer;  // transducer: {modbus: ...}
+  // Modbus devices: a value older than this is stale (default two polls). A CAN drive is stale
+  // when no TPDO arrived since the last SYNC, whatever its age.
+  std::chrono::microseconds drive_max_age{0}, transducer_max_age{0};
+};
+
+struct RigConfig {
+  std::string name;  // the file's stem
+  std::string kind;  // a registered rig kind (rig_registry.hpp): sim, can, modbus, hybrid, ...
+  std::string description;
+  std::filesystem::path file;
+  RigDevices devices;  // empty for sim
+  LoopConfig loop;
+  SafetyConfig safety;
+  std::string yaml_text;  // the file as loaded, for the run's snapshot
+};
+
+RigConfig load_rig_config(const std::filesystem::path& file);
+RigConfig load_rig_config_text(const std::string& yaml, const std::string& origin);
+
+// A new, unconfigured rig of the file's kind, made by the kind's registered recipe
+// (rig_registry.hpp; opens nothing yet). `can_transport` carries the CAN rigs' frames (tests:
+// drv::LoopbackBus::factory()); empty: SocketCAN on the drive's interface. Throws naming the file
+// and the kind, the kinds this build knows and the closest, when it is unknown.
+std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport = {});
+
+}  // namespace hil::bench

@@ -1,0 +1,106 @@
+// The campaign runner: runs a campaign's runs one after the other on a rig, each in its own
+// real-time loop thread with its own recorder and run folder
+//   <runs_dir>/<UTC start>_<campaign>_<run>/  telemetry.csv, events.jsonl, run.json
+// and answers the operator's requests (status, stop, abort, injections) from any thread.
+// Not real-time: it sets the loop up, waits for it, and writes run.json.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/rig_config.hpp"
+#include "hil/bench/rt/rt_loop.hpp"
+
+namespace hil::bench {
+
+// How a run ended, in run.json's "outcome" (and a campaign's: its worst run's). In order of how
+// bad: a campaign ends with the last of its runs' outcomes in this order.
+enum class Outcome : std::uint8_t { completed, stopped, aborted, error, interrupted, running };
+std::string_view to_string(Outcome o) noexcept;
+// The outcome named by `text` (run.json, the API); error for a name it does not know.
+Outcome outcome_from(std::string_view text) noexcept;
+
+// Refusals the API turns into 4xx: the runner's state does not allow the request.
+class Conflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+// The runs folder has no room for the run's record (API: 507).
+class InsufficientStorage : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A run folder's run.json says "running" but no live process holds the run's lock: the server
+// died during it (kill -9, a crash, power). Rewrites run.json to outcome "interrupted" with what
+// is really on disk (a half-written last line is cut off and counted) and appends an event.
+// Returns the folders it marked. Safe while another server runs on the same folder.
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
+
+struct StartRequest {
+  Campaign campaign;
+  RigConfig rig;
+  std::vector<std::string> runs;  // empty: all, in the campaign's order
+  double speed = 1.0;             // loop periods per dT of wall time; simulated rigs (Rig::simulated) only
+  std::string source;             // where the campaign came from ("configs/campaigns/x.yaml", "posted")
+};
+
+struct RunnerOptions {
+  std::filesystem::path runs_dir = "runs";
+  std::string version = "0";
+  std::string mlock_warning;                             // what lock_memory() said at start ("" = memory locked)
+  std::function<void(const TelemetryRecord&)> on_row;    // recorder thread, every row
+  std::function<void(const nlohmann::json&)> on_notice;  // run started / finished; any thread
+  drv::CanTransportFactory can_transport;                // the CAN rigs' bus; empty: SocketCAN (tests: a loopback bus)
+};
+
+class CampaignRunner {
+ public:
+  explicit CampaignRunner(RunnerOptions options);
+  ~CampaignRunner();  // aborts a running campaign and waits for it
+  CampaignRunner(const CampaignRunner&) = delete;
+  CampaignRunner& operator=(const CampaignRunner&) = delete;
+
+  // Validates and starts; returns at once. Throws Conflict when a campaign runs, std::invalid_argument
+  // for a request that cannot run (unknown run name, speed on a hardware rig), InsufficientStorage
+  // when the runs folder cannot hold the campaign's telemetry.
+  void start(StartRequest request);
+  // Ends the campaign after the current period (outcome "stopped"). Throws Conflict when idle.
+  void stop();
+  // Safety abort: safe state, then the end (outcome "aborted"). Throws Conflict when idle.
+  // Returns the reason the campaign will end with: the first abort's, when one is under way.
+  std::string abort(const std::string& reason);
+  // An injection for the running loop. Throws Conflict when no loop runs, invalid_argument when
+  // the rig cannot do it.
+  void inject(const LoopRequest& request);
+
+  bool running() const;
+  void wait();  // until the campaign thread has finished
+  nlohmann::json status() const;
+
+ private:
+  struct Active;
+  void run_campaign(std::shared_ptr<Active> a);
+  void run_one(Active& a, std::size_t index);
+  void notice(const nlohmann::json& j) const;
+
+  RunnerOptions o_;
+  mutable std::mutex mutex_;
+  std::shared_ptr<Active> active_;  // the running campaign, or null
+  nlohmann::json last_;             // the last finished campaign
+  std::thread thread_;
+};
+
+}  // namespace hil::bench

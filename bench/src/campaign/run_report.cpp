@@ -1,0 +1,125 @@
+#include "hil/bench/campaign/run_report.hpp"
+
+#include <fstream>
+#include <optional>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/campaign/campaign.hpp"
+#include "sim_report.hpp"
+#include "hil/csv_reader.hpp"
+#include "hil/units.hpp"
+
+namespace hil::bench {
+namespace {
+
+using nlohmann::json;
+using plant::kNaN;
+
+json read_run_json(const std::filesystem::path& dir) {
+  const auto file = dir / "run.json";
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(dir.string() + ": no run.json (not a run folder of hilbench serve)");
+  json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("config") || !j["config"].is_object()) {
+    throw std::runtime_error(file.string() + ": not a run record (no config snapshot)");
+  }
+  return j;
+}
+
+Campaign campaign_of(const json& run, const std::filesystem::path& dir) {
+  const json& cfg = run["config"];
+  const std::string yaml = cfg.value("campaign_yaml", "");
+  const std::filesystem::path file = cfg.value("campaign_file", "");
+  if (yaml.empty() || file.empty()) throw std::runtime_error(dir.string() + "/run.json: the config snapshot has no campaign");
+  // Relative paths in the campaign (its plant) resolve from where the campaign file was.
+  return load_campaign_text(yaml, file.filename().string(), file.parent_path());
+}
+
+RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const std::string& name) {
+  using telemetry::Col;
+  using units::deg_to_rad;
+  using units::mpa_to_pa;
+  // The schema's columns up to theta_target_deg, requested in its order so that values[index(c)]
+  // is column c: the measurement columns are required, the rest optional (a rig without the
+  // truth leaves those out).
+  CsvRequest request;
+  request.increasing = std::string(telemetry::name(Col::t_s));
+  for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k)
+    (k <= telemetry::index(Col::p_ref_mpa) ? request.required : request.optional).emplace_back(telemetry::kColumns[k].name);
+  const CsvChunk t = read_csv(csv, request);
+  const auto col = [&](Col c, std::size_t i, double fallback) {
+    const auto& v = t.values[telemetry::index(c)];
+    return v.empty() ? fallback : v[i];
+  };
+  RunDigest digest(c);
+  for (std::size_t i = 0; i < t.rows(); ++i) {
+    TelemetryRecord rec;
+    StepRecord& r = rec.step;
+    r.t_s = col(Col::t_s, i, kNaN);
+    r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
+    r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
+    r.theta_motor_rad = deg_to_rad(col(Col::theta_motor_deg, i, kNaN));
+    r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
+    r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
+    r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
+    r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
+    r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
+    r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
+    r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
+    // A rig without the chamber's truth: the error is the measured one (IAE then holds the
+    // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
+    const double chamber_mpa = col(Col::p_chamber_mpa, i, kNaN);
+    r.p_chamber_pa = t.values[telemetry::index(Col::p_chamber_mpa)].empty() ? r.p_meas_pa : mpa_to_pa(chamber_mpa);
+    rec.theta_target_rad = deg_to_rad(col(Col::theta_target_deg, i, kNaN));
+    digest.add(rec);
+  }
+  RunOutcome out = digest.finish(name);
+  if (t.values[telemetry::index(Col::theta_valve_deg)].empty()) {
+    out.summary.stall_s_total = kNaN;
+    out.summary.stall_fraction = kNaN;
+    for (auto& rev : out.summary.reversals) rev.stall_s = kNaN;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::path>& run_dirs,
+                                          const std::filesystem::path& out_file) {
+  if (run_dirs.empty()) throw std::invalid_argument("no run folder given");
+  std::vector<RecordedRun> runs;
+  std::optional<Campaign> campaign;
+  for (const auto& dir : run_dirs) {
+    const json run = read_run_json(dir);
+    const Campaign c = campaign_of(run, dir);
+    if (campaign && c.name != campaign->name) {
+      throw std::invalid_argument(dir.string() + ": a run of campaign '" + c.name + "', the others are of '" + campaign->name +
+                                  "' (a report compares runs of one campaign)");
+    }
+    if (!campaign) campaign = c;
+    RecordedRun r;
+    r.dir = dir;
+    r.outcome = run.value("outcome", "?");
+    r.reason = run["reason"].is_string() ? run["reason"].get<std::string>() : "";
+    std::string name = run.value("run", dir.filename().string());
+    for (const auto& other : runs) {
+      if (other.digest.name == name) name += " (" + dir.filename().string() + ")";
+    }
+    r.digest = digest_of(c, dir / "telemetry.csv", name);
+    runs.push_back(std::move(r));
+  }
+  std::vector<RunOutcome> outcomes;
+  std::string note = "Recorded by hilbench serve:";
+  for (const auto& r : runs) {
+    outcomes.push_back(r.digest);
+    note += " " + r.digest.name + " " + r.outcome + (r.reason.empty() ? "" : " (" + r.reason + ")") + " [" +
+            r.dir.filename().string() + "];";
+  }
+  note.back() = '.';
+  write_sim_report(*campaign, outcomes, out_file, "hilbench report", note);
+  return runs;
+}
+
+}  // namespace hil::bench

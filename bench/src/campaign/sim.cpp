@@ -1,0 +1,251 @@
+#include "hil/bench/campaign/sim.hpp"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "sim_report.hpp"
+#include "hil/config.hpp"
+#include "hil/minmax_decimator.hpp"
+#include "hil/units.hpp"
+
+namespace hil::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
+// At most 2 x 5000 buckets of two points: a report plot of a run holds at most 20 000 points.
+constexpr std::size_t kReportBuckets = 5000;
+
+// The telemetry columns the campaign report plots.
+constexpr telemetry::Col kReportColumns[] = {
+    telemetry::Col::p_ref_mpa,       telemetry::Col::p_meas_mpa,      telemetry::Col::touch_state,
+    telemetry::Col::theta_motor_deg, telemetry::Col::theta_valve_deg, telemetry::Col::theta_cmd_deg,
+    telemetry::Col::gap_est_deg,     telemetry::Col::gap_true_deg,    telemetry::Col::theta_target_deg};
+
+// The report's series, min/max decimated as the run goes (hil/minmax_decimator.hpp).
+class ReportDecimator {
+ public:
+  ReportDecimator() : series_(std::size(kReportColumns), MinMaxDecimator(kReportBuckets)) {}
+  void add(const TelemetryRow& row) {
+    const double t = row[telemetry::index(telemetry::Col::t_s)];
+    for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, row[telemetry::index(kReportColumns[i])]);
+  }
+  std::vector<ReportSeries> take() const {
+    std::vector<ReportSeries> out(series_.size());
+    for (std::size_t i = 0; i < series_.size(); ++i) {
+      out[i].name = std::string(telemetry::name(kReportColumns[i]));
+      series_[i].take(out[i].t_s, out[i].value);
+    }
+    return out;
+  }
+
+ private:
+  std::vector<MinMaxDecimator> series_;
+};
+
+void write_text(const std::filesystem::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  out.close();
+  if (!out) throw std::runtime_error("cannot write " + file.string());
+}
+
+RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
+                   std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
+  const auto t0 = Clock::now();
+  RunDigest digest(c);
+  std::unique_ptr<CsvWriter> csv;
+  if (telemetry) {
+    csv = std::make_unique<CsvWriter>(
+        dir / "telemetry.csv", telemetry_columns(ColumnSet::sim),
+        std::vector<std::pair<std::string, std::string>>{{"source", "hilbench sim"}, {"campaign", c.name}, {"run", run.name}});
+  }
+  TelemetryRow row;
+  simulate_run(
+      c, run,
+      [&](const TelemetryRecord& r) {
+        digest.add(r);
+        if (csv) csv->row({row.data(), telemetry_row(r, ColumnSet::sim, row)});
+        if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw Cancelled("cancelled");
+      },
+      &steps_done);
+  if (csv) csv->close();
+  RunOutcome out = digest.finish(run.name);
+  out.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  nlohmann::json summary = out.summary.to_json();
+  summary["campaign"] = c.name;
+  summary["run"] = run.name;
+  summary["compensation"] = run.controller.compensation == ctl::Compensation::none       ? "none"
+                            : run.controller.compensation == ctl::Compensation::constant ? "constant"
+                                                                                         : "adaptive";
+  summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
+  summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
+  summary["wall_s"] = out.wall_s;
+  write_text(dir / "summary.json", summary.dump(2) + "\n");
+  return out;
+}
+
+// ".NAME.tmp-PID" folders whose process is gone (killed before it could clean up).
+void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::string& name) {
+  const std::string prefix = "." + name + ".tmp-";
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(out_dir, ec)) {
+    const std::string f = e.path().filename().string();
+    if (!e.is_directory() || f.rfind(prefix, 0) != 0) continue;
+    const std::string pid_text = f.substr(prefix.size());
+    char* end = nullptr;
+    const long pid = std::strtol(pid_text.c_str(), &end, 10);
+    if (pid_text.empty() || *end != '\0' || pid <= 0) continue;
+    if (pid == ::getpid() || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    std::filesystem::remove_all(e.path(), ec);
+  }
+}
+
+}  // namespace
+
+struct RunDigest::Impl {
+  RunMetrics metrics;
+  ReportDecimator report;
+};
+
+RunDigest::RunDigest(const Campaign& c)
+    : impl_(std::make_unique<Impl>(Impl{RunMetrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS), {}})) {}
+
+RunDigest::~RunDigest() = default;
+
+void RunDigest::add(const TelemetryRecord& r) {
+  impl_->metrics.add(r.step);
+  impl_->report.add(telemetry_row(r));
+}
+
+RunOutcome RunDigest::finish(std::string run_name) {
+  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0};
+}
+
+SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)
+    : telemetry_(2),  // one record a period, taken before the next
+      events_(16),    // no operator, no interlocks: nothing to report but what nobody reads
+      requests_(1),
+      loop_(c, run, rig_, SafetyConfig::none(), LoopConfig{},
+            std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s)), telemetry_, events_,
+            requests_, /*now: simulated time, nothing to time*/ nullptr) {
+  rig_.configure({&c, c.period_s, c.reference_pa.at(0.0), c.gap_rad.at(0.0)});
+  rig_.activate();
+  loop_.begin(t_);
+}
+
+bool SimulatedRun::next(TelemetryRecord& out) noexcept {
+  if (loop_.end() != LoopEnd::running) return false;
+  // Each period wakes on its deadline and ends there: no latency, no compute time, no overrun.
+  loop_.cycle(t_, t_);
+  loop_.finish_cycle(t_);
+  t_ += loop_.wall_period();
+  return telemetry_.pop(&out, 1) == 1;
+}
+
+RunSummary summarise_run(const Campaign& c, const RunSpec& run) {
+  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
+  simulate_run(c, run, [&](const TelemetryRecord& r) { metrics.add(r.step); });
+  return metrics.finish();
+}
+
+CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
+  std::vector<const RunSpec*> runs;
+  for (const auto& r : c.runs) {
+    if (options.only_runs.empty() ||
+        std::find(options.only_runs.begin(), options.only_runs.end(), r.name) != options.only_runs.end()) {
+      runs.push_back(&r);
+    }
+  }
+  if (runs.empty()) throw std::runtime_error("no run of campaign '" + c.name + "' matches --runs");
+
+  // Everything goes into a hidden folder first and is renamed into place at the end; the folder
+  // goes again on any failure or cancel, and leftovers of processes that died are cleared.
+  if (!cfg::plain_name(c.name)) throw std::invalid_argument("campaign name '" + c.name + "' is no plain name");
+  const auto t0 = Clock::now();
+  std::filesystem::create_directories(options.out_dir);
+  remove_dead_tmp_dirs(options.out_dir, c.name);
+  const auto final_dir = options.out_dir / c.name;
+  const auto tmp_dir = options.out_dir / ("." + c.name + ".tmp-" + std::to_string(::getpid()));
+  struct RemoveUnlessKept {
+    std::filesystem::path dir;
+    bool keep = false;
+    ~RemoveUnlessKept() {
+      std::error_code ec;
+      if (!keep) std::filesystem::remove_all(dir, ec);
+    }
+  } tmp_guard{tmp_dir};
+  std::filesystem::remove_all(tmp_dir);
+  for (const auto* r : runs) std::filesystem::create_directories(tmp_dir / r->name);
+  write_text(tmp_dir / "campaign.yaml", c.yaml_text);
+
+  CampaignOutcome outcome;
+  outcome.runs.resize(runs.size());
+  std::atomic<long> steps_done{0};
+  const long steps_total = std::lround(c.duration_s / c.period_s) * static_cast<long>(runs.size());
+  std::vector<std::exception_ptr> errors(runs.size());
+  std::atomic<std::size_t> next{0};
+  auto worker = [&] {
+    for (std::size_t i; (i = next.fetch_add(1)) < runs.size();) {
+      try {
+        outcome.runs[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), runs.size()));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
+  if (options.progress && c.duration_s * runs.size() >= 120) {
+    // Long campaign: a progress line while the workers run.
+    std::thread progress([&] {
+      const bool tty = ::isatty(STDERR_FILENO);
+      int last_decile = -1;
+      while (next.load() <= runs.size() && steps_done.load() < steps_total) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+        const double f = static_cast<double>(steps_done.load()) / steps_total;
+        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+        const int decile = static_cast<int>(f * 10);
+        if (tty || decile != last_decile) {
+          std::fprintf(stderr, "%ssim %s: %3.0f%% (%.0f of %.0f s simulated, %.0fx real time)%s", tty ? "\r" : "", c.name.c_str(),
+                       100 * f, f * c.duration_s * runs.size(), c.duration_s * runs.size(),
+                       f * c.duration_s * runs.size() / std::max(wall, 1e-9), tty ? "" : "\n");
+          last_decile = decile;
+        }
+        if (f >= 1) break;
+      }
+      if (tty) std::fprintf(stderr, "\n");
+    });
+    worker();
+    for (auto& t : pool) t.join();
+    steps_done.store(steps_total);
+    progress.join();
+  } else {
+    worker();
+    for (auto& t : pool) t.join();
+  }
+  for (auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
+  write_sim_report(c, outcome.runs, tmp_dir / "report.html");
+  std::filesystem::remove_all(final_dir);
+  std::filesystem::rename(tmp_dir, final_dir);
+  tmp_guard.keep = true;
+  outcome.dir = final_dir;
+  outcome.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return outcome;
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,61 @@
+#include "cli.hpp"
+
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+
+namespace hil::bench {
+namespace {
+
+// `text` as a finite number; false when it is not one (trailing text, inf, nan, empty).
+bool to_finite(const std::string& text, double& value) {
+  char* end = nullptr;
+  value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
+}
+
+}  // namespace
+
+CLI::Validator finite_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        double v = 0;
+        return to_finite(text, v) ? std::string() : "needs a number, got '" + text + "'";
+      },
+      "");
+}
+
+CLI::Validator non_negative_number() {
+  return CLI::Validator(
+      [](std::string& text) {
+        double v = 0;
+        if (!to_finite(text, v)) return "needs a number, got '" + text + "'";
+        return v >= 0 ? std::string() : "cannot be negative, got " + text;
+      },
+      ">= 0");
+}
+
+CLI::Validator whole_number(std::int64_t min, std::int64_t max) {
+  const bool bounded = max < INT64_MAX;
+  const std::string range = bounded ? std::to_string(min) + ".." + std::to_string(max) : ">= " + std::to_string(min);
+  return CLI::Validator(
+      [min, max, range, bounded](std::string& text) {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        const bool whole = !text.empty() && end == text.c_str() + text.size() && errno == 0;
+        return whole && v >= min && v <= max
+                   ? std::string()
+                   : std::string("needs a whole number ") + (bounded ? "in " : "") + range + ", got '" + text + "'";
+      },
+      range);
+}
+
+CLI::App* add_command(CLI::App& parent, const std::string& name, const std::string& summary) {
+  CLI::App* cmd = parent.add_subcommand(name, summary);
+  cmd->group("Commands");
+  return cmd;
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,418 @@
+// hilbench ctl [--server URL] [--token T] COMMAND ...: the command-line client of hilbench serve.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "commands.hpp"
+#include "hil/bench/server/api_client.hpp"
+#include "hil/bench/server/runner.hpp"
+
+namespace hil::bench {
+namespace {
+
+using nlohmann::json;
+
+[[noreturn]] void fail(const ApiReply& r) {
+  std::string error = "HTTP " + std::to_string(r.status), detail;
+  try {
+    const json j = r.json();
+    error = j.value("error", error);
+    detail = j.value("detail", "");
+  } catch (const std::exception&) {
+    detail = r.body.substr(0, 300);
+  }
+  throw std::runtime_error(error + (detail.empty() ? "" : ": " + detail) + " (HTTP " + std::to_string(r.status) + ")");
+}
+
+json checked(const ApiReply& r) {
+  if (!r.ok()) fail(r);
+  return r.json();
+}
+
+std::string clock(double s) {
+  if (!std::isfinite(s) || s < 0) s = 0;
+  const long t = std::lround(s);
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
+  return buf;
+}
+
+std::string number(const json& j, const char* fmt_spec, const char* fallback = "-") {
+  if (!j.is_number()) return fallback;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, fmt_spec, j.get<double>());
+  return buf;
+}
+
+void print_last(const json& last) {
+  if (last.is_null()) return;
+  std::printf("last campaign: %s on %s: %s%s\n", last.value("campaign", "?").c_str(), last.value("rig", "?").c_str(),
+              last.value("outcome", "?").c_str(),
+              last["reason"].is_string() ? (" (" + last["reason"].get<std::string>() + ")").c_str() : "");
+  for (const auto& r : last.value("runs", json::array())) {
+    std::printf("  %-12s %-10s %s\n", r.value("run", "?").c_str(), r.value("outcome", "?").c_str(), r.value("dir", "").c_str());
+  }
+}
+
+void print_status(const json& s) {
+  const std::string state = s.value("state", "?");
+  if (state == "idle") {
+    std::printf("idle\n");
+    print_last(s["last"]);
+    return;
+  }
+  const json& p = s["progress"];
+  std::printf("%s: campaign %s (%s) on rig %s, run %s (%d of %d), speed %gx\n", state.c_str(), s.value("campaign", "?").c_str(),
+              s.value("source", "?").c_str(), s.value("rig", "?").c_str(), s.value("run", "?").c_str(),
+              s.value("run_index", 0) + 1, s.value("runs_total", 0), s.value("speed", 1.0));
+  std::printf("  progress %s%%  t = %s of %s s  elapsed %s  remaining %s\n",
+              number(p["fraction"].get<double>() * 100, "%.1f").c_str(), number(p["t_s"], "%.2f").c_str(),
+              number(p["duration_s"], "%.1f").c_str(), clock(p.value("elapsed_s", 0.0)).c_str(),
+              clock(p.value("remaining_s", 0.0)).c_str());
+  if (s.contains("loop")) {
+    const json& l = s["loop"];
+    const json& w = l["wake_latency_us"];
+    const json& c = l["compute_us"];
+    std::printf("  loop %s%s: %lld periods, %lld overruns, %lld missed reads\n", l.value("sched", "").c_str(),
+                l.value("memory_locked", false) ? ", memory locked" : "", l.value("periods", 0LL), l.value("overruns", 0LL),
+                l.value("missed_reads", 0LL));
+    std::printf("  wake-up latency us: min %s mean %s p99 %s p99.9 %s max %s\n", number(w["min_us"], "%.1f").c_str(),
+                number(w["mean_us"], "%.1f").c_str(), number(w["p99_us"], "%.1f").c_str(), number(w["p99_9_us"], "%.1f").c_str(),
+                number(w["max_us"], "%.1f").c_str());
+    std::printf("  compute us:         min %s mean %s p99 %s p99.9 %s max %s\n", number(c["min_us"], "%.1f").c_str(),
+                number(c["mean_us"], "%.1f").c_str(), number(c["p99_us"], "%.1f").c_str(), number(c["p99_9_us"], "%.1f").c_str(),
+                number(c["max_us"], "%.1f").c_str());
+    if (!l.value("rt_warning", "").empty()) std::printf("  warning: %s\n", l.value("rt_warning", "").c_str());
+  }
+  if (s.contains("now")) {
+    const json& n = s["now"];
+    std::printf("  now: p_meas %s MPa, p_ref %s MPa, cmd %s deg, gap %s deg\n", number(n["p_meas_mpa"], "%.4f").c_str(),
+                number(n["p_ref_mpa"], "%.4f").c_str(), number(n["theta_cmd_deg"], "%.3f").c_str(),
+                number(n["gap_true_deg"], "%.3f").c_str());
+  }
+  if (s.contains("telemetry")) {
+    const json& t = s["telemetry"];
+    std::printf("  telemetry: %llu rows on disk; not recorded: %llu rows (ring full), %llu rows (disk), %llu events%s\n",
+                t.value("rows_written", 0ULL), t.value("rows_lost", 0ULL), t.value("rows_unwritten", 0ULL),
+                t.value("events_lost", 0ULL),
+                t.value("write_error", json(nullptr)).is_string() ? "  DISK REFUSED TELEMETRY" : "");
+  }
+  if (s.contains("safety") && s["safety"].value("safe_state", false)) {
+    std::printf("  SAFE STATE (trip: %s)\n",
+                s["safety"]["trip"].is_string() ? s["safety"]["trip"].get<std::string>().c_str() : "?");
+  }
+  for (const auto& f : s.value("faults", json::array())) std::printf("  fault: %s\n", f.dump().c_str());
+}
+
+// Follows the running campaign with a progress bar; returns the exit status of its outcome.
+int watch(const ApiClient& api) {
+  const bool tty = ::isatty(STDERR_FILENO);
+  int last_decile = -1;
+  std::string last_run;
+  for (;;) {
+    const json s = checked(api.get("/api/status"));
+    if (s.value("state", "") == "idle") {
+      if (tty) std::fprintf(stderr, "\n");
+      print_last(s["last"]);
+      const std::string outcome = s["last"].is_object() ? s["last"].value("outcome", "") : "";
+      return outcome_from(outcome) == Outcome::completed ? 0 : 3;
+    }
+    const json& p = s["progress"];
+    const double f = std::clamp(p.value("fraction", 0.0), 0.0, 1.0);
+    const std::string run = s.value("run", "?");
+    constexpr int kWidth = 30;
+    const int filled = static_cast<int>(f * kWidth);
+    std::string bar(static_cast<std::size_t>(filled), '#');
+    bar.resize(kWidth, '.');
+    const std::string faults = s.value("faults", json::array()).empty() ? "" : "  faults " + std::to_string(s["faults"].size());
+    const std::string safe = s.value("state", "") == "safe" ? "  SAFE STATE" : "";
+    char line[300];
+    std::snprintf(
+        line, sizeof line, "[%s] %3.0f%%  %s %s (%d/%d)  t %5.1f/%.0f s  elapsed %s  remaining %s  lost %llu%s%s", bar.c_str(),
+        f * 100, s.value("campaign", "?").c_str(), run.c_str(), s.value("run_index", 0) + 1, s.value("runs_total", 0),
+        p.value("t_s", 0.0), p.value("duration_s", 0.0), clock(p.value("elapsed_s", 0.0)).c_str(),
+        clock(p.value("remaining_s", 0.0)).c_str(),
+        s.contains("telemetry") ? s["telemetry"].value("rows_lost", 0ULL) + s["telemetry"].value("rows_unwritten", 0ULL) : 0ULL,
+        faults.c_str(), safe.c_str());
+    const int decile = static_cast<int>(f * 10);
+    if (tty) {
+      std::fprintf(stderr, "\r%s\033[K", line);
+    } else if (decile != last_decile || run != last_run) {
+      std::fprintf(stderr, "%s\n", line);
+    }
+    last_decile = decile;
+    last_run = run;
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// ctl's command line: the server every command talks to, and each command's arguments (one
+// command runs, so commands that share an option share its field).
+struct CtlArgs {
+  std::string server_url = "http://127.0.0.1:8470";
+  std::string token;
+  bool json = false;                        // status
+  std::string campaign, rig = "sim", runs;  // start
+  double speed = 1;                         // start, given or not (speed_opt)
+  const CLI::Option* speed_opt = nullptr;
+  bool detach = false;                       // start
+  std::string reason = "from hilbench ctl";  // abort
+  std::string gap;                           // inject gap: DEG or "programme"
+  std::string mode;                          // inject sensor / rig
+  double size_kpa = std::nan("");            // inject sensor bias|noise; NaN: not given
+  double duration_s = std::nan("");          // inject sensor / drive; NaN: until cleared
+  bool off = false;                          // inject drive / rig
+  double rate_hz = 10;                       // telemetry
+  long count = 0;                            // telemetry; 0: until the stream ends
+  std::string run, file, out;                // show, get
+};
+
+using Handler = std::function<int(const CtlArgs&, const ApiClient&)>;
+
+int inject(const std::string& kind, json body, const ApiClient& api) {
+  checked(api.post("/api/inject/" + kind, body));
+  std::printf("injected %s %s\n", kind.c_str(), body.dump().c_str());
+  return 0;
+}
+
+int start(const CtlArgs& a, const ApiClient& api) {
+  json body = {{"rig", a.rig}};
+  const bool file = a.campaign.find('/') != std::string::npos || a.campaign.ends_with(".yaml") || a.campaign.ends_with(".yml");
+  if (file) {
+    body["campaign_yaml"] = read_file(a.campaign);
+  } else {
+    body["campaign"] = a.campaign;
+  }
+  if (!a.runs.empty()) {
+    std::stringstream rs(a.runs);
+    body["runs"] = json::array();
+    for (std::string r; std::getline(rs, r, ',');) {
+      if (!r.empty()) body["runs"].push_back(r);
+    }
+  }
+  if (a.speed_opt->count() > 0) body["speed"] = a.speed;
+  const json j = checked(api.post("/api/start", body));
+  std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
+  std::fflush(stdout);
+  return a.detach ? 0 : watch(api);
+}
+
+int telemetry(const CtlArgs& a, const ApiClient& api) {
+  std::vector<std::string> columns;
+  long rows = 0;
+  char target[64];
+  std::snprintf(target, sizeof target, "/api/telemetry?rate_hz=%g", a.rate_hz);
+  api.stream(target, [&](const std::string& message) {
+    const json j = json::parse(message);
+    const std::string type = j.value("type", "");
+    if (type == "hello") {
+      for (const auto& c : j["columns"]) columns.push_back(c.get<std::string>());
+      std::string header;
+      for (const auto& c : columns) header += (header.empty() ? std::string() : std::string(",")) + c;
+      std::printf("%s\n", header.c_str());
+    } else if (type == "row") {
+      std::string line;
+      for (const auto& c : columns) {
+        if (!line.empty()) line.push_back(',');
+        line += j[c].is_number() ? number(j[c], "%.6g") : std::string("nan");
+      }
+      std::printf("%s\n", line.c_str());
+      ++rows;
+    } else {
+      std::printf("# %s\n", message.c_str());
+    }
+    std::fflush(stdout);
+    return a.count <= 0 || rows < a.count;
+  });
+  return 0;
+}
+
+// The commands of `hilbench ctl`, each with its arguments and what it does.
+void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const CLI::App*, Handler>>& handlers) {
+  const auto command = [&](CLI::App& parent, const std::string& name, const std::string& summary, Handler h = nullptr) {
+    CLI::App* cmd = add_command(parent, name, summary);
+    if (h) handlers.emplace_back(cmd, std::move(h));
+    return cmd;
+  };
+  command(ctl, "status", "state, progress, loop statistics, active faults", [](const CtlArgs& a, const ApiClient& api) {
+    const json s = checked(api.get("/api/status"));
+    if (a.json) {
+      std::printf("%s\n", s.dump(2).c_str());
+    } else {
+      print_status(s);
+    }
+    return 0;
+  })->add_flag("--json", args.json, "the server's answer as JSON");
+  for (const std::string what : {"campaigns", "rigs"}) {
+    command(ctl, what, "what the server offers: its " + what, [what](const CtlArgs&, const ApiClient& api) {
+      const json j = checked(api.get("/api/" + what));
+      for (const auto& c : j[what]) {
+        if (c.contains("error")) {
+          std::printf("%-20s ERROR %s\n", c.value("name", "?").c_str(), c.value("error", "").c_str());
+        } else if (what == "campaigns") {
+          std::string runs;
+          for (const auto& r : c["runs"]) runs += (runs.empty() ? std::string() : std::string(",")) + r.get<std::string>();
+          std::printf("%-20s %6.1f s  dT %g ms  runs %-20s %s\n", c.value("name", "?").c_str(), c.value("duration_s", 0.0),
+                      c.value("period_ms", 0.0), runs.c_str(), c.value("description", "").c_str());
+        } else {
+          std::printf("%-20s %-8s prio %-3d cpu %-3d %s\n", c.value("name", "?").c_str(), c.value("kind", "?").c_str(),
+                      c.value("priority", 0), c.value("cpu", -1), c.value("description", "").c_str());
+        }
+      }
+      return 0;
+    });
+  }
+  command(ctl, "runs", "the runs the server has recorded", [](const CtlArgs&, const ApiClient& api) {
+    const json list = checked(api.get("/api/runs"));
+    for (const auto& r : list["runs"]) {
+      std::printf("%-50s %-10s %s\n", r.value("id", "?").c_str(),
+                  r["outcome"].is_string() ? r["outcome"].get<std::string>().c_str() : "?",
+                  r["reason"].is_string() ? r["reason"].get<std::string>().c_str() : "");
+    }
+    return 0;
+  });
+
+  CLI::App* s = command(ctl, "start", "start a campaign (a name, or a YAML file posted); follow it with a progress bar", start);
+  s->add_option("campaign", args.campaign, "the campaign's name on the server, or a campaign file")
+      ->required()
+      ->type_name("NAME|FILE.yaml");
+  s->add_option("--rig", args.rig, "the rig it runs on")->type_name("R")->capture_default_str();
+  s->add_option("--runs", args.runs, "only these runs of the campaign")->type_name("a,b");
+  args.speed_opt =
+      s->add_option("--speed", args.speed, "the simulated rig's speed, times real time")->type_name("X")->check(finite_number());
+  s->add_flag("--detach", args.detach, "return once started, no progress bar");
+
+  command(ctl, "watch", "progress bar of the running campaign until it ends",
+          [](const CtlArgs&, const ApiClient& api) { return watch(api); });
+  command(ctl, "stop", "end the campaign now (outcome 'stopped')", [](const CtlArgs&, const ApiClient& api) {
+    checked(api.post("/api/stop", json::object()));
+    std::printf("stopping\n");
+    return 0;
+  });
+  command(ctl, "abort", "safe state, then end (outcome 'aborted')",
+          [](const CtlArgs& a, const ApiClient& api) {
+            const json j = checked(api.post("/api/abort", {{"reason", a.reason}}));
+            std::printf("aborting (%s)\n", j.value("reason", "").c_str());
+            return 0;
+          })
+      ->add_option("--reason", args.reason, "why, for the run's record")
+      ->type_name("TEXT");
+
+  CLI::App* in = command(ctl, "inject", "faults into the running campaign: gap, sensor, drive, rig; clear them");
+  in->require_subcommand(1);
+  command(*in, "gap", "the true gap now, deg, or back to the campaign's programme",
+          [](const CtlArgs& a, const ApiClient& api) {
+            const bool programme = a.gap == "programme" || a.gap == "program";
+            return inject("gap", programme ? json{{"programme", true}} : json{{"gap_deg", std::stod(a.gap)}}, api);
+          })
+      ->add_option("gap", args.gap, "degrees, or 'programme'")
+      ->required()
+      ->type_name("DEG|programme")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            if (text == "programme" || text == "program") return std::string();
+            return finite_number()(text).empty() ? std::string() : "needs degrees or 'programme', got '" + text + "'";
+          },
+          ""));
+  CLI::App* sensor =
+      command(*in, "sensor", "stuck, dropout, or a bias or noise of KPA", [](const CtlArgs& a, const ApiClient& api) {
+        const bool sized = a.mode == "bias" || a.mode == "noise";
+        if (sized && std::isnan(a.size_kpa)) throw UsageError("sensor " + a.mode + " needs its size, KPA");
+        if (!sized && !std::isnan(a.size_kpa)) throw UsageError("sensor " + a.mode + " takes no size");
+        json body = {{"mode", a.mode}};
+        if (sized) body[a.mode == "bias" ? "bias_kpa" : "rms_kpa"] = a.size_kpa;
+        if (!std::isnan(a.duration_s)) body["duration_s"] = a.duration_s;
+        return inject("sensor", body, api);
+      });
+  // The kinds are in the type name already: the check's own description would repeat them.
+  sensor->add_option("mode", args.mode, "the fault")
+      ->required()
+      ->type_name("stuck|dropout|bias|noise")
+      ->check(CLI::IsMember({"stuck", "dropout", "bias", "noise"}).description(""));
+  sensor->add_option("size", args.size_kpa, "the bias or the noise RMS, kPa")->type_name("KPA")->check(finite_number());
+  sensor->add_option("--duration-s", args.duration_s, "how long (default: until cleared)")
+      ->type_name("S")
+      ->check(non_negative_number());
+  CLI::App* drive = command(*in, "drive", "the drive ignores commands", [](const CtlArgs& a, const ApiClient& api) {
+    json body = {{"mode", "ignore_commands"}, {"on", !a.off}};
+    if (!std::isnan(a.duration_s)) body["duration_s"] = a.duration_s;
+    return inject("drive", body, api);
+  });
+  drive->add_flag("--off", args.off, "end the fault");
+  drive->add_option("--duration-s", args.duration_s, "how long (default: until cleared)")
+      ->type_name("S")
+      ->check(non_negative_number());
+  CLI::App* rig = command(*in, "rig", "the (simulated) rig stops answering", [](const CtlArgs& a, const ApiClient& api) {
+    return inject("rig", {{"mode", a.mode}, {"on", !a.off}}, api);
+  });
+  rig->add_option("mode", args.mode, "the fault")
+      ->required()
+      ->type_name("silent")
+      ->check(CLI::IsMember({"silent"}).description(""));
+  rig->add_flag("--off", args.off, "end the fault");
+  command(*in, "clear", "clear every fault",
+          [](const CtlArgs&, const ApiClient& api) { return inject("clear", json::object(), api); });
+
+  CLI::App* t = command(ctl, "telemetry", "live rows as CSV on stdout", telemetry);
+  t->add_option("--rate-hz", args.rate_hz, "rows per second")->type_name("N")->check(finite_number())->capture_default_str();
+  t->add_option("--count", args.count, "stop after N rows (0: never)")->type_name("N")->check(whole_number(0, INT64_MAX));
+
+  command(ctl, "show", "a past run's run.json and files",
+          [](const CtlArgs& a, const ApiClient& api) {
+            std::printf("%s\n", checked(api.get("/api/runs/" + a.run)).dump(2).c_str());
+            return 0;
+          })
+      ->add_option("run", args.run, "the run's id (hilbench ctl runs)")
+      ->required()
+      ->type_name("RUN");
+  CLI::App* get = command(ctl, "get", "download a file of a past run", [](const CtlArgs& a, const ApiClient& api) {
+    const std::filesystem::path out = a.out.empty() ? a.file : a.out;
+    const ApiReply r = api.download("/api/runs/" + a.run + "/" + a.file, out);
+    if (!r.ok()) fail(r);
+    std::printf("%s (%ju bytes)\n", out.c_str(), static_cast<std::uintmax_t>(std::filesystem::file_size(out)));
+    return 0;
+  });
+  get->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
+  get->add_option("file", args.file, "the file's name in the run")->required()->type_name("FILE");
+  get->add_option("--out", args.out, "where it goes (default: FILE)")->type_name("PATH");
+}
+
+}  // namespace
+
+CommandRun define_ctl(CLI::App& ctl) {
+  auto args = std::make_shared<CtlArgs>();
+  auto handlers = std::make_shared<std::vector<std::pair<const CLI::App*, Handler>>>();
+  ctl.add_option("--server", args->server_url, "the server")->type_name("URL")->envname("HILBENCH_SERVER")->capture_default_str();
+  ctl.add_option("--token", args->token, "its token")->type_name("T")->envname("HILBENCH_TOKEN");
+  ctl.require_subcommand(1);
+  // The commands inherit fallthrough: --server and --token may come after the command too.
+  ctl.fallthrough();
+  define_commands(ctl, *args, *handlers);
+  ctl.fallthrough(false);
+  ctl.footer(
+      "exit status: 0 success (a followed campaign completed), 1 error reply or failure,\n"
+      "             2 usage, 3 a followed campaign ended stopped, aborted or in error");
+  return [args, handlers, &ctl] {
+    const CLI::App* at = &ctl;
+    while (!at->get_subcommands().empty()) at = at->get_subcommands().front();
+    for (const auto& [cmd, handler] : *handlers) {
+      if (cmd == at) return handler(*args, ApiClient(args->server_url, args->token));
+    }
+    throw UsageError("needs a command");  // unreachable: CLI11 requires one, and every leaf has a handler
+  };
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,169 @@
+// hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
+//                [--max-body-kb N] [--no-mlock]
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <thread>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <spdlog/spdlog.h>
+
+#include "commands.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/server/runner.hpp"
+#include "server/api_server.hpp"
+
+namespace hil::bench {
+
+namespace {
+
+std::pair<std::string, unsigned short> split_listen(const std::string& listen) {
+  std::string host = listen, port = "8470";
+  if (!listen.empty() && listen.front() == '[') {  // [::1]:8470
+    const auto close = listen.find(']');
+    if (close == std::string::npos) throw UsageError("--listen '" + listen + "': missing ']'");
+    host = listen.substr(1, close - 1);
+    if (close + 1 < listen.size() && listen[close + 1] == ':') port = listen.substr(close + 2);
+  } else if (const auto colon = listen.rfind(':'); colon != std::string::npos && listen.find(':') == colon) {
+    host = listen.substr(0, colon);
+    port = listen.substr(colon + 1);
+  }
+  try {
+    const long p = std::stol(port);
+    if (p < 0 || p > 65535) throw std::out_of_range(port);
+    return {host, static_cast<unsigned short>(p)};
+  } catch (const std::exception&) {
+    throw UsageError("--listen '" + listen + "': the port must be 0..65535");
+  }
+}
+
+struct ServeArgs {
+  std::string listen = "127.0.0.1:8470";
+  std::string token;  // empty: no token required
+  std::string configs_dir = "configs";
+  std::string runs_dir = "runs";
+  std::string port_file;  // empty: none
+  std::size_t max_body_kb = 1024;
+  bool no_mlock = false;
+};
+
+int run_serve(const ServeArgs& args) {
+  ApiOptions api;
+  std::tie(api.address, api.port) = split_listen(args.listen);
+  api.token = args.token;
+  const std::filesystem::path configs = args.configs_dir;
+  api.campaigns_dir = configs / "campaigns";
+  api.rigs_dir = configs / "rigs";
+  api.runs_dir = args.runs_dir;
+  api.version = HIL_VERSION;
+  api.max_body_bytes = args.max_body_kb * 1024;
+  for (const auto& dir : {api.campaigns_dir, api.rigs_dir}) {
+    if (!std::filesystem::is_directory(dir)) {
+      throw std::runtime_error("no folder " + dir.string() + " (give --configs DIR, the folder holding campaigns/ and rigs/)");
+    }
+  }
+  std::filesystem::create_directories(api.runs_dir);
+  // Runs a dead server left "running" get their honest end before anyone lists them.
+  for (const auto& dir : mark_interrupted_runs(api.runs_dir)) {
+    spdlog::warn("run {}: its server ended during the run; marked interrupted", dir.filename().string());
+  }
+
+  std::string mlock_warning = "not requested (--no-mlock)";
+  if (!args.no_mlock) {
+    mlock_warning = lock_memory();
+    if (!mlock_warning.empty()) spdlog::warn("{}", mlock_warning);
+  }
+
+  // Destruction order matters: the runner ends before the io_context, whose pending handlers
+  // (sessions) still unsubscribe from the hub when it is destroyed.
+  TelemetryHub hub;
+  boost::asio::io_context io;
+  RunnerOptions ro;
+  ro.runs_dir = api.runs_dir;
+  ro.version = HIL_VERSION;
+  ro.mlock_warning = mlock_warning;
+  ro.on_row = [&hub](const TelemetryRecord& r) { hub.publish_row(r); };
+  ro.on_notice = [&hub](const nlohmann::json& j) {
+    hub.publish_notice(j);
+    if (j.value("type", "") == "run_end" || j.value("type", "") == "campaign_end") {
+      spdlog::info("{} {}: {}{}", j.value("type", ""),
+                   j.value("campaign", "") + (j.contains("run") ? "/" + j.value("run", "") : ""), j.value("outcome", ""),
+                   j["reason"].is_string() ? " (" + j["reason"].get<std::string>() + ")" : "");
+    }
+  };
+  CampaignRunner runner(std::move(ro));
+  ApiServer server(io, api, runner, hub);
+
+  const std::string where = "http://" + (api.address.find(':') != std::string::npos ? "[" + api.address + "]" : api.address) +
+                            ":" + std::to_string(server.port());
+  std::printf("hilbench serve: listening on %s%s\n", where.c_str(), api.token.empty() ? "" : " (token required)");
+  std::fflush(stdout);
+  if (!args.port_file.empty()) {
+    const std::filesystem::path file = args.port_file;
+    const auto tmp = file.string() + ".tmp";
+    std::ofstream(tmp) << server.port() << "\n";
+    std::filesystem::rename(tmp, file);
+  }
+
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  std::thread waiter;
+  std::function<void(const boost::system::error_code&, int)> on_signal = [&](const boost::system::error_code& ec, int sig) {
+    if (ec) return;
+    const std::string name = sig == SIGTERM ? "SIGTERM" : "SIGINT";
+    if (waiter.joinable()) {
+      spdlog::warn("{} again: still finishing the run (safe state, files); exiting as soon as it ends", name);
+    } else {
+      spdlog::warn("{} received: the running campaign goes to its safe state, then the server exits", name);
+      server.refuse_starts("the server is shutting down (" + name + ")");
+      try {
+        runner.abort(name + " received");
+      } catch (const Conflict&) {  // idle
+      }
+      waiter = std::thread([&] {
+        while (runner.running()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        boost::asio::post(io, [&] { io.stop(); });
+      });
+    }
+    signals.async_wait(on_signal);
+  };
+  signals.async_wait(on_signal);
+  // A handler that throws ends that handler's work, never the server: a campaign may be running.
+  for (;;) {
+    try {
+      io.run();
+      break;
+    } catch (const std::exception& e) {
+      spdlog::error("request handling: {} (the server goes on)", e.what());
+    } catch (...) {
+      spdlog::error("request handling: unknown exception (the server goes on)");
+    }
+  }
+  if (waiter.joinable()) waiter.join();
+  spdlog::info("hilbench serve: stopped");
+  return 0;
+}
+
+}  // namespace
+
+CommandRun define_serve(CLI::App& cmd) {
+  auto args = std::make_shared<ServeArgs>();
+  cmd.add_option("--listen", args->listen, "the operator API's address (port 0: any free one)")
+      ->type_name("HOST:PORT")
+      ->capture_default_str();
+  cmd.add_option("--token", args->token, "the token every request must carry")->type_name("T")->envname("HILBENCH_TOKEN");
+  cmd.add_option("--configs", args->configs_dir, "the folder holding campaigns/ and rigs/")
+      ->type_name("DIR")
+      ->capture_default_str();
+  cmd.add_option("--runs-dir", args->runs_dir, "where runs are recorded")->type_name("DIR")->capture_default_str();
+  cmd.add_option("--port-file", args->port_file, "write the port there once listening (the ready signal)")->type_name("F");
+  cmd.add_option("--max-body-kb", args->max_body_kb, "the largest request body")
+      ->type_name("N")
+      ->check(whole_number(0, 1024 * 1024))
+      ->capture_default_str();
+  cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
+  return [args] { return run_serve(*args); };
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,89 @@
+// hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+
+#include "commands.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/sim.hpp"
+
+namespace hil::bench {
+namespace {
+std::atomic<bool> g_cancel{false};
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void on_cancel_signal(int sig) {
+  g_signal = sig;
+  g_cancel.store(true);
+}
+
+struct SimArgs {
+  std::string campaign_file;
+  std::string out_dir = "out";
+  std::string runs;  // comma-separated run names; empty: all
+  double sensor_noise_kpa = 0;
+  const CLI::Option* sensor_noise = nullptr;  // given: the campaign's sensor noise is overridden
+  bool no_telemetry = false;
+  bool quiet = false;
+};
+
+int run_sim(const SimArgs& args) {
+  // Load and validate everything before anything is written.
+  Campaign campaign = load_campaign(args.campaign_file);
+  if (args.sensor_noise->count() > 0) {
+    try {
+      campaign = with_sensor_noise(std::move(campaign), args.sensor_noise_kpa);
+    } catch (const std::invalid_argument& e) {  // beyond the sensor effect's range
+      throw UsageError("--sensor-noise-kpa " + args.sensor_noise->as<std::string>() + ": " + e.what());
+    }
+  }
+  SimOptions options;
+  options.out_dir = args.out_dir;
+  options.telemetry = !args.no_telemetry;
+  options.progress = !args.quiet;
+  options.cancel = &g_cancel;
+  // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
+  std::signal(SIGINT, on_cancel_signal);
+  std::signal(SIGTERM, on_cancel_signal);
+  std::stringstream runs(args.runs);
+  for (std::string name; std::getline(runs, name, ',');) {
+    if (!name.empty()) options.only_runs.push_back(name);
+  }
+  CampaignOutcome out;
+  try {
+    out = run_campaign(campaign, options);
+  } catch (const Cancelled&) {
+    std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(),
+                 g_signal == SIGTERM ? "SIGTERM" : "SIGINT", options.out_dir.c_str());
+    return 128 + static_cast<int>(g_signal);
+  }
+  if (!args.quiet) {
+    std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
+                out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
+    std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
+    for (const auto& r : out.runs) {
+      std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s, r.summary.stall_s_total,
+                  r.summary.gap_est_final_deg, r.summary.touch_state_changes, r.summary.compensation_events);
+    }
+    std::printf("  report: %s\n", (out.dir / "report.html").c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+CommandRun define_sim(CLI::App& cmd) {
+  auto args = std::make_shared<SimArgs>();
+  cmd.add_option("campaign", args->campaign_file, "the campaign file")->required()->type_name("CAMPAIGN.yaml");
+  cmd.add_option("--out", args->out_dir, "where OUT/<campaign>/ is written")->type_name("DIR")->capture_default_str();
+  cmd.add_option("--runs", args->runs, "only these runs of the campaign")->type_name("a,b");
+  args->sensor_noise =
+      cmd.add_option("--sensor-noise-kpa", args->sensor_noise_kpa, "the transducer's noise RMS instead of the campaign's")
+          ->type_name("KPA")
+          ->check(non_negative_number());
+  cmd.add_flag("--no-telemetry", args->no_telemetry, "no telemetry.csv per run (summaries and report only)");
+  cmd.add_flag("--quiet", args->quiet, "no progress and no table of results");
+  return [args] { return run_sim(*args); };
+}
+
+}  // namespace hil::bench

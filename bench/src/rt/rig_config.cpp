@@ -1,0 +1,110 @@
+#include "hil/bench/rt/rig_config.hpp"
+
+#include <fstream>
+#include <sstream>
+
+#include "hil/bench/rt/rig_registry.hpp"
+#include "hil/config.hpp"
+
+namespace hil::bench {
+namespace {
+
+// `{cia402: FILE | {...}}` and the like: a device's client configuration from its file (paths
+// relative to the rig file) or inline.
+template <class Config>
+Config device_config(const cfg::Node& n) {
+  if (n.is_scalar()) return Config::load(n.resolve_path(n.text()));
+  return Config::from_yaml(n);
+}
+
+std::chrono::microseconds max_age(const cfg::Node& device, std::chrono::milliseconds poll_period) {
+  const auto key = device.find("max_age_ms");
+  if (!key) return 2 * poll_period;  // two polls
+  key->require(key->number() > 0 && key->number() <= 60000, "must be > 0 and <= 60000 ms");
+  return std::chrono::microseconds(std::lround(key->number() * 1000));
+}
+
+bool takes_cia402(DriveNeed n) { return n == DriveNeed::cia402 || n == DriveNeed::cia402_or_modbus; }
+bool takes_modbus(DriveNeed n) { return n == DriveNeed::modbus || n == DriveNeed::cia402_or_modbus; }
+
+// The `devices` block as the kind declares it (RigKindInfo::devices).
+RigDevices devices_from(const cfg::Node& root, const std::string& kind, const RigDeviceNeeds& needs) {
+  RigDevices d;
+  if (needs.drive == DriveNeed::none && !needs.transducer) {
+    if (root.has("devices"))
+      root.at("devices").fail("the " + kind + " rig has no devices (it simulates the drive and the transducer)");
+    return d;
+  }
+  const cfg::Node devices = root.at("devices");
+  devices.allow_keys({"drive", "transducer"});
+  if (needs.drive == DriveNeed::none) {
+    if (devices.has("drive")) devices.at("drive").fail("the " + kind + " rig simulates the drive: it takes no drive");
+  } else {
+    const cfg::Node drive = devices.at("drive");
+    drive.allow_keys({"cia402", "modbus", "max_age_ms"});
+    if (drive.has("cia402") == drive.has("modbus")) drive.fail("needs one of cia402 (a CiA 402 drive on CAN) or modbus");
+    if (drive.has("cia402")) {
+      if (!takes_cia402(needs.drive)) drive.at("cia402").fail("the " + kind + " rig needs a Modbus drive (drive: {modbus: ...})");
+      if (drive.has("max_age_ms")) {
+        drive.at("max_age_ms")
+            .fail("a CAN drive's feedback is stale when no TPDO arrived since the last SYNC; no age limit to set");
+      }
+      d.can_drive = device_config<drv::Cia402Config>(drive.at("cia402"));
+    } else {
+      if (!takes_modbus(needs.drive))
+        drive.at("modbus").fail("the " + kind + " rig needs a CiA 402 drive (drive: {cia402: ...})");
+      d.modbus_drive = device_config<drv::ModbusDriveConfig>(drive.at("modbus"));
+      d.drive_max_age = max_age(drive, d.modbus_drive->link.poll_period);
+    }
+  }
+  if (!needs.transducer) {
+    if (devices.has("transducer")) {
+      devices.at("transducer")
+          .fail("the " + kind + " rig simulates the chamber: its pressure comes from the plant, not a transducer");
+    }
+    return d;
+  }
+  const cfg::Node transducer = devices.at("transducer");
+  transducer.allow_keys({"modbus", "max_age_ms"});
+  d.transducer = device_config<drv::ModbusTransducerConfig>(transducer.at("modbus"));
+  d.transducer_max_age = max_age(transducer, d.transducer->link.poll_period);
+  return d;
+}
+
+RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
+  root.allow_keys({"kind", "description", "devices", "loop", "safety"});
+  RigConfig c;
+  c.name = std::move(name);
+  c.file = root.file();
+  c.yaml_text = std::move(text);
+  c.kind = root.text("kind");
+  const RigKindInfo* kind = find_rig_kind(c.kind);
+  if (kind == nullptr) root.at("kind").fail(unknown_rig_kind_text(c.kind));
+  c.description = root.text("description", "");
+  c.devices = devices_from(root, c.kind, kind->devices);
+  if (const auto loop = root.find("loop")) c.loop = LoopConfig::from_yaml(*loop);
+  c.safety = SafetyConfig::from_yaml(root.at("safety"));
+  return c;
+}
+
+}  // namespace
+
+RigConfig load_rig_config(const std::filesystem::path& file) {
+  const cfg::Node root = cfg::Node::load_file(file);
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return from_node(root, file.stem().string(), text.str());
+}
+
+RigConfig load_rig_config_text(const std::string& yaml, const std::string& origin) {
+  return from_node(cfg::Node::load_string(yaml, origin), std::filesystem::path(origin).stem().string(), yaml);
+}
+
+std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport) {
+  const RigKindInfo* kind = find_rig_kind(config.kind);
+  if (kind == nullptr) throw std::invalid_argument(config.file.string() + ": " + unknown_rig_kind_text(config.kind));
+  return kind->make(*kind, config, can_transport);
+}
+
+}  // namespace hil::bench
