@@ -1,0 +1,292 @@
+#include "hil/bench/rt/device_rig.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/modbus.hpp"
+
+namespace hil::bench {
+
+namespace {
+double ms(Clock::duration d) noexcept { return std::chrono::duration<double, std::milli>(d).count(); }
+}  // namespace
+
+DeviceRig::DeviceRig(const RigConfig& config, const RigKindInfo& kind, Parts parts)
+    : config_(config), kind_(kind.kind), capabilities_(kind.capabilities), parts_(std::move(parts)) {
+  if (!parts_.drive) throw std::invalid_argument(config_.file.string() + ": rig '" + config_.name + "' has no drive");
+  // The capabilities are declared by the kind and delivered by the parts: they must agree, or the
+  // runner would offer gap changes the rig ignores (or drop truth columns it has).
+  const bool sim_chamber = simulated_chamber();
+  if (capabilities_.simulated || capabilities_.programmable_gap != sim_chamber || capabilities_.knows_truth != sim_chamber) {
+    throw std::logic_error(kind_ +
+                           " rig: its declared capabilities do not match its parts (a real drive is never simulated; "
+                           "a programmable gap and the truth come with the simulated chamber, and only with it)");
+  }
+}
+
+DeviceRig::~DeviceRig() = default;
+
+void DeviceRig::configure(const RigSetup& setup) {
+  if (!(setup.period_s > 0)) throw std::invalid_argument(kind_ + " rig: the period must be > 0");
+  active_ = false;
+  configured_ = false;
+  drive_.reset();
+  sensor_.reset();
+  period_s_ = setup.period_s;
+  {
+    // The parts' I/O threads answer the loop every period: they inherit this priority (and the
+    // runner thread's affinity, which keeps off the loop's CPU).
+    const ScopedRealtime io_sched(config_.loop.io_priority);
+    if (!io_sched.warning().empty()) spdlog::warn("{} rig '{}': {}", kind_, config_.name, io_sched.warning());
+    drive_ = parts_.drive(setup);
+    drive_->configure();
+    if (parts_.pressure_sensor) {
+      sensor_ = parts_.pressure_sensor(setup);
+      sensor_->configure();
+    }
+  }
+  drive_freshness_ = drive_->freshness();
+  offset_rad_ = 0;
+  if (simulated_chamber()) {
+    if (setup.campaign == nullptr || !setup.campaign->plant) {
+      throw std::invalid_argument(kind_ + " rig: configure needs a campaign with a plant");
+    }
+    const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
+    if (!fb.valid || !std::isfinite(fb.position_rad))
+      throw std::runtime_error(kind_ + " rig: the drive reports no position after configure");
+    plant_ = setup.campaign->plant;
+    state_ = plant_->make_state(setup.campaign->seed);
+    plant_->settle(state_, setup.p_initial_pa, plant::kNaN, 0.0, setup.gap_initial_rad);
+    offset_rad_ = fb.position_rad - state_.s.theta_motor_rad;
+    motor_sim_rad_ = state_.s.theta_motor_rad;
+    cmd_sim_rad_ = state_.s.theta_cmd_rad;
+    gap_rad_ = setup.gap_initial_rad;
+    step_pending_ = false;
+  }
+  last_write_ = {};
+  stale_ = Stale::none;
+  reads_ = stale_reads_ = fault_reads_ = 0;
+  deactivate_error_[0] = '\0';
+  configured_ = true;
+}
+
+void DeviceRig::activate() {
+  if (!configured_) throw std::logic_error(kind_ + " rig: activate before configure (or after one that failed)");
+  activated_at_ = Clock::now();
+  first_write_done_ = false;
+  drive_->activate();
+  active_ = true;
+  // The loop starts from a reading: wait (setup, so it may block) until every device gives a fresh
+  // one, however long a loaded machine takes to deliver the first TPDO and poll, up to 5 s.
+  const auto until = Clock::now() + std::chrono::seconds(5);
+  for (;;) {
+    drv::DriveFeedback fb;
+    RigStatus s = read_drive(Clock::now(), fb);
+    if (s == RigStatus::ok && sensor_) {
+      const auto now = Clock::now();
+      const drv::PressureReading p = sensor_->read(now, Clock::duration::zero());
+      s = p.fault ? RigStatus::fault : (!p.valid || now - p.rx_time > parts_.sensor_max_age) ? RigStatus::stale : RigStatus::ok;
+      if (s == RigStatus::stale) {
+        stale_ = Stale::transducer;
+        stale_age_ms_ = p.valid ? ms(now - p.rx_time) : -1;
+      }
+    }
+    if (s == RigStatus::ok) {
+      stale_ = Stale::none;
+      return;
+    }
+    if (s == RigStatus::fault || Clock::now() > until) {
+      const RigHealth h = health();
+      throw std::runtime_error(kind_ + " rig: no fresh reading after enabling the drive" +
+                               (h.last_error_text().empty() ? std::string() : ": " + std::string(h.last_error_text())));
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+}
+
+void DeviceRig::deactivate() noexcept {
+  if (!active_ || !drive_) return;
+  active_ = false;
+  const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
+  if (fb.valid && !fb.enabled) return;  // already off (a drive in fault): nothing to wait for
+  try {
+    drive_->deactivate();
+  } catch (const std::exception& e) {
+    std::snprintf(deactivate_error_.data(), deactivate_error_.size(), "drive: deactivate: %s", e.what());
+  }
+}
+
+RigStatus DeviceRig::read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept {
+  fb = drive_->read(now, Clock::duration::zero());
+  if (fb.fault) return RigStatus::fault;
+  const bool fresh = drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write
+                         ? fb.valid && (last_write_ == Clock::time_point{} || fb.rx_time > last_write_)
+                         : fb.valid && (now - fb.rx_time <= parts_.drive_max_age || first_read(fb.rx_time));
+  if (fresh) return RigStatus::ok;
+  stale_ = Stale::drive;
+  stale_age_ms_ = fb.valid ? ms(now - fb.rx_time) : -1;
+  return RigStatus::stale;
+}
+
+RigStatus DeviceRig::read(Clock::time_point now, Clock::duration period, RigReading& out) noexcept {
+  ++reads_;
+  if (!active_ || !drive_) {
+    ++fault_reads_;
+    return RigStatus::fault;
+  }
+  drv::DriveFeedback fb;
+  RigStatus status = read_drive(now, fb);
+  if (fb.valid) motor_sim_rad_ = fb.position_rad - offset_rad_;
+  out.theta_motor_rad = motor_sim_rad_;
+  if (simulated_chamber()) {
+    // The physics goes on with the newest encoder angle whether or not it is fresh.
+    if (step_pending_) plant_->step(state_, {cmd_sim_rad_, motor_sim_rad_, gap_rad_}, period_s_);
+    step_pending_ = false;
+    out.p_meas_pa = state_.s.p_meas_pa;
+    out.theta_valve_rad = state_.s.theta_valve_rad;
+    out.p_chamber_pa = state_.s.p_chamber_pa;
+  } else {
+    const drv::PressureReading p = sensor_->read(now, period);
+    out.p_meas_pa = p.pressure_pa;
+    RigStatus ps = RigStatus::ok;
+    if (p.fault) {
+      ps = RigStatus::fault;
+    } else if (!p.valid || (now - p.rx_time > parts_.sensor_max_age && !first_read(p.rx_time))) {
+      ps = RigStatus::stale;
+      if (status == RigStatus::ok) {
+        stale_ = Stale::transducer;
+        stale_age_ms_ = p.valid ? ms(now - p.rx_time) : -1;
+      }
+    }
+    status = std::max(status, ps);  // ok < stale < fault
+  }
+  if (status == RigStatus::ok) stale_ = Stale::none;
+  if (status == RigStatus::stale) ++stale_reads_;
+  if (status == RigStatus::fault) ++fault_reads_;
+  return status;
+}
+
+RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const RigCommand& command) noexcept {
+  if (!active_ || !drive_) return RigStatus::fault;
+  if (simulated_chamber()) {
+    cmd_sim_rad_ = command.theta_cmd_rad;
+    gap_rad_ = command.gap_rad;
+    step_pending_ = true;
+  }
+  first_write_done_ = true;
+  // Taken before the write that asks for the reply: a reply is fresh when it arrived after it.
+  if (drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) last_write_ = Clock::now();
+  drive_->write(now, period, {command.theta_cmd_rad + offset_rad_, command.enable, false});
+  return RigStatus::ok;
+}
+
+drv::DriveFeedback DeviceRig::drive_feedback() const noexcept {
+  return drive_ ? drive_->read(Clock::now(), Clock::duration::zero()) : drv::DriveFeedback{};
+}
+
+RigHealth DeviceRig::health() const noexcept {
+  RigHealth h;
+  h.reads = reads_;
+  h.stale_reads = stale_reads_;
+  h.fault_reads = fault_reads_;
+  if (!drive_) {
+    h.fault = true;
+    char text[64];
+    std::snprintf(text, sizeof text, "%s rig: not configured", kind_.c_str());
+    h.set_last_error(text);
+    return h;
+  }
+  const drv::DeviceHealth d = drive_->health();
+  drv::DeviceHealth t;
+  if (sensor_) t = sensor_->health();
+  h.connected = active_ && d.connected && (!sensor_ || t.connected);
+  h.reconnects = d.reconnects + t.reconnects;
+  h.fault = !active_ || d.fault || (sensor_ && t.fault);
+  char text[256];
+  text[0] = '\0';
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr) {
+    // The newest error is about something else (heartbeat, bus): name the EMCY too.
+    std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
+  } else if (d.fault) {
+    std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+  } else if (sensor_ && t.fault) {
+    std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
+  } else if (stale_ == Stale::drive && drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) {
+    const std::string_view missing = drive_->missing_reply_text();
+    std::snprintf(text, sizeof text, "drive: %.*s (newest %.1f ms old)", static_cast<int>(missing.size()), missing.data(),
+                  stale_age_ms_);
+  } else if (stale_ == Stale::drive) {
+    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)", stale_age_ms_,
+                  ms(parts_.drive_max_age));
+  } else if (stale_ == Stale::transducer) {
+    std::snprintf(text, sizeof text, "transducer: newest reading %.1f ms old (limit %.1f ms)", stale_age_ms_,
+                  ms(parts_.sensor_max_age));
+  } else if (deactivate_error_[0] != '\0') {
+    std::snprintf(text, sizeof text, "%s", deactivate_error_.data());
+  } else if (d.last_error[0] != '\0') {
+    std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+  } else if (sensor_ && t.last_error[0] != '\0') {
+    std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
+  }
+  h.set_last_error(text);
+  return h;
+}
+
+DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTransportFactory can_transport) {
+  const RigDevices& d = config.devices;
+  if (d.can_drive) {
+    return [c = *d.can_drive,
+            can_transport = std::move(can_transport)](const RigSetup& setup) -> std::unique_ptr<drv::PositionDrive> {
+      // One SYNC per period, sent right after the loop's command: the TPDO that answers it is the
+      // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
+      drv::Cia402Config run = c;
+      run.sync_source = drv::Cia402Config::SyncSource::loop;
+      run.sync_period = std::chrono::microseconds(std::clamp<long>(std::lround(setup.period_s * 1e6), 100, 100000));
+      return std::make_unique<drv::Cia402Drive>(std::move(run), can_transport);
+    };
+  }
+  if (d.modbus_drive) {
+    return [c = *d.modbus_drive](const RigSetup&) -> std::unique_ptr<drv::PositionDrive> {
+      return std::make_unique<drv::ModbusDrive>(c);
+    };
+  }
+  throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no drive");
+}
+
+DeviceRig::SensorFactory transducer_from_file(const RigConfig& config) {
+  if (!config.devices.transducer) {
+    throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no pressure transducer");
+  }
+  return [c = *config.devices.transducer](const RigSetup&) -> std::unique_ptr<drv::PressureSensor> {
+    return std::make_unique<drv::ModbusTransducer>(c);
+  };
+}
+
+std::unique_ptr<Rig> make_drive_and_transducer_rig(const RigKindInfo& kind, const RigConfig& config,
+                                                   const drv::CanTransportFactory& can_transport) {
+  return std::make_unique<DeviceRig>(config, kind,
+                                     DeviceRig::Parts{.drive = drive_from_file(config, can_transport),
+                                                      .drive_max_age = config.devices.drive_max_age,
+                                                      .pressure_sensor = transducer_from_file(config),
+                                                      .sensor_max_age = config.devices.transducer_max_age});
+}
+
+std::unique_ptr<Rig> make_drive_and_simulated_chamber_rig(const RigKindInfo& kind, const RigConfig& config,
+                                                          const drv::CanTransportFactory& can_transport) {
+  return std::make_unique<DeviceRig>(config, kind,
+                                     DeviceRig::Parts{.drive = drive_from_file(config, can_transport),
+                                                      .drive_max_age = config.devices.drive_max_age,
+                                                      .pressure_sensor = {},
+                                                      .sensor_max_age = {}});
+}
+
+}  // namespace hil::bench
