@@ -105,3 +105,114 @@ TEST(RunOutcome, NamesRoundTripAndOrderByHowBad) {
   EXPECT_LT(Outcome::stopped, Outcome::aborted);
   EXPECT_LT(Outcome::aborted, Outcome::error);
 }
+
+namespace {
+
+RunRecord ended_record() {
+  RunRecord r;
+  r.version = "0.1.0";
+  r.host = "bench-1";
+  r.pid = 4242;
+  r.campaign = "paper_adaptive";
+  r.run = "adaptive";
+  r.run_index = 1;
+  r.runs_in_campaign = 3;
+  r.rig_name = "sim";
+  r.rig_kind = "sim";
+  r.start_utc = "2026-11-26T05:00:00.000Z";
+  r.stop_utc = "2026-11-26T05:00:18.000Z";
+  r.outcome = Outcome::aborted;
+  r.reason = "overpressure: 2.61 MPa > 2.5 MPa";
+  r.period_s = 1e-3;
+  r.duration_s = 18;
+  r.speed = 2;
+  r.config = {"configs/campaigns/paper_adaptive.yaml", "/x/paper_adaptive.yaml", "name: paper_adaptive\n", "/x/sim.yaml",
+              "kind: sim\n"};
+  r.ended = true;
+  r.trip = RunRecord::Trip{"overpressure", 12.5, 2.61e6, 2.5e6};
+  r.rig_health = {{"connected", true}};
+  r.periods_run = 12700;
+  r.loop = {{"overruns", 0}};
+  RunRecord::Telemetry t;
+  t.rows_written = 12700;
+  t.rows_lost = 0;
+  t.rows_unwritten = 0;
+  t.events_lost = 0;
+  t.events_unwritten = 0;
+  t.ring_rows = 65536;
+  t.write_error_known = true;
+  r.telemetry = t;
+  return r;
+}
+
+}  // namespace
+
+// run.json is written and read through one struct: what goes out comes back, key for key.
+TEST(RunRecord, RoundTripsThroughRunJson) {
+  const hil::test::TempDir dir;
+  const RunRecord a = ended_record();
+  write_run_record(dir.path(), a);
+  const RunRecord b = read_run_record(dir.path());
+  EXPECT_EQ(b.to_json(), a.to_json());
+  EXPECT_EQ(b.outcome, Outcome::aborted);
+  ASSERT_TRUE(b.trip.has_value());
+  EXPECT_EQ(b.trip->limit, 2.5e6);
+  const nlohmann::json j = a.to_json();
+  EXPECT_TRUE(j["telemetry"]["write_error"].is_null());  // the end found none: said, as null
+  EXPECT_EQ(j["rig"]["kind"], "sim");
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "run.json.tmp"));
+}
+
+// A record of a run that is still going has none of the end's keys; a count nobody knows (a run
+// found interrupted) is left out rather than written as 0.
+TEST(RunRecord, WritesOnlyWhatIsKnown) {
+  RunRecord r = ended_record();
+  r.ended = false;
+  r.trip.reset();
+  r.periods_run.reset();
+  r.loop = nullptr;
+  r.telemetry.reset();
+  r.stop_utc.reset();
+  r.reason.reset();
+  r.outcome = Outcome::running;
+  nlohmann::json j = r.to_json();
+  for (const char* key : {"trip", "rig_health", "periods_run", "loop", "telemetry", "interrupted"})
+    EXPECT_FALSE(j.contains(key)) << key;
+  EXPECT_TRUE(j["stop_utc"].is_null());
+  EXPECT_TRUE(j["reason"].is_null());
+  RunRecord::Telemetry found;
+  found.rows_written = 812;
+  found.rows_expected = 18000;
+  r.telemetry = found;
+  j = r.to_json();
+  EXPECT_EQ(j["telemetry"], (nlohmann::json{{"file", "telemetry.csv"}, {"rows_written", 812}, {"rows_expected", 18000}}));
+}
+
+// A run.json that is not a run record is refused with the file and the key, never half-read.
+TEST(RunRecord, HostileFilesNameTheFileAndTheKey) {
+  const hil::test::TempDir dir;
+  auto refused = [&](const std::string& text) -> std::string {
+    std::ofstream(dir.path() / "run.json") << text;
+    try {
+      read_run_record(dir.path());
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  nlohmann::json good = ended_record().to_json();
+  EXPECT_NE(refused("{\"campaign\": ").find("not JSON"), std::string::npos);
+  EXPECT_NE(refused("[1, 2]").find("not a run record"), std::string::npos);
+  nlohmann::json bad = good;
+  bad["period_s"] = "fast";
+  EXPECT_NE(refused(bad.dump()).find("'period_s' must be a number"), std::string::npos);
+  bad = good;
+  bad["telemetry"]["rows_lost"] = -3;
+  EXPECT_NE(refused(bad.dump()).find("'rows_lost' must be a count"), std::string::npos);
+  bad = good;
+  bad.erase("config");
+  const std::string msg = refused(bad.dump());
+  EXPECT_NE(msg.find("'config' is missing"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("run.json"), std::string::npos) << msg;
+  EXPECT_EQ(refused(good.dump()), "(accepted)");
+}

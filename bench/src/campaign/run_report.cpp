@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/run_record.hpp"
 #include "sim_report.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/units.hpp"
@@ -17,21 +18,9 @@ namespace {
 using nlohmann::json;
 using plant::kNaN;
 
-json read_run_json(const std::filesystem::path& dir) {
-  const auto file = dir / "run.json";
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(dir.string() + ": no run.json (not a run folder of hilbench serve)");
-  json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (!j.is_object() || !j.contains("config") || !j["config"].is_object()) {
-    throw std::runtime_error(file.string() + ": not a run record (no config snapshot)");
-  }
-  return j;
-}
-
-Campaign campaign_of(const json& run, const std::filesystem::path& dir) {
-  const json& cfg = run["config"];
-  const std::string yaml = cfg.value("campaign_yaml", "");
-  const std::filesystem::path file = cfg.value("campaign_file", "");
+Campaign campaign_of(const RunRecord& run, const std::filesystem::path& dir) {
+  const std::string& yaml = run.config.campaign_yaml;
+  const std::filesystem::path file = run.config.campaign_file;
   if (yaml.empty() || file.empty()) throw std::runtime_error(dir.string() + "/run.json: the config snapshot has no campaign");
   // Relative paths in the campaign (its plant) resolve from where the campaign file was.
   return load_campaign_text(yaml, file.filename().string(), file.parent_path());
@@ -92,7 +81,7 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
   std::vector<RecordedRun> runs;
   std::optional<Campaign> campaign;
   for (const auto& dir : run_dirs) {
-    const json run = read_run_json(dir);
+    const RunRecord run = read_run_record(dir);
     const Campaign c = campaign_of(run, dir);
     if (campaign && c.name != campaign->name) {
       throw std::invalid_argument(dir.string() + ": a run of campaign '" + c.name + "', the others are of '" + campaign->name +
@@ -101,9 +90,9 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     if (!campaign) campaign = c;
     RecordedRun r;
     r.dir = dir;
-    r.outcome = run.value("outcome", "?");
-    r.reason = run["reason"].is_string() ? run["reason"].get<std::string>() : "";
-    std::string name = run.value("run", dir.filename().string());
+    r.outcome = std::string(to_string(run.outcome));
+    r.reason = run.reason.value_or("");
+    std::string name = run.run;
     for (const auto& other : runs) {
       if (other.digest.name == name) name += " (" + dir.filename().string() + ")";
     }

@@ -604,9 +604,8 @@ Reply ApiServer::Impl::runs() {
   for (const auto& d : dirs) {
     json j = {{"id", d.filename().string()}};
     try {
-      std::ifstream in(d / "run.json");
-      const json r = json::parse(in);
-      for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r.value(k, json(nullptr));
+      const json r = read_run_record(d).to_json();
+      for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r[k];
     } catch (const std::exception& e) {
       j["error"] = std::string("run.json: ") + e.what();
     }

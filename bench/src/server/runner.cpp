@@ -49,20 +49,6 @@ std::string hostname() {
 }
 
 // The whole file or the old one, never a half-written one; no .tmp is left behind on failure.
-void write_json_atomically(const std::filesystem::path& file, const json& j) {
-  const auto tmp = file.parent_path() / (file.filename().string() + ".tmp");
-  try {
-    {
-      LineFile out(tmp);
-      out.append(j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
-    }
-    std::filesystem::rename(tmp, file);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-}
 
 // Space kept free in each run folder while the run lasts, and given back just before the final
 // run.json is written: so a disk that the telemetry filled still takes the run's honest record.
@@ -182,25 +168,6 @@ json faults_json(const LoopSnapshot& s) {
 }
 
 }  // namespace
-
-std::string_view to_string(Outcome o) noexcept {
-  switch (o) {
-    case Outcome::completed: return "completed";
-    case Outcome::stopped: return "stopped";
-    case Outcome::aborted: return "aborted";
-    case Outcome::error: return "error";
-    case Outcome::interrupted: return "interrupted";
-    case Outcome::running: return "running";
-  }
-  return "error";
-}
-
-Outcome outcome_from(std::string_view text) noexcept {
-  for (const Outcome o :
-       {Outcome::completed, Outcome::stopped, Outcome::aborted, Outcome::error, Outcome::interrupted, Outcome::running})
-    if (to_string(o) == text) return o;
-  return Outcome::error;
-}
 
 struct CampaignRunner::Active {
   StartRequest req;
@@ -403,29 +370,23 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     std::filesystem::remove_all(dir, ec);
     throw;
   }
-  json info = {{"version", o_.version},
-               {"host", hostname()},
-               {"pid", ::getpid()},
-               {"campaign", c.name},
-               {"run", run.name},
-               {"run_index", index},
-               {"runs_in_campaign", a.runs.size()},
-               {"rig", {{"name", rc.name}, {"kind", rc.kind}}},
-               {"start_utc", utc_iso(start_utc)},
-               {"stop_utc", nullptr},
-               {"outcome", to_string(Outcome::running)},
-               {"reason", nullptr},
-               {"period_s", c.period_s},
-               {"duration_s", c.duration_s},
-               {"speed", a.req.speed},
-               {"config",
-                {{"campaign_source", a.req.source},
-                 {"campaign_file", c.file.string()},
-                 {"campaign_yaml", c.yaml_text},
-                 {"rig_file", rc.file.string()},
-                 {"rig_yaml", rc.yaml_text}}}};
+  RunRecord info;
+  info.version = o_.version;
+  info.host = hostname();
+  info.pid = ::getpid();
+  info.campaign = c.name;
+  info.run = run.name;
+  info.run_index = static_cast<std::int64_t>(index);
+  info.runs_in_campaign = static_cast<std::int64_t>(a.runs.size());
+  info.rig_name = rc.name;
+  info.rig_kind = rc.kind;
+  info.start_utc = utc_iso(start_utc);
+  info.period_s = c.period_s;
+  info.duration_s = c.duration_s;
+  info.speed = a.req.speed;
+  info.config = {a.req.source, c.file.string(), c.yaml_text, rc.file.string(), rc.yaml_text};
   try {
-    write_json_atomically(dir / "run.json", info);
+    write_run_record(dir, info);
   } catch (...) {
     run_lock.reset();
     std::error_code ec;
@@ -556,19 +517,18 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const std::uint64_t rows_not_recorded = rec.rows_unwritten() + (loop ? loop->rows_lost() : 0);
   if (rows_not_recorded > 0 && !reason.empty()) reason += fmt("; %.0f rows not recorded", static_cast<double>(rows_not_recorded));
   const auto stop_utc = SysClock::now();
-  info["stop_utc"] = utc_iso(stop_utc);
-  info["outcome"] = to_string(outcome);
-  info["reason"] = reason.empty() ? json(nullptr) : json(reason);
-  info["trip"] = nullptr;
-  info["rig_health"] = rig_health;
+  info.stop_utc = utc_iso(stop_utc);
+  info.outcome = outcome;
+  if (!reason.empty()) info.reason = reason;
+  info.ended = true;
+  info.rig_health = rig_health;
   if (loop) {
     if (loop->trip() != Trip::none) {
-      info["trip"] = {{"reason", to_string(loop->trip())},
-                      {"t_s", loop->trip_t_s()},
-                      {"value", std::isfinite(loop->trip_value()) ? json(loop->trip_value()) : json(nullptr)},
-                      {"limit", std::isfinite(loop->trip_limit()) ? json(loop->trip_limit()) : json(nullptr)}};
+      info.trip = RunRecord::Trip{std::string(to_string(loop->trip())), loop->trip_t_s(),
+                                  std::isfinite(loop->trip_value()) ? std::optional(loop->trip_value()) : std::nullopt,
+                                  std::isfinite(loop->trip_limit()) ? std::optional(loop->trip_limit()) : std::nullopt};
     }
-    info["periods_run"] = loop->periods_run();
+    info.periods_run = loop->periods_run();
     json stats = loop_stats_json(*loop);
     stats["sched"] = rt.describe();
     stats["rt_warning"] = rt.warning;
@@ -576,35 +536,38 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     stats["cpu_dma_latency_us"] = rc.loop.cpu_dma_latency_us;
     stats["overrun_policy"] = rc.loop.overrun_policy == OverrunPolicy::abort ? "abort" : "count";
     stats["wall_period_us"] = std::chrono::duration<double, std::micro>(loop->wall_period()).count();
-    info["loop"] = stats;
+    info.loop = stats;
   }
-  info["telemetry"] = {{"file", "telemetry.csv"},
-                       {"rows_written", rec.rows_written()},
-                       {"rows_lost", loop ? loop->rows_lost() : 0},
-                       {"rows_unwritten", rec.rows_unwritten()},
-                       {"events_lost", loop ? loop->events_lost() : 0},
-                       {"events_unwritten", rec.events_unwritten()},
-                       {"ring_rows", rec.telemetry().capacity()},
-                       {"write_error", write_error.empty() ? json(nullptr) : json(write_error)}};
+  RunRecord::Telemetry tel;
+  tel.rows_written = rec.rows_written();
+  tel.rows_lost = loop ? loop->rows_lost() : 0;
+  tel.rows_unwritten = rec.rows_unwritten();
+  tel.events_lost = loop ? loop->events_lost() : 0;
+  tel.events_unwritten = rec.events_unwritten();
+  tel.ring_rows = rec.telemetry().capacity();
+  tel.write_error_known = true;
+  if (!write_error.empty()) tel.write_error = write_error;
+  info.telemetry = tel;
   {
     std::error_code ec;
     std::filesystem::remove(dir / ".reserve", ec);  // its room is for this last write
   }
   try {
-    write_json_atomically(dir / "run.json", info);
+    write_run_record(dir, info);
   } catch (const std::exception& e) {
     spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome),
                   reason);
   }
   run_lock.reset();
+  const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
   const json summary = {
-      {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", info["reason"]}};
+      {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", reason_or_null}};
   notice({{"type", "run_end"},
           {"campaign", c.name},
           {"run", run.name},
           {"dir", dir.filename().string()},
           {"outcome", to_string(outcome)},
-          {"reason", info["reason"]}});
+          {"reason", reason_or_null}});
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
 }
@@ -674,15 +637,14 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
   for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
     const auto dir = e.path();
     if (!e.is_directory() || !std::filesystem::is_regular_file(dir / "run.json")) continue;
-    json info;
+    RunRecord info;
     try {
-      std::ifstream in(dir / "run.json");
-      info = json::parse(in);
+      info = read_run_record(dir);
     } catch (const std::exception& ex) {
       spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
       continue;
     }
-    if (!info.is_object() || info.value("outcome", json(nullptr)) != to_string(Outcome::running) || !run_abandoned(dir)) continue;
+    if (info.outcome != Outcome::running || !run_abandoned(dir)) continue;
     try {
       // What is on disk is the record: a line cut by the crash is removed and counted.
       json trimmed = json::object();
@@ -694,28 +656,25 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       const auto last_write = std::filesystem::is_regular_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
       const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
       const std::string found = utc_iso(SysClock::now());
-      info["outcome"] = to_string(Outcome::interrupted);
-      info["reason"] = "the server process (pid " + info.value("pid", json("?")).dump() +
-                       ") ended during the run; found by a server started at " + found;
-      info["stop_utc"] = utc_iso(last_utc);
-      info["interrupted"] = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
-      json& t = info["telemetry"];
-      if (!t.is_object()) t = json::object();
-      t["file"] = "telemetry.csv";
-      t["rows_written"] = rows;
-      if (info.contains("duration_s") && info.contains("period_s") && info["period_s"].is_number() &&
-          info["duration_s"].is_number() && info["period_s"].get<double>() > 0) {
-        t["rows_expected"] = std::llround(info["duration_s"].get<double>() / info["period_s"].get<double>());
-      }
+      info.outcome = Outcome::interrupted;
+      info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
+                    ") ended during the run; found by a server started at " + found;
+      info.stop_utc = utc_iso(last_utc);
+      info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
+      // Only what the files show: the counts the dead process kept are unknown, and left out.
+      RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
+      tel.rows_written = rows;
+      if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
+      info.telemetry = tel;
       if (std::filesystem::is_regular_file(dir / "events.jsonl")) {
         LineFile events(dir / "events.jsonl", /*append=*/true);
         events.append(
-            json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", info["reason"]}, {"rows_on_disk", rows}}
+            json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
                 .dump() +
             "\n");
       }
       std::filesystem::remove(dir / ".reserve", ec);
-      write_json_atomically(dir / "run.json", info);
+      write_run_record(dir, info);
       marked.push_back(dir);
     } catch (const std::exception& ex) {
       spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());

@@ -22,15 +22,9 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/rig_config.hpp"
 #include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/rt/run_record.hpp"
 
 namespace hil::bench {
-
-// How a run ended, in run.json's "outcome" (and a campaign's: its worst run's). In order of how
-// bad: a campaign ends with the last of its runs' outcomes in this order.
-enum class Outcome : std::uint8_t { completed, stopped, aborted, error, interrupted, running };
-std::string_view to_string(Outcome o) noexcept;
-// The outcome named by `text` (run.json, the API); error for a name it does not know.
-Outcome outcome_from(std::string_view text) noexcept;
 
 // Refusals the API turns into 4xx: the runner's state does not allow the request.
 class Conflict : public std::runtime_error {
