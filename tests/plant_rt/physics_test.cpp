@@ -16,7 +16,7 @@ using hil::units::rad_to_deg;
 namespace {
 
 // physics.md section 2, in SI.
-constexpr double kRho = 1700, kN = 0.35, kAb = 0.01, kCstar = 900, kRtc = 352836, kV0 = 2.0e-3;
+constexpr double kRho = 1700, kN = 0.35, kAb = 0.01, kCstar = 900, kRtc = 352836;
 const double kA = 0.005 / std::pow(1e6, kN);  // burn coefficient for Pg in Pa
 constexpr double kGapDeg = 1.0;
 
