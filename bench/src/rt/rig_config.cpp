@@ -101,10 +101,15 @@ RigConfig load_rig_config_text(const std::string& yaml, const std::string& origi
   return from_node(cfg::Node::load_string(yaml, origin), std::filesystem::path(origin).stem().string(), yaml);
 }
 
-std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport) {
+const RigKindInfo& kind_of(const RigConfig& config) {
   const RigKindInfo* kind = find_rig_kind(config.kind);
   if (kind == nullptr) throw std::invalid_argument(config.file.string() + ": " + unknown_rig_kind_text(config.kind));
-  return kind->make(*kind, config, can_transport);
+  return *kind;
+}
+
+std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport) {
+  const RigKindInfo& kind = kind_of(config);
+  return kind.make(kind, config, can_transport);
 }
 
 }  // namespace hil::bench

@@ -228,9 +228,8 @@ void CampaignRunner::start(StartRequest request) {
   }
   if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
   // What the rig can do, as its kind declares it (no rig is made, nothing opened).
-  const RigKindInfo* kind = find_rig_kind(request.rig.kind);
-  if (kind == nullptr) throw std::invalid_argument(request.rig.file.string() + ": " + unknown_rig_kind_text(request.rig.kind));
-  const bool simulated = kind->capabilities.simulated, programmable_gap = kind->capabilities.programmable_gap;
+  const RigCapabilities& can = kind_of(request.rig).capabilities;
+  const bool simulated = can.simulated, programmable_gap = can.programmable_gap;
   if (!simulated && request.speed != 1.0) {
     throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind +
                                 ")");

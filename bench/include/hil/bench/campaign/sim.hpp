@@ -35,7 +35,6 @@ class SimulatedRun {
 
   // The next period's record; false once the run is over. Real-time safe.
   bool next(TelemetryRecord& out) noexcept;
-  const RunLoop& loop() const noexcept { return loop_; }
 
  private:
   SimRig rig_;

@@ -18,6 +18,8 @@
 
 namespace hil::bench {
 
+struct RigKindInfo;
+
 // The `devices` block of the can, modbus and hybrid rigs: the drive's and the transducer's client
 // configurations (drivers/configs formats, from a file or inline) and when their data is stale.
 struct RigDevices {
@@ -48,5 +50,8 @@ RigConfig load_rig_config_text(const std::string& yaml, const std::string& origi
 // drv::LoopbackBus::factory()); empty: SocketCAN on the drive's interface. Throws naming the file
 // and the kind, the kinds this build knows and the closest, when it is unknown.
 std::unique_ptr<Rig> make_rig(const RigConfig& config, const drv::CanTransportFactory& can_transport = {});
+// The file's kind as registered (what it can do, which devices it takes, how it is made). Throws
+// std::invalid_argument naming the file when the kind is unknown.
+const RigKindInfo& kind_of(const RigConfig& config);
 
 }  // namespace hil::bench

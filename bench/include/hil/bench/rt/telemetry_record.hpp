@@ -30,8 +30,7 @@ struct TelemetryRecord {
 //             than columns of nan)
 enum class ColumnSet : std::uint8_t { sim, all, measured };
 
-inline constexpr std::size_t kMaxColumns = telemetry::kLoopColumns;
-using TelemetryRow = std::array<double, kMaxColumns>;
+using TelemetryRow = std::array<double, telemetry::kLoopColumns>;  // room for every column
 
 const std::vector<CsvColumn>& telemetry_columns(ColumnSet set);
 // Every column of the schema for one record, in schema order (units converted: deg, MPa).
