@@ -10,10 +10,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "hil/minmax_decimator.hpp"
+
 namespace hil::report::detail {
 namespace {
 
-constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
 constexpr double kPow10[] = {1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10};
 double pow10(int e) { return kPow10[e + 4]; }  // e in [-4, 10]
 
@@ -125,41 +126,16 @@ Decimated decimate(std::span<const double> x, std::span<const double> y, std::si
     return out;
   }
 
-  Decimated kept;
-  kept.x.reserve(std::min(n, 4 * buckets + 2));
-  kept.y.reserve(kept.x.capacity());
-  auto emit = [&](std::size_t i) {
-    if (dropped(i)) return;
-    if (finite(i)) {
-      kept.x.push_back(x[i]), kept.y.push_back(y[i]);
-    } else if (!kept.y.empty() && !std::isnan(kept.y.back())) {  // one marker per gap, none leading
-      kept.x.push_back(std::isfinite(x[i]) ? x[i] : kept.x.back());
-      kept.y.push_back(NAN);
-    }
-  };
-  if (n <= 2 * buckets) {
-    for (std::size_t i = 0; i < n; ++i) emit(i);
-  } else {
-    for (std::size_t b = 0; b < buckets; ++b) {
-      const std::size_t lo = b * n / buckets, hi = (b + 1) * n / buckets;
-      std::size_t imin = kNone, imax = kNone, gap = kNone;
-      for (std::size_t i = lo; i < hi; ++i) {
-        if (dropped(i)) continue;
-        if (!finite(i)) {
-          if (gap == kNone) gap = i;
-          continue;
-        }
-        if (imin == kNone || y[i] < y[imin]) imin = i;
-        if (imax == kNone || y[i] > y[imax]) imax = i;
-      }
-      std::array<std::size_t, 5> pick = {b == 0 ? 0 : kNone, imin, imax, gap, b + 1 == buckets ? n - 1 : kNone};
-      std::sort(pick.begin(), pick.end());
-      for (std::size_t k = 0; k < pick.size() && pick[k] != kNone; ++k) {
-        if (k == 0 || pick[k] != pick[k - 1]) emit(pick[k]);
-      }
-    }
+  // Log axes leave out what they cannot draw, without a gap; the rest is min/max decimated over
+  // index buckets (hil/minmax_decimator.hpp), which also keeps the ends and one marker per gap.
+  std::size_t drawable = 0;
+  for (std::size_t i = 0; i < n; ++i) drawable += dropped(i) ? 0 : 1;
+  auto decimator = MinMaxDecimator::for_length(drawable, buckets);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!dropped(i)) decimator.add(x[i], y[i]);
   }
-  if (!kept.y.empty() && std::isnan(kept.y.back())) kept.x.pop_back(), kept.y.pop_back();
+  Decimated kept;
+  decimator.take(kept.x, kept.y);
 
   // Interior points of an equal-y run with x in order add nothing to the drawn line.
   const std::size_t m = kept.x.size();

@@ -20,10 +20,10 @@ struct Decimated {
 
 enum class Thin { line, points };
 
-// line: if n > 2 * max_buckets, splits the index range into max_buckets buckets and keeps, in input
-// order, each bucket's min-y and max-y points and a gap marker if the bucket has a non-finite
-// point; the first and last points always stay. Then drops interior points of runs of equal y
-// (the drawn line is the same), which shrinks steps and constants to their corners.
+// line: min/max decimation over max_buckets index buckets (hil::MinMaxDecimator::for_length: each
+// bucket's min-y and max-y points in input order, a gap marker where a bucket holds a non-finite
+// point, the first and last points always). Then drops interior points of runs of equal y (the
+// drawn line is the same), which shrinks steps and constants to their corners.
 // points: if n > 2 * max_buckets, keeps the first point in each cell of a 256 x 256 grid over the
 // data's bounding box (the scatter's shape survives, its density does not).
 // Points with x <= 0 (x_log) or y <= 0 (y_log) are left out without a gap.
