@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages hilbench needs, only those missing.
 #   scripts/setup.sh          build and run (compiler, libraries)
 #   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll,
-#                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer)
+#                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer, Node.js
+#                             and npm for the Foxglove client test)
 #   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
 set -euo pipefail
 
@@ -11,7 +12,7 @@ build_pkgs=(build-essential cmake ninja-build ccache pkg-config git
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
   python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps
-  clang-14 libclang-rt-14-dev llvm-14 clang-format-14)
+  clang-14 libclang-rt-14-dev llvm-14 clang-format-14 nodejs npm)
 bench_pkgs=(rt-tests)
 
 want=("${build_pkgs[@]}")
@@ -25,6 +26,8 @@ done
 
 missing=()
 for p in "${want[@]}"; do
+  # A Node.js installed from elsewhere (NodeSource, nvm) serves as well, and Debian's would clash with it.
+  if [[ "$p" == nodejs || "$p" == npm ]] && command -v node >/dev/null && command -v npm >/dev/null; then continue; fi
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
   [[ "$status" == "install ok installed" ]] || missing+=("$p")
 done

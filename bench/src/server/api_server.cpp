@@ -17,6 +17,7 @@
 #include <boost/beast/websocket.hpp>
 #include <spdlog/spdlog.h>
 
+#include "foxglove.hpp"
 #include "hil/config.hpp"
 #include "hil/units.hpp"
 
@@ -197,11 +198,28 @@ void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// WebSocket session: accepts the upgrade, then only writes (reads only to notice the close).
+// WebSocket session: accepts the upgrade, then writes telemetry. A plain session reads only to
+// notice the close; a Foxglove session also takes the client's subscribe/unsubscribe.
+
+// Whether the client offered the Foxglove subprotocol (Sec-WebSocket-Protocol is a list).
+bool offers_foxglove(const Request& req) {
+  const auto offered = req[http::field::sec_websocket_protocol];
+  std::string_view list(offered.data(), offered.size());
+  while (!list.empty()) {
+    const auto comma = list.find(',');
+    std::string_view item = list.substr(0, comma);
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    if (item == foxglove::kSubprotocol) return true;
+    if (comma == std::string_view::npos) break;
+    list.remove_prefix(comma + 1);
+  }
+  return false;
+}
 
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(tcp::socket&& socket, TelemetryHub& hub) : ws_(std::move(socket)), hub_(hub) {}
+  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove) : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove) {}
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
   ~WsSession() {
@@ -211,40 +229,66 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   void run(Request req, double rate_hz) {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
-    ws_.set_option(
-        websocket::stream_base::decorator([](websocket::response_type& res) { res.set(http::field::server, "hilbench"); }));
+    ws_.set_option(websocket::stream_base::decorator([foxglove = foxglove_](websocket::response_type& res) {
+      res.set(http::field::server, "hilbench");
+      if (foxglove) res.set(http::field::sec_websocket_protocol, std::string(foxglove::kSubprotocol));
+    }));
+    ws_.read_message_max(kWsClientMessageMax);
     ws_.async_accept(req, [self = shared_from_this(), rate_hz](beast::error_code ec) {
       if (ec) return;
-      const json hello = {{"type", "hello"}, {"rate_hz", rate_hz}, {"columns", [] {
-                                                                      json names = json::array();
-                                                                      for (const auto& c : telemetry_columns(ColumnSet::all))
-                                                                        names.push_back(c.name);
-                                                                      return names;
-                                                                    }()}};
-      self->send(std::make_shared<const std::string>(dump_json(hello)));
-      self->hub_.subscribe(self, rate_hz);
+      if (self->foxglove_) {
+        self->send_text(dump_json(foxglove::server_info(std::to_string(reinterpret_cast<std::uintptr_t>(self.get())))));
+        self->send_text(dump_json(foxglove::advertise()));
+      } else {
+        json names = json::array();
+        for (const auto& c : telemetry_columns(ColumnSet::all)) names.push_back(c.name);
+        self->send_text(dump_json({{"type", "hello"}, {"rate_hz", rate_hz}, {"columns", names}}));
+      }
+      self->hub_.subscribe(self, rate_hz, self->foxglove_);
       self->read();
     });
   }
 
   // Any thread.
-  void send(std::shared_ptr<const std::string> message) {
-    asio::post(ws_.get_executor(), [self = shared_from_this(), message = std::move(message)] {
-      if (self->closed_) return;
-      if (self->queue_.size() >= kWsQueueLimit) {
-        ++self->dropped_;
-        ++self->dropped_unreported_;
-        return;
+  void send(std::shared_ptr<const std::string> text) {
+    asio::post(ws_.get_executor(), [self = shared_from_this(), text = std::move(text)] { self->enqueue({text, false}); });
+  }
+  // Any thread: one Message Data frame per subscription whose channel has a payload in `frame`.
+  void send(std::shared_ptr<const foxglove::Frame> frame) {
+    asio::post(ws_.get_executor(), [self = shared_from_this(), frame = std::move(frame)] {
+      for (const auto& [subscription, channel] : self->subscriptions_) {
+        const std::string& payload = frame->payloads[channel];
+        if (!payload.empty())
+          self->enqueue(
+              {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true});
       }
-      self->queue_.push_back(message);
-      if (self->queue_.size() == 1) self->write();
     });
   }
 
  private:
+  struct Outgoing {
+    std::shared_ptr<const std::string> bytes;
+    bool binary;
+  };
+  static constexpr std::size_t kWsClientMessageMax = 64 * 1024;
+
+  void send_text(std::string text) { enqueue({std::make_shared<const std::string>(std::move(text)), false}); }
+
+  // Session thread.
+  void enqueue(Outgoing message) {
+    if (closed_) return;
+    if (queue_.size() >= kWsQueueLimit) {
+      ++dropped_;
+      ++dropped_unreported_;
+      return;
+    }
+    queue_.push_back(std::move(message));
+    if (queue_.size() == 1) write();
+  }
+
   void write() {
-    ws_.text(true);
-    ws_.async_write(asio::buffer(*queue_.front()), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+    ws_.binary(queue_.front().binary);
+    ws_.async_write(asio::buffer(*queue_.front().bytes), [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (ec) {
         self->closed_ = true;
         self->queue_.clear();
@@ -254,16 +298,19 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       self->queue_.pop_front();
       // The client learns in-band what it missed, once there is room to tell it.
       if (self->dropped_unreported_ > 0 && self->queue_.size() < kWsQueueLimit / 2) {
-        self->queue_.push_back(std::make_shared<const std::string>(
-            dump_json({{"type", "dropped"},
-                       {"messages", self->dropped_unreported_},
-                       {"total", self->dropped_},
-                       {"why", "this client read slower than the telemetry was sent; telemetry.csv is the lossless record"}})));
+        const std::string why = "this client read slower than the telemetry was sent; telemetry.csv is the lossless record";
+        const json notice =
+            self->foxglove_
+                ? foxglove::status(1, std::to_string(self->dropped_unreported_) + " messages dropped (" +
+                                          std::to_string(self->dropped_) + " in all): " + why)
+                : json{{"type", "dropped"}, {"messages", self->dropped_unreported_}, {"total", self->dropped_}, {"why", why}};
+        self->queue_.push_back({std::make_shared<const std::string>(dump_json(notice)), false});
         self->dropped_unreported_ = 0;
       }
       if (!self->queue_.empty()) self->write();
     });
   }
+
   void read() {
     ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (ec) {
@@ -271,15 +318,44 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         self->hub_.unsubscribe(self.get());
         return;
       }
-      self->buffer_.consume(self->buffer_.size());  // clients have nothing to say
+      if (self->foxglove_) self->on_client_message();  // plain clients have nothing to say
+      self->buffer_.consume(self->buffer_.size());
       self->read();
     });
   }
 
+  // A Foxglove client's request; what is not understood is answered with a status message.
+  void on_client_message() {
+    if (!ws_.got_text())
+      return send_text(dump_json(foxglove::status(2, "binary messages (client publishing) are not supported")));
+    const std::string_view text(static_cast<const char*>(buffer_.data().data()), buffer_.size());
+    const auto op = foxglove::parse_client_op(text);
+    if (const auto* e = std::get_if<foxglove::Error>(&op)) return send_text(dump_json(foxglove::status(2, e->message)));
+    if (const auto* u = std::get_if<foxglove::Unsubscribe>(&op)) {
+      for (const std::uint32_t id : u->subscription_ids) subscriptions_.erase(id);
+      return;
+    }
+    for (const auto& [id, channel_id] : std::get<foxglove::Subscribe>(op).subscriptions) {
+      std::size_t index = 0;
+      while (index < foxglove::channels().size() && foxglove::channels()[index].id != channel_id) ++index;
+      if (index == foxglove::channels().size()) {
+        send_text(dump_json(foxglove::status(2, "subscribe: channel " + std::to_string(channel_id) + " is not advertised")));
+      } else if (subscriptions_.count(id) != 0) {
+        send_text(dump_json(foxglove::status(2, "subscribe: subscription id " + std::to_string(id) + " is in use")));
+      } else if (std::any_of(subscriptions_.begin(), subscriptions_.end(), [&](const auto& s) { return s.second == index; })) {
+        send_text(dump_json(foxglove::status(2, "subscribe: channel " + std::to_string(channel_id) + " is already subscribed")));
+      } else {
+        subscriptions_.emplace(id, index);
+      }
+    }
+  }
+
   websocket::stream<beast::tcp_stream> ws_;
   TelemetryHub& hub_;
+  const bool foxglove_;
+  std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
-  std::deque<std::shared_ptr<const std::string>> queue_;
+  std::deque<Outgoing> queue_;
   std::size_t dropped_ = 0, dropped_unreported_ = 0;
   bool closed_ = false;
 };
@@ -287,9 +363,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 // ---------------------------------------------------------------------------------------------
 // Telemetry hub.
 
-void TelemetryHub::subscribe(const std::shared_ptr<WsSession>& s, double rate_hz) {
+void TelemetryHub::subscribe(const std::shared_ptr<WsSession>& s, double rate_hz, bool foxglove) {
   std::lock_guard lock(mutex_);
-  subs_.push_back({s, s.get(), 1.0 / rate_hz, -1e300});
+  subs_.push_back({s, s.get(), 1.0 / rate_hz, -1e300, foxglove});
 }
 
 void TelemetryHub::unsubscribe(const WsSession* s) {
@@ -305,38 +381,63 @@ std::size_t TelemetryHub::subscribers() const {
 void TelemetryHub::publish_row(const TelemetryRecord& r) {
   // Decide under the lock, send outside it: a session's last reference may die in here, and its
   // destructor unsubscribes.
-  std::vector<std::shared_ptr<WsSession>> due;
+  std::vector<std::pair<std::shared_ptr<WsSession>, bool>> due;  // (session, foxglove)
   {
     std::lock_guard lock(mutex_);
     const double t = r.step.t_s;
+    last_t_s_ = t;
     for (auto& s : subs_) {
       if (t < s.next_t_s - 2 * s.interval_s) s.next_t_s = t;  // time went back: a new run
       if (t + 1e-9 < s.next_t_s) continue;
       s.next_t_s = s.next_t_s + s.interval_s > t ? s.next_t_s + s.interval_s : t + s.interval_s;
-      if (auto session = s.session.lock()) due.push_back(std::move(session));
+      if (auto session = s.session.lock()) due.emplace_back(std::move(session), s.foxglove);
     }
   }
   if (due.empty()) return;
-  json j = {{"type", "row"}};
-  const auto values = telemetry_row(r);
-  const auto& columns = telemetry_columns(ColumnSet::all);
-  for (std::size_t i = 0; i < columns.size(); ++i)
-    j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
-  const auto message = std::make_shared<const std::string>(dump_json(j));
-  for (const auto& session : due) session->send(message);
+  std::shared_ptr<const std::string> row;
+  std::shared_ptr<const foxglove::Frame> frame;
+  for (const auto& [session, foxglove] : due) {
+    if (foxglove) {
+      if (!frame)
+        frame =
+            std::make_shared<const foxglove::Frame>(foxglove::Frame{foxglove::timestamp_ns(r.step.t_s), foxglove::payloads(r)});
+      session->send(frame);
+    } else {
+      if (!row) {
+        json j = {{"type", "row"}};
+        const auto values = telemetry_row(r);
+        const auto& columns = telemetry_columns(ColumnSet::all);
+        for (std::size_t i = 0; i < columns.size(); ++i)
+          j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
+        row = std::make_shared<const std::string>(dump_json(j));
+      }
+      session->send(row);
+    }
+  }
 }
 
 void TelemetryHub::publish_notice(const json& j) {
   auto message = std::make_shared<const std::string>(dump_json(j));
-  std::vector<std::shared_ptr<WsSession>> all;
+  std::vector<std::pair<std::shared_ptr<WsSession>, bool>> all;
+  double t_s = 0;
   {
     std::lock_guard lock(mutex_);
+    t_s = last_t_s_;
     for (auto& s : subs_) {
       s.next_t_s = -1e300;
-      if (auto session = s.session.lock()) all.push_back(std::move(session));
+      if (auto session = s.session.lock()) all.emplace_back(std::move(session), s.foxglove);
     }
   }
-  for (const auto& session : all) session->send(message);
+  if (j.contains("t_s") && j["t_s"].is_number()) t_s = j["t_s"].get<double>();
+  std::shared_ptr<const foxglove::Frame> frame;
+  for (const auto& [session, foxglove] : all) {
+    if (!foxglove) {
+      session->send(message);
+      continue;
+    }
+    if (!frame) frame = std::make_shared<const foxglove::Frame>(foxglove::events_frame(foxglove::timestamp_ns(t_s), *message));
+    session->send(frame);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -877,7 +978,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     if (!(rate > 0 && rate <= 5000))
       return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub)->run(std::move(req), rate);
+    const bool foxglove = offers_foxglove(req);
+    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove)->run(std::move(req), rate);
   }
 
   void send(Reply reply, bool keep_alive) {

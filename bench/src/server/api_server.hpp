@@ -38,7 +38,9 @@ class TelemetryHub {
  public:
   void publish_row(const TelemetryRecord& r);
   void publish_notice(const nlohmann::json& j);
-  void subscribe(const std::shared_ptr<WsSession>& s, double rate_hz);
+  // foxglove: the session speaks foxglove.websocket.v1 (binary frames per channel), else the
+  // JSON rows of bench/SERVER.md.
+  void subscribe(const std::shared_ptr<WsSession>& s, double rate_hz, bool foxglove);
   void unsubscribe(const WsSession* s);
   std::size_t subscribers() const;
 
@@ -48,9 +50,11 @@ class TelemetryHub {
     const WsSession* key;
     double interval_s;
     double next_t_s;
+    bool foxglove;
   };
   mutable std::mutex mutex_;
   std::vector<Sub> subs_;
+  double last_t_s_ = 0;  // of the last row published: the time stamp of a notice without one
 };
 
 class ApiServer {
