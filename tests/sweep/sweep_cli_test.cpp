@@ -241,6 +241,25 @@ TEST(Sweep, APointsMetricsAreThoseOfTheSameCampaignRunBySim) {
   EXPECT_EQ(checked, 4);  // every point is among the 10 worst of 4
 }
 
+// relative_to: the axis's value is an increment on another path's value at that point.
+TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
+  TempDir dir;
+  const auto sweep =
+      dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                              "\nruns: [adaptive]\naxes:\n  - path: campaign.gap.initial_deg\n    values: [0.5, 2]\n"
+                              "  - path: campaign.gap.changes[0].drift.to_deg\n    relative_to: campaign.gap.initial_deg\n"
+                              "    values: [0.25]\n");
+  const auto out = dir.path() / "out";
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string p0 = read(out / "points" / "0" / "campaign.yaml"), p1 = read(out / "points" / "1" / "campaign.yaml");
+  EXPECT_NE(p0.find("initial_deg: 0.5"), std::string::npos) << p0;
+  EXPECT_NE(p0.find("to_deg: 0.75"), std::string::npos) << p0;
+  EXPECT_NE(p1.find("initial_deg: 2"), std::string::npos) << p1;
+  EXPECT_NE(p1.find("to_deg: 2.25"), std::string::npos) << p1;
+  EXPECT_EQ(p1.find("adaptive_paper"), std::string::npos) << "only the sweep's runs\n" << p1;
+}
+
 TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
   TempDir dir;
   const auto sweep = source_path("tests/sweep/small.yaml");

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -169,7 +171,7 @@ double draw(const SweepAxis& a, std::uint64_t seed, long point, std::size_t axis
 
 SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node& plant, const std::string& campaign_name,
                     const std::string& plant_name) {
-  n.allow_keys({"path", "values", "range", "uniform", "normal"});
+  n.allow_keys({"path", "values", "range", "uniform", "normal", "relative_to"});
   SweepAxis a;
   a.path = n.text("path");
   const auto path = parse_path(a.path);
@@ -179,6 +181,13 @@ SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node&
                       "items as [n]");
   }
   walk(path->plant ? plant : campaign, *path, n.at("path"), path->plant ? plant_name : campaign_name);
+  if (auto rel = n.find("relative_to")) {
+    a.relative_to = rel->text();
+    const auto base = parse_path(a.relative_to);
+    if (!base) rel->fail("'" + a.relative_to + "' is no axis path");
+    walk(base->plant ? plant : campaign, *base, *rel, base->plant ? plant_name : campaign_name);
+    rel->require(a.relative_to != a.path, "an axis cannot be relative to itself");
+  }
   int kinds = 0;
   for (const char* k : {"values", "range", "uniform", "normal"}) kinds += n.has(k) ? 1 : 0;
   n.require(kinds == 1, "an axis needs exactly one of values, range, uniform, normal");
@@ -187,6 +196,7 @@ SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node&
     v->require(v->is_sequence() && !v->items().empty(), "needs a non-empty list of values");
     for (const Node& item : v->items()) {
       item.require(item.is_scalar(), "each value must be a single value");
+      if (!a.relative_to.empty()) item.number();  // an increment: a number
       a.values.push_back(item.text());
     }
   } else if (auto r = n.find("range")) {
@@ -204,7 +214,10 @@ SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node&
       const double v = i == count - 1   ? to
                        : scale == "log" ? std::exp(std::log(from) + f * (std::log(to) - std::log(from)))
                                         : from + f * (to - from);
-      a.values.push_back(shortest(v));
+      // 12 significant digits: 0.005 rather than 0.005000000000000002 from exp(log(...)).
+      char rounded[32];
+      std::snprintf(rounded, sizeof rounded, "%.12g", v);
+      a.values.push_back(shortest(std::strtod(rounded, nullptr)));
     }
   } else if (auto u = n.find("uniform")) {
     a.kind = AxisKind::uniform;
@@ -274,7 +287,12 @@ nlohmann::json SweepPlan::to_json() const {
   json axes_j = json::array();
   for (const auto& a : axes) {
     static const char* kinds[] = {"list", "range", "uniform", "normal"};
-    axes_j.push_back({{"path", a.path}, {"kind", kinds[static_cast<int>(a.kind)]}, {"values", a.values}, {"a", a.a}, {"b", a.b}});
+    axes_j.push_back({{"path", a.path},
+                      {"kind", kinds[static_cast<int>(a.kind)]},
+                      {"values", a.values},
+                      {"a", a.a},
+                      {"b", a.b},
+                      {"relative_to", a.relative_to}});
   }
   json thresholds_j = json::array();
   for (const auto& t : thresholds) {
@@ -330,6 +348,7 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
       x.values = a.at("values").get<std::vector<std::string>>();
       x.a = a.at("a").get<double>();
       x.b = a.at("b").get<double>();
+      x.relative_to = a.at("relative_to").get<std::string>();
       p.axes.push_back(std::move(x));
     }
     for (const auto& t : j.at("thresholds")) {
@@ -536,10 +555,27 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
   YAML::Node campaign = load_yaml(plan.campaign_yaml, "the sweep's base campaign");
   YAML::Node plant = load_yaml(plan.plant_yaml, "the sweep's base plant");
   const auto& values = plan.points[static_cast<std::size_t>(p)];
-  for (std::size_t i = 0; i < plan.axes.size(); ++i) {
-    const auto path = parse_path(plan.axes[i].path);
-    YAML::Node at = walk_checked(path->plant ? plant : campaign, *path);
-    at = values[i];
+  // Values first, then the increments onto what the values made.
+  for (const bool relative : {false, true}) {
+    for (std::size_t i = 0; i < plan.axes.size(); ++i) {
+      const SweepAxis& axis = plan.axes[i];
+      if (axis.relative_to.empty() == relative) continue;
+      const auto path = parse_path(axis.path);
+      YAML::Node at = walk_checked(path->plant ? plant : campaign, *path);
+      if (!relative) {
+        at = values[i];
+        continue;
+      }
+      const auto base_path = parse_path(axis.relative_to);
+      const std::string base = walk_checked(base_path->plant ? plant : campaign, *base_path).as<std::string>();
+      double b = 0, d = 0;
+      const auto rb = std::from_chars(base.data(), base.data() + base.size(), b);
+      const auto rd = std::from_chars(values[i].data(), values[i].data() + values[i].size(), d);
+      if (rb.ec != std::errc() || rb.ptr != base.data() + base.size() || rd.ec != std::errc()) {
+        throw cfg::Error(axis.path + ": relative to " + axis.relative_to + " = '" + base + "', which is no number");
+      }
+      at = shortest(b + d);
+    }
   }
   // Only the sweep's runs, so the point's file reproduces exactly what the sweep ran.
   YAML::Node runs(YAML::NodeType::Sequence);

@@ -206,7 +206,6 @@ long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan
   order.resize(n_worst);
 
   report::Document doc("Sweep " + plan.name);
-  doc.heading("Sweep " + plan.name, 1);
   if (!plan.description.empty()) doc.paragraph(plan.description);
   std::string thresholds_text;
   for (const auto& t : plan.thresholds) thresholds_text += (thresholds_text.empty() ? "" : "; ") + bound_text(t);

@@ -29,6 +29,9 @@ struct SweepAxis {
   AxisKind kind = AxisKind::list;
   std::vector<std::string> values;  // list, range: the grid's values as YAML scalars
   double a = 0, b = 0;              // uniform: low, high; normal: mean, sd
+  // Another axis path: this axis's value is added to the value there (after the other axes are
+  // set), e.g. a gap change as an increment of the swept initial gap. Empty: the value is set.
+  std::string relative_to;
   bool random() const { return kind == AxisKind::uniform || kind == AxisKind::normal; }
 };
 
