@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `hilbench sweep --slurm` on a real Slurm: starts a single-node cluster of this host
 # (scripts/slurm-local: own munge, slurmctld, slurmd, all under a temp folder), submits the small
-# sweep of this folder as a job array of 3 shards plus the aggregation job, waits for both, and
+# sweep of this folder as a job array of 3 shards plus the aggregation job, waits for both (Slurm
+# must report every task and the aggregation COMPLETED), and
 # checks that
 #   - sweep.csv is byte for byte the one a local sweep of the same file writes,
 #   - `hilbench sweep --status` reports every point done,
@@ -90,6 +91,14 @@ submit() {
     fail "hilbench sweep --slurm failed: $(cat "$log.out" "$log.err")"
   cat "$log.out" "$log.err"
   array_id=$(awk '$1 == "array" { print $2 }' "$log.out")
+  aggregate_id=$(awk '$1 == "aggregate" { print $2 }' "$log.out")
+}
+
+# Every job (every task of an array) with id $1 completed with exit code 0, as Slurm saw it.
+completed() {
+  local states
+  states=$(scontrol show job "$1" | grep -o 'JobState=[A-Z_]*' | sort -u)
+  [[ "$states" == "JobState=COMPLETED" ]] || fail "job $1 did not complete: ${states//$'\n'/ }"
 }
 
 # The array tasks Slurm itself ran for job $1 (completed jobs stay known to slurmctld for
@@ -111,8 +120,10 @@ eval "$("$cluster_cmd" env "$cluster")"
 
 echo "== hilbench sweep --slurm --tasks 3"
 submit "$work/submit1"
-[[ -n "$array_id" ]] || fail "hilbench sweep --slurm printed no 'array <id>' line"
+[[ -n "$array_id" && -n "$aggregate_id" ]] || fail "hilbench sweep --slurm printed no 'array <id>' and 'aggregate <id>' lines"
 wait_for_queue_empty "first submission"
+completed "$array_id"
+completed "$aggregate_id"
 [[ "$(array_tasks "$array_id")" == "0 1 2" ]] ||
   fail "array job $array_id ran tasks '$(array_tasks "$array_id")', expected 0 1 2"
 [[ -f "$slurm_out/sweep.csv" ]] || fail "the aggregation job wrote no sweep.csv"
@@ -141,6 +152,8 @@ grep -q "$((8 - shard1_rows)) of 8 points done" <<<"$status" ||
 submit "$work/submit2"
 [[ -n "$array_id" ]] || fail "the resubmission submitted no array job"
 wait_for_queue_empty "resubmission"
+completed "$array_id"
+completed "$aggregate_id"
 [[ "$(array_tasks "$array_id")" == "1" ]] ||
   fail "the resubmitted array job $array_id ran tasks '$(array_tasks "$array_id")', expected only 1"
 [[ "$(stat -c '%y %s' "$rows/shard-0-of-3.jsonl")" == "$before0" ]] || fail "the resubmission touched shard 0"
