@@ -156,6 +156,8 @@ TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
       {"  - path: plant.effects.motor_servo.time_constnt_s\n    values: [0.01]\n", "bad.yaml:3:5: axes[0].path",
        "nominal.yaml has no key 'time_constnt_s'"},
       {"  - path: gap.initial_deg\n    values: [1]\n", "bad.yaml:3:5: axes[0].path", "no axis path"},
+      {"  - path: campaign.runs[0].name\n    values: [x]\n", "bad.yaml:3:5: axes[0].path", "run names cannot be an axis"},
+      {"  - path: campaign.runs\n    values: [x]\n", "bad.yaml:3:5: axes[0].path", "which is no single value"},
       {"  - path: campaign.gap.initial_deg\n    range: {from: 1, to: 2}\n", "bad.yaml:4:5: axes[0].range",
        "missing required key 'count'"},
       {"  - path: campaign.gap.initial_deg\n    range: {from: 0, to: 2, count: 3, scale: log}\n", "bad.yaml:4:5: axes[0].range",

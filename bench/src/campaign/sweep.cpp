@@ -1,6 +1,7 @@
 #include "hil/bench/campaign/sweep.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +12,7 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include <yaml-cpp/yaml.h>
 
@@ -181,6 +183,14 @@ SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node&
                       "items as [n]");
   }
   walk(path->plant ? plant : campaign, *path, n.at("path"), path->plant ? plant_name : campaign_name);
+  if (!path->plant && !path->steps.empty()) {
+    // What names the outputs is not a condition: the campaign's name and plant file, run names.
+    const auto& s = path->steps;
+    n.at("path").require(s.size() != 1 || (s[0].key != "name" && s[0].key != "plant"),
+                         "the campaign's name and plant file cannot be an axis (sweep the plant's values instead)");
+    n.at("path").require(!(s.size() == 3 && s[0].key == "runs" && s[2].key == "name"),
+                         "run names cannot be an axis: they name the sweep's metrics");
+  }
   if (auto rel = n.find("relative_to")) {
     a.relative_to = rel->text();
     const auto base = parse_path(a.relative_to);
@@ -537,15 +547,32 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file) {
 
   // Every point's campaign through the loader before anything runs: a value it refuses (a
   // negative gap, a reference out of the plant's reach) stops the sweep here, naming the point.
-  for (long p = 0; p < plan.size(); ++p) {
-    try {
-      point_campaign(plan, p);
-    } catch (const cfg::Error& e) {
-      std::string values;
-      for (std::size_t i = 0; i < plan.axes.size(); ++i)
-        values += (i ? ", " : "") + plan.axes[i].path + " = " + plan.points[static_cast<std::size_t>(p)][i];
-      axes.fail("point " + std::to_string(p) + " (" + values + "): " + e.what());
+  // On every hardware thread, each point once; the refused point of the lowest index is reported
+  // (not the first one found), so the message is the same on every machine.
+  std::atomic<long> next{0}, first_bad{plan.size()};
+  std::vector<std::string> why(static_cast<std::size_t>(plan.size()));
+  auto check = [&] {
+    for (long p = next.fetch_add(1); p < plan.size() && p < first_bad.load(); p = next.fetch_add(1)) {
+      try {
+        const Campaign c = point_campaign(plan, p);
+        std::vector<std::string> names;
+        for (const auto& r : c.runs) names.push_back(r.name);
+        if (names != plan.runs) throw cfg::Error("its runs are not the sweep's runs");
+      } catch (const cfg::Error& e) {
+        why[static_cast<std::size_t>(p)] = e.what();
+        for (long seen = first_bad.load(); p < seen && !first_bad.compare_exchange_weak(seen, p);) {}
+      }
     }
+  };
+  std::vector<std::thread> threads;
+  for (unsigned t = 1; t < std::max(1u, std::thread::hardware_concurrency()); ++t) threads.emplace_back(check);
+  check();
+  for (auto& t : threads) t.join();
+  if (const long p = first_bad.load(); p < plan.size()) {
+    std::string values;
+    for (std::size_t i = 0; i < plan.axes.size(); ++i)
+      values += (i ? ", " : "") + plan.axes[i].path + " = " + plan.points[static_cast<std::size_t>(p)][i];
+    axes.fail("point " + std::to_string(p) + " (" + values + "): " + why[static_cast<std::size_t>(p)]);
   }
   return plan;
 }
@@ -580,8 +607,10 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
   // Only the sweep's runs, so the point's file reproduces exactly what the sweep ran.
   YAML::Node runs(YAML::NodeType::Sequence);
   for (const auto& r : campaign["runs"]) {
-    const auto name = r["name"].as<std::string>();
-    if (std::find(plan.runs.begin(), plan.runs.end(), name) != plan.runs.end()) runs.push_back(r);
+    const YAML::Node name = r["name"];
+    if (name.IsScalar() && std::find(plan.runs.begin(), plan.runs.end(), name.as<std::string>()) != plan.runs.end()) {
+      runs.push_back(r);
+    }
   }
   campaign["runs"] = runs;
   if (!campaign["name"]) campaign["name"] = plan.name;
@@ -600,6 +629,10 @@ Campaign point_campaign(const SweepPlan& plan, long p) {
 
 std::vector<double> run_point(const SweepPlan& plan, long p) {
   const Campaign c = point_campaign(plan, p);
+  std::vector<std::string> names;
+  for (const auto& r : c.runs) names.push_back(r.name);
+  if (names != plan.runs)
+    throw std::runtime_error("sweep point " + std::to_string(p) + ": the campaign's runs are not the plan's");
   struct PerRun {
     double iae = 0, stall = kNoValue, touch = kNoValue, gap_err = kNoValue;
     long trips = 0;
