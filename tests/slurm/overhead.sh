@@ -4,17 +4,19 @@
 # `hilbench sweep --slurm --tasks K` (submission to the aggregation job's end) against the same
 # sweep run locally with as many jobs as the node has CPUs; overhead per task =
 # (wall_slurm - wall_local) / K. For scale, the same for a bare `sbatch --array` of K `true`
-# tasks against K `true` runs. Prints one line per repetition and the medians.
-#   overhead.sh HILBENCH [K=16] [REPETITIONS=3]
+# tasks against K `true` runs. Prints one line per repetition and the medians. With SWEEP.yaml,
+# that sweep in K shards instead of the K trivial points.
+#   overhead.sh HILBENCH [K=16] [REPETITIONS=3] [SWEEP.yaml]
 set -euo pipefail
 
 (($# >= 1)) || {
-  echo "usage: $0 HILBENCH [K] [REPETITIONS]" >&2
+  echo "usage: $0 HILBENCH [K] [REPETITIONS] [SWEEP.yaml]" >&2
   exit 2
 }
 hilbench=$(realpath "$1")
 tasks=${2:-16}
 reps=${3:-3}
+sweep=${4:+$(realpath "$4")}
 src=$(cd "$(dirname "$0")/../.." && pwd)
 cluster_cmd=$src/scripts/slurm-local
 
@@ -47,23 +49,24 @@ sed -e "s|^plant: .*|plant: $src/configs/plant/nominal.yaml|" -e 's/^duration_s:
   echo "  - path: campaign.seed"
   echo "    values: [$(seq -s ', ' 1 "$tasks")]"
 } >"$work/sweep.yaml"
+[[ -n "$sweep" ]] || sweep=$work/sweep.yaml
 
 setup_start=$(now_s)
 "$cluster_cmd" start "$work/cluster" >/dev/null
 setup_s=$(elapsed_s "$setup_start" "$(now_s)")
 eval "$("$cluster_cmd" env "$work/cluster")"
 cpus=$(nproc)
-echo "cluster start: $setup_s s; K = $tasks tasks, $cpus CPUs, load average $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "$(basename "$sweep"); cluster start: $setup_s s; K = $tasks tasks, $cpus CPUs, load average $(cut -d' ' -f1-3 /proc/loadavg)"
 
 results=()
 for ((r = 1; r <= reps; r++)); do
   rm -rf "$work/local" "$work/slurm"
   t0=$(now_s)
-  "$hilbench" sweep "$work/sweep.yaml" --out "$work/local" --jobs "$cpus" --quiet >/dev/null
+  "$hilbench" sweep "$sweep" --out "$work/local" --jobs "$cpus" --quiet >/dev/null
   local_s=$(elapsed_s "$t0" "$(now_s)")
 
   t0=$(now_s)
-  "$hilbench" sweep "$work/sweep.yaml" --out "$work/slurm" --slurm --tasks "$tasks" >/dev/null
+  "$hilbench" sweep "$sweep" --out "$work/slurm" --slurm --tasks "$tasks" >/dev/null
   wait_for_queue_empty
   slurm_s=$(elapsed_s "$t0" "$(now_s)")
   cmp -s "$work/local/sweep.csv" "$work/slurm/sweep.csv" || {
