@@ -3,7 +3,8 @@
 #   scripts/setup.sh          build and run (compiler, libraries)
 #   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll,
 #                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer, Node.js
-#                             and npm for the Foxglove client test)
+#                             and npm for the Foxglove client test, slurm-wlm and munge for the single-node
+#                             Slurm of tests/slurm)
 #   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
 set -euo pipefail
 
@@ -12,7 +13,8 @@ build_pkgs=(build-essential cmake ninja-build ccache pkg-config git
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
   python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps
-  clang-14 libclang-rt-14-dev llvm-14 clang-format-14 nodejs npm)
+  clang-14 libclang-rt-14-dev llvm-14 clang-format-14 nodejs npm
+  slurm-wlm munge)
 bench_pkgs=(rt-tests)
 
 want=("${build_pkgs[@]}")
@@ -43,6 +45,19 @@ if ((EUID != 0)); then
 fi
 echo "setup: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
+# Daemon packages (munge, slurmctld, slurmd) start their service from postinst. The tests start
+# their own daemons with their own key and config, and in a container without an init system the
+# start fails and with it the install; a policy-rc.d that answers 101 ("action forbidden") keeps
+# the packages from starting anything. An existing policy (as in Docker images) is left alone.
+policy=/usr/sbin/policy-rc.d
+own_policy=0
+if [[ ! -e $policy ]]; then
+  printf '#!/bin/sh\nexit 101\n' | "${sudo[@]}" tee "$policy" >/dev/null
+  "${sudo[@]}" chmod 755 "$policy"
+  own_policy=1
+  trap '"${sudo[@]}" rm -f "$policy"' EXIT
+fi
 "${sudo[@]}" apt-get update -qq
 "${sudo[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+((own_policy == 0)) || { "${sudo[@]}" rm -f "$policy"; trap - EXIT; }
 echo "setup: done"

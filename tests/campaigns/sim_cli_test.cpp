@@ -117,6 +117,7 @@ TEST(Cli, EverySubCommandAnswersHelp) {
   // Each command with text its help must show: an option of its own (drive and ctl: a command).
   const std::vector<std::pair<std::string, std::vector<std::string>>> commands = {
       {"sim", {"--out", "--sensor-noise-kpa", "--no-telemetry"}},
+      {"sweep", {"SWEEP.yaml", "--jobs", "--shard", "--aggregate", "--slurm", "--status"}},
       {"effects", {"usage: hilbench effects"}},
       {"serve", {"--listen", "--token", "--max-body-kb"}},
       {"ctl", {"--server", "status", "inject", "telemetry"}},

@@ -99,6 +99,30 @@ TEST(Document, TablesMarkNumericCells) {
   EXPECT_EQ(count(page, "<td class=\"num\">"), 2u);
 }
 
+// A heatmap: every value printed in its cell, the smallest green (hue 120), the largest red (hue
+// 0), a cell without a value blank, marked cells flagged, the labels escaped.
+TEST(Document, HeatmapColoursAndFlagsCells) {
+  Document doc("h");
+  hil::report::Heatmap h{.title = "<iae>",
+                         .x_label = "gap",
+                         .y_label = "noise",
+                         .x_ticks = {"0.5", "1"},
+                         .y_ticks = {"0", "2"},
+                         .values = {{1.0, 2.0}, {3.0, NAN}},
+                         .marked = {{false, false}, {true, false}}};
+  doc.heatmap(h);
+  const std::string page = doc.html();
+  EXPECT_NE(page.find("background:hsl(120,70%,72%);\">1</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(60,70%,72%);\">2</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(0,70%,72%);outline:2px solid #b00;outline-offset:-2px;font-weight:bold;\">3 &#x2717;</td>"),
+            std::string::npos);
+  EXPECT_NE(page.find("style=\"\">-</td>"), std::string::npos);
+  EXPECT_EQ(count(page, "&#x2717;"), 1u);
+  EXPECT_NE(page.find("&lt;iae&gt;"), std::string::npos);
+  h.values.pop_back();
+  EXPECT_THROW(doc.heatmap(h), std::invalid_argument);
+}
+
 TEST(DocumentWrite, WritesTheWholePageAndNoTemporary) {
   TempDir dir;
   const auto file = dir.path / "report.html";

@@ -7,6 +7,9 @@
 #include <atomic>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <system_error>
 
@@ -104,6 +107,55 @@ void Document::table(std::vector<std::string> header, std::vector<std::vector<st
     for (const auto& c : row) {
       h += looks_numeric(c) ? "<td class=\"num\">" : "<td>";
       h += html_escape(c) + "</td>";
+    }
+    h += "</tr>";
+  }
+  h += "</tbody></table></div>";
+  block(h);
+}
+
+void Document::heatmap(const Heatmap& map) {
+  const auto fits = [&](const auto& grid) {
+    if (grid.size() != map.y_ticks.size()) return false;
+    for (const auto& row : grid)
+      if (row.size() != map.x_ticks.size()) return false;
+    return true;
+  };
+  if (!fits(map.values) || (!map.marked.empty() && !fits(map.marked))) {
+    throw std::invalid_argument("report heatmap '" + map.title + "': needs " + std::to_string(map.y_ticks.size()) + " rows of " +
+                                std::to_string(map.x_ticks.size()) + " cells");
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& row : map.values) {
+    for (double v : row) {
+      if (!std::isfinite(v)) continue;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+  }
+  std::string h = "<div class=\"hil-table-wrap\"><table class=\"hil-table\"><caption style=\"text-align:left\"><b>" +
+                  html_escape(map.title) + "</b> " + html_escape(map.value_label) + "</caption><thead><tr><th>" +
+                  html_escape(map.y_label) + " \\ " + html_escape(map.x_label) + "</th>";
+  for (const auto& x : map.x_ticks) h += "<th>" + html_escape(x) + "</th>";
+  h += "</tr></thead><tbody>";
+  char text[64];
+  for (std::size_t y = 0; y < map.y_ticks.size(); ++y) {
+    h += "<tr><th>" + html_escape(map.y_ticks[y]) + "</th>";
+    for (std::size_t x = 0; x < map.x_ticks.size(); ++x) {
+      const double v = map.values[y][x];
+      const bool marked = !map.marked.empty() && map.marked[y][x];
+      std::string style;
+      if (std::isfinite(v)) {
+        // Green (hue 120) for the smallest value to red (hue 0) for the largest, light enough for black text.
+        const double f = hi > lo ? (v - lo) / (hi - lo) : 0.0;
+        std::snprintf(text, sizeof text, "background:hsl(%.0f,70%%,72%%);", 120.0 * (1.0 - f));
+        style = text;
+        std::snprintf(text, sizeof text, "%.*g", map.digits, v);
+      } else {
+        std::snprintf(text, sizeof text, "-");
+      }
+      if (marked) style += "outline:2px solid #b00;outline-offset:-2px;font-weight:bold;";
+      h += "<td class=\"num\" style=\"" + style + "\">" + html_escape(text) + (marked ? " &#x2717;" : "") + "</td>";
     }
     h += "</tr>";
   }

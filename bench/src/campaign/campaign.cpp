@@ -336,7 +336,7 @@ void require_plain_name(const Node& where, const std::string& name) {
 }
 
 Campaign load(const Node& root, const std::filesystem::path& file, const std::string& text,
-              const std::filesystem::path& plants_root) {
+              const std::filesystem::path& plants_root, const Node* plant_root = nullptr) {
   root.allow_keys({"name", "description", "plant", "duration_s", "period_ms", "seed", "sensor_noise_kpa", "reference", "gap",
                    "controller", "runs"});
   Campaign c;
@@ -350,7 +350,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   }
   c.description = root.text("description", "");
 
-  c.plant_file = root.resolve_path(root.text("plant"));
+  c.plant_file = plant_root != nullptr ? plant_root->file() : root.resolve_path(root.text("plant"));
   if (!plants_root.empty()) {
     // A campaign from outside (posted over the API) may read plant files of this bench only:
     // never /etc/shadow, whose first line a YAML error would quote back.
@@ -364,7 +364,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   }
   plant::Plant truth = [&] {
     try {
-      return plant::Plant::load(c.plant_file);
+      return plant_root != nullptr ? plant::Plant::from_yaml(*plant_root) : plant::Plant::load(c.plant_file);
     } catch (const cfg::Error& e) {
       root.at("plant").fail(std::string("in the plant file: ") + e.what());
     }
@@ -539,6 +539,14 @@ Campaign load_campaign_text(const std::string& yaml, const std::string& origin, 
   const std::filesystem::path pseudo = base_dir / origin;
   const Node root = Node::load_string(yaml, pseudo.string());
   return load(root, pseudo, yaml, plants_root);
+}
+
+Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
+                            const std::string& plant_yaml, const std::filesystem::path& plant_origin) {
+  const std::filesystem::path pseudo = base_dir / origin;
+  const Node root = Node::load_string(yaml, pseudo.string());
+  const Node plant_root = Node::load_string(plant_yaml, plant_origin.string());
+  return load(root, pseudo, yaml, {}, &plant_root);
 }
 
 }  // namespace hil::bench

@@ -22,7 +22,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s: noise creep is slower
 // At most 2 x 5000 buckets of two points: a report plot of a run holds at most 20 000 points.
 constexpr std::size_t kReportBuckets = 5000;
 
@@ -154,9 +153,7 @@ bool SimulatedRun::next(TelemetryRecord& out) noexcept {
 }
 
 RunSummary summarise_run(const Campaign& c, const RunSpec& run) {
-  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
-  simulate_run(c, run, [&](const TelemetryRecord& r) { metrics.add(r.step); });
-  return metrics.finish();
+  return summarise_run(c, run, [](const TelemetryRecord&) {});
 }
 
 CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {

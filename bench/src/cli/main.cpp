@@ -27,6 +27,8 @@ struct Command {
 
 const Command kCommands[] = {
     {"sim", "run a campaign on the simulated plant, faster than real time", hil::bench::define_sim},
+    {"sweep", "run a campaign over a grid or distribution of conditions, on every core or on Slurm; robustness maps",
+     hil::bench::define_sweep},
     {"effects", "list the physical effects a plant file may use", hil::bench::define_effects},
     {"serve", "the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)", hil::bench::define_serve},
     {"ctl", "command-line client of hilbench serve", hil::bench::define_ctl},

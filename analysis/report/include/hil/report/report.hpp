@@ -55,6 +55,14 @@ struct Bars {  // grouped bar chart: one bar per (category, group)
   int height_px = 260;
 };
 
+struct Heatmap {  // a value per (x, y) cell as a table of coloured cells, e.g. a metric over two sweep axes
+  std::string title = "", x_label = "", y_label = "", value_label = "";
+  std::vector<std::string> x_ticks = {}, y_ticks = {};
+  std::vector<std::vector<double>> values = {};  // [y][x]; NaN: no value, a blank cell
+  std::vector<std::vector<bool>> marked = {};    // [y][x]: outlined and flagged "x" (failing); empty: none
+  int digits = 3;                                // significant digits of the value shown in each cell
+};
+
 class Document {
  public:
   explicit Document(std::string title);
@@ -68,6 +76,10 @@ class Document {
   void figure(const Figure& fig);
   // Throws std::invalid_argument if a group does not have one value per category.
   void bars(const Bars& chart);
+  // Cells coloured from green (the smallest value) to red (the largest), the value printed in
+  // each; works without JavaScript. Throws std::invalid_argument if values or marked is not
+  // y_ticks x x_ticks.
+  void heatmap(const Heatmap& map);
   // Side-by-side layout: the blocks added until columns_end() fill n columns row by row (so add
   // run 1's pressure, run 2's pressure, ..., then run 1's angle, ...). No nesting.
   void columns_begin(int n);

@@ -50,6 +50,10 @@ Campaign load_campaign(const std::filesystem::path& file);
 // A non-empty `plants_root` confines the plant file to that folder (the bench's configs).
 Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
                             const std::filesystem::path& plants_root = {});
+// A campaign and its plant both from YAML text (a sweep's point, edited in memory): the campaign's
+// `plant:` key is not opened; `plant_origin` names the plant text in errors and is the plant_file.
+Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
+                            const std::string& plant_yaml, const std::filesystem::path& plant_origin);
 
 // The same campaign with another transducer noise (0 reproduces the paper's noise-free
 // simulation). The controllers keep what they were told of the transducer.

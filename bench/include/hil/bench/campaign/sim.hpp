@@ -20,6 +20,7 @@
 #include "hil/bench/campaign/run_metrics.hpp"
 #include "hil/bench/rt/sim_rig.hpp"
 #include "hil/bench/rt/telemetry_record.hpp"
+#include "hil/units.hpp"
 
 namespace hil::bench {
 
@@ -57,8 +58,22 @@ void simulate_run(const Campaign& c, const RunSpec& run, OnStep&& on_step, std::
   }
 }
 
+// The motor "moves" above this speed in the run metrics: noise makes it creep slower.
+inline constexpr double kMotionThresholdRadS = 0.5 * units::kRadPerDeg;  // 0.5 deg/s
+
 // The reversal metrics of a run without writing anything (tests, benchmarks, the README table).
 RunSummary summarise_run(const Campaign& c, const RunSpec& run);
+// The same, handing each period's record to also(const TelemetryRecord&) as well (a sweep's
+// interlock count).
+template <class Also>
+RunSummary summarise_run(const Campaign& c, const RunSpec& run, Also&& also) {
+  RunMetrics metrics(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS);
+  simulate_run(c, run, [&](const TelemetryRecord& r) {
+    metrics.add(r.step);
+    also(r);
+  });
+  return metrics.finish();
+}
 
 // A series kept for the report: at most ~2 points per bucket (the bucket's min and max, in time
 // order), so an hour at 1 kHz stays a few thousand points with every spike kept.

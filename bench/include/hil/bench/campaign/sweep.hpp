@@ -1,0 +1,132 @@
+// Campaign sweeps (`hilbench sweep`): a base campaign and axes, each a YAML path into the campaign,
+// its plant or its controller block, with a list, a range or a distribution of values. A point is
+// one campaign run through summarise_run, the path of `hilbench sim`; its metrics are one row.
+//
+// A sweep's folder DIR holds everything the points need (plan.json: the expanded points, the base
+// campaign and plant texts), so shards on other machines read only DIR. Finished points are
+// whole lines of rows files under DIR/rows/ (one file per writer: local, or one per Slurm shard);
+// the outputs (sweep.csv, sweep.json, report.html) are made from them once every point is there.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hil/bench/campaign/campaign.hpp"
+
+namespace hil::bench {
+
+enum class AxisKind : std::uint8_t { list, range, uniform, normal };
+
+struct SweepAxis {
+  std::string path;  // as written in the sweep file: campaign.gap.initial_deg, plant.effects..., controller.observer
+  AxisKind kind = AxisKind::list;
+  std::vector<std::string> values;  // list, range: the grid's values as YAML scalars
+  double a = 0, b = 0;              // uniform: low, high; normal: mean, sd
+  // Another axis path: this axis's value is added to the value there (after the other axes are
+  // set), e.g. a gap change as an increment of the swept initial gap. Empty: the value is set.
+  std::string relative_to;
+  bool random() const { return kind == AxisKind::uniform || kind == AxisKind::normal; }
+};
+
+struct SweepBound {
+  std::string metric;
+  std::optional<double> min = std::nullopt, max = std::nullopt;
+};
+
+struct SweepMap {
+  std::string metric, x, y;
+  std::string reduce = "mean";                                  // mean, max or min over the other axes...
+  std::vector<std::pair<std::string, std::string>> slice = {};  // ...or these axes held at one value each
+};
+
+struct SweepPlan {
+  std::string name, description;
+  std::string hash;  // of the sweep file and the base campaign and plant texts
+  std::string campaign_yaml, plant_yaml;
+  std::filesystem::path campaign_dir;  // where the base campaign's relative paths (a reference CSV) resolve
+  std::vector<std::string> runs;       // the runs of the base campaign that each point runs
+  std::uint64_t seed = 1;
+  long samples = 1;
+  std::vector<SweepAxis> axes;
+  std::vector<SweepBound> thresholds;
+  std::vector<SweepMap> maps;
+  std::string worst_by;                          // a metric; the worst points are its largest
+  std::vector<std::vector<std::string>> points;  // per point, each axis's value as a YAML scalar
+
+  long size() const { return static_cast<long>(points.size()); }
+  // "<run>.<metric>" for every run: iae_mpa_s, stall_s_per_reversal, stall_vs_none (with a `none`
+  // run), touch_changes_per_reversal, gap_error_deg, interlock_trips.
+  std::vector<std::string> metric_names() const;
+  nlohmann::json to_json() const;
+  // Throws std::runtime_error naming `origin` when the plan is not one.
+  static SweepPlan from_json(const nlohmann::json& j, const std::string& origin);
+};
+
+// Reads and checks SWEEP.yaml, expands its points and checks that every point's campaign loads.
+// Throws cfg::Error naming the sweep file, line, column and key (a bad axis path or spec), or
+// the point and the loader's message (a value the campaign or plant refuses).
+SweepPlan plan_sweep(const std::filesystem::path& sweep_file);
+
+// Point p's campaign and plant as YAML, as `hilbench sim` reads them from DIR/points/<p>/ (the
+// campaign names its plant `plant.yaml`, beside it).
+struct PointYaml {
+  std::string campaign, plant;
+};
+PointYaml point_yaml(const SweepPlan& plan, long p);
+Campaign point_campaign(const SweepPlan& plan, long p);
+
+// Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
+// per reversal without reversals).
+std::vector<double> run_point(const SweepPlan& plan, long p);
+
+// Whether every threshold holds (a NaN metric fails its bound).
+bool point_passes(const SweepPlan& plan, const std::vector<double>& metrics);
+
+// The sweep's folder DIR. plan.json holds the plan; rows/<writer>.jsonl the finished points, one
+// JSON object a line ({"point": p, "metrics": [...]}, null for NaN).
+void write_plan(const std::filesystem::path& dir, const SweepPlan& plan);  // atomic: temp file, then rename
+// Throws std::runtime_error naming the file when DIR holds no plan.
+SweepPlan read_plan(const std::filesystem::path& dir);
+// The finished points of every rows file under DIR/rows/, by point (a point written twice counts
+// once: every writer computes the same row).
+std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan);
+
+struct SweepRunOptions {
+  int jobs = 1;
+  bool progress = true;
+  long shard = 0, shards = 1;       // only the points p with p % shards == shard
+  std::string rows_name = "local";  // the rows file this process appends to: DIR/rows/<rows_name>.jsonl
+  // Set (by a signal handler, say) to stop: the points in flight finish, none starts.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+struct SweepRunResult {
+  long ran = 0;   // points this call ran
+  long done = 0;  // points of the sweep finished, by every writer
+  long total = 0;
+  long missing = 0;  // of this call's share
+  bool cancelled = false;
+  double wall_s = 0;
+};
+
+// Runs the missing points of the share on `jobs` threads, each appended as one whole line of the
+// rows file as it finishes. Throws what a point throws (after the points in flight).
+SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan, const SweepRunOptions& options);
+
+// sweep.csv, sweep.json, report.html and, for the worst points, points/<p>/campaign.yaml and
+// plant.yaml. Returns how many points are missing; then nothing is written.
+long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
+
+// One point's row of sweep.csv (and the header): fixed formatting, so the file is the same bytes
+// whoever computed the rows.
+std::string sweep_csv_header(const SweepPlan& plan);
+std::string sweep_csv_row(const SweepPlan& plan, long p, const std::vector<double>& metrics);
+
+}  // namespace hil::bench

@@ -1,0 +1,255 @@
+// A finished sweep's outputs: sweep.csv, sweep.json, report.html (robustness maps, pass/fail, the
+// worst points) and the worst points' campaigns to reproduce them with `hilbench sim`.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "hil/bench/campaign/sweep.hpp"
+#include "hil/line_file.hpp"
+#include "hil/report/report.hpp"
+
+namespace hil::bench {
+namespace {
+
+using json = nlohmann::json;
+
+constexpr std::size_t kWorstPoints = 10;
+
+void write_atomic(const std::filesystem::path& file, const std::string& text) {
+  std::string name = ".";
+  name += file.filename().string();
+  name += ".tmp";
+  const auto tmp = file.parent_path() / name;
+  try {
+    {
+      LineFile out(tmp);
+      out.append(text);
+    }
+    std::filesystem::rename(tmp, file);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+}
+
+std::string number_text(double v) {
+  if (!std::isfinite(v)) return "nan";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return q + "\"";
+}
+
+// An axis value for JSON: a number when the whole text is one.
+json value_json(const std::string& s) {
+  double v = 0;
+  const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (!s.empty() && r.ec == std::errc() && r.ptr == s.data() + s.size() && std::isfinite(v)) return v;
+  return s;
+}
+
+json metric_json(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+std::size_t index_of(const std::vector<std::string>& names, const std::string& name) {
+  return static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+}
+
+const SweepBound* bound_of(const SweepPlan& plan, const std::string& metric) {
+  for (const auto& t : plan.thresholds)
+    if (t.metric == metric) return &t;
+  return nullptr;
+}
+
+std::string bound_text(const SweepBound& b) {
+  std::string s = b.metric;
+  if (b.min) s += " >= " + number_text(*b.min);
+  if (b.min && b.max) s += " and";
+  if (b.max) s += " <= " + number_text(*b.max);
+  return s;
+}
+
+void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, const std::map<long, std::vector<double>>& rows,
+             const std::vector<bool>& pass) {
+  const auto names = plan.metric_names();
+  std::vector<std::string> paths;
+  for (const auto& a : plan.axes) paths.push_back(a.path);
+  const std::size_t xi = index_of(paths, map.x), yi = index_of(paths, map.y), mi = index_of(names, map.metric);
+  const auto& xs = plan.axes[xi].values;
+  const auto& ys = plan.axes[yi].values;
+  report::Heatmap h;
+  h.x_label = map.x;
+  h.y_label = map.y;
+  h.x_ticks = xs;
+  h.y_ticks = ys;
+  std::vector<std::vector<std::vector<double>>> cell(ys.size(), std::vector<std::vector<double>>(xs.size()));
+  std::vector<std::vector<bool>> any_fail(ys.size(), std::vector<bool>(xs.size(), false));
+  for (const auto& [p, metrics] : rows) {
+    const auto& values = plan.points[static_cast<std::size_t>(p)];
+    bool in_slice = true;
+    for (const auto& [path, v] : map.slice) in_slice = in_slice && values[index_of(paths, path)] == v;
+    if (!in_slice) continue;
+    const std::size_t x = index_of(xs, values[xi]), y = index_of(ys, values[yi]);
+    if (x >= xs.size() || y >= ys.size()) continue;
+    cell[y][x].push_back(metrics[mi]);
+    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true;
+  }
+  const SweepBound* bound = bound_of(plan, map.metric);
+  h.values.assign(ys.size(), std::vector<double>(xs.size(), std::numeric_limits<double>::quiet_NaN()));
+  h.marked.assign(ys.size(), std::vector<bool>(xs.size(), false));
+  for (std::size_t y = 0; y < ys.size(); ++y) {
+    for (std::size_t x = 0; x < xs.size(); ++x) {
+      double sum = 0, lo = INFINITY, hi = -INFINITY;
+      long n = 0;
+      for (double v : cell[y][x]) {
+        if (!std::isfinite(v)) continue;
+        sum += v;
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+        ++n;
+      }
+      if (n > 0) h.values[y][x] = map.reduce == "max" ? hi : map.reduce == "min" ? lo : sum / static_cast<double>(n);
+      const double v = h.values[y][x];
+      h.marked[y][x] = bound != nullptr
+                           ? !(std::isfinite(v) && (!bound->min || v >= *bound->min) && (!bound->max || v <= *bound->max))
+                           : any_fail[y][x];
+    }
+  }
+  std::string others;
+  for (const auto& a : plan.axes) {
+    if (a.path == map.x || a.path == map.y) continue;
+    const auto s = std::find_if(map.slice.begin(), map.slice.end(), [&](const auto& kv) { return kv.first == a.path; });
+    others += (others.empty() ? "" : ", ") + a.path + (s != map.slice.end() ? " = " + s->second : " (" + map.reduce + ")");
+  }
+  if (plan.samples > 1) others += (others.empty() ? "" : ", ") + std::string("samples (") + map.reduce + ")";
+  h.title = map.metric;
+  h.value_label = others.empty() ? "" : "over " + others;
+  doc.heatmap(h);
+  doc.paragraph(bound != nullptr ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
+                                 : "Marked x: a point of the cell fails the thresholds.");
+}
+
+}  // namespace
+
+std::string sweep_csv_header(const SweepPlan& plan) {
+  std::string s = "point";
+  for (const auto& a : plan.axes) (s += ',') += csv_field(a.path);
+  for (const auto& m : plan.metric_names()) (s += ',') += csv_field(m);
+  return s + ",pass\n";
+}
+
+std::string sweep_csv_row(const SweepPlan& plan, long p, const std::vector<double>& metrics) {
+  std::string s = std::to_string(p);
+  for (const auto& v : plan.points.at(static_cast<std::size_t>(p))) (s += ',') += csv_field(v);
+  for (double v : metrics) (s += ',') += number_text(v);
+  return s + (point_passes(plan, metrics) ? ",pass\n" : ",fail\n");
+}
+
+long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan) {
+  const auto rows = read_rows(dir, plan);
+  const long missing = plan.size() - static_cast<long>(rows.size());
+  if (missing > 0) return missing;
+  const auto names = plan.metric_names();
+
+  std::vector<bool> pass(static_cast<std::size_t>(plan.size()));
+  long passed = 0;
+  std::string csv = sweep_csv_header(plan);
+  json points = json::array();
+  for (const auto& [p, metrics] : rows) {
+    pass[static_cast<std::size_t>(p)] = point_passes(plan, metrics);
+    passed += pass[static_cast<std::size_t>(p)] ? 1 : 0;
+    csv += sweep_csv_row(plan, p, metrics);
+    json values = json::object(), m = json::object();
+    for (std::size_t i = 0; i < plan.axes.size(); ++i)
+      values[plan.axes[i].path] = value_json(plan.points[static_cast<std::size_t>(p)][i]);
+    for (std::size_t i = 0; i < names.size(); ++i) m[names[i]] = metric_json(metrics[i]);
+    points.push_back({{"point", p}, {"values", values}, {"metrics", m}, {"pass", pass[static_cast<std::size_t>(p)]}});
+  }
+  json thresholds = json::object();
+  for (const auto& t : plan.thresholds) {
+    json b = json::object();
+    if (t.min) b["min"] = *t.min;
+    if (t.max) b["max"] = *t.max;
+    thresholds[t.metric] = b;
+  }
+  std::vector<std::string> paths;
+  for (const auto& a : plan.axes) paths.push_back(a.path);
+  const json out = {{"name", plan.name},       {"description", plan.description},
+                    {"runs", plan.runs},       {"seed", plan.seed},
+                    {"samples", plan.samples}, {"axes", paths},
+                    {"metrics", names},        {"thresholds", thresholds},
+                    {"passed", passed},        {"failed", plan.size() - passed},
+                    {"points", points}};
+
+  // The worst points: the largest values of worst_by (a metric that is not a number counts as
+  // worst), ties by point; each one's campaign written to reproduce it alone.
+  const std::size_t wi = index_of(names, plan.worst_by);
+  std::vector<long> order;
+  for (const auto& [p, m] : rows) order.push_back(p);
+  auto worse = [&](long a, long b) {
+    const double va = rows.at(a)[wi], vb = rows.at(b)[wi];
+    const bool na = !std::isfinite(va), nb = !std::isfinite(vb);
+    if (na != nb) return na;
+    if (!na && va != vb) return va > vb;
+    return a < b;
+  };
+  const std::size_t n_worst = std::min(kWorstPoints, order.size());
+  std::partial_sort(order.begin(), order.begin() + static_cast<long>(n_worst), order.end(), worse);
+  order.resize(n_worst);
+
+  report::Document doc("Sweep " + plan.name);
+  if (!plan.description.empty()) doc.paragraph(plan.description);
+  std::string thresholds_text;
+  for (const auto& t : plan.thresholds) thresholds_text += (thresholds_text.empty() ? "" : "; ") + bound_text(t);
+  doc.paragraph(std::to_string(plan.size()) + " points (" + std::to_string(plan.size() / plan.samples) + " grid cells x " +
+                std::to_string(plan.samples) + " samples), runs: " + [&] {
+                  std::string r;
+                  for (const auto& x : plan.runs) r += (r.empty() ? "" : ", ") + x;
+                  return r;
+                }());
+  doc.note(std::to_string(passed) + " points pass, " + std::to_string(plan.size() - passed) + " fail" +
+               (thresholds_text.empty() ? " (no thresholds set)" : " (" + thresholds_text + ")"),
+           passed < plan.size());
+  for (const auto& map : plan.maps) add_map(doc, plan, map, rows, pass);
+  doc.heading("Worst points by " + plan.worst_by);
+  std::vector<std::string> header{"point"};
+  for (const auto& a : plan.axes) header.push_back(a.path);
+  header.insert(header.end(), {plan.worst_by, "pass", "reproduce"});
+  std::vector<std::vector<std::string>> table;
+  for (long p : order) {
+    std::vector<std::string> row{std::to_string(p)};
+    for (const auto& v : plan.points[static_cast<std::size_t>(p)]) row.push_back(v);
+    row.push_back(number_text(rows.at(p)[wi]));
+    row.push_back(pass[static_cast<std::size_t>(p)] ? "pass" : "fail");
+    row.push_back("hilbench sim " + (dir / "points" / std::to_string(p) / "campaign.yaml").string());
+    table.push_back(std::move(row));
+  }
+  doc.table(header, table);
+  doc.paragraph(
+      "Metrics per run: iae_mpa_s (integral of |Pg - Pref|), stall_s_per_reversal (mean valve stall over the reference "
+      "reversals), stall_vs_none (that over the none run's), touch_changes_per_reversal, gap_error_deg (mean |gap estimate - "
+      "true gap| at reversals 2..n, deg), interlock_trips (debounced over/underpressure trips of the bench's default safety "
+      "limits on the measured pressure; the simulation itself runs without interlocks).");
+
+  for (long p : order) {
+    const auto folder = dir / "points" / std::to_string(p);
+    std::filesystem::create_directories(folder);
+    const PointYaml y = point_yaml(plan, p);
+    write_atomic(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
+    write_atomic(folder / "plant.yaml", y.plant);
+  }
+  write_atomic(dir / "sweep.csv", csv);
+  write_atomic(dir / "sweep.json", out.dump(1) + "\n");
+  doc.write(dir / "report.html");
+  return 0;
+}
+
+}  // namespace hil::bench

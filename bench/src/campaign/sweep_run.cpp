@@ -1,0 +1,179 @@
+// The sweep's folder and its points on threads: plan.json, the rows files, the resumable run.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "hil/bench/campaign/sweep.hpp"
+#include "hil/line_file.hpp"
+
+namespace hil::bench {
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+std::string row_line(long p, const std::vector<double>& metrics) {
+  json m = json::array();
+  for (double v : metrics) {
+    if (std::isfinite(v)) {
+      m.push_back(v);
+    } else {
+      m.push_back(nullptr);
+    }
+  }
+  return json{{"point", p}, {"metrics", m}}.dump() + "\n";
+}
+
+std::string eta_text(double s) {
+  char buf[32];
+  if (!std::isfinite(s)) return "?";
+  if (s < 100) {
+    std::snprintf(buf, sizeof buf, "%.0f s", s);
+  } else if (s < 6000) {
+    std::snprintf(buf, sizeof buf, "%.0f min", s / 60);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.1f h", s / 3600);
+  }
+  return buf;
+}
+
+}  // namespace
+
+void write_plan(const std::filesystem::path& dir, const SweepPlan& plan) {
+  std::filesystem::create_directories(dir);
+  const auto file = dir / "plan.json";
+  const auto tmp = dir / "plan.json.tmp";
+  try {
+    {
+      LineFile out(tmp);
+      out.append(plan.to_json().dump(1) + "\n");
+    }
+    std::filesystem::rename(tmp, file);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+}
+
+SweepPlan read_plan(const std::filesystem::path& dir) {
+  const auto file = dir / "plan.json";
+  std::ifstream in(file);
+  if (!in)
+    throw std::runtime_error(file.string() + ": no sweep plan here (plan a sweep with hilbench sweep SWEEP.yaml --out DIR)");
+  const json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) throw std::runtime_error(file.string() + ": not JSON");
+  return SweepPlan::from_json(j, file.string());
+}
+
+std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan) {
+  std::map<long, std::vector<double>> rows;
+  const auto rows_dir = dir / "rows";
+  if (!std::filesystem::is_directory(rows_dir)) return rows;
+  const std::size_t width = plan.metric_names().size();
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(rows_dir)) {
+    if (e.is_regular_file() && e.path().extension() == ".jsonl") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());  // the same first row of a point, whatever the directory order
+  for (const auto& file : files) {
+    std::ifstream in(file, std::ios::binary);
+    std::stringstream text;
+    text << in.rdbuf();
+    const std::string all = text.str();
+    // Only whole lines: a writer that is still at it (or died in a write) may have a partial last one.
+    std::size_t start = 0;
+    for (std::size_t end = all.find('\n'); end != std::string::npos; start = end + 1, end = all.find('\n', start)) {
+      const json j = json::parse(all.begin() + static_cast<long>(start), all.begin() + static_cast<long>(end), nullptr, false);
+      if (j.is_discarded() || !j.is_object() || !j.contains("point") || !j.contains("metrics")) continue;
+      if (!j["point"].is_number_integer() || !j["metrics"].is_array() || j["metrics"].size() != width) continue;
+      const long p = j["point"].get<long>();
+      if (p < 0 || p >= plan.size() || rows.count(p)) continue;
+      std::vector<double> m;
+      for (const auto& v : j["metrics"]) m.push_back(v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN());
+      rows.emplace(p, std::move(m));
+    }
+  }
+  return rows;
+}
+
+SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan, const SweepRunOptions& options) {
+  const auto t0 = Clock::now();
+  SweepRunResult result;
+  result.total = plan.size();
+  const auto done = read_rows(dir, plan);
+  std::vector<long> todo;
+  for (long p = options.shard; p < plan.size(); p += options.shards) {
+    if (!done.count(p)) todo.push_back(p);
+  }
+  result.done = static_cast<long>(done.size());
+  result.missing = static_cast<long>(todo.size());
+  if (todo.empty()) return result;
+
+  std::filesystem::create_directories(dir / "rows");
+  const auto rows_file = dir / "rows" / (options.rows_name + ".jsonl");
+  if (std::filesystem::exists(rows_file)) trim_to_whole_lines(rows_file);
+  LineFile rows(rows_file, /*append=*/true);
+
+  std::mutex mutex;  // guards rows, the counters below, the progress line and the first error
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  long ran = 0;
+  auto last_progress = Clock::now();
+  const bool tty = ::isatty(STDERR_FILENO) == 1;
+  auto progress = [&](bool final) {
+    if (!options.progress) return;
+    const auto now = Clock::now();
+    if (!final && now - last_progress < std::chrono::milliseconds(tty ? 250 : 5000)) return;
+    last_progress = now;
+    const double elapsed_s = std::chrono::duration<double>(now - t0).count();
+    const double rate = elapsed_s > 0 ? ran / elapsed_s : 0;
+    const long left = static_cast<long>(todo.size()) - ran;
+    std::fprintf(stderr, "%ssweep %s: %ld/%ld points, %.1f points/s, ETA %s%s", tty ? "\r" : "", plan.name.c_str(),
+                 result.done + ran, result.total, rate, eta_text(rate > 0 ? left / rate : NAN).c_str(),
+                 tty && !final ? "   " : "\n");
+    std::fflush(stderr);
+  };
+  auto worker = [&] {
+    while (!failed.load() && !(options.cancel != nullptr && options.cancel->load())) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= todo.size()) return;
+      try {
+        const std::string line = row_line(todo[i], run_point(plan, todo[i]));
+        std::lock_guard lock(mutex);
+        rows.append(line);
+        ++ran;
+        progress(false);
+      } catch (...) {
+        std::lock_guard lock(mutex);
+        if (!error) error = std::current_exception();
+        failed.store(true);
+        return;
+      }
+    }
+  };
+  const int jobs = std::max(1, std::min<int>(options.jobs, static_cast<int>(todo.size())));
+  std::vector<std::thread> threads;
+  for (int j = 1; j < jobs; ++j) threads.emplace_back(worker);
+  worker();
+  for (auto& t : threads) t.join();
+  if (error) std::rethrow_exception(error);
+  progress(true);
+  result.ran = ran;
+  result.done += ran;
+  result.missing -= ran;
+  result.cancelled = result.missing > 0;
+  result.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return result;
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,375 @@
+// hilbench sweep SWEEP.yaml [--out DIR] [--jobs N] [--quiet]        the points here, on every core
+// hilbench sweep [SWEEP.yaml] --out DIR --shard I/N                     one shard's missing points (a Slurm task)
+// hilbench sweep --out DIR --aggregate                                  the outputs, once every point is in
+// hilbench sweep [SWEEP.yaml] --out DIR --slurm [--partition P] [--max-parallel K] [--tasks N]
+// hilbench sweep --status DIR
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "commands.hpp"
+#include "hil/bench/campaign/sweep.hpp"
+#include "hil/line_file.hpp"
+
+namespace hil::bench {
+namespace {
+
+using json = nlohmann::json;
+
+std::atomic<bool> g_cancel{false};
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void on_sweep_signal(int sig) {
+  g_signal = sig;
+  g_cancel.store(true);
+}
+
+struct SweepArgs {
+  std::string sweep_file;
+  std::string out_dir;
+  int jobs = 0;  // 0: every hardware thread
+  bool quiet = false;
+  std::string shard;  // "I/N"
+  bool aggregate = false;
+  bool slurm = false;
+  std::string partition;
+  int max_parallel = 0;  // 0: every task at once
+  int tasks = 8;
+  std::string status_dir;
+  const CLI::Option* tasks_option = nullptr;
+};
+
+std::string quoted(const std::string& s) {
+  std::string q = "'";
+  for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  return q + "'";
+}
+
+void write_file(const std::filesystem::path& file, const std::string& text) {
+  const auto tmp = file.parent_path() / ("." + file.filename().string() + ".tmp");
+  {
+    LineFile out(tmp);
+    out.append(text);
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+std::string read_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The plan in DIR, made from SWEEP.yaml when given: a folder planned from another sweep file (or
+// another base campaign or plant) is refused, so rows of two sweeps never mix.
+SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
+  if (args.sweep_file.empty()) {
+    if (args.out_dir.empty()) throw UsageError("needs SWEEP.yaml, or --out DIR of a planned sweep");
+    dir = args.out_dir;
+    return read_plan(dir);
+  }
+  SweepPlan plan = plan_sweep(args.sweep_file);
+  dir = args.out_dir.empty() ? std::filesystem::path("out") / "sweeps" / plan.name : std::filesystem::path(args.out_dir);
+  if (std::filesystem::exists(dir / "plan.json")) {
+    const SweepPlan old = read_plan(dir);
+    if (old.hash != plan.hash) {
+      throw std::runtime_error(dir.string() + " was planned from another sweep: " + args.sweep_file +
+                               ", its base campaign or its plant changed since. Use another --out, or remove " + dir.string() +
+                               " to start this sweep afresh");
+    }
+    return old;
+  }
+  write_plan(dir, plan);
+  return plan;
+}
+
+std::pair<long, long> parse_shard(const std::string& text) {
+  long i = -1, n = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%ld/%ld%c", &i, &n, &tail) != 2 || n < 1 || i < 0 || i >= n) {
+    throw UsageError("--shard " + text + ": needs I/N with 0 <= I < N, e.g. 0/4");
+  }
+  return {i, n};
+}
+
+int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
+  std::fprintf(stderr, "sweep %s: stopped by %s after %ld points; %ld of %ld done; the same command continues\n",
+               plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
+  return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT);
+}
+
+int jobs_of(const SweepArgs& args) {
+  if (args.jobs > 0) return args.jobs;
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+int aggregate(const std::filesystem::path& dir, const SweepPlan& plan, bool quiet) {
+  const long missing = write_sweep_outputs(dir, plan);
+  if (missing > 0) {
+    std::fprintf(stderr, "sweep %s: %ld of %ld points missing in %s; nothing written (run the missing shards, then aggregate)\n",
+                 plan.name.c_str(), missing, plan.size(), dir.c_str());
+    return 1;
+  }
+  if (!quiet) {
+    long passed = 0;
+    for (const auto& [p, m] : read_rows(dir, plan)) passed += point_passes(plan, m) ? 1 : 0;
+    std::printf("sweep %s: %ld points, %ld pass, %ld fail\n  %s\n  %s\n", plan.name.c_str(), plan.size(), passed,
+                plan.size() - passed, (dir / "sweep.csv").c_str(), (dir / "report.html").c_str());
+  }
+  return 0;
+}
+
+// Runs `argv` (no shell), returns its exit status; stdout into `out`, stderr into `err`.
+int run_program(const std::vector<std::string>& argv, std::string& out, std::string& err, const std::filesystem::path& scratch) {
+  const auto out_file = scratch / ".cmd.out", err_file = scratch / ".cmd.err";
+  std::string cmd;
+  for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + quoted(a);
+  cmd += " >" + quoted(out_file.string()) + " 2>" + quoted(err_file.string()) + " </dev/null";
+  const int raw = std::system(cmd.c_str());
+  out = read_file(out_file);
+  err = read_file(err_file);
+  std::error_code ec;
+  std::filesystem::remove(out_file, ec);
+  std::filesystem::remove(err_file, ec);
+  return raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+}
+
+bool on_path(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path != nullptr ? path : "");
+  for (std::string d; std::getline(dirs, d, ':');) {
+    if (!d.empty() && ::access((std::filesystem::path(d) / program).c_str(), X_OK) == 0) return true;
+  }
+  return false;
+}
+
+std::string trimmed(std::string s) {
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r' || s.back() == ' ')) s.pop_back();
+  return s;
+}
+
+std::string sbatch(const std::vector<std::string>& args, const std::filesystem::path& scratch) {
+  if (!on_path("sbatch"))
+    throw std::runtime_error("sbatch not found on PATH: submitting needs Slurm's client (Debian: slurm-client)");
+  std::vector<std::string> argv{"sbatch", "--parsable"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::string out, err;
+  const int status = run_program(argv, out, err, scratch);
+  out = trimmed(out);
+  const std::string id = out.substr(0, out.find(';'));  // "id;cluster" on a federation
+  if (status != 0 || id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
+    std::string cmd;
+    for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + a;
+    throw std::runtime_error(cmd + " failed (exit " + std::to_string(status) + "): " + trimmed(err.empty() ? out : err));
+  }
+  return id;
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+int run_slurm(const SweepArgs& args) {
+  std::filesystem::path dir;
+  const SweepPlan plan = prepare(args, dir);
+  dir = std::filesystem::absolute(dir).lexically_normal();
+  const long tasks = std::min<long>(args.tasks, std::max<long>(1, plan.size()));
+  const auto rows = read_rows(dir, plan);
+  std::vector<long> shards;  // those with points still missing
+  for (long i = 0; i < tasks; ++i) {
+    for (long p = i; p < plan.size(); p += tasks) {
+      if (!rows.count(p)) {
+        shards.push_back(i);
+        break;
+      }
+    }
+  }
+  if (shards.empty()) {
+    std::printf("sweep %s: every point is in %s; aggregating here, nothing submitted\n", plan.name.c_str(), dir.c_str());
+    return aggregate(dir, plan, args.quiet);
+  }
+  const auto slurm_dir = dir / "slurm";
+  std::filesystem::create_directories(slurm_dir / "logs");
+  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string head = "#!/bin/sh\n# Written by hilbench sweep --slurm for sweep " + plan.name +
+                           ": the nodes need this binary and the shared folder, nothing else.\n";
+  write_file(slurm_dir / "array.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
+                                         "\n#SBATCH --output=" + (slurm_dir / "logs" / "shard-%a.out").string() +
+                                         "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%a.err").string() + "\nexec " +
+                                         quoted(exe) + " sweep --out " + quoted(dir.string()) +
+                                         " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
+                                         "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" --quiet\n");
+  write_file(slurm_dir / "aggregate.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
+                                             "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate.out").string() +
+                                             "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate.err").string() + "\nexec " +
+                                             quoted(exe) + " sweep --out " + quoted(dir.string()) + " --aggregate\n");
+  std::filesystem::permissions(slurm_dir / "array.sh", std::filesystem::perms::owner_exec, std::filesystem::perm_options::add);
+  std::filesystem::permissions(slurm_dir / "aggregate.sh", std::filesystem::perms::owner_exec,
+                               std::filesystem::perm_options::add);
+
+  std::string list;
+  for (long i : shards) list += (list.empty() ? "" : ",") + std::to_string(i);
+  const long parallel = args.max_parallel > 0 ? args.max_parallel : static_cast<long>(shards.size());
+  std::vector<std::string> common;
+  if (!args.partition.empty()) common.push_back("--partition=" + args.partition);
+  std::vector<std::string> array_args = common;
+  array_args.push_back("--array=" + list + "%" + std::to_string(parallel));
+  array_args.push_back((slurm_dir / "array.sh").string());
+  const std::string array_id = sbatch(array_args, slurm_dir);
+  std::vector<std::string> aggregate_args = common;
+  aggregate_args.push_back("--dependency=afterany:" + array_id);
+  aggregate_args.push_back((slurm_dir / "aggregate.sh").string());
+  const std::string aggregate_id = sbatch(aggregate_args, slurm_dir);
+
+  json jobs = json::object();
+  if (std::filesystem::exists(slurm_dir / "jobs.json")) {
+    jobs = json::parse(read_file(slurm_dir / "jobs.json"), nullptr, false);
+    if (jobs.is_discarded() || !jobs.is_object()) jobs = json::object();
+  }
+  if (!jobs.contains("submissions") || !jobs["submissions"].is_array()) jobs["submissions"] = json::array();
+  jobs["submissions"].push_back({{"array", array_id},
+                                 {"aggregate", aggregate_id},
+                                 {"tasks", tasks},
+                                 {"shards", shards},
+                                 {"max_parallel", parallel},
+                                 {"partition", args.partition},
+                                 {"submitted_utc", utc_now()}});
+  write_file(slurm_dir / "jobs.json", jobs.dump(1) + "\n");
+  std::printf(
+      "sweep %s: %ld of %ld points missing; submitted array job %s (%zu tasks of %ld, at most %ld at once) and "
+      "aggregation job %s\n  %s\n  hilbench sweep --status %s\n",
+      plan.name.c_str(), plan.size() - static_cast<long>(rows.size()), plan.size(), array_id.c_str(), shards.size(), tasks,
+      parallel, aggregate_id.c_str(), (slurm_dir / "jobs.json").c_str(), dir.c_str());
+  std::printf("array %s\naggregate %s\n", array_id.c_str(), aggregate_id.c_str());
+  return 0;
+}
+
+int run_status(const SweepArgs& args) {
+  const std::filesystem::path dir = args.status_dir;
+  const SweepPlan plan = read_plan(dir);
+  const auto rows = read_rows(dir, plan);
+  const long done = static_cast<long>(rows.size());
+  std::printf("sweep %s: %ld of %ld points done, %ld missing%s\n", plan.name.c_str(), done, plan.size(), plan.size() - done,
+              std::filesystem::exists(dir / "sweep.csv") ? "; outputs written" : "");
+  const auto jobs_file = dir / "slurm" / "jobs.json";
+  if (!std::filesystem::exists(jobs_file)) return 0;
+  const json jobs = json::parse(read_file(jobs_file), nullptr, false);
+  if (jobs.is_discarded() || !jobs.contains("submissions") || !jobs["submissions"].is_array()) {
+    std::printf("  %s: not readable\n", jobs_file.c_str());
+    return 0;
+  }
+  const bool squeue = on_path("squeue");
+  for (const auto& s : jobs["submissions"]) {
+    for (const char* kind : {"array", "aggregate"}) {
+      const std::string id = s.value(kind, "");
+      std::string state = "squeue not found";
+      if (squeue && !id.empty()) {
+        std::string out, err;
+        const int status = run_program({"squeue", "-h", "-j", id, "-o", "%T"}, out, err, dir / "slurm");
+        // One line per task still known; gone from the queue: squeue prints nothing (or fails on an old id).
+        std::map<std::string, int> states;
+        std::stringstream lines(out);
+        for (std::string l; std::getline(lines, l);)
+          if (!trimmed(l).empty()) ++states[trimmed(l)];
+        if (status != 0 || states.empty()) {
+          state = "not in queue";
+        } else {
+          state.clear();
+          for (const auto& [st, n] : states) state += (state.empty() ? "" : ", ") + st + (n > 1 ? " x" + std::to_string(n) : "");
+        }
+      }
+      std::printf("  %s job %s (submitted %s): %s\n", kind, id.c_str(), s.value("submitted_utc", "?").c_str(), state.c_str());
+    }
+  }
+  return 0;
+}
+
+int run_sweep_command(const SweepArgs& args) {
+  if (!args.status_dir.empty()) {
+    if (!args.sweep_file.empty() || args.aggregate || args.slurm || !args.shard.empty())
+      throw UsageError("--status DIR goes alone");
+    return run_status(args);
+  }
+  const int modes = (args.aggregate ? 1 : 0) + (args.slurm ? 1 : 0) + (args.shard.empty() ? 0 : 1);
+  if (modes > 1) throw UsageError("--shard, --aggregate and --slurm are separate modes: give one");
+  if (!args.slurm && (!args.partition.empty() || args.max_parallel > 0 || args.tasks_option->count() > 0))
+    throw UsageError("--partition, --max-parallel and --tasks go with --slurm");
+  if ((args.aggregate || !args.shard.empty()) && args.out_dir.empty()) throw UsageError("--shard and --aggregate need --out DIR");
+  if (!args.aggregate && !args.slurm && args.shard.empty() && args.sweep_file.empty() && args.out_dir.empty())
+    throw UsageError("needs SWEEP.yaml");
+  if (args.slurm) return run_slurm(args);
+
+  std::filesystem::path dir;
+  if (args.aggregate) {
+    if (!args.sweep_file.empty()) throw UsageError("--aggregate reads the plan in --out DIR; no SWEEP.yaml");
+    dir = args.out_dir;
+    return aggregate(dir, read_plan(dir), args.quiet);
+  }
+  const SweepPlan plan = prepare(args, dir);
+  std::signal(SIGINT, on_sweep_signal);
+  std::signal(SIGTERM, on_sweep_signal);
+  SweepRunOptions options;
+  options.jobs = jobs_of(args);
+  options.progress = !args.quiet;
+  options.cancel = &g_cancel;
+  if (!args.shard.empty()) {
+    const auto [i, n] = parse_shard(args.shard);
+    options.shard = i;
+    options.shards = n;
+    options.rows_name = "shard-" + std::to_string(i) + "-of-" + std::to_string(n);
+  }
+  const SweepRunResult r = run_sweep(dir, plan, options);
+  if (r.cancelled) return exit_after_signal(plan, r);
+  if (!args.shard.empty()) {
+    if (!args.quiet)
+      std::printf("sweep %s shard %s: ran %ld points in %.2f s\n", plan.name.c_str(), args.shard.c_str(), r.ran, r.wall_s);
+    return 0;
+  }
+  if (!args.quiet && r.ran > 0) {
+    std::printf("sweep %s: ran %ld points in %.2f s (%.1f points/s on %d jobs)\n", plan.name.c_str(), r.ran, r.wall_s,
+                r.wall_s > 0 ? r.ran / r.wall_s : 0.0, options.jobs);
+  }
+  return aggregate(dir, plan, args.quiet);
+}
+
+}  // namespace
+
+CommandRun define_sweep(CLI::App& cmd) {
+  auto args = std::make_shared<SweepArgs>();
+  cmd.add_option("sweep", args->sweep_file, "the sweep file (optional with --out DIR of a planned sweep)")
+      ->type_name("SWEEP.yaml");
+  cmd.add_option("--out", args->out_dir, "the sweep's folder (default out/sweeps/<name>)")->type_name("DIR");
+  cmd.add_option("--jobs", args->jobs, "points run at once (default: every hardware thread)")
+      ->type_name("N")
+      ->check(whole_number(1, 4096));
+  cmd.add_flag("--quiet", args->quiet, "no progress line and no summary");
+  cmd.add_option("--shard", args->shard, "run only the missing points p with p % N == I (a Slurm task); no outputs")
+      ->type_name("I/N");
+  cmd.add_flag("--aggregate", args->aggregate, "write sweep.csv, sweep.json and report.html from every shard's rows");
+  cmd.add_flag("--slurm", args->slurm, "submit the missing points as a Slurm job array and an aggregation job after it");
+  cmd.add_option("--partition", args->partition, "Slurm partition (--slurm)")->type_name("P");
+  cmd.add_option("--max-parallel", args->max_parallel, "at most K array tasks at once (--slurm)")
+      ->type_name("K")
+      ->check(whole_number(1, 100000));
+  args->tasks_option = cmd.add_option("--tasks", args->tasks, "array tasks, each a shard of the points (--slurm)")
+                           ->type_name("N")
+                           ->check(whole_number(1, 100000))
+                           ->capture_default_str();
+  cmd.add_option("--status", args->status_dir, "points done and missing, and the Slurm jobs' state")->type_name("DIR");
+  return [args] { return run_sweep_command(*args); };
+}
+
+}  // namespace hil::bench

@@ -1,0 +1,349 @@
+// hilbench sweep through the real binary: the same sweep.csv whatever the job count, after an
+// interrupt and a resume, and over shards; config errors naming file, line and key; a point's
+// metrics against the same campaign run by hilbench sim; the Slurm submission against stand-in
+// sbatch and squeue programs (tests/slurm runs it on a real cluster).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "run_command.hpp"
+#include "temp_file.hpp"
+
+namespace {
+
+using hil::test::hilbench;
+using hil::test::run_command;
+using hil::test::source_path;
+using hil::test::TempDir;
+namespace fs = std::filesystem;
+
+std::string read(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string q(const fs::path& p) {
+  std::string quoted(1, '\'');
+  quoted += p.string();
+  quoted += '\'';
+  return quoted;
+}
+
+long lines_in(const fs::path& file) {
+  const std::string s = read(file);
+  return static_cast<long>(std::count(s.begin(), s.end(), '\n'));
+}
+
+std::vector<std::vector<std::string>> csv_rows(const fs::path& file) {
+  std::vector<std::vector<std::string>> rows;
+  std::stringstream in(read(file));
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> cells;
+    std::stringstream l(line);
+    for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+// A sweep of the tiny campaign over `a x b` grid values of the initial gap and the sensor noise.
+fs::path write_grid_sweep(const TempDir& dir, const std::string& name, int gaps, int noises) {
+  return dir.write(
+      name, "name: grid\ncampaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                "\nruns: [none, adaptive]\naxes:\n  - path: campaign.gap.initial_deg\n    range: {from: 0.2, to: 2.5, count: " +
+                std::to_string(gaps) +
+                "}\n  - path: campaign.sensor_noise_kpa\n    range: {from: 0, to: 8, count: " + std::to_string(noises) + "}\n");
+}
+
+// Starts hilbench sweep in the background, waits for its rows file to hold a whole line, then
+// sends `sig`; returns the exit status (or 128 + the signal it died of).
+int interrupt_after_first_row(const fs::path& sweep, const fs::path& out, int sig) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string exe = hilbench();
+    ::execl(exe.c_str(), exe.c_str(), "sweep", sweep.c_str(), "--out", out.c_str(), "--jobs", "1", "--quiet",
+            static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  const auto rows = out / "rows" / "local.jsonl";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (fs::exists(rows) && lines_in(rows) >= 1) break;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  ::kill(pid, sig);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
+  TempDir dir;
+  const auto sweep = write_grid_sweep(dir, "grid.yaml", 10, 12);  // 120 points
+  const auto one = dir.path() / "one", two = dir.path() / "two";
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(one) + " --jobs 1 --quiet").status, 0);
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(two) + " --jobs 2 --quiet").status, 0);
+  const std::string expected = read(one / "sweep.csv");
+  ASSERT_EQ(csv_rows(one / "sweep.csv").size(), 121u);
+  EXPECT_EQ(read(two / "sweep.csv"), expected);
+  EXPECT_EQ(read(two / "sweep.json"), read(one / "sweep.json"));
+
+  // SIGINT: the point in flight finishes, the process says how to continue and exits 130 with
+  // whole lines only; the rerun runs only what is missing.
+  for (int sig : {SIGINT, SIGKILL}) {
+    const auto out = dir.path() / ("stopped_" + std::to_string(sig));
+    const int status = interrupt_after_first_row(sweep, out, sig);
+    EXPECT_EQ(status, 128 + sig) << "signal " << sig;
+    const auto rows = out / "rows" / "local.jsonl";
+    const long before = lines_in(rows);
+    ASSERT_GE(before, 1);
+    ASSERT_LT(before, 120) << "the sweep finished before the signal: make it longer";
+    EXPECT_FALSE(fs::exists(out / "sweep.csv"));
+    if (sig == SIGINT) {
+      EXPECT_EQ(read(rows).back(), '\n');
+    }
+    const auto rerun = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --jobs 2");
+    ASSERT_EQ(rerun.status, 0) << rerun.output;
+    EXPECT_NE(rerun.output.find("ran " + std::to_string(120 - before) + " points"), std::string::npos) << before << " before\n"
+                                                                                                       << rerun.output;
+    EXPECT_EQ(read(out / "sweep.csv"), expected) << "signal " << sig;
+  }
+  // A third run has nothing left to do, and says so by running nothing.
+  const auto again = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(one));
+  EXPECT_EQ(again.status, 0);
+  EXPECT_EQ(again.output.find("ran "), std::string::npos) << again.output;
+  EXPECT_EQ(read(one / "sweep.csv"), expected);
+}
+
+TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {
+  TempDir dir;
+  const auto sweep = write_grid_sweep(dir, "grid.yaml", 2, 2);
+  const auto out = dir.path() / "out";
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet").status, 0);
+  write_grid_sweep(dir, "grid.yaml", 3, 2);
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("was planned from another sweep"), std::string::npos) << r.output;
+  EXPECT_EQ(csv_rows(out / "sweep.csv").size(), 5u);  // the first sweep's outputs stay
+}
+
+TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
+  TempDir dir;
+  const std::string head = "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\naxes:\n";
+  struct Case {
+    std::string axes;
+    std::string where;  // file:line:column: key
+    std::string why;
+  };
+  const std::vector<Case> cases = {
+      {"  - path: campaign.gap.initial_dg\n    values: [1, 2]\n", "bad.yaml:3:5: axes[0].path", "no key 'initial_dg'"},
+      {"  - path: campaign.sensor_noise_kpa\n    values: [1]\n  - path: campaign.gap.changes[2].drift.to_deg\n    values: [1]\n",
+       "bad.yaml:5:5: axes[1].path", "no item [2]"},
+      {"  - path: plant.effects.motor_servo.time_constnt_s\n    values: [0.01]\n", "bad.yaml:3:5: axes[0].path",
+       "nominal.yaml has no key 'time_constnt_s'"},
+      {"  - path: gap.initial_deg\n    values: [1]\n", "bad.yaml:3:5: axes[0].path", "no axis path"},
+      {"  - path: campaign.runs[0].name\n    values: [x]\n", "bad.yaml:3:5: axes[0].path", "run names cannot be an axis"},
+      {"  - path: campaign.runs\n    values: [x]\n", "bad.yaml:3:5: axes[0].path", "which is no single value"},
+      {"  - path: campaign.gap.initial_deg\n    range: {from: 1, to: 2}\n", "bad.yaml:4:5: axes[0].range",
+       "missing required key 'count'"},
+      {"  - path: campaign.gap.initial_deg\n    range: {from: 0, to: 2, count: 3, scale: log}\n", "bad.yaml:4:5: axes[0].range",
+       "log range needs from > 0"},
+      {"  - path: campaign.gap.initial_deg\n    uniform: {low: 1, high: 2}\n", "bad.yaml:1:1", "missing required key 'samples'"},
+      {"  - path: campaign.gap.initial_deg\n    values: [1]\n    range: {from: 1, to: 1, count: 1}\n", "bad.yaml:3:5: axes[0]",
+       "exactly one of"},
+  };
+  for (const auto& c : cases) {
+    const auto file = dir.write("bad.yaml", head + c.axes);
+    const auto out = dir.path() / "out";
+    const auto r = run_command(hilbench() + " sweep " + q(file) + " --out " + q(out));
+    EXPECT_EQ(r.status, 1) << c.axes << r.output;
+    EXPECT_NE(r.output.find(c.where), std::string::npos) << c.axes << r.output;
+    EXPECT_NE(r.output.find(c.why), std::string::npos) << c.axes << r.output;
+    EXPECT_FALSE(fs::exists(out)) << "nothing is written before the sweep is valid";
+  }
+  // A value the campaign's own loader refuses gets the loader's error, naming the point.
+  const auto file = dir.write("bad.yaml", head + "  - path: campaign.gap.initial_deg\n    values: [1, -0.5]\n");
+  const auto r = run_command(hilbench() + " sweep " + q(file) + " --out " + q(dir.path() / "out"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("point 1 (campaign.gap.initial_deg = -0.5)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("gap.initial_deg: a gap cannot be negative"), std::string::npos) << r.output;
+}
+
+// The metrics of a sweep point from that point's campaign run by hilbench sim, computed here from
+// its summary.json: IAE, mean stall over the reversals, that over the none run's, touch changes
+// per reversal, mean |gap estimate - true gap| over reversals 2..n.
+TEST(Sweep, APointsMetricsAreThoseOfTheSameCampaignRunBySim) {
+  TempDir dir;
+  const auto sweep = dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                                             "\nruns: [none, adaptive_paper]\naxes:\n"
+                                             "  - path: plant.effects.motor_servo.time_constant_s\n    values: [0.005, 0.03]\n"
+                                             "  - path: campaign.reference.profile[0].square.high_mpa\n    values: [1.3, 1.5]\n"
+                                             "  - path: campaign.seed\n    values: [5]\n");
+  const auto out = dir.path() / "out";
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto rows = csv_rows(out / "sweep.csv");
+  ASSERT_EQ(rows.size(), 5u);
+  const auto& header = rows[0];
+  int checked = 0;
+  for (const auto& e : fs::directory_iterator(out / "points")) {
+    const long p = std::stol(e.path().filename().string());
+    const auto sim_out = dir.path() / ("sim" + std::to_string(p));
+    const auto s =
+        run_command(hilbench() + " sim " + q(e.path() / "campaign.yaml") + " --out " + q(sim_out) + " --no-telemetry --quiet");
+    ASSERT_EQ(s.status, 0) << s.output;
+    const auto& row = rows.at(static_cast<std::size_t>(p) + 1);
+    auto summary = [&](const std::string& run) { return nlohmann::json::parse(read(sim_out / "tiny" / run / "summary.json")); };
+    auto stall_per_reversal = [](const nlohmann::json& j) {
+      double sum = 0;
+      for (const auto& rev : j["reversals"]) sum += rev["stall_s"].get<double>();
+      return sum / static_cast<double>(j["reversals"].size());
+    };
+    const double none_stall = stall_per_reversal(summary("none"));
+    for (const std::string run : {"none", "adaptive_paper"}) {
+      const auto j = summary(run);
+      const auto& revs = j["reversals"];
+      ASSERT_GE(revs.size(), 2u);
+      double gap_err = 0;
+      for (std::size_t k = 1; k < revs.size(); ++k)
+        gap_err += std::abs(revs[k]["gap_est_deg"].get<double>() - revs[k]["gap_true_deg"].get<double>());
+      gap_err /= static_cast<double>(revs.size() - 1);
+      const std::vector<std::pair<std::string, double>> expected = {
+          {"iae_mpa_s", j["iae_mpa_s"].get<double>()},
+          {"stall_s_per_reversal", stall_per_reversal(j)},
+          {"stall_vs_none", stall_per_reversal(j) / none_stall},
+          {"touch_changes_per_reversal", j["touch_state_changes"].get<double>() / static_cast<double>(revs.size())},
+          {"gap_error_deg", gap_err},
+          {"interlock_trips", 0.0},  // 1.0-1.4 MPa stays far inside the default 0.2-2.5 MPa limits
+      };
+      for (const auto& [metric, value] : expected) {
+        const auto col = std::find(header.begin(), header.end(), run + "." + metric) - header.begin();
+        ASSERT_LT(static_cast<std::size_t>(col), header.size()) << metric;
+        char want[32];
+        std::snprintf(want, sizeof want, "%.6g", value);
+        EXPECT_EQ(row.at(static_cast<std::size_t>(col)), want) << "point " << p << " " << run << "." << metric;
+      }
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 4);  // every point is among the 10 worst of 4
+}
+
+// relative_to: the axis's value is an increment on another path's value at that point.
+TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
+  TempDir dir;
+  const auto sweep =
+      dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                              "\nruns: [adaptive]\naxes:\n  - path: campaign.gap.initial_deg\n    values: [0.5, 2]\n"
+                              "  - path: campaign.gap.changes[0].drift.to_deg\n    relative_to: campaign.gap.initial_deg\n"
+                              "    values: [0.25]\n");
+  const auto out = dir.path() / "out";
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string p0 = read(out / "points" / "0" / "campaign.yaml"), p1 = read(out / "points" / "1" / "campaign.yaml");
+  EXPECT_NE(p0.find("initial_deg: 0.5"), std::string::npos) << p0;
+  EXPECT_NE(p0.find("to_deg: 0.75"), std::string::npos) << p0;
+  EXPECT_NE(p1.find("initial_deg: 2"), std::string::npos) << p1;
+  EXPECT_NE(p1.find("to_deg: 2.25"), std::string::npos) << p1;
+  EXPECT_EQ(p1.find("adaptive_paper"), std::string::npos) << "only the sweep's runs\n" << p1;
+}
+
+TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
+  TempDir dir;
+  const auto sweep = source_path("tests/sweep/small.yaml");
+  const auto local = dir.path() / "local", sharded = dir.path() / "sharded";
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(local) + " --quiet").status, 0);
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(sharded) + " --shard 0/4 --quiet").status, 0);
+  // Later shards need only the folder: the plan is in it.
+  ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 1/4 --quiet").status, 0);
+  ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 3/4 --quiet").status, 0);
+  const auto status = run_command(hilbench() + " sweep --status " + q(sharded));
+  EXPECT_EQ(status.status, 0);
+  EXPECT_NE(status.output.find("5 of 6 points done, 1 missing"), std::string::npos) << status.output;
+  // Shard 2 of 4 (point 2 alone of 0..5) is missing: nothing final is written.
+  const auto partial = run_command(hilbench() + " sweep --out " + q(sharded) + " --aggregate");
+  EXPECT_EQ(partial.status, 1);
+  EXPECT_NE(partial.output.find("1 of 6 points missing"), std::string::npos) << partial.output;
+  EXPECT_FALSE(fs::exists(sharded / "sweep.csv"));
+  ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 2/4 --quiet").status, 0);
+  const auto full = run_command(hilbench() + " sweep --out " + q(sharded) + " --aggregate");
+  ASSERT_EQ(full.status, 0) << full.output;
+  EXPECT_EQ(read(sharded / "sweep.csv"), read(local / "sweep.csv"));
+  EXPECT_EQ(read(sharded / "sweep.json"), read(local / "sweep.json"));
+  EXPECT_EQ(csv_rows(local / "sweep.csv").size(), 7u);
+  const std::string html = read(local / "report.html");
+  EXPECT_NE(html.find("adaptive.stall_vs_none"), std::string::npos);
+  EXPECT_NE(html.find("hilbench sim " + (local / "points").string()), std::string::npos);
+}
+
+// --slurm against stand-ins for sbatch and squeue that record what they were asked: the array
+// covers the shards with missing points, the aggregation job waits for it (afterany), the
+// scripts run this binary on this folder, and --status asks squeue about both jobs.
+TEST(Sweep, SlurmSubmitsAnArrayAndAnAggregationJobAfterIt) {
+  TempDir dir;
+  const auto bin = dir.path() / "bin";
+  fs::create_directories(bin);
+  const auto log = dir.path() / "sbatch.log";
+  dir.write("bin/sbatch",
+            "#!/bin/sh\necho \"$@\" >> " + q(log) + "\ncase \"$*\" in *--array*) echo 101;; *) echo '102;cluster';; esac\n");
+  dir.write("bin/squeue", "#!/bin/sh\n[ \"$3\" = 101 ] && { echo RUNNING; echo PENDING; echo PENDING; }\nexit 0\n");
+  fs::permissions(bin / "sbatch", fs::perms::owner_all);
+  fs::permissions(bin / "squeue", fs::perms::owner_all);
+  const std::string env = "PATH=" + q(bin) + ":\"$PATH\" ";
+  const auto out = dir.path() / "out";
+  const auto sweep = source_path("tests/sweep/small.yaml");
+  // Shard 1 of 3 (points 1 and 4) already done: only shards 0 and 2 are submitted.
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --shard 1/3 --quiet").status, 0);
+  const auto r = run_command(env + hilbench() + " sweep " + q(sweep) + " --out " + q(out) +
+                             " --slurm --tasks 3 --max-parallel 2 --partition debug");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("array 101"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("aggregate 102"), std::string::npos) << r.output;
+  const std::string calls = read(log);
+  EXPECT_NE(calls.find("--parsable --partition=debug --array=0,2%2 " + (out / "slurm" / "array.sh").string()), std::string::npos)
+      << calls;
+  EXPECT_NE(calls.find("--parsable --partition=debug --dependency=afterany:101 " + (out / "slurm" / "aggregate.sh").string()),
+            std::string::npos)
+      << calls;
+  const std::string array = read(out / "slurm" / "array.sh");
+  EXPECT_NE(array.find(fs::canonical(hilbench()).string()), std::string::npos) << array;
+  EXPECT_NE(array.find("--shard \"${SLURM_ARRAY_TASK_ID}/3\""), std::string::npos) << array;
+  EXPECT_NE(read(out / "slurm" / "aggregate.sh").find("--aggregate"), std::string::npos);
+  const auto jobs = nlohmann::json::parse(read(out / "slurm" / "jobs.json"));
+  EXPECT_EQ(jobs["submissions"][0]["array"], "101");
+  EXPECT_EQ(jobs["submissions"][0]["aggregate"], "102");
+  const auto status = run_command(env + hilbench() + " sweep --status " + q(out));
+  EXPECT_EQ(status.status, 0);
+  EXPECT_NE(status.output.find("2 of 6 points done, 4 missing"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("array job 101"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("PENDING x2, RUNNING"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("aggregate job 102 (submitted"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("not in queue"), std::string::npos) << status.output;
+
+  // sbatch refusing: its own words, exit 1.
+  dir.write("bin/sbatch", "#!/bin/sh\necho 'sbatch: error: invalid partition specified: nope' >&2\nexit 1\n");
+  fs::permissions(bin / "sbatch", fs::perms::owner_all);
+  const auto bad = run_command(env + hilbench() + " sweep --out " + q(out) + " --slurm --partition nope");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.output.find("invalid partition specified: nope"), std::string::npos) << bad.output;
+  // No sbatch at all.
+  const auto none = run_command("PATH=" + q(dir.path() / "empty") + " " + hilbench() + " sweep --out " + q(out) + " --slurm");
+  EXPECT_EQ(none.status, 1);
+  EXPECT_NE(none.output.find("sbatch not found"), std::string::npos) << none.output;
+}
+
+}  // namespace
