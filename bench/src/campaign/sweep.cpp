@@ -613,6 +613,25 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
     }
   }
   campaign["runs"] = runs;
+  // A reference read from a CSV file: from where the base campaign found it, wherever the point's
+  // campaign is written.
+  // (Read through const nodes, tested before use: a mutable node's operator[] would add the keys
+  // it looks for, and a missing one is an invalid node.)
+  const YAML::Node& read_only = campaign;
+  const YAML::Node reference = read_only["reference"];
+  const YAML::Node profile = reference && reference.IsMap() ? reference["profile"] : YAML::Node();
+  if (profile && profile.IsSequence()) {
+    for (std::size_t i = 0; i < profile.size(); ++i) {
+      const YAML::Node item = profile[i];
+      if (!item.IsMap() || !item["csv"] || !item["csv"].IsMap() || !item["csv"]["file"] || !item["csv"]["file"].IsScalar())
+        continue;
+      const std::string file = item["csv"]["file"].as<std::string>();
+      if (std::filesystem::path(file).is_relative()) {
+        YAML::Node target = campaign["reference"]["profile"][i]["csv"]["file"];
+        target = (plan.campaign_dir / file).lexically_normal().string();
+      }
+    }
+  }
   if (!campaign["name"]) campaign["name"] = plan.name;
   campaign["plant"] = "plant.yaml";
   YAML::Emitter c, pl;
