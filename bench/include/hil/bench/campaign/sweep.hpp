@@ -120,9 +120,15 @@ struct SweepRunResult {
 // rows file as it finishes. Throws what a point throws (after the points in flight).
 SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan, const SweepRunOptions& options);
 
+struct SweepOutputs {
+  long missing = 0;         // points without a row: then nothing was written
+  long passed = 0;          // points within every threshold
+  std::vector<long> worst;  // the worst points by plan.worst_by, worst first (at most 10)
+};
+
 // sweep.csv, sweep.json, report.html and, for the worst points, points/<p>/campaign.yaml and
-// plant.yaml. Returns how many points are missing; then nothing is written.
-long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
+// plant.yaml, once every point has its row.
+SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
 
 // One point's row of sweep.csv (and the header): fixed formatting, so the file is the same bytes
 // whoever computed the rows.
