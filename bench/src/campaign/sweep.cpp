@@ -646,7 +646,7 @@ Campaign point_campaign(const SweepPlan& plan, long p) {
   return load_campaign_text(y.campaign, where + " campaign.yaml", plan.campaign_dir, y.plant, where + " plant.yaml");
 }
 
-std::vector<double> run_point(const SweepPlan& plan, long p) {
+std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel) {
   const Campaign c = point_campaign(plan, p);
   std::vector<std::string> names;
   for (const auto& r : c.runs) names.push_back(r.name);
@@ -664,7 +664,11 @@ std::vector<double> run_point(const SweepPlan& plan, long p) {
     Safety safety{SafetyConfig{}};
     long trips = 0;
     bool tripping = false;
+    long step = 0;
     const RunSummary s = summarise_run(c, run, [&](const TelemetryRecord& r) {
+      if ((++step & 1023) == 0 && cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+        throw Cancelled("sweep point " + std::to_string(p) + " abandoned");
+      }
       double value = 0, limit = 0;
       const bool trip = safety.check(false, false, r.step.p_meas_pa, value, limit) != Trip::none;
       if (trip && !tripping) ++trips;

@@ -103,8 +103,10 @@ std::pair<long, long> parse_shard(const std::string& text) {
 }
 
 int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
-  std::fprintf(stderr, "sweep %s: stopped by %s after %ld points; %ld of %ld done; the same command continues\n",
-               plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
+  std::fprintf(
+      stderr,
+      "sweep %s: stopped by %s after %ld points (those in flight abandoned); %ld of %ld done; the same command continues\n",
+      plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
   return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT);
 }
 

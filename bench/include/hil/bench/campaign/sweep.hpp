@@ -83,8 +83,9 @@ PointYaml point_yaml(const SweepPlan& plan, long p);
 Campaign point_campaign(const SweepPlan& plan, long p);
 
 // Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
-// per reversal without reversals).
-std::vector<double> run_point(const SweepPlan& plan, long p);
+// per reversal without reversals). Throws Cancelled (sim.hpp) within about a simulated second
+// once `cancel` is set: the point is abandoned.
+std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel = nullptr);
 
 // Whether every threshold holds (a NaN metric fails its bound).
 bool point_passes(const SweepPlan& plan, const std::vector<double>& metrics);
@@ -103,7 +104,7 @@ struct SweepRunOptions {
   bool progress = true;
   long shard = 0, shards = 1;       // only the points p with p % shards == shard
   std::string rows_name = "local";  // the rows file this process appends to: DIR/rows/<rows_name>.jsonl
-  // Set (by a signal handler, say) to stop: the points in flight finish, none starts.
+  // Set (by a signal handler, say) to stop: the points in flight are abandoned (no row), none starts.
   const std::atomic<bool>* cancel = nullptr;
 };
 
