@@ -5,6 +5,7 @@
 
 #include <fstream>
 
+#include "hil/bench/rt/rig_config.hpp"
 #include "server_process.hpp"
 
 using namespace std::chrono_literals;
@@ -81,6 +82,12 @@ TEST(ConsoleApi, ARunsReportIsMadeOnceItEndsAndItsFaultsAreNamed) {
   json s = hil::test::wait_status(
       api, [](const json& x) { return hil::test::status_t(x) >= 1.0; }, 30s);
   const std::string id = s["run_dir"];
+  // Loop health the console shows: the telemetry ring the sim rig's file asks for (a power of two).
+  const auto ring_rows = hil::bench::load_rig_config(hil::test::source_path("configs/rigs/sim.yaml")).loop.ring_rows;
+  std::size_t capacity = 1;
+  while (capacity < static_cast<std::size_t>(ring_rows)) capacity *= 2;
+  EXPECT_EQ(s["telemetry"]["ring_capacity"], capacity) << s.dump(2);
+  EXPECT_LE(s["telemetry"]["ring_fill"].get<std::size_t>(), capacity) << s.dump(2);
   const auto running = api.get("/api/runs/" + id + "/report.html");
   EXPECT_EQ(running.status, 409) << running.body;
   EXPECT_EQ(running.json()["error"], "the run is still running");

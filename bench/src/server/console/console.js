@@ -380,6 +380,9 @@
       items.push(["limited periods", loop.limited_periods, false]);
       items.push(["rows written / lost / unwritten", (tel.rows_written ?? "–") + " / " + (tel.rows_lost ?? "–") + " / " + (tel.rows_unwritten ?? "–"),
         tel.rows_lost > 0 || tel.rows_unwritten > 0]);
+      if (typeof tel.ring_capacity === "number" && tel.ring_capacity > 0)
+        items.push(["telemetry ring fill", tel.ring_fill + " of " + tel.ring_capacity + " rows (" + (100 * tel.ring_fill / tel.ring_capacity).toFixed(1) + " %)",
+          tel.ring_fill > tel.ring_capacity / 2]);
       if (tel.write_error) items.push(["write error", tel.write_error, true]);
       items.push(["events lost", tel.events_lost ?? "–", tel.events_lost > 0]);
     }
