@@ -214,9 +214,6 @@ async function main() {
     return false;
   }, injectedGapDeg);
 
-  const shots = [await screenshotChecked(page, 1400, "console-1400.png"), await screenshotChecked(page, 390, "console-390.png")];
-  await page.setViewport({ width: 1400, height: 900 });
-
   // Abort: one click on the header button, which stays on screen.
   const abortBox = await page.$eval("#abort", (b) => { const r = b.getBoundingClientRect(); return { top: r.top, visible: r.width > 0 && r.height > 0 }; });
   if (!abortBox.visible || abortBox.top < 0 || abortBox.top > 200) fail("abort button not in view: " + JSON.stringify(abortBox));
@@ -224,7 +221,13 @@ async function main() {
   await sleep(100);
   const abortScrolled = await page.$eval("#abort", (b) => b.getBoundingClientRect().top);
   if (abortScrolled < 0 || abortScrolled > 200) fail("abort button scrolled out of view: top " + abortScrolled);
+  // The run lasts 18 s: everything above must fit in it, or the abort below finds nothing to abort.
+  const before = await dataset(page);
+  if (before.state !== "running") return fail("the run ended before the abort (a very slow machine?): state " + before.state);
   await page.click("#abort");
+  // The plots keep the aborted run's data: the screenshots show them.
+  const shots = [await screenshotChecked(page, 1400, "console-1400.png"), await screenshotChecked(page, 390, "console-390.png")];
+  await page.setViewport({ width: 1400, height: 900 });
   if (!(await waitFor(page, "the run aborted in the runs list", () => [...document.querySelectorAll("#runs-table tbody tr")].some((tr) => tr.querySelector(".outcome")?.textContent === "aborted" && tr.querySelector("a.report")), undefined, 30_000))) return;
   const run = await page.$eval("#runs-table tbody tr", (tr) => ({ id: tr.dataset.run, outcome: tr.querySelector(".outcome").textContent, reason: tr.children[3].textContent, report: tr.querySelector("a.report")?.href }));
   if (!/_paper_adaptive_adaptive$/.test(run.id)) fail("newest run: " + JSON.stringify(run));
