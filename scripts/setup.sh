@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages hilbench needs, only those missing.
-#   scripts/setup.sh          build and run (compiler, libraries)
+#   scripts/setup.sh          build and run (compiler, libraries, dygraphs for the operator console)
 #   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll,
 #                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer, Node.js
-#                             and npm for the Foxglove client test, slurm-wlm and munge for the single-node
-#                             Slurm of tests/slurm)
+#                             and npm for the Foxglove client and console browser tests, slurm-wlm and munge
+#                             for the single-node Slurm of tests/slurm)
 #   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
 set -euo pipefail
 
-build_pkgs=(build-essential cmake ninja-build ccache pkg-config git
+build_pkgs=(build-essential cmake ninja-build ccache pkg-config git libjs-dygraphs
   libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat

@@ -17,7 +17,9 @@
 #include <boost/beast/websocket.hpp>
 #include <spdlog/spdlog.h>
 
+#include "console/assets.hpp"
 #include "foxglove.hpp"
+#include "hil/bench/campaign/run_report.hpp"
 #include "hil/config.hpp"
 #include "hil/units.hpp"
 
@@ -41,6 +43,7 @@ struct Reply {
   std::string content_type = "application/json";
   std::filesystem::path file;  // non-empty: send this file
   std::string extra_header;    // Content-Disposition for downloads
+  bool no_store = false;       // Cache-Control: no-store (the console: a new build is a new page)
 };
 
 // Text from a request (a path, a query, a parser's message quoting the body) may hold bytes
@@ -53,6 +56,24 @@ Reply error_reply(http::status status, const std::string& error, const std::stri
   if (!detail.empty()) j["detail"] = detail;
   return json_reply(status, j);
 }
+
+// What GET / answers without a valid token: a form asking for it, nothing else. Submitting it
+// loads /?token=T; a token this tab already gave (sessionStorage, set by the console) is offered
+// again, so a reload of the console does not ask twice.
+constexpr std::string_view kTokenForm = R"html(<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>hilbench: token</title><link rel="icon" href="data:,"></head>
+<body style="font-family: sans-serif; margin: 3em auto; max-width: 28em">
+<h1 style="font-size: 1.2em">hilbench operator console</h1>
+<p>This bench server requires its token.</p>
+<form method="get" action="/"><label>Token <input name="token" type="password" autocomplete="off" autofocus required></label>
+<button type="submit">Open</button></form>
+<script>
+const kept = sessionStorage.getItem("hilbench.token");
+if (kept && !new URLSearchParams(location.search).has("token")) location.replace("/?token=" + encodeURIComponent(kept));
+</script>
+</body></html>
+)html";
 
 // Thrown inside a handler: becomes an error reply.
 struct ApiError {
@@ -470,6 +491,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply runs();
   Reply run(const std::string& id);
   Reply run_file(const std::string& id, const std::string& file);
+  Reply run_report(const std::string& id);
   RigConfig rig_named(const std::string& name) const;
 };
 
@@ -752,6 +774,43 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
   return r;
 }
 
+Reply ApiServer::Impl::run_report(const std::string& id) {
+  const auto dir = options.runs_dir / id;
+  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
+    throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
+  }
+  RunRecord record;
+  try {
+    record = read_run_record(dir);
+  } catch (const std::exception& e) {
+    throw ApiError{http::status::internal_server_error, "unreadable run.json", e.what()};
+  }
+  if (record.outcome == Outcome::running) {
+    throw ApiError{http::status::conflict, "the run is still running",
+                   "run '" + id + "' has no report before it ends; abort or stop it, or wait"};
+  }
+  // Made once per run and kept in its folder: run.json is rewritten only by the run's end or by
+  // a server finding it interrupted, so a report newer than run.json is that run's report.
+  const auto out = dir / "report.html";
+  std::error_code ec;
+  const auto made = std::filesystem::last_write_time(out, ec);
+  if (ec || made < std::filesystem::last_write_time(dir / "run.json")) {
+    const auto part = dir / "report.html.tmp";  // a half-written report is never served or listed
+    try {
+      write_run_report({dir}, part);
+    } catch (const std::exception& e) {
+      std::filesystem::remove(part, ec);
+      throw ApiError{http::status::unprocessable_entity, "cannot make the report", e.what()};
+    }
+    std::filesystem::rename(part, out);
+  }
+  Reply r;
+  r.file = out;
+  r.content_type = "text/html; charset=utf-8";
+  r.extra_header = "inline";
+  return r;
+}
+
 namespace {
 
 Reply route_index();
@@ -766,6 +825,16 @@ struct Route {
 };
 
 const Route kRoutes[] = {
+    {http::verb::get, "/", "the operator console: live plots, loop health, events, controls, runs (HTML)",
+     [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) {
+       Reply r{http::status::ok, std::string(console::kPage), "text/html; charset=utf-8", {}, {}};
+       r.no_store = true;
+       return r;
+     }},
+    {http::verb::get, "/favicon.ico", "no icon: 204, so that a browser asking for one is not an error",
+     [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) {
+       return Reply{http::status::no_content, {}, "image/x-icon", {}, {}};
+     }},
     {http::verb::get, "/api", "this list",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) { return route_index(); }},
     {http::verb::get, "/api/health", "the server answers, and its version",
@@ -796,6 +865,8 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.runs(); }},
     {http::verb::get, "/api/runs/{id}", "a run's record and its files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
+    {http::verb::get, "/api/runs/{id}/report.html", "a run's paper-style report (HTML; made once the run has ended)",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run_report(a[0]); }},
     {http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.run_file(a[0], a[1]);
@@ -810,6 +881,7 @@ const Route kRoutes[] = {
 // collected into args.
 bool match(std::string_view pattern, const std::vector<std::string>& path, std::vector<std::string>& args) {
   args.clear();
+  if (pattern == "/") return path.empty();
   std::size_t i = 0;
   for (std::size_t from = 1; from <= pattern.size(); ++i) {
     const std::size_t to = std::min(pattern.find('/', from), pattern.size());
@@ -892,6 +964,11 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
   Reply reply;
   if (!authorised(req, t)) {
     spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
+    if (t.path.empty() && req.method() == http::verb::get) {
+      Reply r{http::status::unauthorized, std::string(kTokenForm), "text/html; charset=utf-8", {}, {}};
+      r.no_store = true;
+      return r;
+    }
     return error_reply(http::status::unauthorized, "unauthorized",
                        "this server requires 'Authorization: Bearer <token>' on every request");
   }
@@ -999,6 +1076,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     auto res = std::make_shared<http::response<http::string_body>>(reply.status, 11);
     res->set(http::field::server, "hilbench");
     res->set(http::field::content_type, reply.content_type);
+    if (reply.no_store) res->set(http::field::cache_control, "no-store");
     res->keep_alive(keep_alive);
     res->body() = std::move(reply.body);
     res->prepare_payload();

@@ -609,7 +609,11 @@ json CampaignRunner::status() const {
         {"rows_unwritten", a.recorder ? a.recorder->rows_unwritten() : 0},
         {"rows_written", a.recorder ? a.recorder->rows_written() : 0},
         {"write_error", a.recorder && a.recorder->failed().load() ? json("the disk refused telemetry") : json(nullptr)},
-        {"events_lost", snap.events_lost}};
+        {"events_lost", snap.events_lost},
+        // Rows the loop has handed over that the recorder has not taken yet (approximate: both
+        // sides move while it is read); at ring_capacity the next rows are lost.
+        {"ring_fill", a.recorder ? a.recorder->telemetry().size() : 0},
+        {"ring_capacity", a.recorder ? a.recorder->telemetry().capacity() : 0}};
     s["now"] = {{"t_s", snap.t_s},
                 {"p_meas_mpa", std::isfinite(snap.p_meas_pa) ? json(units::pa_to_mpa(snap.p_meas_pa)) : json(nullptr)},
                 {"p_ref_mpa", units::pa_to_mpa(snap.p_ref_pa)},

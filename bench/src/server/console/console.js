@@ -1,0 +1,572 @@
+// The operator console of `hilbench serve` (GET /): live plots from the telemetry WebSocket,
+// loop health from /api/status, the run's events, controls and the recorded runs. Plain script
+// (no modules, no network beyond this server); plotting is Dygraph (Debian's libjs-dygraphs,
+// inlined before this script). For tests the body carries data-frames-rendered (plot redraws),
+// data-points (rows held) and data-console-errors (errors caught here), and window.hilConsole
+// gives the plots and the buffer.
+"use strict";
+(() => {
+  const body = document.body;
+  const $ = (id) => document.getElementById(id);
+
+  // ---------------------------------------------------------------------------------------------
+  // Errors: counted where a test can see them, and shown.
+  let errorCount = 0;
+  body.dataset.consoleErrors = "0";
+  function noteError(text) {
+    body.dataset.consoleErrors = String(++errorCount);
+    showMessage("console error: " + text, false);
+  }
+  window.addEventListener("error", (e) => noteError(String(e.message)));
+  window.addEventListener("unhandledrejection", (e) => noteError(String(e.reason && e.reason.message ? e.reason.message : e.reason)));
+
+  function showMessage(text, ok) {
+    const m = $("message");
+    m.textContent = text;
+    m.className = ok ? "message ok" : "message";
+    m.hidden = false;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // The token: from ?token=T once, then kept for this tab only; sent on every call.
+  const params = new URLSearchParams(location.search);
+  let token = sessionStorage.getItem("hilbench.token") || "";
+  if (params.has("token")) {
+    token = params.get("token");
+    sessionStorage.setItem("hilbench.token", token);
+    history.replaceState(null, "", location.pathname);  // out of the address bar and the history
+  }
+  const withToken = (path) => (token ? path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token) : path);
+
+  class ApiRefusal extends Error {
+    constructor(status, reply) {
+      super(reply && reply.error ? reply.error + (reply.detail ? ": " + reply.detail : "") : "HTTP " + status);
+      this.status = status;
+    }
+  }
+
+  async function api(method, path, payload) {
+    const headers = {};
+    if (token) headers.Authorization = "Bearer " + token;
+    if (payload !== undefined) headers["Content-Type"] = "application/json";
+    const res = await fetch(path, { method, headers, body: payload === undefined ? undefined : JSON.stringify(payload) });
+    const text = await res.text();
+    let reply = null;
+    try {
+      reply = JSON.parse(text);
+    } catch (e) {
+      reply = null;
+    }
+    if (!res.ok) throw new ApiRefusal(res.status, reply);
+    return reply;
+  }
+  async function apiText(path) {
+    const res = await fetch(path, { headers: token ? { Authorization: "Bearer " + token } : {} });
+    if (!res.ok) throw new ApiRefusal(res.status, null);
+    return res.text();
+  }
+
+  // What the API refuses is shown with its reason (and the action it answered).
+  async function act(what, method, path, payload) {
+    try {
+      const reply = await api(method, path, payload);
+      showMessage(what + ": accepted", true);
+      return reply;
+    } catch (e) {
+      if (!(e instanceof ApiRefusal)) throw e;
+      showMessage(what + ": refused (" + e.status + ") " + e.message, false);
+      addLocalEvent("refused", what + ": " + e.message, "refused");
+      return null;
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Live telemetry: a bounded buffer of rows, plots redrawn on a timer (not per message).
+  const kKeepS = 120;         // seconds of telemetry held
+  const kMaxRows = 20000;     // and never more rows than this, whatever the rate
+  const kFollowSpanS = 30;    // what "follow" shows
+  const kRedrawMs = 80;       // at most 12.5 redraws a second
+  const columns = ["t_s", "p_ref_mpa", "p_meas_mpa", "theta_cmd_deg", "theta_motor_deg", "theta_valve_deg", "touch_state",
+    "motion_intention", "gap_est_deg", "gap_true_deg", "comp_deg"];
+  const C = Object.fromEntries(columns.map((c, i) => [c, i]));
+  const rows = [];
+  let dirty = false;
+  let frames = 0;
+  let received = 0;
+  let droppedTotal = 0;
+  body.dataset.framesRendered = "0";
+  body.dataset.points = "0";
+
+  const num = (v) => (typeof v === "number" && isFinite(v) ? v : null);
+  function addRow(m) {
+    const t = num(m.t_s);
+    if (t === null) return;
+    if (rows.length > 0 && t < rows[rows.length - 1][C.t_s]) rows.length = 0;  // time went back: a new run
+    rows.push(columns.map((c) => num(m[c])));
+    let drop = 0;
+    while (drop < rows.length && (rows[drop][C.t_s] < t - kKeepS || rows.length - drop > kMaxRows)) ++drop;
+    if (drop > 0) rows.splice(0, drop);
+    ++received;
+    dirty = true;
+  }
+
+  const plotDefs = [
+    { id: "pressure", title: "Pressure (MPa)", labels: ["pressure reference", "measured pressure"], cols: [C.p_ref_mpa, C.p_meas_mpa],
+      colors: ["#7f8c8d", "#1565c0"] },
+    { id: "angles", title: "Angles (deg): command, motor, valve; compensation jumps marked", labels: ["command", "motor", "valve",
+      "compensation jump"], cols: [C.theta_cmd_deg, C.theta_motor_deg, C.theta_valve_deg, -1],
+      colors: ["#1565c0", "#2e7d32", "#8e24aa", "#c62828"],
+      series: { "compensation jump": { strokeWidth: 0, drawPoints: true, pointSize: 4 } } },
+    { id: "observer", title: "Observer: touch state Tf and motion intention Mf", labels: ["touch state", "motion intention"],
+      cols: [C.touch_state, C.motion_intention], colors: ["#ef6c00", "#00838f"], stepPlot: true, valueRange: [-1.4, 1.4] },
+    { id: "gap", title: "Gap (deg): estimate vs true", labels: ["gap estimate", "true gap"], cols: [C.gap_est_deg, C.gap_true_deg],
+      colors: ["#1565c0", "#c62828"] },
+  ];
+  const plots = {};
+  const view = { mode: "follow", range: null };  // follow | fixed (the operator's zoom) | paused
+  let syncing = false;  // our own updates: not the operator zooming or panning
+  let shownRange = null;  // the x range we last gave the plots
+  let markTimes = [];   // the current run's events, drawn as lines
+
+  function plotData(def) {
+    return rows.map((r) => {
+      const out = [r[C.t_s]];
+      for (const c of def.cols) out.push(c >= 0 ? r[c] : (r[C.comp_deg] ? r[C.theta_cmd_deg] : null));
+      return out;
+    });
+  }
+
+  function setView(mode, range) {
+    view.mode = mode;
+    view.range = range;
+    $("view-mode").textContent = mode === "follow" ? "following" : mode === "paused" ? "paused (zoom and pan freely)" : "zoomed; streaming";
+    $("pause").textContent = mode === "paused" ? "Resume" : "Pause";
+    dirty = true;
+  }
+
+  // A zoom or a pan in one plot moves them all; the plots keep streaming in that range.
+  function onDraw(g, initial) {
+    if (syncing || initial) return;
+    const range = g.xAxisRange();
+    // A redraw in the range we gave (a resize) is not the operator's doing.
+    if (shownRange && Math.abs(range[0] - shownRange[0]) < 1e-9 && Math.abs(range[1] - shownRange[1]) < 1e-9) return;
+    shownRange = range;
+    setView(view.mode === "paused" ? "paused" : "fixed", range);
+    syncing = true;
+    for (const other of Object.values(plots)) if (other !== g) other.updateOptions({ dateWindow: range });
+    syncing = false;
+  }
+
+  function underlay(ctx, area, g) {
+    ctx.save();
+    ctx.strokeStyle = "rgba(198, 40, 40, 0.55)";
+    ctx.setLineDash([4, 3]);
+    for (const t of markTimes) {
+      const x = g.toDomXCoord(t);
+      if (x < area.x || x > area.x + area.w) continue;
+      ctx.beginPath();
+      ctx.moveTo(x, area.y);
+      ctx.lineTo(x, area.y + area.h);
+      ctx.stroke();
+    }
+    ctx.restore();
+  }
+
+  function ensurePlots() {
+    if (Object.keys(plots).length > 0) return;
+    $("plots-empty").hidden = true;
+    // Shown before they are made: a Dygraph takes its div's size then (and follows the window's).
+    $("plots").classList.add("live");
+    for (const def of plotDefs) {
+      const div = $("plot-" + def.id);
+      const legend = document.createElement("div");
+      legend.className = "legend";
+      div.after(legend);
+      plots[def.id] = new Dygraph(div, plotData(def), {
+        labels: ["t (s)", ...def.labels],
+        title: def.title,
+        titleHeight: 22,
+        colors: def.colors,
+        series: def.series || {},
+        stepPlot: !!def.stepPlot,
+        valueRange: def.valueRange || null,
+        legend: "always",
+        labelsDiv: legend,
+        labelsSeparateLines: false,
+        connectSeparatedPoints: false,
+        animatedZooms: false,
+        xLabelHeight: 0,
+        drawCallback: onDraw,
+        underlayCallback: underlay,
+      });
+      div.addEventListener("dblclick", () => setView("follow", null));
+    }
+  }
+
+  function redraw() {
+    dirty = false;
+    if (rows.length < 2 || rows[rows.length - 1][C.t_s] <= rows[0][C.t_s]) return;
+    ensurePlots();
+    const tLast = rows[rows.length - 1][C.t_s];
+    const range = view.mode === "follow" ? [Math.max(rows[0][C.t_s], tLast - kFollowSpanS), tLast] : view.range;
+    syncing = true;
+    try {
+      for (const def of plotDefs) plots[def.id].updateOptions({ file: plotData(def), dateWindow: range });
+      shownRange = plots[plotDefs[0].id].xAxisRange();
+    } finally {
+      syncing = false;
+    }
+    body.dataset.framesRendered = String(++frames);
+    body.dataset.points = String(rows.length);
+  }
+  setInterval(() => {
+    if (dirty && view.mode !== "paused") redraw();
+  }, kRedrawMs);
+
+  $("follow").addEventListener("click", () => setView("follow", null));
+  $("pause").addEventListener("click", () => {
+    if (view.mode === "paused") return setView("follow", null);
+    setView("paused", Object.values(plots)[0] ? Object.values(plots)[0].xAxisRange() : null);
+  });
+
+  let ws = null;
+  function connect() {
+    const scheme = location.protocol === "https:" ? "wss://" : "ws://";
+    ws = new WebSocket(scheme + location.host + withToken("/api/telemetry?rate_hz=30"));
+    ws.onopen = () => ($("conn").textContent = "telemetry: live");
+    ws.onclose = () => {
+      $("conn").textContent = "telemetry: closed, reconnecting";
+      setTimeout(connect, 2000);
+    };
+    ws.onmessage = (e) => {
+      let m;
+      try {
+        m = JSON.parse(e.data);
+      } catch (err) {
+        return;
+      }
+      if (m.type === "row") return addRow(m);
+      if (m.type === "run_start") {
+        rows.length = 0;
+        markTimes = [];
+        if (m.dir) currentRunDir = m.dir;
+        addLocalEvent("run_start", m.campaign + " " + m.run + " (" + m.dir + ")", "");
+      } else if (m.type === "run_end") {
+        addLocalEvent("run_end", m.run + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), m.outcome === "completed" ? "" : "trip");
+        if (m.dir) fetchEvents(m.dir);
+        refreshRuns();
+      } else if (m.type === "campaign_end") {
+        addLocalEvent("campaign_end", m.campaign + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), "");
+        refreshRuns();
+      } else if (m.type === "dropped") {
+        droppedTotal = m.total;
+        addLocalEvent("dropped", m.messages + " telemetry messages dropped (" + m.why + ")", "");
+      }
+    };
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Events: the run's events.jsonl (the record, polled while it runs) and what this page saw or did.
+  // What the operator or the interlocks did, marked on the plots (overruns and the like only listed).
+  const kMarked = new Set(["gap_change", "gap_programme", "sensor_fault", "drive_fault", "rig_fault", "fault_expired",
+    "faults_cleared", "stop_request", "abort_request", "trip", "safe_state", "stopped"]);
+  const localEvents = [];
+  const fileEvents = new Map();  // run folder -> its events
+  let currentRunDir = "";
+
+  function addLocalEvent(kind, text, cls) {
+    localEvents.push({ utc: new Date().toISOString(), kind, text, cls, local: true });
+    renderEvents();
+  }
+
+  function describe(e) {
+    const skip = new Set(["utc", "kind", "source", "t_s", "period"]);
+    const parts = [];
+    if (e.reason) parts.push(String(e.reason));
+    for (const [k, v] of Object.entries(e)) {
+      if (skip.has(k) || k === "reason" || v === null) continue;
+      parts.push(k + " " + (typeof v === "object" ? JSON.stringify(v) : typeof v === "number" ? +v.toFixed(6) : v));
+    }
+    return parts.join(", ");
+  }
+
+  function renderEvents() {
+    const all = [...localEvents];
+    for (const [dir, list] of fileEvents) {
+      for (const e of list) {
+        all.push({ utc: String(e.utc || ""), kind: String(e.kind || "?"), t_s: e.t_s, text: describe(e) + (dir === currentRunDir ? "" : " [" + dir + "]"),
+          cls: e.kind === "trip" ? "trip" : "" });
+      }
+    }
+    all.sort((a, b) => (a.utc < b.utc ? 1 : a.utc > b.utc ? -1 : 0));
+    const ol = $("event-list");
+    ol.replaceChildren(...all.slice(0, 300).map((e) => {
+      const li = document.createElement("li");
+      li.className = e.cls || "";
+      li.dataset.kind = e.kind;
+      const t = document.createElement("span");
+      t.className = "t";
+      t.textContent = e.utc.slice(11, 19) + (typeof e.t_s === "number" ? "  t " + e.t_s.toFixed(3) + " s" : "");
+      const k = document.createElement("span");
+      k.className = "kind";
+      k.textContent = e.kind;
+      li.append(t, k, document.createTextNode(e.text));
+      return li;
+    }));
+  }
+
+  async function fetchEvents(dir) {
+    try {
+      const text = await apiText("/api/runs/" + encodeURIComponent(dir) + "/events.jsonl");
+      const list = [];
+      for (const line of text.split("\n")) {
+        if (!line.trim()) continue;
+        try {
+          list.push(JSON.parse(line));
+        } catch (e) {
+          // a line being written: the next poll has it whole
+        }
+      }
+      fileEvents.set(dir, list);
+      if (dir === currentRunDir) {
+        markTimes = list.filter((e) => typeof e.t_s === "number" && kMarked.has(e.kind)).map((e) => e.t_s);
+        dirty = true;
+      }
+      renderEvents();
+    } catch (e) {
+      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // refused or unreachable: the next poll tries again
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Status, about once a second: the header, loop health, interlocks.
+  const fmt = (v, digits) => (typeof v === "number" ? v.toFixed(digits) : "–");
+  const latency = (h) => (h ? fmt(h.p50_us, 1) + " / " + fmt(h.p99_us, 1) + " / " + fmt(h.max_us, 1) + " µs" : "–");
+  let lastState = "";
+
+  function renderStatus(s) {
+    const state = s.state || "idle";
+    const st = $("state");
+    st.textContent = state;
+    st.className = "state " + state;
+    body.dataset.state = state;
+    const p = s.progress || {};
+    if (state === "idle") {
+      const last = s.last;
+      $("what").textContent = last ? "last: " + last.campaign + " on " + last.rig + ": " + last.outcome + (last.reason ? " (" + last.reason + ")" : "") : "";
+      $("progress").value = 0;
+    } else {
+      $("what").textContent = s.campaign + " · " + s.run + " (" + (s.run_index + 1) + "/" + s.runs_total + ") on " + s.rig +
+        " · t " + fmt(p.t_s, 1) + "/" + fmt(p.duration_s, 0) + " s · remaining " + fmt(p.remaining_s, 0) + " s";
+      $("progress").value = p.fraction || 0;
+    }
+    $("start").disabled = state !== "idle";
+    $("stop").disabled = state === "idle";
+
+    const dl = $("health-list");
+    const items = [];
+    const loop = s.loop;
+    const tel = s.telemetry || {};
+    if (loop) {
+      items.push(["scheduling", loop.sched + (loop.memory_locked ? ", memory locked" : ", memory not locked"), false]);
+      if (loop.rt_warning) items.push(["real-time warning", loop.rt_warning, true]);
+      items.push(["periods", loop.periods, false]);
+      items.push(["wake-up latency p50/p99/max", latency(loop.wake_latency_us), false]);
+      items.push(["compute time p50/p99/max", latency(loop.compute_us), false]);
+      items.push(["rig read / write p99", fmt(loop.rig_read_us && loop.rig_read_us.p99_us, 1) + " / " + fmt(loop.rig_write_us && loop.rig_write_us.p99_us, 1) + " µs", false]);
+      items.push(["overruns", loop.overruns, loop.overruns > 0]);
+      items.push(["skipped deadlines", loop.skipped_deadlines, loop.skipped_deadlines > 0]);
+      items.push(["missed reads", loop.missed_reads, loop.missed_reads > 0]);
+      items.push(["limited periods", loop.limited_periods, false]);
+      items.push(["rows written / lost / unwritten", (tel.rows_written ?? "–") + " / " + (tel.rows_lost ?? "–") + " / " + (tel.rows_unwritten ?? "–"),
+        tel.rows_lost > 0 || tel.rows_unwritten > 0]);
+      if (typeof tel.ring_capacity === "number" && tel.ring_capacity > 0)
+        items.push(["telemetry ring fill", tel.ring_fill + " of " + tel.ring_capacity + " rows (" + (100 * tel.ring_fill / tel.ring_capacity).toFixed(1) + " %)",
+          tel.ring_fill > tel.ring_capacity / 2]);
+      if (tel.write_error) items.push(["write error", tel.write_error, true]);
+      items.push(["events lost", tel.events_lost ?? "–", tel.events_lost > 0]);
+    }
+    items.push(["live view: rows received / held", received + " / " + rows.length, false]);
+    items.push(["live view: messages dropped", droppedTotal, droppedTotal > 0]);
+    dl.replaceChildren(...items.flatMap(([k, v, bad]) => {
+      const dt = document.createElement("dt");
+      dt.textContent = k;
+      const dd = document.createElement("dd");
+      dd.textContent = String(v);
+      if (bad) dd.className = "bad";
+      return [dt, dd];
+    }));
+
+    const il = $("interlocks");
+    if (state === "idle") {
+      il.textContent = "no campaign running";
+    } else {
+      const safety = s.safety || {};
+      const faults = (s.faults || []).map((f) => Object.entries(f).map(([k, v]) => k + " " + (typeof v === "number" ? +v.toFixed(4) : v)).join(" ")).join("; ");
+      il.textContent = (safety.safe_state ? "SAFE STATE" + (safety.trip ? " (trip: " + safety.trip + ")" : "") : "interlocks armed, no trip") +
+        " · faults: " + (faults || "none");
+      il.className = safety.safe_state ? "about bad" : "about";
+    }
+
+    if (s.run_dir && s.run_dir !== currentRunDir) currentRunDir = s.run_dir;
+    if (state !== "idle" && currentRunDir) fetchEvents(currentRunDir);
+    if (state !== lastState && (state === "idle" || lastState === "")) refreshRuns();
+    lastState = state;
+  }
+
+  async function pollStatus() {
+    try {
+      renderStatus(await api("GET", "/api/status"));
+    } catch (e) {
+      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // TypeError: the server is unreachable
+      $("conn").textContent = "server: " + e.message;
+    } finally {
+      setTimeout(pollStatus, 1000);
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Controls.
+  let campaigns = [];
+  function renderRunsChoice() {
+    const c = campaigns.find((x) => x.name === $("campaign").value);
+    const fs = $("runs-choice");
+    fs.replaceChildren(fs.firstElementChild);
+    $("campaign-about").textContent = c ? (c.error ? "cannot load: " + c.error : (c.description || "") + " · " + c.duration_s + " s per run, period " + c.period_ms + " ms") : "";
+    for (const r of (c && c.runs) || []) {
+      const label = document.createElement("label");
+      const box = document.createElement("input");
+      box.type = "checkbox";
+      box.checked = true;
+      box.value = r;
+      label.append(box, " " + r);
+      fs.append(label);
+    }
+  }
+
+  async function loadChoices() {
+    const [c, r] = await Promise.all([api("GET", "/api/campaigns"), api("GET", "/api/rigs")]);
+    campaigns = c.campaigns;
+    $("campaign").replaceChildren(...campaigns.map((x) => new Option(x.name + (x.error ? " (invalid)" : ""), x.name)));
+    $("rig").replaceChildren(...r.rigs.map((x) => new Option(x.name + (x.kind ? " (" + x.kind + ")" : ""), x.name, x.name === "sim", x.name === "sim")));
+    renderRunsChoice();
+  }
+  $("campaign").addEventListener("change", renderRunsChoice);
+
+  $("start").addEventListener("click", async () => {
+    const boxes = [...$("runs-choice").querySelectorAll("input[type=checkbox]")];
+    const chosen = boxes.filter((b) => b.checked).map((b) => b.value);
+    const payload = { campaign: $("campaign").value, rig: $("rig").value };
+    if (chosen.length !== boxes.length) payload.runs = chosen;
+    const reply = await act("start " + payload.campaign + " on " + payload.rig, "POST", "/api/start", payload);
+    if (reply) {
+      setView("follow", null);
+      renderStatus(reply.status);
+    }
+  });
+  $("stop").addEventListener("click", () => act("stop", "POST", "/api/stop", {}));
+  $("abort").addEventListener("click", async () => {
+    const reply = await act("abort", "POST", "/api/abort", { reason: "from the operator console" });
+    if (reply) addLocalEvent("abort_request", reply.reason + (reply.note ? " (" + reply.note + ")" : ""), "trip");
+  });
+
+  // Each injection asks first, in the page (window.confirm would block the page and its tests).
+  let pending = null;
+  function ask(text, action) {
+    pending = action;
+    $("confirm-text").textContent = text;
+    $("confirm").hidden = false;
+    $("confirm-yes").focus();
+  }
+  $("confirm-no").addEventListener("click", () => {
+    pending = null;
+    $("confirm").hidden = true;
+  });
+  $("confirm-yes").addEventListener("click", async () => {
+    const action = pending;
+    pending = null;
+    $("confirm").hidden = true;
+    if (action) await action();
+  });
+  const numberIn = (id) => Number($(id).value);
+  async function inject(kind, payload, text) {
+    const reply = await act("inject " + kind, "POST", "/api/inject/" + kind, payload);
+    if (reply) addLocalEvent("inject", text, "");
+  }
+  $("inject-gap").addEventListener("click", () => {
+    const gap = numberIn("gap-deg");
+    ask("Set the true gap to " + gap + " deg from now on?", () => inject("gap", { gap_deg: gap }, "gap change to " + gap + " deg"));
+  });
+  $("inject-programme").addEventListener("click", () =>
+    ask("Return the gap to the campaign's programme?", () => inject("gap", { programme: true }, "gap back to the programme")));
+  function sensorPayload() {
+    const mode = $("sensor-mode").value;
+    const payload = { mode, duration_s: numberIn("sensor-duration") };
+    if (mode === "bias") payload.bias_kpa = numberIn("sensor-value");
+    if (mode === "noise") payload.rms_kpa = numberIn("sensor-value");
+    return payload;
+  }
+  $("sensor-mode").addEventListener("change", () => {
+    const mode = $("sensor-mode").value;
+    $("sensor-value").disabled = mode !== "bias" && mode !== "noise";
+    $("sensor-value-label").textContent = mode === "noise" ? "rms kPa" : "kPa";
+  });
+  $("sensor-mode").dispatchEvent(new Event("change"));
+  $("inject-sensor").addEventListener("click", () => {
+    const p = sensorPayload();
+    const text = "sensor fault " + p.mode + (p.bias_kpa !== undefined ? " " + p.bias_kpa + " kPa" : "") +
+      (p.rms_kpa !== undefined ? " " + p.rms_kpa + " kPa rms" : "") + (p.duration_s > 0 ? " for " + p.duration_s + " s" : " until cleared");
+    ask("Inject a " + text + "?", () => inject("sensor", p, text));
+  });
+  $("inject-drive").addEventListener("click", () => {
+    const d = numberIn("drive-duration");
+    const text = "drive ignores commands " + (d > 0 ? "for " + d + " s" : "until cleared");
+    ask("Make the " + text + "?", () => inject("drive", { mode: "ignore_commands", on: true, duration_s: d }, text));
+  });
+  $("inject-clear").addEventListener("click", () => ask("Clear every injected fault?", () => inject("clear", {}, "faults cleared")));
+
+  // ---------------------------------------------------------------------------------------------
+  // Recorded runs, each with its report and its files.
+  function link(href, text, newTab) {
+    const a = document.createElement("a");
+    a.href = withToken(href);
+    a.textContent = text;
+    if (newTab) a.target = "_blank";
+    return a;
+  }
+  function refreshRuns() {
+    return loadRuns().catch((e) => showMessage("cannot list runs: " + e.message, false));
+  }
+  async function loadRuns() {
+    const reply = await api("GET", "/api/runs");
+    const tbody = $("runs-table").querySelector("tbody");
+    tbody.replaceChildren(...reply.runs.slice(0, 200).map((r) => {
+      const tr = document.createElement("tr");
+      tr.dataset.run = r.id;
+      const cells = [r.id, (r.campaign || "?") + " / " + (r.run || "?"), r.outcome || r.error || "?", r.reason || ""].map((text) => {
+        const td = document.createElement("td");
+        td.textContent = text;
+        return td;
+      });
+      cells[2].className = "outcome outcome-" + (r.outcome || "error");
+      const files = document.createElement("td");
+      const base = "/api/runs/" + encodeURIComponent(r.id);
+      if (r.outcome && r.outcome !== "running") {
+        const report = link(base + "/report.html", "report", true);
+        report.className = "report";
+        files.append(report);
+      }
+      for (const f of ["telemetry.csv", "events.jsonl", "run.json"]) files.append(link(base + "/" + f, f, false));
+      tr.append(...cells, files);
+      return tr;
+    }));
+  }
+  $("runs-refresh").addEventListener("click", refreshRuns);
+
+  window.hilConsole = { plots, rows, columns, view };
+
+  loadChoices().catch((e) => showMessage("cannot load campaigns and rigs: " + e.message, false));
+  refreshRuns();
+  pollStatus();
+  connect();
+})();

@@ -1,0 +1,258 @@
+// The operator console of the real `hilbench serve`, driven in Debian's Chromium (puppeteer-core):
+// choose paper_adaptive's adaptive run on the sim rig and click Start; the plots grow (the page's
+// redraw counter and held rows rise); a gap change injected through the page (with its confirm
+// step) shows in the events list and as the true gap in the gap plot's data; Abort ends the run
+// "aborted" in the runs list; the run's report link opens the paper-style report with its figures.
+// No console error or page error on either page; screenshots at 1400 and 390 px are not blank.
+//   node console_browser_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
+import { spawn } from "node:child_process";
+import { existsSync, mkdtempSync, openSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
+import { inflateSync } from "node:zlib";
+import puppeteer from "puppeteer-core";
+
+const [exe, sourceDir] = process.argv.slice(2);
+const chromium = process.env.HIL_CHROMIUM || "/usr/bin/chromium";
+const injectedGapDeg = 3.7;  // paper_adaptive's programme never has this gap: a row with it is the injection
+const dir = mkdtempSync(join(tmpdir(), "hil-console-"));
+let server;
+let browser;
+let failed = false;
+
+function fail(message) {
+  failed = true;
+  console.error("FAIL: " + message);
+}
+async function finish() {
+  if (browser) await browser.close().catch(() => {});
+  if (server && server.exitCode === null) server.kill("SIGTERM");
+  if (failed && existsSync(join(dir, "server.log"))) console.error("---- server log ----\n" + readFileSync(join(dir, "server.log"), "utf8"));
+  if (failed || process.env.HIL_KEEP_SCREENSHOTS) console.error("screenshots and the server log are in " + dir);
+  else rmSync(dir, { recursive: true, force: true });
+  process.exit(failed ? 1 : 0);
+}
+const deadline = setTimeout(() => {
+  fail("timed out after 150 s");
+  finish();
+}, 150_000);
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+// The pixels of an 8-bit RGB or RGBA PNG (what Chromium writes), decoded here so that the check
+// does not trust the browser that drew them.
+function decodePng(buf) {
+  if (buf.readUInt32BE(0) !== 0x89504e47) throw new Error("not a PNG");
+  let off = 8;
+  let width = 0, height = 0, channels = 0;
+  const idat = [];
+  while (off < buf.length) {
+    const len = buf.readUInt32BE(off);
+    const type = buf.toString("latin1", off + 4, off + 8);
+    const data = buf.subarray(off + 8, off + 8 + len);
+    if (type === "IHDR") {
+      width = data.readUInt32BE(0);
+      height = data.readUInt32BE(4);
+      if (data[8] !== 8 || data[12] !== 0 || (data[9] !== 2 && data[9] !== 6)) throw new Error("PNG not 8-bit RGB(A), non-interlaced");
+      channels = data[9] === 6 ? 4 : 3;
+    } else if (type === "IDAT") {
+      idat.push(data);
+    }
+    off += 12 + len;
+  }
+  const raw = inflateSync(Buffer.concat(idat));
+  const stride = width * channels;
+  const out = Buffer.alloc(height * stride);
+  for (let y = 0; y < height; ++y) {
+    const filter = raw[y * (stride + 1)];
+    const line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
+    for (let x = 0; x < stride; ++x) {
+      const a = x >= channels ? out[y * stride + x - channels] : 0;
+      const b = y > 0 ? out[(y - 1) * stride + x] : 0;
+      const c = x >= channels && y > 0 ? out[(y - 1) * stride + x - channels] : 0;
+      let v = line[x];
+      if (filter === 1) v += a;
+      else if (filter === 2) v += b;
+      else if (filter === 3) v += (a + b) >> 1;
+      else if (filter === 4) {
+        const p = a + b - c, pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
+        v += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      } else if (filter !== 0) throw new Error("PNG filter " + filter);
+      out[y * stride + x] = v & 255;
+    }
+  }
+  return { width, height, channels, pixels: out };
+}
+
+// Distinct colours and the share of pixels unlike the most common one (the background).
+function inkOf(png) {
+  const counts = new Map();
+  const n = png.width * png.height;
+  for (let i = 0; i < n; ++i) {
+    const o = i * png.channels;
+    const key = (png.pixels[o] << 16) | (png.pixels[o + 1] << 8) | png.pixels[o + 2];
+    counts.set(key, (counts.get(key) || 0) + 1);
+  }
+  const most = Math.max(...counts.values());
+  return { colours: counts.size, inkShare: 1 - most / n };
+}
+
+async function screenshotChecked(page, width, name) {
+  await page.setViewport({ width, height: 900 });
+  await sleep(400);  // the redraw timer and the layout follow the new width
+  const file = join(dir, name);
+  const buf = Buffer.from(await page.screenshot({ fullPage: true }));
+  writeFileSync(file, buf);
+  const png = decodePng(buf);
+  const ink = inkOf(png);
+  if (png.width !== width) fail(`${name}: ${png.width} px wide, not ${width}`);
+  if (ink.colours < 50 || ink.inkShare < 0.05) fail(`${name} looks blank: ${ink.colours} colours, ${(100 * ink.inkShare).toFixed(1)} % ink`);
+  return `${name} ${png.width}x${png.height}: ${ink.colours} colours, ${(100 * ink.inkShare).toFixed(1)} % ink`;
+}
+
+const dataset = (page) => page.evaluate(() => ({ ...document.body.dataset }));
+async function waitFor(page, what, fn, arg, timeoutMs = 20_000) {
+  try {
+    await page.waitForFunction(fn, { timeout: timeoutMs, polling: 100 }, arg);
+    return true;
+  } catch (e) {
+    fail(what + " (within " + timeoutMs / 1000 + " s): " + JSON.stringify(await dataset(page)));
+    return false;
+  }
+}
+
+async function main() {
+  const log = openSync(join(dir, "server.log"), "a");
+  server = spawn(exe, ["serve", "--listen", "127.0.0.1:0", "--configs", join(sourceDir, "configs"), "--runs-dir", join(dir, "runs"),
+    "--port-file", join(dir, "port")], { stdio: ["ignore", log, log] });
+  for (let i = 0; i < 600 && !existsSync(join(dir, "port")); ++i) await sleep(100);
+  if (!existsSync(join(dir, "port"))) return fail("hilbench serve did not start");
+  const base = `http://127.0.0.1:${Number(readFileSync(join(dir, "port"), "utf8"))}`;
+
+  browser = await puppeteer.launch({ executablePath: chromium, headless: true,
+    args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run"] });
+  const problems = [];
+  const watch = (page, label) => {
+    page.on("console", (m) => { if (m.type() === "error") problems.push(`${label} console error: ${m.text()}`); });
+    page.on("pageerror", (e) => problems.push(`${label} page error: ${e.message}`));
+    page.on("response", (r) => { if (r.status() >= 400) problems.push(`${label}: ${r.status()} for ${r.url()}`); });
+  };
+  const page = await browser.newPage();
+  watch(page, "console");
+  await page.setViewport({ width: 1400, height: 900 });
+  const loaded = await page.goto(base + "/", { waitUntil: "load" });
+  if (loaded.status() !== 200) return fail("GET / answered " + loaded.status());
+
+  // Choose paper_adaptive, only its adaptive run, on the sim rig; start by clicking.
+  if (!(await waitFor(page, "campaigns listed", () => [...document.querySelectorAll("#campaign option")].some((o) => o.value === "paper_adaptive")))) return;
+  await page.select("#campaign", "paper_adaptive");
+  await page.select("#rig", "sim");
+  const runs = await page.$$eval("#runs-choice input", (boxes) => boxes.map((b) => b.value));
+  if (!runs.includes("adaptive")) return fail("paper_adaptive's runs in the page: " + JSON.stringify(runs));
+  for (const r of runs) if (r !== "adaptive") await page.click(`#runs-choice input[value="${r}"]`);
+  await page.click("#start");
+  if (!(await waitFor(page, "running with plots drawn", () => document.body.dataset.state === "running" && Number(document.body.dataset.framesRendered) >= 5 && Number(document.body.dataset.points) >= 30))) return;
+  const first = await dataset(page);
+  await sleep(1500);
+  const second = await dataset(page);
+  if (!(Number(second.framesRendered) > Number(first.framesRendered))) fail(`frames did not grow: ${first.framesRendered} then ${second.framesRendered}`);
+  if (!(Number(second.points) > Number(first.points))) fail(`points did not grow: ${first.points} then ${second.points}`);
+  const plotted = await page.evaluate(() => Object.keys(window.hilConsole.plots).sort().join(","));
+  if (plotted !== "angles,gap,observer,pressure") fail("plots: " + plotted);
+
+  // Zoom by dragging across the pressure plot: every plot shows that range, and they keep
+  // streaming in it; Follow goes back to the newest data.
+  const box = await (await page.$("#plot-pressure canvas")).boundingBox();
+  await page.mouse.move(box.x + box.width * 0.3, box.y + box.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width * 0.6, box.y + box.height / 2, { steps: 8 });
+  await page.mouse.up();
+  const ranges = () => page.evaluate(() => ({ mode: window.hilConsole.view.mode, frames: Number(document.body.dataset.framesRendered),
+    ranges: Object.fromEntries(Object.entries(window.hilConsole.plots).map(([k, g]) => [k, g.xAxisRange()])) }));
+  const zoomed = await ranges();
+  await sleep(800);
+  const later = await ranges();
+  const r0 = zoomed.ranges.pressure;
+  if (zoomed.mode !== "fixed") fail("a drag across the plot did not zoom: mode " + zoomed.mode);
+  for (const [k, r] of Object.entries(later.ranges)) {
+    if (Math.abs(r[0] - r0[0]) > 1e-9 || Math.abs(r[1] - r0[1]) > 1e-9) fail(`plot ${k} shows ${r}, the zoomed pressure plot ${r0}`);
+  }
+  if (!(later.frames > zoomed.frames)) fail("the plots stopped redrawing while zoomed");
+  await page.click("#follow");
+  await sleep(300);
+  const followed = await ranges();
+  if (followed.mode !== "follow" || !(followed.ranges.pressure[1] > r0[1])) fail("Follow did not return to the newest data: " + JSON.stringify(followed));
+
+  // What the API refuses is shown with its reason: a gap out of range.
+  await page.$eval("#gap-deg", (input) => (input.value = "20"));
+  await page.click("#inject-gap");
+  await page.click("#confirm-yes");
+  await waitFor(page, "the refusal shown with its reason", () => /refused \(400\).*'gap_deg' must be 0\.\.10/.test(document.getElementById("message").textContent));
+  const expectedRefusal = (p) => /inject\/gap/.test(p) && /400/.test(p) || /status of 400/.test(p);
+
+  // The true gap in the gap plot's own data, before and after the injection.
+  const gapTrueSeen = (want) => page.evaluate((want) => {
+    const g = window.hilConsole.plots.gap;
+    const col = g.getLabels().indexOf("true gap");
+    for (let i = 0; i < g.numRows(); ++i) if (Math.abs(g.getValue(i, col) - want) < 1e-6) return true;
+    return false;
+  }, want);
+  if (await gapTrueSeen(injectedGapDeg)) fail(`the gap plot shows a true gap of ${injectedGapDeg} deg before it was injected`);
+
+  // A gap change through the page: the confirm step first, nothing sent before it.
+  await page.$eval("#gap-deg", (input, v) => (input.value = String(v)), injectedGapDeg);
+  await page.click("#inject-gap");
+  const confirmText = await page.$eval("#confirm", (c) => (c.hidden ? "" : c.textContent));
+  if (!confirmText.includes(String(injectedGapDeg))) fail("no confirm step naming the gap: " + JSON.stringify(confirmText));
+  await sleep(300);
+  if (await page.$('#event-list li[data-kind="gap_change"]')) fail("a gap change was recorded before it was confirmed");
+  await page.click("#confirm-yes");
+  await waitFor(page, "gap_change in the events list", (want) => [...document.querySelectorAll('#event-list li[data-kind="gap_change"]')].some((li) => li.textContent.includes("gap_deg " + want)), injectedGapDeg);
+  await waitFor(page, "the injected true gap in the gap plot", (want) => {
+    const g = window.hilConsole.plots.gap;
+    const col = g.getLabels().indexOf("true gap");
+    for (let i = 0; i < g.numRows(); ++i) if (Math.abs(g.getValue(i, col) - want) < 1e-6) return true;
+    return false;
+  }, injectedGapDeg);
+
+  // Abort: one click on the header button, which stays on screen.
+  const abortBox = await page.$eval("#abort", (b) => { const r = b.getBoundingClientRect(); return { top: r.top, visible: r.width > 0 && r.height > 0 }; });
+  if (!abortBox.visible || abortBox.top < 0 || abortBox.top > 200) fail("abort button not in view: " + JSON.stringify(abortBox));
+  await page.evaluate(() => window.scrollTo(0, document.body.scrollHeight));
+  await sleep(100);
+  const abortScrolled = await page.$eval("#abort", (b) => b.getBoundingClientRect().top);
+  if (abortScrolled < 0 || abortScrolled > 200) fail("abort button scrolled out of view: top " + abortScrolled);
+  // The run lasts 18 s: everything above must fit in it, or the abort below finds nothing to abort.
+  const before = await dataset(page);
+  if (before.state !== "running") return fail("the run ended before the abort (a very slow machine?): state " + before.state);
+  await page.click("#abort");
+  // The plots keep the aborted run's data: the screenshots show them.
+  const shots = [await screenshotChecked(page, 1400, "console-1400.png"), await screenshotChecked(page, 390, "console-390.png")];
+  await page.setViewport({ width: 1400, height: 900 });
+  if (!(await waitFor(page, "the run aborted in the runs list", () => [...document.querySelectorAll("#runs-table tbody tr")].some((tr) => tr.querySelector(".outcome")?.textContent === "aborted" && tr.querySelector("a.report")), undefined, 30_000))) return;
+  const run = await page.$eval("#runs-table tbody tr", (tr) => ({ id: tr.dataset.run, outcome: tr.querySelector(".outcome").textContent, reason: tr.children[3].textContent, report: tr.querySelector("a.report")?.href }));
+  if (!/_paper_adaptive_adaptive$/.test(run.id)) fail("newest run: " + JSON.stringify(run));
+  if (!run.reason.includes("operator abort")) fail("reason: " + JSON.stringify(run));
+
+  // The run's report, as the link opens it.
+  const reportPage = await browser.newPage();
+  watch(reportPage, "report");
+  const res = await reportPage.goto(run.report, { waitUntil: "load", timeout: 60_000 });
+  if (res.status() !== 200) fail("report answered " + res.status());
+  if (!/text\/html/.test(res.headers()["content-type"] || "")) fail("report content-type " + res.headers()["content-type"]);
+  const figures = await reportPage.$$eval("figure.hil-fig", (f) => f.length);
+  const title = await reportPage.title();
+  if (figures < 3) fail(`the report has ${figures} figures`);
+  await sleep(500);
+
+  const ds = await dataset(page);
+  if (ds.consoleErrors !== "0") fail("the console counted errors: " + ds.consoleErrors);
+  // The one refusal provoked above shows in the browser's log as a failed load: nothing else may.
+  for (const p of problems) if (!expectedRefusal(p)) fail(p);
+  if (problems.filter(expectedRefusal).length > 2) fail("more refusals than the one provoked: " + problems.join("; "));
+  console.log(`run ${run.id}: ${run.outcome} (${run.reason}); frames ${ds.framesRendered}, points ${ds.points}; report "${title}" with ${figures} figures; ${shots.join("; ")}`);
+}
+
+main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {
+  clearTimeout(deadline);
+  finish();
+});
