@@ -26,9 +26,10 @@ constexpr std::uint32_t kSafeStateFlag = 1u << 6;  // LoopFlag kFlagSafeState
 
 // Every row of a run's telemetry, strictly parsed (a bad cell or a time going back throws).
 hil::CsvChunk read_telemetry(const std::filesystem::path& run_dir) {
-  return hil::read_csv(
-      run_dir / "telemetry.csv",
-      {{"t_s", "theta_cmd_deg", "p_meas_mpa", "gap_true_deg", "loop_flags", "wake_latency_us", "compute_us"}, {}, "t_s"});
+  return hil::read_csv(run_dir / "telemetry.csv", {{"t_s", "theta_cmd_deg", "p_meas_mpa", "gap_true_deg", "loop_flags",
+                                                    "wake_latency_us", "compute_us", "comp_deg"},
+                                                   {},
+                                                   "t_s"});
 }
 
 const json* find_event(const std::vector<json>& events, const std::string& kind) {
@@ -137,6 +138,16 @@ TEST(ServerEndToEnd, PaperAdaptiveWithGapInjectionAndLiveTelemetry) {
   EXPECT_GT(rows.size(), 600u);
   EXPECT_LT(rows.size(), 1100u);
   EXPECT_DOUBLE_EQ(rows.back()["gap_true_deg"].get<double>(), 2.5);
+  // Every compensation jump (one 1 ms period each, seconds apart) reaches the 50 Hz stream with its
+  // size: the next row sent carries the largest jump of the rows skipped before it.
+  std::vector<double> jumps_csv, jumps_ws;
+  for (std::size_t i = 0; i < csv.rows(); ++i)
+    if (csv.values[7][i] != 0) jumps_csv.push_back(csv.values[7][i]);
+  for (const auto& row : rows)
+    if (row["comp_deg"].is_number() && row["comp_deg"].get<double>() != 0) jumps_ws.push_back(row["comp_deg"].get<double>());
+  ASSERT_GE(jumps_csv.size(), 5u);
+  ASSERT_EQ(jumps_ws.size(), jumps_csv.size());
+  for (std::size_t k = 0; k < jumps_csv.size(); ++k) EXPECT_NEAR(jumps_ws[k], jumps_csv[k], 1e-5) << "jump " << k;
   EXPECT_NE(std::find_if(notices.begin(), notices.end(), [](const json& n) { return n["type"] == "run_start"; }), notices.end());
 
   // Past runs are listed and their files download.

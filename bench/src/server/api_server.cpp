@@ -402,37 +402,56 @@ std::size_t TelemetryHub::subscribers() const {
 void TelemetryHub::publish_row(const TelemetryRecord& r) {
   // Decide under the lock, send outside it: a session's last reference may die in here, and its
   // destructor unsubscribes.
-  std::vector<std::pair<std::shared_ptr<WsSession>, bool>> due;  // (session, foxglove)
+  struct Due {
+    std::shared_ptr<WsSession> session;
+    bool foxglove;
+    double comp_rad;  // the largest jump since this client's last row: a one-period jump is not decimated away
+  };
+  std::vector<Due> due;
   {
     std::lock_guard lock(mutex_);
     const double t = r.step.t_s;
     last_t_s_ = t;
     for (auto& s : subs_) {
       if (t < s.next_t_s - 2 * s.interval_s) s.next_t_s = t;  // time went back: a new run
+      if (std::abs(r.step.comp_rad) > std::abs(s.held_comp_rad)) s.held_comp_rad = r.step.comp_rad;
       if (t + 1e-9 < s.next_t_s) continue;
       s.next_t_s = s.next_t_s + s.interval_s > t ? s.next_t_s + s.interval_s : t + s.interval_s;
-      if (auto session = s.session.lock()) due.emplace_back(std::move(session), s.foxglove);
+      if (auto session = s.session.lock()) due.push_back({std::move(session), s.foxglove, s.held_comp_rad});
+      s.held_comp_rad = 0;
     }
   }
   if (due.empty()) return;
-  std::shared_ptr<const std::string> row;
-  std::shared_ptr<const foxglove::Frame> frame;
-  for (const auto& [session, foxglove] : due) {
-    if (foxglove) {
-      if (!frame)
-        frame =
-            std::make_shared<const foxglove::Frame>(foxglove::Frame{foxglove::timestamp_ns(r.step.t_s), foxglove::payloads(r)});
-      session->send(frame);
+  // One message of each kind per distinct row (the record itself, or it with a held jump).
+  std::vector<std::pair<double, std::shared_ptr<const std::string>>> rows;
+  std::vector<std::pair<double, std::shared_ptr<const foxglove::Frame>>> frames;
+  auto with_comp = [&r](double comp_rad) {
+    TelemetryRecord copy = r;
+    copy.step.comp_rad = comp_rad;
+    return copy;
+  };
+  for (const auto& d : due) {
+    if (d.foxglove) {
+      auto it = std::find_if(frames.begin(), frames.end(), [&](const auto& f) { return f.first == d.comp_rad; });
+      if (it == frames.end()) {
+        const TelemetryRecord rec = with_comp(d.comp_rad);
+        frames.emplace_back(d.comp_rad, std::make_shared<const foxglove::Frame>(
+                                            foxglove::Frame{foxglove::timestamp_ns(rec.step.t_s), foxglove::payloads(rec)}));
+        it = frames.end() - 1;
+      }
+      d.session->send(it->second);
     } else {
-      if (!row) {
+      auto it = std::find_if(rows.begin(), rows.end(), [&](const auto& f) { return f.first == d.comp_rad; });
+      if (it == rows.end()) {
         json j = {{"type", "row"}};
-        const auto values = telemetry_row(r);
+        const auto values = telemetry_row(with_comp(d.comp_rad));
         const auto& columns = telemetry_columns(ColumnSet::all);
         for (std::size_t i = 0; i < columns.size(); ++i)
           j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
-        row = std::make_shared<const std::string>(dump_json(j));
+        rows.emplace_back(d.comp_rad, std::make_shared<const std::string>(dump_json(j)));
+        it = rows.end() - 1;
       }
-      session->send(row);
+      d.session->send(it->second);
     }
   }
 }

@@ -51,6 +51,7 @@ class TelemetryHub {
     double interval_s;
     double next_t_s;
     bool foxglove;
+    double held_comp_rad = 0;  // the largest compensation jump of the rows this client skipped
   };
   mutable std::mutex mutex_;
   std::vector<Sub> subs_;
