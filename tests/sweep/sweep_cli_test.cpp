@@ -262,6 +262,26 @@ TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
   EXPECT_EQ(p1.find("adaptive_paper"), std::string::npos) << "only the sweep's runs\n" << p1;
 }
 
+// A reference from a CSV file beside the base campaign: the point's campaign, written elsewhere,
+// still finds it, and reproduces the sweep's numbers.
+TEST(Sweep, APointsCampaignFindsTheBaseCampaignsReferenceFile) {
+  TempDir dir;
+  const auto sweep =
+      dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_csv_campaign.yaml").string() +
+                              "\nruns: [adaptive]\naxes:\n  - path: campaign.gap.initial_deg\n    values: [0.5, 2]\n");
+  const auto out = dir.path() / "out";
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto sim = run_command(hilbench() + " sim " + q(out / "points" / "1" / "campaign.yaml") + " --out " +
+                               q(dir.path() / "sim") + " --no-telemetry --quiet");
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  const auto j = nlohmann::json::parse(read(dir.path() / "sim" / "tiny_csv" / "adaptive" / "summary.json"));
+  EXPECT_EQ(j["reversals"].size(), 4u);
+  char iae[32];
+  std::snprintf(iae, sizeof iae, "%.6g", j["iae_mpa_s"].get<double>());
+  EXPECT_EQ(csv_rows(out / "sweep.csv").at(2).at(2), iae);
+}
+
 TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
   TempDir dir;
   const auto sweep = source_path("tests/sweep/small.yaml");

@@ -613,6 +613,25 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
     }
   }
   campaign["runs"] = runs;
+  // A reference read from a CSV file: from where the base campaign found it, wherever the point's
+  // campaign is written.
+  // (Read through const nodes, tested before use: a mutable node's operator[] would add the keys
+  // it looks for, and a missing one is an invalid node.)
+  const YAML::Node& read_only = campaign;
+  const YAML::Node reference = read_only["reference"];
+  const YAML::Node profile = reference && reference.IsMap() ? reference["profile"] : YAML::Node();
+  if (profile && profile.IsSequence()) {
+    for (std::size_t i = 0; i < profile.size(); ++i) {
+      const YAML::Node item = profile[i];
+      if (!item.IsMap() || !item["csv"] || !item["csv"].IsMap() || !item["csv"]["file"] || !item["csv"]["file"].IsScalar())
+        continue;
+      const std::string file = item["csv"]["file"].as<std::string>();
+      if (std::filesystem::path(file).is_relative()) {
+        YAML::Node target = campaign["reference"]["profile"][i]["csv"]["file"];
+        target = (plan.campaign_dir / file).lexically_normal().string();
+      }
+    }
+  }
   if (!campaign["name"]) campaign["name"] = plan.name;
   campaign["plant"] = "plant.yaml";
   YAML::Emitter c, pl;
@@ -627,7 +646,7 @@ Campaign point_campaign(const SweepPlan& plan, long p) {
   return load_campaign_text(y.campaign, where + " campaign.yaml", plan.campaign_dir, y.plant, where + " plant.yaml");
 }
 
-std::vector<double> run_point(const SweepPlan& plan, long p) {
+std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel) {
   const Campaign c = point_campaign(plan, p);
   std::vector<std::string> names;
   for (const auto& r : c.runs) names.push_back(r.name);
@@ -645,7 +664,11 @@ std::vector<double> run_point(const SweepPlan& plan, long p) {
     Safety safety{SafetyConfig{}};
     long trips = 0;
     bool tripping = false;
+    long step = 0;
     const RunSummary s = summarise_run(c, run, [&](const TelemetryRecord& r) {
+      if ((++step & 1023) == 0 && cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+        throw Cancelled("sweep point " + std::to_string(p) + " abandoned");
+      }
       double value = 0, limit = 0;
       const bool trip = safety.check(false, false, r.step.p_meas_pa, value, limit) != Trip::none;
       if (trip && !tripping) ++trips;

@@ -153,10 +153,10 @@ std::string sweep_csv_row(const SweepPlan& plan, long p, const std::vector<doubl
   return s + (point_passes(plan, metrics) ? ",pass\n" : ",fail\n");
 }
 
-long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan) {
+SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan) {
   const auto rows = read_rows(dir, plan);
   const long missing = plan.size() - static_cast<long>(rows.size());
-  if (missing > 0) return missing;
+  if (missing > 0) return {missing, 0, {}};
   const auto names = plan.metric_names();
 
   std::vector<bool> pass(static_cast<std::size_t>(plan.size()));
@@ -249,7 +249,7 @@ long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan
   write_atomic(dir / "sweep.csv", csv);
   write_atomic(dir / "sweep.json", out.dump(1) + "\n");
   doc.write(dir / "report.html");
-  return 0;
+  return {0, passed, order};
 }
 
 }  // namespace hil::bench

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <thread>
 
+#include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
 
@@ -148,11 +149,13 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
       const std::size_t i = next.fetch_add(1);
       if (i >= todo.size()) return;
       try {
-        const std::string line = row_line(todo[i], run_point(plan, todo[i]));
+        const std::string line = row_line(todo[i], run_point(plan, todo[i], options.cancel));
         std::lock_guard lock(mutex);
         rows.append(line);
         ++ran;
         progress(false);
+      } catch (const Cancelled&) {
+        return;  // stopped: the point in flight is abandoned, its row never written
       } catch (...) {
         std::lock_guard lock(mutex);
         if (!error) error = std::current_exception();

@@ -103,8 +103,10 @@ std::pair<long, long> parse_shard(const std::string& text) {
 }
 
 int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
-  std::fprintf(stderr, "sweep %s: stopped by %s after %ld points; %ld of %ld done; the same command continues\n",
-               plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
+  std::fprintf(
+      stderr,
+      "sweep %s: stopped by %s after %ld points (those in flight abandoned); %ld of %ld done; the same command continues\n",
+      plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
   return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT);
 }
 
@@ -114,17 +116,21 @@ int jobs_of(const SweepArgs& args) {
 }
 
 int aggregate(const std::filesystem::path& dir, const SweepPlan& plan, bool quiet) {
-  const long missing = write_sweep_outputs(dir, plan);
-  if (missing > 0) {
+  const SweepOutputs out = write_sweep_outputs(dir, plan);
+  if (out.missing > 0) {
     std::fprintf(stderr, "sweep %s: %ld of %ld points missing in %s; nothing written (run the missing shards, then aggregate)\n",
-                 plan.name.c_str(), missing, plan.size(), dir.c_str());
+                 plan.name.c_str(), out.missing, plan.size(), dir.c_str());
     return 1;
   }
   if (!quiet) {
-    long passed = 0;
-    for (const auto& [p, m] : read_rows(dir, plan)) passed += point_passes(plan, m) ? 1 : 0;
-    std::printf("sweep %s: %ld points, %ld pass, %ld fail\n  %s\n  %s\n", plan.name.c_str(), plan.size(), passed,
-                plan.size() - passed, (dir / "sweep.csv").c_str(), (dir / "report.html").c_str());
+    std::printf("sweep %s: %ld points, %ld pass, %ld fail\n  %s\n  %s\n", plan.name.c_str(), plan.size(), out.passed,
+                plan.size() - out.passed, (dir / "sweep.csv").c_str(), (dir / "report.html").c_str());
+    // The worst few, each reproducible alone.
+    const std::size_t shown = std::min<std::size_t>(3, out.worst.size());
+    if (shown > 0) std::printf("  worst by %s:\n", plan.worst_by.c_str());
+    for (std::size_t i = 0; i < shown; ++i) {
+      std::printf("    hilbench sim %s\n", (dir / "points" / std::to_string(out.worst[i]) / "campaign.yaml").c_str());
+    }
   }
   return 0;
 }

@@ -83,8 +83,9 @@ PointYaml point_yaml(const SweepPlan& plan, long p);
 Campaign point_campaign(const SweepPlan& plan, long p);
 
 // Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
-// per reversal without reversals).
-std::vector<double> run_point(const SweepPlan& plan, long p);
+// per reversal without reversals). Throws Cancelled (sim.hpp) within about a simulated second
+// once `cancel` is set: the point is abandoned.
+std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel = nullptr);
 
 // Whether every threshold holds (a NaN metric fails its bound).
 bool point_passes(const SweepPlan& plan, const std::vector<double>& metrics);
@@ -103,7 +104,7 @@ struct SweepRunOptions {
   bool progress = true;
   long shard = 0, shards = 1;       // only the points p with p % shards == shard
   std::string rows_name = "local";  // the rows file this process appends to: DIR/rows/<rows_name>.jsonl
-  // Set (by a signal handler, say) to stop: the points in flight finish, none starts.
+  // Set (by a signal handler, say) to stop: the points in flight are abandoned (no row), none starts.
   const std::atomic<bool>* cancel = nullptr;
 };
 
@@ -120,9 +121,15 @@ struct SweepRunResult {
 // rows file as it finishes. Throws what a point throws (after the points in flight).
 SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan, const SweepRunOptions& options);
 
+struct SweepOutputs {
+  long missing = 0;         // points without a row: then nothing was written
+  long passed = 0;          // points within every threshold
+  std::vector<long> worst;  // the worst points by plan.worst_by, worst first (at most 10)
+};
+
 // sweep.csv, sweep.json, report.html and, for the worst points, points/<p>/campaign.yaml and
-// plant.yaml. Returns how many points are missing; then nothing is written.
-long write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
+// plant.yaml, once every point has its row.
+SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
 
 // One point's row of sweep.csv (and the header): fixed formatting, so the file is the same bytes
 // whoever computed the rows.
