@@ -2,8 +2,7 @@
 # `hilbench sweep --slurm` on a real Slurm: starts a single-node cluster of this host
 # (scripts/slurm-local: own munge, slurmctld, slurmd, all under a temp folder), submits the small
 # sweep of this folder as a job array of 3 shards plus the aggregation job, waits for both (Slurm
-# must report every task and the aggregation COMPLETED), and
-# checks that
+# must report every task and the aggregation COMPLETED), and checks that
 #   - sweep.csv is byte for byte the one a local sweep of the same file writes,
 #   - `hilbench sweep --status` reports every point done,
 #   - after one shard's rows are deleted, resubmitting the same command runs that shard only
