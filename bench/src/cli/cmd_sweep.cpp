@@ -268,8 +268,12 @@ int run_status(const SweepArgs& args) {
   const SweepPlan plan = read_plan(dir);
   const auto rows = read_rows(dir, plan);
   const long done = static_cast<long>(rows.size());
+  // The outputs are of every point; with points missing, a sweep.csv there is from an earlier state.
+  const bool outputs = std::filesystem::exists(dir / "sweep.csv");
   std::printf("sweep %s: %ld of %ld points done, %ld missing%s\n", plan.name.c_str(), done, plan.size(), plan.size() - done,
-              std::filesystem::exists(dir / "sweep.csv") ? "; outputs written" : "");
+              !outputs              ? ""
+              : done == plan.size() ? "; outputs written"
+                                    : "; the outputs there are out of date (written before points went missing)");
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) return 0;
   const json jobs = json::parse(read_file(jobs_file), nullptr, false);
