@@ -38,6 +38,40 @@ double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t s
   return c;
 }
 
+template <int K>
+void GapFit::costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
+                   double* cost_out) const noexcept {
+  // cost() for K gaps at once, lane by lane the same operations in the same order (so the same
+  // numbers): one gap's samples form a chain of dependent low-pass updates, K of them side by side
+  // keep the FPU busy instead of waiting on each.
+  double half[K], valve[K], lp1[K], lp2[K], sum[K], sum2[K];
+  for (int j = 0; j < K; ++j) {
+    half[j] = gap_rad[j] / 2;
+    valve[j] = w.extreme >= 0 ? w.motor_rad[0] + dir * half[j] : extreme_rad + dir * half[j];
+    lp1[j] = lp2[j] = valve[j];
+    sum[j] = sum2[j] = 0;
+  }
+  const double alpha = alpha_;
+  for (std::int64_t i = 0; i < w.n; ++i) {
+    const double m = w.motor_rad[static_cast<std::size_t>(i)];
+    for (int j = 0; j < K; ++j) {
+      valve[j] = physics::play_rad(valve[j], m, half[j]);
+      lp1[j] += alpha * (valve[j] - lp1[j]);
+      lp2[j] += alpha * (lp1[j] - lp2[j]);
+    }
+    if (i >= skip) {
+      const double eq = w.valve_eq_rad[static_cast<std::size_t>(i)];
+      for (int j = 0; j < K; ++j) {
+        const double r = eq - lp2[j];
+        sum[j] += r;
+        sum2[j] += r * r;
+      }
+    }
+  }
+  const std::int64_t n = std::max<std::int64_t>(w.n - std::max<std::int64_t>(skip, 0), 0);
+  for (int j = 0; j < K; ++j) cost_out[j] = n == 0 ? 0 : sum2[j] - sum[j] * sum[j] / static_cast<double>(n);
+}
+
 GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
                            std::int64_t skip) const noexcept {
   Result out;
@@ -59,10 +93,14 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
   // Coarse grid, then golden section around the best cell.
   constexpr int kGrid = 24;
   double best = 0, best_cost = 1e300;
-  for (int i = 0; i <= kGrid; ++i) {
-    const double g = gap_max_rad_ * i / kGrid;
-    const double c = cost(w, extreme_rad, dir, skip, g);
-    if (c < best_cost) best_cost = c, best = g;
+  constexpr int kLanes = 5;
+  static_assert((kGrid + 1) % kLanes == 0);
+  for (int i0 = 0; i0 <= kGrid; i0 += kLanes) {
+    double g[kLanes], c[kLanes];
+    for (int j = 0; j < kLanes; ++j) g[j] = gap_max_rad_ * (i0 + j) / kGrid;
+    costs<kLanes>(w, extreme_rad, dir, skip, g, c);
+    for (int j = 0; j < kLanes; ++j)
+      if (c[j] < best_cost) best_cost = c[j], best = g[j];
   }
   const double cell = gap_max_rad_ / kGrid;
   double a = std::max(best - cell, 0.0), b = std::min(best + cell, gap_max_rad_);

@@ -37,8 +37,10 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
         gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
         v0_(value(6) * units::kM3PerL) {}
 
-  // State: chamber pressure, free volume, generated gas mass, discharged gas mass.
-  std::size_t state_size() const noexcept override { return 4; }
+  // State: chamber pressure, free volume, generated gas mass, discharged gas mass; then P^n and
+  // the pressure it was computed for. P^n is computed where the pressure is written, so the pow
+  // overlaps the rest of the period instead of heading the next step's chain.
+  std::size_t state_size() const noexcept override { return 6; }
 
   void settle(std::span<double> x, Signals& s) const override {
     // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point.
@@ -52,6 +54,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[0] = p;
     x[1] = v0_;
     x[2] = x[3] = 0;
+    remember_pow(x);
     const Rates r = rates(p, std::pow(p, gas_.pressure_exponent), v0_, s.throat_area_m2);
     write(x, s, r.mdot_gen_kg_s, r.mdot_out_kg_s);
   }
@@ -59,7 +62,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
     const double at = s.throat_area_m2;
     const double p = std::max(x[0], kMinPressurePa), v = x[1];
-    const double pn = std::pow(p, gas_.pressure_exponent);
+    const double pn = x[5] == p ? x[4] : std::pow(p, gas_.pressure_exponent);
     const Rates k1 = rates(p, pn, v, at);
     const Rates k2 = rates(p + 0.5 * dt_s * k1.dp_pa_s, pn, p, v + 0.5 * dt_s * k1.dv_m3_s, at);
     const Rates k3 = rates(p + 0.5 * dt_s * k2.dp_pa_s, pn, p, v + 0.5 * dt_s * k2.dv_m3_s, at);
@@ -71,6 +74,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[1] = v + dt_s * avg(k1.dv_m3_s, k2.dv_m3_s, k3.dv_m3_s, k4.dv_m3_s);
     x[2] += dt_s * mdot_gen;
     x[3] += dt_s * mdot_out;
+    remember_pow(x);
     write(x, s, mdot_gen, mdot_out);
   }
 
@@ -86,6 +90,10 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     return rates(p, p0n * (1 + gas_.pressure_exponent * d * (1 + 0.5 * (gas_.pressure_exponent - 1) * d)), v, at);
   }
   Rates rates(double p, double pn, double v, double at) const noexcept { return gas_.rates(p, pn, v, at); }
+  void remember_pow(std::span<double> x) const noexcept {
+    x[5] = std::max(x[0], kMinPressurePa);
+    x[4] = std::pow(x[5], gas_.pressure_exponent);
+  }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
     s.p_chamber_pa = x[0];
     s.volume_m3 = x[1];
