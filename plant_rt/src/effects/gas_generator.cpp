@@ -37,10 +37,9 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
         gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
         v0_(value(6) * units::kM3PerL) {}
 
-  // State: chamber pressure, free volume, generated gas mass, discharged gas mass; then P^n and
-  // the pressure it was computed for. P^n is computed where the pressure is written, so the pow
-  // overlaps the rest of the period instead of heading the next step's chain.
-  std::size_t state_size() const noexcept override { return 6; }
+  // State: chamber pressure, free volume, generated gas mass, discharged gas mass; then the
+  // anchor of P^n's expansion (physics::PowNear: anchor, its P^n, its inverse).
+  std::size_t state_size() const noexcept override { return 7; }
 
   void settle(std::span<double> x, Signals& s) const override {
     // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point.
@@ -54,7 +53,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[0] = p;
     x[1] = v0_;
     x[2] = x[3] = 0;
-    remember_pow(x);
+    x[4] = x[5] = x[6] = 0;
     const Rates r = rates(p, std::pow(p, gas_.pressure_exponent), v0_, s.throat_area_m2);
     write(x, s, r.mdot_gen_kg_s, r.mdot_out_kg_s);
   }
@@ -63,16 +62,17 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     const double at = s.throat_area_m2;
     const double p0 = std::max(x[0], kMinPressurePa), v = x[1];
     const double n = gas_.pressure_exponent;
-    const double pn0 = x[5] == p0 ? x[4] : std::pow(p0, n);
+    // P^n at p0 and its Taylor coefficients there, from the expansion about the anchor.
+    physics::PowNear pow_near{x[4], x[5], x[6]};
+    const physics::PowNear::Local local = pow_near.at(p0, n);
+    x[4] = pow_near.anchor, x[5] = pow_near.anchor_pow, x[6] = pow_near.inv_anchor;
+    const double pn0 = local.value, pn1 = local.slope, pn2 = local.curve;
     // The later RK stages differ from the step's start by a fraction of a percent: P^n from a
     // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
     // With it, V dP/dt = RTc (rho_p - g P / RTc) Ab a_si P^n - RTc P At / c* is a cubic in
     // e = P - p0, evaluated by Horner: the stages are a chain (each needs the one before), and
     // the cubic keeps divisions and nested products off it. Only the At terms wait for the
     // throat area, which arrives last.
-    const double inv_p0 = 1 / p0;
-    const double pn1 = pn0 * n * inv_p0;              // dP^n/dP at p0
-    const double pn2 = 0.5 * pn1 * (n - 1) * inv_p0;  // half its second derivative
     const double gen_per_pn = gas_.propellant_density_kg_m3 * gas_.burning_area_m2 * gas_.burn_coeff_si;
     const double dv_per_pn = gas_.volume_growth * gas_.burning_area_m2 * gas_.burn_coeff_si;
     const double e0 = gas_.rtc_m2_s2 * gen_per_pn - dv_per_pn * p0;  // the P^n factor at p0
@@ -107,7 +107,6 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[1] = v + dt_s * dv_per_pn * pn_avg;
     x[2] += dt_s * mdot_gen;
     x[3] += dt_s * mdot_out;
-    remember_pow(x);
     write(x, s, mdot_gen, mdot_out);
   }
 
@@ -115,10 +114,6 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   static constexpr double kMinPressurePa = 1.0;  // keeps P^n defined; far below any operating point
   using Rates = physics::GasGenerator::Rates;
   Rates rates(double p, double pn, double v, double at) const noexcept { return gas_.rates(p, pn, v, at); }
-  void remember_pow(std::span<double> x) const noexcept {
-    x[5] = std::max(x[0], kMinPressurePa);
-    x[4] = std::pow(x[5], gas_.pressure_exponent);
-  }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
     s.p_chamber_pa = x[0];
     s.volume_m3 = x[1];
