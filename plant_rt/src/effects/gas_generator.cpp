@@ -71,15 +71,15 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
     // With it, V dP/dt = RTc (rho_p - g P / RTc) Ab a_si P^n - RTc P At / c* is a cubic in
     // e = P - p0: the stages are a chain (each needs the one before), and the cubic keeps
-    // divisions and nested products off it. Only the At terms wait for the
-    // throat area, which arrives last.
+    // divisions and nested products off it. Only the At terms wait for the throat area, which
+    // arrives last.
     const double gen_per_pn = gas_.propellant_density_kg_m3 * gas_.burning_area_m2 * gas_.burn_coeff_si;
     const double dv_per_pn = gas_.volume_growth * gas_.burning_area_m2 * gas_.burn_coeff_si;
-    const double e0 = gas_.rtc_m2_s2 * gen_per_pn - dv_per_pn * p0;  // the P^n factor at p0
+    const double pn_factor = gas_.rtc_m2_s2 * gen_per_pn - dv_per_pn * p0;  // what multiplies P^n at p0
     const double out_per_p = at / gas_.cstar_m_s;
     const double b = gas_.rtc_m2_s2 * out_per_p;
-    const double c0 = pn0 * e0 - b * p0, c1 = pn1 * e0 - pn0 * dv_per_pn - b, c2 = pn2 * e0 - pn1 * dv_per_pn,
-                 c3 = -pn2 * dv_per_pn;
+    const double c0 = pn0 * pn_factor - b * p0, c1 = pn1 * pn_factor - pn0 * dv_per_pn - b;
+    const double c2 = pn2 * pn_factor - pn1 * dv_per_pn, c3 = -pn2 * dv_per_pn;
     const double limit = 0.01 * p0;
     struct Stage {
       double dp_pa_s, pn;
