@@ -56,8 +56,8 @@ double Controller::ki_rad_per_pa_s(double p0_pa, double volume_m3) const noexcep
   return 1.0 / (4 * p_.damping_ratio * p_.damping_ratio * tau * kp);
 }
 
-ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& in) const noexcept {
-  ControllerOutputs out;
+void Controller::step(ControllerState& s, const ControllerInputs& in, ControllerOutputs& out) const noexcept {
+  out = ControllerOutputs{};
   // The KI(Pg0, V0) schedule: at a given reference tau is proportional to V and KI to 1/V, so
   // the expensive part is computed once per reference value.
   if (in.p_ref_pa != s.sched_p_ref_pa) {
@@ -136,7 +136,6 @@ ControllerOutputs Controller::step(ControllerState& s, const ControllerInputs& i
   out.motion_intention = obs.intention;
   out.gap_est_rad = s.gap_est_rad;
   out.gap_measured = obs.gap_measured;
-  return out;
 }
 
 }  // namespace hil::ctl

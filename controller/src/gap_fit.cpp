@@ -38,6 +38,40 @@ double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t s
   return c;
 }
 
+template <int K>
+void GapFit::costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
+                   double* cost_out) const noexcept {
+  // cost() for K gaps at once, lane by lane the same operations in the same order (so the same
+  // numbers): one gap's samples form a chain of dependent low-pass updates, K of them side by side
+  // keep the FPU busy instead of waiting on each.
+  double half[K], valve[K], lp1[K], lp2[K], sum[K], sum2[K];
+  for (int j = 0; j < K; ++j) {
+    half[j] = gap_rad[j] / 2;
+    valve[j] = w.extreme >= 0 ? w.motor_rad[0] + dir * half[j] : extreme_rad + dir * half[j];
+    lp1[j] = lp2[j] = valve[j];
+    sum[j] = sum2[j] = 0;
+  }
+  const double alpha = alpha_;
+  for (std::int64_t i = 0; i < w.n; ++i) {
+    const double m = w.motor_rad[static_cast<std::size_t>(i)];
+    for (int j = 0; j < K; ++j) {
+      valve[j] = physics::play_rad(valve[j], m, half[j]);
+      lp1[j] += alpha * (valve[j] - lp1[j]);
+      lp2[j] += alpha * (lp1[j] - lp2[j]);
+    }
+    if (i >= skip) {
+      const double eq = w.valve_eq_rad[static_cast<std::size_t>(i)];
+      for (int j = 0; j < K; ++j) {
+        const double r = eq - lp2[j];
+        sum[j] += r;
+        sum2[j] += r * r;
+      }
+    }
+  }
+  const std::int64_t n = std::max<std::int64_t>(w.n - std::max<std::int64_t>(skip, 0), 0);
+  for (int j = 0; j < K; ++j) cost_out[j] = n == 0 ? 0 : sum2[j] - sum[j] * sum[j] / static_cast<double>(n);
+}
+
 GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
                            std::int64_t skip) const noexcept {
   Result out;
@@ -59,28 +93,55 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
   // Coarse grid, then golden section around the best cell.
   constexpr int kGrid = 24;
   double best = 0, best_cost = 1e300;
-  for (int i = 0; i <= kGrid; ++i) {
-    const double g = gap_max_rad_ * i / kGrid;
-    const double c = cost(w, extreme_rad, dir, skip, g);
-    if (c < best_cost) best_cost = c, best = g;
+  constexpr int kLanes = 5;
+  static_assert((kGrid + 1) % kLanes == 0);
+  for (int i0 = 0; i0 <= kGrid; i0 += kLanes) {
+    double g[kLanes], c[kLanes];
+    for (int j = 0; j < kLanes; ++j) g[j] = gap_max_rad_ * (i0 + j) / kGrid;
+    costs<kLanes>(w, extreme_rad, dir, skip, g, c);
+    for (int j = 0; j < kLanes; ++j)
+      if (c[j] < best_cost) best_cost = c[j], best = g[j];
   }
   const double cell = gap_max_rad_ / kGrid;
   double a = std::max(best - cell, 0.0), b = std::min(best + cell, gap_max_rad_);
   constexpr double kInvPhi = 0.6180339887498949;
-  double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
-  double f1 = cost(w, extreme_rad, dir, skip, x1);
-  double f2 = cost(w, extreme_rad, dir, skip, x2);
-  for (int it = 0; it < 18; ++it) {  // the cell shrinks to 1e-4 of itself
-    if (f1 < f2) {
-      b = x2, x2 = x1, f2 = f1;
-      x1 = b - kInvPhi * (b - a);
-      f1 = cost(w, extreme_rad, dir, skip, x1);
+  // Golden section, two iterations per pass: the point the first one evaluates and both points
+  // the second may evaluate (which one depends on the first's cost) go through costs<3>
+  // together; the sequence of points and costs is the one-at-a-time search's.
+  struct Golden {
+    double a, b, x1, x2, f1, f2;
+  };
+  // One iteration's interval and points; the new point's cost (f1 going left, f2 going right) is
+  // the caller's to fill in.
+  auto advance = [](Golden g, bool left) noexcept {
+    if (left) {
+      g.b = g.x2, g.x2 = g.x1, g.f2 = g.f1;
+      g.x1 = g.b - kInvPhi * (g.b - g.a);
     } else {
-      a = x1, x1 = x2, f1 = f2;
-      x2 = a + kInvPhi * (b - a);
-      f2 = cost(w, extreme_rad, dir, skip, x2);
+      g.a = g.x1, g.x1 = g.x2, g.f1 = g.f2;
+      g.x2 = g.a + kInvPhi * (g.b - g.a);
     }
+    return g;
+  };
+  Golden g{a, b, b - kInvPhi * (b - a), a + kInvPhi * (b - a), 0, 0};
+  {
+    const double x[2] = {g.x1, g.x2};
+    double f[2];
+    costs<2>(w, extreme_rad, dir, skip, x, f);
+    g.f1 = f[0], g.f2 = f[1];
   }
+  for (int it = 0; it < 18; it += 2) {  // the cell shrinks to 1e-4 of itself
+    const bool left = g.f1 < g.f2;
+    Golden g1 = advance(g, left);
+    const double x[3] = {left ? g1.x1 : g1.x2, advance(g1, true).x1, advance(g1, false).x2};
+    double f[3];
+    costs<3>(w, extreme_rad, dir, skip, x, f);
+    (left ? g1.f1 : g1.f2) = f[0];
+    const bool left2 = g1.f1 < g1.f2;
+    g = advance(g1, left2);
+    (left2 ? g.f1 : g.f2) = left2 ? f[1] : f[2];
+  }
+  a = g.a, b = g.b;
   out.gap_rad = 0.5 * (a + b);
   cost(w, extreme_rad, dir, skip, out.gap_rad, &out.rms_rad, &out.excursion_rad);
   // A best fit at the edge of the search range, or one whose valve barely moved, is no measurement.

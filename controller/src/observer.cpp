@@ -126,7 +126,7 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
   s.p_eq_pa = s.p_lp2 + tau * s.d_lp2;
   // The fit's valve angle: the chamber equation inverted for the throat area (no linearisation).
   GapFit::push(s.history, in.theta_motor_rad,
-               chamber_.angle_for_area_rad(chamber_.throat_area_m2(s.p_lp2, s.d_lp2, in.volume_m3)));
+               chamber_.angle_for_area_rad(chamber_.throat_area_m2(s.p_lp2, s.d_lp2, in.volume_m3, s.p_lp2_pow)));
   const std::int64_t now = s.history.count - 1;
   s.p_eq_slow_pa += alpha_slow_ * (s.p_eq_pa - s.p_eq_slow_pa);
 

@@ -1,6 +1,6 @@
 // The physics kernels against closed forms: the burn law's unit conversion, the chamber equation
 // at equilibrium and solved for the throat area, the servo's exact lag and its rate limit, and
-// the play operator's hysteresis.
+// the play operator's hysteresis, and P^n near an anchor against pow and Taylor's remainder.
 #include "hil/physics.hpp"
 
 #include <gtest/gtest.h>
@@ -69,6 +69,38 @@ TEST(Physics, TheServoLagIsExactWhateverTheStepAndTheRateLimitCaps) {
   // The slew limit caps the move, in both directions.
   EXPECT_DOUBLE_EQ(hil::physics::servo_step_rad(0, 1.0, 0.0, 0.01), 0.01);
   EXPECT_DOUBLE_EQ(hil::physics::servo_step_rad(0, -1.0, 0.0, 0.01), -0.01);
+}
+
+// Taylor's remainder of the fourth-order expansion: the fifth term, C5 d^5 with
+// C5 = n(n-1)(n-2)(n-3)(n-4)/120 (0.0303 for n = 0.35), at most 3.03e-12 for d <= 1 %; the
+// derivatives lose one and two orders: 5 C5 d^4 / n and 10 C5 d^3 / (n(n-1)/2).
+TEST(Physics, PowNearFollowsPowWithinTaylorsRemainder) {
+  const double n = 0.35;
+  const double c5 = n * (n - 1) * (n - 2) * (n - 3) * (n - 4) / 120;
+  const double band = hil::physics::PowNear::kBand;
+  hil::physics::PowNear near;
+  double p = 1e6;
+  int anchors = 0;
+  for (int k = 0; k < 20000; ++k) {
+    p *= 1 + 0.001 * std::sin(k * 0.01);  // up to 0.1 % a call, back and forth over 1.0-1.22 MPa
+    const double before = near.anchor;
+    const auto local = near.at(p, n);
+    if (near.anchor != before) ++anchors;
+    const double d = std::abs(p - near.anchor) / near.anchor;
+    ASSERT_LE(d, band);
+    const double exact = std::pow(p, n);
+    EXPECT_NEAR(local.value / exact, 1.0, std::abs(c5) * std::pow(band, 5) * 1.01 + 1e-15) << p;
+    EXPECT_NEAR(local.slope / (n * exact / p), 1.0, 5 * std::abs(c5) * std::pow(band, 4) / n * 1.01 + 1e-15) << p;
+    EXPECT_NEAR(local.curve / (n * (n - 1) / 2 * exact / (p * p)), 1.0,
+                10 * std::abs(c5) * std::pow(band, 3) / std::abs(n * (n - 1) / 2) * 1.01 + 1e-15)
+        << p;
+    EXPECT_NEAR(near.value(p, n) / exact, 1.0, std::abs(c5) * std::pow(band, 5) * 1.01 + 1e-15) << p;
+  }
+  // The anchor moved, but far less often than the pressure did.
+  EXPECT_GT(anchors, 10);
+  EXPECT_LT(anchors, 4000);
+  // A jump beyond the band moves the anchor to the pressure itself: the value is pow's.
+  EXPECT_EQ(near.value(3.7e6, n), std::pow(3.7e6, n));
 }
 
 TEST(Physics, ThePlayOperatorHoldsInsideTheGapAndFollowsTheFlankItTouches) {

@@ -257,7 +257,7 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
     if (trip != Trip::none) {
       enter_safe(trip, value, limit, t);
     } else if (!missed) {
-      out_ = controller_.step(cs_, {rd.p_meas_pa, p_ref, rd.theta_motor_rad});
+      controller_.step(cs_, {rd.p_meas_pa, p_ref, rd.theta_motor_rad}, out_);
       cmd = out_.theta_cmd_rad;
     }
   }

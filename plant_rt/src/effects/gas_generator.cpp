@@ -37,8 +37,9 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
         gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
         v0_(value(6) * units::kM3PerL) {}
 
-  // State: chamber pressure, free volume, generated gas mass, discharged gas mass.
-  std::size_t state_size() const noexcept override { return 4; }
+  // State: chamber pressure, free volume, generated gas mass, discharged gas mass; then the
+  // anchor of P^n's expansion (physics::PowNear: anchor, its P^n, its inverse).
+  std::size_t state_size() const noexcept override { return 7; }
 
   void settle(std::span<double> x, Signals& s) const override {
     // Equilibrium: Ab a P^n (rho_p - g P/RTc) = P At / c*, solved by fixed point.
@@ -52,23 +53,63 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     x[0] = p;
     x[1] = v0_;
     x[2] = x[3] = 0;
+    x[4] = x[5] = x[6] = 0;
     const Rates r = rates(p, std::pow(p, gas_.pressure_exponent), v0_, s.throat_area_m2);
     write(x, s, r.mdot_gen_kg_s, r.mdot_out_kg_s);
   }
 
   void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
     const double at = s.throat_area_m2;
-    const double p = std::max(x[0], kMinPressurePa), v = x[1];
-    const double pn = std::pow(p, gas_.pressure_exponent);
-    const Rates k1 = rates(p, pn, v, at);
-    const Rates k2 = rates(p + 0.5 * dt_s * k1.dp_pa_s, pn, p, v + 0.5 * dt_s * k1.dv_m3_s, at);
-    const Rates k3 = rates(p + 0.5 * dt_s * k2.dp_pa_s, pn, p, v + 0.5 * dt_s * k2.dv_m3_s, at);
-    const Rates k4 = rates(p + dt_s * k3.dp_pa_s, pn, p, v + dt_s * k3.dv_m3_s, at);
+    const double p0 = std::max(x[0], kMinPressurePa), v = x[1];
+    const double n = gas_.pressure_exponent;
+    // P^n at p0 and its Taylor coefficients there, from the expansion about the anchor.
+    physics::PowNear pow_near{x[4], x[5], x[6]};
+    const physics::PowNear::Local local = pow_near.at(p0, n);
+    x[4] = pow_near.anchor, x[5] = pow_near.anchor_pow, x[6] = pow_near.inv_anchor;
+    const double pn0 = local.value, pn1 = local.slope, pn2 = local.curve;
+    // The later RK stages differ from the step's start by a fraction of a percent: P^n from a
+    // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
+    // With it, V dP/dt = RTc (rho_p - g P / RTc) Ab a_si P^n - RTc P At / c* is a cubic in
+    // e = P - p0: the stages are a chain (each needs the one before), and the cubic keeps
+    // divisions and nested products off it. Only the At terms wait for the throat area, which
+    // arrives last.
+    const double gen_per_pn = gas_.propellant_density_kg_m3 * gas_.burning_area_m2 * gas_.burn_coeff_si;
+    const double dv_per_pn = gas_.volume_growth * gas_.burning_area_m2 * gas_.burn_coeff_si;
+    const double pn_factor = gas_.rtc_m2_s2 * gen_per_pn - dv_per_pn * p0;  // what multiplies P^n at p0
+    const double out_per_p = at / gas_.cstar_m_s;
+    const double b = gas_.rtc_m2_s2 * out_per_p;
+    const double c0 = pn0 * pn_factor - b * p0, c1 = pn1 * pn_factor - pn0 * dv_per_pn - b;
+    const double c2 = pn2 * pn_factor - pn1 * dv_per_pn, c3 = -pn2 * dv_per_pn;
+    const double limit = 0.01 * p0;
+    struct Stage {
+      double dp_pa_s, pn;
+      double e_next;  // the next stage's P - p0: its step times dP/dt, scaled beside the chain
+    };
+    auto stage = [&](double e, double v_k, double ahead_s) noexcept -> Stage {
+      if (std::abs(e) > limit || p0 + e < kMinPressurePa) {
+        const double p = std::max(p0 + e, kMinPressurePa), pn = std::pow(p, n);
+        const double dp = gas_.rates(p, pn, v_k, at).dp_pa_s;
+        return {dp, pn, ahead_s * dp};
+      }
+      const double inv_v = 1 / v_k;  // v_k is known early: the division runs beside the chain
+      const double e2 = e * e;
+      const double vdp = (c0 + c1 * e) + e2 * (c2 + c3 * e);  // two short chains, not one long
+      return {vdp * inv_v, pn0 + (pn1 + pn2 * e) * e, vdp * (ahead_s * inv_v)};
+    };
+    const double h = 0.5 * dt_s;
+    const Stage k1 = stage(0, v, h);
+    const Stage k2 = stage(k1.e_next, v + h * dv_per_pn * k1.pn, h);
+    const Stage k3 = stage(k2.e_next, v + h * dv_per_pn * k2.pn, dt_s);
+    const Stage k4 = stage(k3.e_next, v + dt_s * dv_per_pn * k3.pn, 0);
     auto avg = [](double a, double b, double c, double d) { return (a + 2 * b + 2 * c + d) / 6; };
-    const double mdot_gen = avg(k1.mdot_gen_kg_s, k2.mdot_gen_kg_s, k3.mdot_gen_kg_s, k4.mdot_gen_kg_s);
-    const double mdot_out = avg(k1.mdot_out_kg_s, k2.mdot_out_kg_s, k3.mdot_out_kg_s, k4.mdot_out_kg_s);
-    x[0] = std::max(p + dt_s * avg(k1.dp_pa_s, k2.dp_pa_s, k3.dp_pa_s, k4.dp_pa_s), kMinPressurePa);
-    x[1] = v + dt_s * avg(k1.dv_m3_s, k2.dv_m3_s, k3.dv_m3_s, k4.dv_m3_s);
+    const double pn_avg = avg(k1.pn, k2.pn, k3.pn, k4.pn);
+    // The discharge at each stage's pressure: p0 + e_k, the e_k of the stages above.
+    const double p_avg = p0 + (2 * k1.e_next + 2 * k2.e_next + k3.e_next) / 6;
+    const double mdot_gen = gen_per_pn * pn_avg;
+    const double mdot_out = out_per_p * p_avg;
+    const double dt_6 = dt_s / 6;  // a multiplication at the end of the chain, not a division
+    x[0] = std::max(p0 + (k1.dp_pa_s + 2 * k2.dp_pa_s + 2 * k3.dp_pa_s + k4.dp_pa_s) * dt_6, kMinPressurePa);
+    x[1] = v + dt_s * dv_per_pn * pn_avg;
     x[2] += dt_s * mdot_gen;
     x[3] += dt_s * mdot_out;
     write(x, s, mdot_gen, mdot_out);
@@ -77,14 +118,6 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
  private:
   static constexpr double kMinPressurePa = 1.0;  // keeps P^n defined; far below any operating point
   using Rates = physics::GasGenerator::Rates;
-  // The later RK stages differ from the step's start by a fraction of a percent: P^n from a
-  // second-order Taylor expansion about p0 (error ~ 1e-7 relative at 1 %), exact pow beyond.
-  Rates rates(double p, double p0n, double p0, double v, double at) const noexcept {
-    p = std::max(p, kMinPressurePa);
-    const double d = (p - p0) / p0;
-    if (std::abs(d) > 0.01) return rates(p, std::pow(p, gas_.pressure_exponent), v, at);
-    return rates(p, p0n * (1 + gas_.pressure_exponent * d * (1 + 0.5 * (gas_.pressure_exponent - 1) * d)), v, at);
-  }
   Rates rates(double p, double pn, double v, double at) const noexcept { return gas_.rates(p, pn, v, at); }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
     s.p_chamber_pa = x[0];

@@ -16,6 +16,9 @@ class ThroatMap final : public Effect {
       : angle_deg_(std::move(angle_deg)), area_mm2_(std::move(area_mm2)) {
     for (double a : angle_deg_) angle_rad_.push_back(units::deg_to_rad(a));
     for (double a : area_mm2_) area_m2_.push_back(a * units::kM2PerMm2);
+    slope_m2_per_rad_.push_back(0);
+    for (std::size_t i = 1; i < angle_rad_.size(); ++i)
+      slope_m2_per_rad_.push_back((area_m2_[i] - area_m2_[i - 1]) / (angle_rad_[i] - angle_rad_[i - 1]));
   }
   static std::shared_ptr<const Effect> from_yaml(const cfg::Node& block) {
     block.allow_keys({"angle_deg", "area_mm2"});
@@ -53,10 +56,11 @@ class ThroatMap final : public Effect {
     if (angle_rad >= angle_rad_.back()) return area_m2_.back();
     std::size_t i = 1;
     while (angle_rad > angle_rad_[i]) ++i;
-    const double f = (angle_rad - angle_rad_[i - 1]) / (angle_rad_[i] - angle_rad_[i - 1]);
-    return area_m2_[i - 1] + f * (area_m2_[i] - area_m2_[i - 1]);
+    // The segment's slope is set once: a division here would sit on the period's chain from the
+    // command to the pressure.
+    return area_m2_[i - 1] + (angle_rad - angle_rad_[i - 1]) * slope_m2_per_rad_[i];
   }
-  std::vector<double> angle_deg_, area_mm2_, angle_rad_, area_m2_;
+  std::vector<double> angle_deg_, area_mm2_, angle_rad_, area_m2_, slope_m2_per_rad_;
 };
 
 HIL_REGISTER_EFFECT(ThroatMap, "valve angle to throat area, monotone table")

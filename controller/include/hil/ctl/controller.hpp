@@ -92,7 +92,15 @@ class Controller {
   explicit Controller(const ControllerParams& params);
   // touch: which flank the motor is believed to rest on at start (0 = unknown).
   ControllerState initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept;
-  ControllerOutputs step(ControllerState& s, const ControllerInputs& in) const noexcept;
+  ControllerOutputs step(ControllerState& s, const ControllerInputs& in) const noexcept {
+    ControllerOutputs out;
+    step(s, in, out);
+    return out;
+  }
+  // The same, writing into `out`: a caller that keeps the outputs (the run loop) reads them field
+  // by field where step() stored them, instead of copying the whole struct right after the stores
+  // (a wide load over several narrow stores cannot be forwarded and stalls the period).
+  void step(ControllerState& s, const ControllerInputs& in, ControllerOutputs& out) const noexcept;
   double ki_rad_per_pa_s(double p0_pa, double volume_m3) const noexcept;
   const ControllerParams& params() const noexcept { return p_; }
   const RobustObserver& robust_observer() const noexcept { return robust_; }

@@ -59,6 +59,9 @@ class GapFit {
  private:
   double cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad, double* rms = nullptr,
               double* excursion = nullptr) const noexcept;
+  template <int K>
+  void costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
+             double* cost_out) const noexcept;
   double alpha_;
   double gap_max_rad_;
 };

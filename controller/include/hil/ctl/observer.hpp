@@ -116,6 +116,7 @@ struct RobustObserverState {
   double p_lp1 = 0, p_lp2 = 0;  // pressure
   double d_lp1 = 0, d_lp2 = 0;  // pressure derivative, Pa/s
   double err_lp = 0;            // low-passed pressure error, Pa
+  physics::PowNear p_lp2_pow;   // p_lp2^n for the chamber equation
   double p_eq_pa = 0;
   double p_eq_slow_pa = 0;  // P_eq smoothed further: the hold level tracks its extreme
   // touch state
