@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 
 namespace hil::bench {
@@ -57,5 +58,24 @@ CLI::App* add_command(CLI::App& parent, const std::string& name, const std::stri
   cmd->group("Commands");
   return cmd;
 }
+
+namespace {
+std::atomic<bool> g_stop{false};
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void on_stop_signal(int sig) {
+  g_stop_signal = sig;
+  g_stop.store(true);
+}
+}  // namespace
+
+const std::atomic<bool>& StopSignal::install() {
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+  return g_stop;
+}
+
+const char* StopSignal::name() { return g_stop_signal == SIGTERM ? "SIGTERM" : "SIGINT"; }
+
+int StopSignal::exit_code() { return 128 + (g_stop_signal == SIGTERM ? SIGTERM : SIGINT); }
 
 }  // namespace hil::bench

@@ -2,6 +2,7 @@
 // parsing, the shape of a sub-command, and the number checks, worded alike for every option.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -27,6 +28,14 @@ using CommandRun = std::function<int()>;
 CLI::Validator finite_number();
 CLI::Validator non_negative_number();
 CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_MAX: no upper bound
+
+// Ctrl-C and SIGTERM as a request to stop long offline work (`sim`, `sweep`): from install() on,
+// either signal sets the flag the work polls, so it ends cleanly instead of dying mid-write.
+struct StopSignal {
+  static const std::atomic<bool>& install();
+  static const char* name();  // "SIGTERM" or "SIGINT" (also before any signal)
+  static int exit_code();     // 128 + the signal, as a shell reports a death by it
+};
 
 // Adds sub-command `name` to `parent` in the "Commands" group of the help.
 CLI::App* add_command(CLI::App& parent, const std::string& name, const std::string& summary);

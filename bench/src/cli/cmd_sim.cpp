@@ -1,5 +1,4 @@
 // hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
-#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <sstream>
@@ -10,12 +9,6 @@
 
 namespace hil::bench {
 namespace {
-std::atomic<bool> g_cancel{false};
-volatile std::sig_atomic_t g_signal = 0;
-extern "C" void on_cancel_signal(int sig) {
-  g_signal = sig;
-  g_cancel.store(true);
-}
 
 struct SimArgs {
   std::string campaign_file;
@@ -41,10 +34,8 @@ int run_sim(const SimArgs& args) {
   options.out_dir = args.out_dir;
   options.telemetry = !args.no_telemetry;
   options.progress = !args.quiet;
-  options.cancel = &g_cancel;
   // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
-  std::signal(SIGINT, on_cancel_signal);
-  std::signal(SIGTERM, on_cancel_signal);
+  options.cancel = &StopSignal::install();
   std::stringstream runs(args.runs);
   for (std::string name; std::getline(runs, name, ',');) {
     if (!name.empty()) options.only_runs.push_back(name);
@@ -53,9 +44,9 @@ int run_sim(const SimArgs& args) {
   try {
     out = run_campaign(campaign, options);
   } catch (const Cancelled&) {
-    std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(),
-                 g_signal == SIGTERM ? "SIGTERM" : "SIGINT", options.out_dir.c_str());
-    return 128 + static_cast<int>(g_signal);
+    std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(), StopSignal::name(),
+                 options.out_dir.c_str());
+    return StopSignal::exit_code();
   }
   if (!args.quiet) {
     std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),

@@ -26,13 +26,6 @@ namespace {
 
 using json = nlohmann::json;
 
-std::atomic<bool> g_cancel{false};
-volatile std::sig_atomic_t g_signal = 0;
-extern "C" void on_sweep_signal(int sig) {
-  g_signal = sig;
-  g_cancel.store(true);
-}
-
 struct SweepArgs {
   std::string sweep_file;
   std::string out_dir;
@@ -106,8 +99,8 @@ int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
   std::fprintf(
       stderr,
       "sweep %s: stopped by %s after %ld points (those in flight abandoned); %ld of %ld done; the same command continues\n",
-      plan.name.c_str(), g_signal == SIGTERM ? "SIGTERM" : "SIGINT", r.ran, r.done, r.total);
-  return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT);
+      plan.name.c_str(), StopSignal::name(), r.ran, r.done, r.total);
+  return StopSignal::exit_code();
 }
 
 int jobs_of(const SweepArgs& args) {
@@ -329,12 +322,10 @@ int run_sweep_command(const SweepArgs& args) {
     return aggregate(dir, read_plan(dir), args.quiet);
   }
   const SweepPlan plan = prepare(args, dir);
-  std::signal(SIGINT, on_sweep_signal);
-  std::signal(SIGTERM, on_sweep_signal);
   SweepRunOptions options;
   options.jobs = jobs_of(args);
   options.progress = !args.quiet;
-  options.cancel = &g_cancel;
+  options.cancel = &StopSignal::install();
   if (!args.shard.empty()) {
     const auto [i, n] = parse_shard(args.shard);
     options.shard = i;
