@@ -19,21 +19,26 @@ void MinMaxDecimator::add(double t, double value) {
   const bool finite = std::isfinite(t) && std::isfinite(value);
   if (length_ == 0) {  // streamed
     if (!finite) return;
-    if (count_ == 0) buckets_.push_back({s, s, {}});
+    if (count_ == 0) {
+      if (buckets_.empty()) buckets_.reserve(2 * max_buckets_);
+      buckets_.push_back({s, s});
+    }
   } else {
     if (s.i == 0) first_ = s;
     last_ = s;
     if (s.i == next_start_) {
+      if (buckets_.empty()) buckets_.reserve(fixed_buckets_);
       buckets_.push_back({});
       next_start_ =
           buckets_.size() < fixed_buckets_ ? buckets_.size() * length_ / fixed_buckets_ : std::numeric_limits<std::size_t>::max();
     }
+    if (!finite) {
+      const std::size_t k = buckets_.size() - 1;
+      if (gaps_.empty() || gaps_.back().first != k) gaps_.emplace_back(k, s);
+      return;
+    }
   }
   Bucket& b = buckets_.back();
-  if (!finite) {
-    if (b.gap.i == kNone) b.gap = s;
-    return;
-  }
   if (b.min.i == kNone || value < b.min.v) b.min = s;
   if (b.max.i == kNone || value > b.max.v) b.max = s;
   if (length_ == 0 && ++count_ == per_bucket_) {
@@ -49,7 +54,6 @@ void MinMaxDecimator::merge() {
     const Bucket& b = buckets_[i + 1];
     if (b.min.v < a.min.v) a.min = b.min;
     if (b.max.v > a.max.v) a.max = b.max;
-    if (a.gap.i == kNone) a.gap = b.gap;
     buckets_[out++] = a;
   }
   if (buckets_.size() % 2 == 1) buckets_[out++] = buckets_.back();
@@ -74,9 +78,11 @@ void MinMaxDecimator::take(std::vector<double>& t_out, std::vector<double>& valu
     }
   };
   const bool ends = length_ != 0;
+  std::size_t g = 0;  // the next gap
   for (std::size_t k = 0; k < buckets_.size(); ++k) {
     const Bucket& b = buckets_[k];
-    std::array<Sample, 5> picks = {ends && k == 0 ? first_ : Sample{}, b.min, b.max, b.gap,
+    const bool gap = g < gaps_.size() && gaps_[g].first == k;
+    std::array<Sample, 5> picks = {ends && k == 0 ? first_ : Sample{}, b.min, b.max, gap ? gaps_[g++].second : Sample{},
                                    ends && k + 1 == buckets_.size() ? last_ : Sample{}};
     std::sort(picks.begin(), picks.end(), [](const Sample& a, const Sample& c) { return a.i < c.i; });
     for (std::size_t p = 0; p < picks.size() && picks[p].i != kNone; ++p) {

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 namespace hil {
@@ -36,11 +37,14 @@ class MinMaxDecimator {
     double t = 0, v = 0;
   };
   struct Bucket {
-    Sample min, max, gap;  // gap: the bucket's first non-finite sample (for_length only)
+    Sample min, max;
   };
   void merge();
   std::size_t max_buckets_;
   std::vector<Bucket> buckets_;
+  // for_length: (bucket, its first non-finite sample), in bucket order. Apart from the buckets,
+  // which stay small: add() is a report's per-sample cost.
+  std::vector<std::pair<std::size_t, Sample>> gaps_;
   std::size_t per_bucket_ = 1, count_ = 0;  // streamed: samples per bucket, samples in the last bucket
   std::size_t added_ = 0;                   // samples seen
   // for_length: the announced length (0: streamed), the bucket count, the next bucket's first index.
