@@ -1,7 +1,8 @@
 // Fuzz target: one raw HTTP request to the bench server's API, answered as a connection would
 // answer it (ApiServer::answer_raw: parser limits, token, routes, campaign YAML in bodies).
-// A finding is a crash, a sanitizer report, a hang, or an answer that is not a JSON object with
-// a status the API documents; a 500 is a finding too (no input is the server's own fault).
+// A finding is a crash, a sanitizer report, a hang, or an answer that is not what its route gives
+// (a JSON object; the console page or the token form as an HTML page; an empty 204) with a status
+// the API documents; a 500 is a finding too (no input is the server's own fault).
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -62,7 +63,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::fprintf(stderr, "answered %d: %s\n", answer.status, answer.body.c_str());
     std::abort();
   }
-  if (answer.body.rfind("file: ", 0) != 0) {
+  // The API answers JSON; the console page and the token form are HTML pages, the icon an empty 204.
+  const bool file = answer.body.rfind("file: ", 0) == 0;  // streamed from disk (a run's file or report)
+  const bool html = answer.content_type.rfind("text/html", 0) == 0;
+  if (html && !file && answer.body.rfind("<!doctype html>", 0) != 0) {
+    std::fprintf(stderr, "answered %d with text/html that is not a page: %s\n", answer.status, answer.body.c_str());
+    std::abort();
+  }
+  const bool json_expected = !html && !file && answer.status != 204;
+  if (answer.status == 204 && !answer.body.empty()) {
+    std::fprintf(stderr, "answered 204 with a body: %s\n", answer.body.c_str());
+    std::abort();
+  }
+  if (json_expected) {
     const auto j = nlohmann::json::parse(answer.body, nullptr, /*allow_exceptions=*/false);
     if (!j.is_object()) {
       std::fprintf(stderr, "answered %d with no JSON object: %s\n", answer.status, answer.body.c_str());

@@ -1207,7 +1207,7 @@ ApiServer::RawAnswer ApiServer::answer_raw(std::string_view bytes) {
     const Request req = parser.release();
     reply = impl_->answer(req, parse_target(std::string_view(req.target().data(), req.target().size())));
   }
-  return {static_cast<int>(reply.status), reply.file.empty() ? reply.body : "file: " + reply.file.string()};
+  return {static_cast<int>(reply.status), reply.file.empty() ? reply.body : "file: " + reply.file.string(), reply.content_type};
 }
 
 void ApiServer::refuse_starts(const std::string& why) {

@@ -77,6 +77,7 @@ class ApiServer {
   struct RawAnswer {
     int status;
     std::string body;
+    std::string content_type;
   };
   RawAnswer answer_raw(std::string_view bytes);
 
