@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <string>
 #include <system_error>
 #include <vector>
 
@@ -75,6 +76,24 @@ std::uint64_t trim_to_whole_lines(const std::filesystem::path& file) {
   }
   ::close(fd);
   return removed;
+}
+
+void replace_file(const std::filesystem::path& file, std::string_view text) {
+  std::string name = ".";  // appended, not "." + ...: GCC 12 warns falsely (-Wrestrict) on that
+  name += file.filename().string();
+  name += ".tmp";
+  const auto tmp = file.parent_path() / name;
+  try {
+    {
+      LineFile out(tmp);
+      out.append(text);
+    }
+    std::filesystem::rename(tmp, file);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
 }
 
 }  // namespace hil

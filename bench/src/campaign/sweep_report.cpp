@@ -17,24 +17,6 @@ using json = nlohmann::json;
 
 constexpr std::size_t kWorstPoints = 10;
 
-void write_atomic(const std::filesystem::path& file, const std::string& text) {
-  std::string name = ".";
-  name += file.filename().string();
-  name += ".tmp";
-  const auto tmp = file.parent_path() / name;
-  try {
-    {
-      LineFile out(tmp);
-      out.append(text);
-    }
-    std::filesystem::rename(tmp, file);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-}
-
 std::string number_text(double v) {
   if (!std::isfinite(v)) return "nan";
   char buf[32];
@@ -243,11 +225,11 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     const auto folder = dir / "points" / std::to_string(p);
     std::filesystem::create_directories(folder);
     const PointYaml y = point_yaml(plan, p);
-    write_atomic(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
-    write_atomic(folder / "plant.yaml", y.plant);
+    replace_file(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
+    replace_file(folder / "plant.yaml", y.plant);
   }
-  write_atomic(dir / "sweep.csv", csv);
-  write_atomic(dir / "sweep.json", out.dump(1) + "\n");
+  replace_file(dir / "sweep.csv", csv);
+  replace_file(dir / "sweep.json", out.dump(1) + "\n");
   doc.write(dir / "report.html");
   return {0, passed, order};
 }

@@ -50,19 +50,7 @@ std::string eta_text(double s) {
 
 void write_plan(const std::filesystem::path& dir, const SweepPlan& plan) {
   std::filesystem::create_directories(dir);
-  const auto file = dir / "plan.json";
-  const auto tmp = dir / "plan.json.tmp";
-  try {
-    {
-      LineFile out(tmp);
-      out.append(plan.to_json().dump(1) + "\n");
-    }
-    std::filesystem::rename(tmp, file);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
+  replace_file(dir / "plan.json", plan.to_json().dump(1) + "\n");
 }
 
 SweepPlan read_plan(const std::filesystem::path& dir) {

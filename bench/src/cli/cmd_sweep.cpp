@@ -47,15 +47,6 @@ std::string quoted(const std::string& s) {
   return q + "'";
 }
 
-void write_file(const std::filesystem::path& file, const std::string& text) {
-  const auto tmp = file.parent_path() / ("." + file.filename().string() + ".tmp");
-  {
-    LineFile out(tmp);
-    out.append(text);
-  }
-  std::filesystem::rename(tmp, file);
-}
-
 std::string read_file(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   std::stringstream s;
@@ -128,7 +119,7 @@ int aggregate(const std::filesystem::path& dir, const SweepPlan& plan, bool quie
   return 0;
 }
 
-// Runs `argv` (no shell), returns its exit status; stdout into `out`, stderr into `err`.
+// Runs `argv` through sh, every argument quoted; returns its exit status; stdout into `out`, stderr into `err`.
 int run_program(const std::vector<std::string>& argv, std::string& out, std::string& err, const std::filesystem::path& scratch) {
   const auto out_file = scratch / ".cmd.out", err_file = scratch / ".cmd.err";
   std::string cmd;
@@ -205,16 +196,17 @@ int run_slurm(const SweepArgs& args) {
   const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
   const std::string head = "#!/bin/sh\n# Written by hilbench sweep --slurm for sweep " + plan.name +
                            ": the nodes need this binary and the shared folder, nothing else.\n";
-  write_file(slurm_dir / "array.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
-                                         "\n#SBATCH --output=" + (slurm_dir / "logs" / "shard-%a.out").string() +
-                                         "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%a.err").string() + "\nexec " +
-                                         quoted(exe) + " sweep --out " + quoted(dir.string()) +
-                                         " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
-                                         "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" --quiet\n");
-  write_file(slurm_dir / "aggregate.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
-                                             "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate.out").string() +
-                                             "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate.err").string() + "\nexec " +
-                                             quoted(exe) + " sweep --out " + quoted(dir.string()) + " --aggregate\n");
+  replace_file(slurm_dir / "array.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
+                                           "\n#SBATCH --output=" + (slurm_dir / "logs" / "shard-%a.out").string() +
+                                           "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%a.err").string() + "\nexec " +
+                                           quoted(exe) + " sweep --out " + quoted(dir.string()) +
+                                           " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
+                                           "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" --quiet\n");
+  replace_file(slurm_dir / "aggregate.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
+                                               "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate.out").string() +
+                                               "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate.err").string() +
+                                               "\nexec " + quoted(exe) + " sweep --out " + quoted(dir.string()) +
+                                               " --aggregate\n");
   std::filesystem::permissions(slurm_dir / "array.sh", std::filesystem::perms::owner_exec, std::filesystem::perm_options::add);
   std::filesystem::permissions(slurm_dir / "aggregate.sh", std::filesystem::perms::owner_exec,
                                std::filesystem::perm_options::add);
@@ -246,7 +238,7 @@ int run_slurm(const SweepArgs& args) {
                                  {"max_parallel", parallel},
                                  {"partition", args.partition},
                                  {"submitted_utc", utc_now()}});
-  write_file(slurm_dir / "jobs.json", jobs.dump(1) + "\n");
+  replace_file(slurm_dir / "jobs.json", jobs.dump(1) + "\n");
   std::printf(
       "sweep %s: %ld of %ld points missing; submitted array job %s (%zu tasks of %ld, at most %ld at once) and "
       "aggregation job %s\n  %s\n  hilbench sweep --status %s\n",

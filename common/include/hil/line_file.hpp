@@ -34,4 +34,9 @@ class LineFile {
 // middle of a write). Returns how many bytes were removed; 0 when it already ended whole.
 std::uint64_t trim_to_whole_lines(const std::filesystem::path& file);
 
+// Replaces `file` with `text` all at once: written through a LineFile to ".<name>.tmp" beside it,
+// then renamed over it, so a reader sees the old file or the whole new one. On failure the
+// temporary is removed and the error thrown; the old file stays.
+void replace_file(const std::filesystem::path& file, std::string_view text);
+
 }  // namespace hil
