@@ -1,11 +1,9 @@
 #include "json_out.hpp"
 
-#include <unistd.h>
-
 #include <cmath>
-#include <fstream>
 #include <stdexcept>
 
+#include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "text.hpp"
@@ -180,22 +178,6 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
   return s;
 }
 
-void write_text(const std::filesystem::path& file, const std::string& text) {
-  std::string name = ".";  // built in steps: GCC 12 warns falsely on "." + string
-  name += file.filename().string();
-  name += ".tmp-" + std::to_string(::getpid());
-  const auto tmp = file.parent_path() / name;
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << text;
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error("cannot write " + file.string());
-    }
-  }
-  std::filesystem::rename(tmp, file);
-}
+void write_text(const std::filesystem::path& file, const std::string& text) { hil::replace_file(file, text); }
 
 }  // namespace hil::analysis::detail

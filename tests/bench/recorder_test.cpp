@@ -160,7 +160,7 @@ TEST(RunRecord, RoundTripsThroughRunJson) {
   const nlohmann::json j = a.to_json();
   EXPECT_TRUE(j["telemetry"]["write_error"].is_null());  // the end found none: said, as null
   EXPECT_EQ(j["rig"]["kind"], "sim");
-  EXPECT_FALSE(std::filesystem::exists(dir.path() / "run.json.tmp"));
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / ".run.json.tmp"));
 }
 
 // A record of a run that is still going has none of the end's keys; a count nobody knows (a run

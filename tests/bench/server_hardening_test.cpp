@@ -134,7 +134,7 @@ TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
   const json run = json::parse(hil::test::slurp(dir / "run.json"));
   EXPECT_EQ(run["outcome"], "aborted");
   EXPECT_EQ(run["trip"]["reason"], "recording");
-  EXPECT_FALSE(std::filesystem::exists(dir / "run.json.tmp"));
+  EXPECT_FALSE(std::filesystem::exists(dir / ".run.json.tmp"));
   EXPECT_FALSE(std::filesystem::exists(dir / ".reserve"));
   // What is on disk ends on a whole line, and the counts add up to the periods the loop ran.
   EXPECT_TRUE(ends_with_newline(dir / "telemetry.csv"));

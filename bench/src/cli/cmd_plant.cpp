@@ -9,7 +9,6 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <thread>
@@ -21,6 +20,7 @@
 #include "hil/bench/rt/plant_service.hpp"
 #include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/modbus_emulator.hpp"
+#include "hil/line_file.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -117,13 +117,10 @@ int run_plant(const PlantArgs& args) {
   if (mb_drive)
     std::printf("plant: Modbus drive on tcp port %d, transducer on tcp port %d\n", mb_drive->port(), mb_pressure->port());
   if (!args.port_file.empty()) {
-    const std::filesystem::path file = args.port_file;
-    const auto tmp = file.string() + ".tmp";
-    std::ofstream(tmp) << nlohmann::json{{"modbus_drive_port", mb_drive ? mb_drive->port() : 0},
-                                         {"transducer_port", mb_pressure ? mb_pressure->port() : 0}}
-                              .dump()
-                       << "\n";
-    std::filesystem::rename(tmp, file);  // appears complete or not at all
+    hil::replace_file(args.port_file, nlohmann::json{{"modbus_drive_port", mb_drive ? mb_drive->port() : 0},
+                                                     {"transducer_port", mb_pressure ? mb_pressure->port() : 0}}
+                                              .dump() +
+                                          "\n");  // appears complete or not at all
   }
   std::printf("plant: ready\n");
   std::fflush(stdout);

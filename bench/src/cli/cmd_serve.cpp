@@ -1,7 +1,7 @@
 // hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
 //                [--max-body-kb N] [--no-mlock]
 #include <cstdio>
-#include <fstream>
+#include <string>
 #include <memory>
 #include <thread>
 
@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/line_file.hpp"
 #include "server/api_server.hpp"
 
 namespace hil::bench {
@@ -101,10 +102,7 @@ int run_serve(const ServeArgs& args) {
   std::printf("hilbench serve: listening on %s%s\n", where.c_str(), api.token.empty() ? "" : " (token required)");
   std::fflush(stdout);
   if (!args.port_file.empty()) {
-    const std::filesystem::path file = args.port_file;
-    const auto tmp = file.string() + ".tmp";
-    std::ofstream(tmp) << server.port() << "\n";
-    std::filesystem::rename(tmp, file);
+    hil::replace_file(args.port_file, std::to_string(server.port()) + "\n");
   }
 
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);

@@ -209,6 +209,8 @@ RigHealth DeviceRig::health() const noexcept {
   drv::DeviceHealth t;
   if (sensor_) t = sensor_->health();
   h.connected = active_ && d.connected && (!sensor_ || t.connected);
+  h.drive_reconnects = d.reconnects;
+  h.transducer_reconnects = t.reconnects;
   h.reconnects = d.reconnects + t.reconnects;
   h.fault = !active_ || d.fault || (sensor_ && t.fault);
   char text[256];

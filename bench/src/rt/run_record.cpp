@@ -205,19 +205,7 @@ RunRecord read_run_record(const std::filesystem::path& dir) {
 }
 
 void write_run_record(const std::filesystem::path& dir, const RunRecord& record) {
-  const auto file = dir / "run.json";
-  const auto tmp = dir / "run.json.tmp";
-  try {
-    {
-      LineFile out(tmp);
-      out.append(record.to_json().dump(2, ' ', false, json::error_handler_t::replace) + "\n");
-    }
-    std::filesystem::rename(tmp, file);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
+  replace_file(dir / "run.json", record.to_json().dump(2, ' ', false, json::error_handler_t::replace) + "\n");
 }
 
 }  // namespace hil::bench

@@ -495,6 +495,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                   {"stale_reads", h.stale_reads},
                   {"fault_reads", h.fault_reads},
                   {"reconnects", h.reconnects},
+                  {"reconnects_by_device", {{"drive", h.drive_reconnects}, {"transducer", h.transducer_reconnects}}},
                   {"last_error", std::string(h.last_error_text())}};
     rig->deactivate();
   }

@@ -62,7 +62,10 @@ struct RigHealth {
   bool connected = false;
   bool fault = false;
   std::uint64_t reads = 0, stale_reads = 0, fault_reads = 0;
-  std::uint64_t reconnects = 0;        // links the clients reopened (Modbus reconnects, CAN bus-off recoveries)
+  std::uint64_t reconnects = 0;  // links the clients reopened (Modbus reconnects, CAN bus-off recoveries)
+  // The same by device: a bus-off recovery of the drive and a Modbus timeout of the transducer
+  // are different stories, and a record that only sums them cannot tell which one happened.
+  std::uint64_t drive_reconnects = 0, transducer_reconnects = 0;
   std::array<char, 256> last_error{};  // NUL-terminated
 
   std::string_view last_error_text() const noexcept { return last_error.data(); }
