@@ -27,7 +27,6 @@ namespace {
 using cfg::Node;
 using json = nlohmann::json;
 
-constexpr long kMaxPoints = 1'000'000;
 constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
 
 // A number as the shortest text that reads back as the same double: the same value always
@@ -386,7 +385,7 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
   }
 }
 
-SweepPlan plan_sweep(const std::filesystem::path& sweep_file) {
+SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points) {
   const Node root = Node::load_file(sweep_file);
   root.allow_keys({"name", "description", "campaign", "runs", "seed", "samples", "axes", "thresholds", "maps", "worst_by"});
   SweepPlan plan;
@@ -448,20 +447,22 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file) {
   const bool random = std::any_of(plan.axes.begin(), plan.axes.end(), [](const SweepAxis& a) { return a.random(); });
   if (auto s = root.find("samples")) {
     s->require(random, "samples are draws of distribution axes (uniform, normal), and this sweep has none");
-    s->require(s->integer() >= 1 && s->integer() <= kMaxPoints, "must be a whole number in [1, 1000000]");
+    s->require(s->integer() >= 1 && s->integer() <= max_points,
+               "must be a whole number in [1, " + std::to_string(max_points) + "]");
     plan.samples = static_cast<long>(s->integer());
   } else if (random) {
     root.fail("missing required key 'samples' (draws per grid cell of the distribution axes)");
   }
 
+  const std::string too_many = "more than " + std::to_string(max_points) + " points";
   long cells = 1;
   for (const auto& a : plan.axes) {
     if (a.random()) continue;
     const long n = static_cast<long>(a.values.size());
-    axes.require(cells <= kMaxPoints / n, "more than 1000000 points");
+    axes.require(cells <= max_points / n, too_many);
     cells *= n;
   }
-  axes.require(cells <= kMaxPoints / plan.samples, "more than 1000000 points");
+  axes.require(cells <= max_points / plan.samples, too_many);
   // Point p = cell * samples + sample; the cell's grid values with the last axis fastest.
   const long total = cells * plan.samples;
   plan.points.reserve(static_cast<std::size_t>(total));

@@ -71,8 +71,11 @@ struct SweepPlan {
 
 // Reads and checks SWEEP.yaml, expands its points and checks that every point's campaign loads.
 // Throws cfg::Error naming the sweep file, line, column and key (a bad axis path or spec), or
-// the point and the loader's message (a value the campaign or plant refuses).
-SweepPlan plan_sweep(const std::filesystem::path& sweep_file);
+// the point and the loader's message (a value the campaign or plant refuses). More points than
+// `max_points` is refused the same way (the fuzz target sets a small limit: each point's check
+// loads a campaign).
+inline constexpr long kMaxSweepPoints = 1'000'000;
+SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points = kMaxSweepPoints);
 
 // Point p's campaign and plant as YAML, as `hilbench sim` reads them from DIR/points/<p>/ (the
 // campaign names its plant `plant.yaml`, beside it).
