@@ -385,7 +385,8 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
   }
 }
 
-SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points) {
+SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
+                     const std::function<std::string(const std::string& name)>& checked_hash) {
   const Node root = Node::load_file(sweep_file);
   root.allow_keys({"name", "description", "campaign", "runs", "seed", "samples", "axes", "thresholds", "maps", "worst_by"});
   SweepPlan plan;
@@ -545,6 +546,7 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points) {
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
   plan.hash = hex;
+  if (checked_hash && checked_hash(plan.name) == plan.hash) return plan;
 
   // Every point's campaign through the loader before anything runs: a value it refuses (a
   // negative gap, a reference out of the plant's reach) stops the sweep here, naming the point.

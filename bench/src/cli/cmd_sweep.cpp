@@ -62,8 +62,16 @@ SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
     dir = args.out_dir;
     return read_plan(dir);
   }
-  SweepPlan plan = plan_sweep(args.sweep_file);
-  dir = args.out_dir.empty() ? std::filesystem::path("out") / "sweeps" / plan.name : std::filesystem::path(args.out_dir);
+  const auto dir_of = [&](const std::string& name) {
+    return args.out_dir.empty() ? std::filesystem::path("out") / "sweeps" / name : std::filesystem::path(args.out_dir);
+  };
+  // A sweep being resumed: its points were checked when it was planned (a campaign load each,
+  // seconds for a large sweep), so a plan with plan.json's hash skips that check.
+  const auto checked_hash = [&](const std::string& name) {
+    return std::filesystem::exists(dir_of(name) / "plan.json") ? read_plan(dir_of(name)).hash : std::string();
+  };
+  SweepPlan plan = plan_sweep(args.sweep_file, kMaxSweepPoints, checked_hash);
+  dir = dir_of(plan.name);
   if (std::filesystem::exists(dir / "plan.json")) {
     const SweepPlan old = read_plan(dir);
     if (old.hash != plan.hash) {

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <map>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -73,9 +74,12 @@ struct SweepPlan {
 // Throws cfg::Error naming the sweep file, line, column and key (a bad axis path or spec), or
 // the point and the loader's message (a value the campaign or plant refuses). More points than
 // `max_points` is refused the same way (the fuzz target sets a small limit: each point's check
-// loads a campaign).
+// loads a campaign). `checked_hash(name)`, when given, is the hash of a plan of that name whose
+// points were checked already (the plan.json of a sweep being resumed): a plan with that hash is
+// returned without loading its points again.
 inline constexpr long kMaxSweepPoints = 1'000'000;
-SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points = kMaxSweepPoints);
+SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points = kMaxSweepPoints,
+                     const std::function<std::string(const std::string& name)>& checked_hash = {});
 
 // Point p's campaign and plant as YAML, as `hilbench sim` reads them from DIR/points/<p>/ (the
 // campaign names its plant `plant.yaml`, beside it).
