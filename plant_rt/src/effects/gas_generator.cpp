@@ -36,7 +36,8 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   explicit GasGenerator(std::vector<double> v)
       : ScalarEffect(std::move(v)),
         gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
-        v0_(value(6) * units::kM3PerL) {}
+        v0_(value(6) * units::kM3PerL),
+        pow_series_(physics::PowNear::series(gas_.pressure_exponent)) {}
 
   // State: chamber pressure, free volume, generated gas mass, discharged gas mass; then the
   // anchor of P^n's expansion (physics::PowNear: anchor, its P^n, its inverse).
@@ -64,7 +65,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     const double p0 = std::max(x[0], kMinPressurePa), v = x[1];
     // P^n at p0 and its Taylor coefficients there, from the expansion about the anchor.
     physics::PowNear pow_near{x[4], x[5], x[6]};
-    const physics::PowNear::Local pn = pow_near.at(p0, gas_.pressure_exponent);
+    const physics::PowNear::Local pn = pow_near.at(p0, pow_series_);
     x[4] = pow_near.anchor, x[5] = pow_near.anchor_pow, x[6] = pow_near.inv_anchor;
     // Within a step P moves a fraction of a percent: P^n from its second-order Taylor expansion
     // about p0 (error ~ 1e-7 relative at 1 %). With it, V dP/dt = F(e) is a cubic in e = P - p0
@@ -171,6 +172,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   }
   physics::GasGenerator gas_;
   double v0_;
+  physics::PowNear::Series pow_series_;  // P^n's expansion coefficients, set once
 };
 
 HIL_REGISTER_EFFECT(GasGenerator, "lumped gas-generator chamber with end-burning grain and choked throat")
