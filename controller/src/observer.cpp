@@ -64,6 +64,8 @@ const RobustObserverParams& checked(const RobustObserverParams& p) {
 RobustObserver::RobustObserver(const RobustObserverParams& params, const ChamberModel& chamber)
     : p_(checked(params)), chamber_(chamber), fit_(stage_factor(p_), p_.gap_max_rad) {
   chamber_.validate();
+  area_solver_ = physics::ThroatAreaSolver(chamber_);
+  inv_period_s_ = 1 / p_.period_s;
   alpha_ = stage_factor(p_);
   alpha_slow_ = 1 - std::exp(-p_.period_s / (p_.hold_smoothing * p_.filter_time_constant_s));
   lead_samples_ = std::lround(p_.fit_lead_s / p_.period_s);
@@ -115,7 +117,7 @@ RobustObserverState RobustObserver::initial_state(int touch, double theta_cmd_ra
 ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInputs& in) const noexcept {
   ObserverOutputs out;
   // Filters: pressure and its derivative through the same two stages.
-  const double dpdt = (in.p_meas_pa - s.p_prev_pa) / p_.period_s;
+  const double dpdt = (in.p_meas_pa - s.p_prev_pa) * inv_period_s_;
   s.p_prev_pa = in.p_meas_pa;
   s.p_lp1 += alpha_ * (in.p_meas_pa - s.p_lp1);
   s.p_lp2 += alpha_ * (s.p_lp1 - s.p_lp2);
@@ -126,7 +128,7 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
   s.p_eq_pa = s.p_lp2 + tau * s.d_lp2;
   // The fit's valve angle: the chamber equation inverted for the throat area (no linearisation).
   GapFit::push(s.history, in.theta_motor_rad,
-               chamber_.angle_for_area_rad(chamber_.throat_area_m2(s.p_lp2, s.d_lp2, in.volume_m3, s.p_lp2_pow)));
+               chamber_.angle_for_area_rad(chamber_.throat_area_m2(s.p_lp2, s.d_lp2, in.volume_m3, s.p_lp2_pow, area_solver_)));
   const std::int64_t now = s.history.count - 1;
   s.p_eq_slow_pa += alpha_slow_ * (s.p_eq_pa - s.p_eq_slow_pa);
 

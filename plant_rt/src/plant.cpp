@@ -50,6 +50,7 @@ Plant::Plant(std::vector<std::shared_ptr<const Effect>> effects) : effects_(std:
   first_sensor_ = effects_.size();
   for (std::size_t i = 0; i < effects_.size(); ++i) {
     offsets_.push_back(state_size_);
+    chain_.push_back({effects_[i].get(), state_size_, effects_[i]->state_size()});
     state_size_ += effects_[i]->state_size();
     if (first_sensor_ == effects_.size() && effects_[i]->stage() > Stage::chamber) first_sensor_ = i;
   }
@@ -91,11 +92,12 @@ void Plant::step(PlantState& st, const PlantInputs& in, double dt_s) const noexc
   s.theta_motor_meas_rad = in.theta_motor_meas_rad;
   s.gap_rad = in.gap_rad;
   double* x = st.x.data();
-  for (std::size_t i = 0; i < effects_.size(); ++i) {
-    if (i == first_sensor_) s.p_meas_pa = s.p_chamber_pa;
-    effects_[i]->step({x + offsets_[i], effects_[i]->state_size()}, s, dt_s, st.rng);
-  }
-  if (first_sensor_ == effects_.size()) s.p_meas_pa = s.p_chamber_pa;
+  const Link* link = chain_.data();
+  const Link* const sensors = link + first_sensor_;
+  const Link* const end = link + chain_.size();
+  for (; link != sensors; ++link) link->effect->step({x + link->offset, link->size}, s, dt_s, st.rng);
+  s.p_meas_pa = s.p_chamber_pa;
+  for (; link != end; ++link) link->effect->step({x + link->offset, link->size}, s, dt_s, st.rng);
 }
 
 double Plant::settle_chain(PlantState& st, double cmd_rad, double valve_hint_rad, double t0_s, double gap_rad) const {

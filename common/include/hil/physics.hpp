@@ -30,35 +30,45 @@ struct PowNear {
   double anchor_pow = 0;
   double inv_anchor = 0;
 
+  // The expansion's coefficients for one exponent: n, n(n-1)/2, ... (binomial), set once by a
+  // caller that evaluates P^n every period rather than on each call (the /3 is a division).
+  struct Series {
+    double n, c1, c2, c3, c4;
+  };
+  static Series series(double n) noexcept {
+    const double c1 = n, c2 = c1 * (n - 1) / 2, c3 = c2 * (n - 2) / 3, c4 = c3 * (n - 3) / 4;
+    return {n, c1, c2, c3, c4};
+  }
+
   // P^n and its first two Taylor coefficients at p (p^n ~ value + slope e + curve e^2 near p).
   struct Local {
     double value, slope, curve;
   };
-  Local at(double p, double n) noexcept {
+  Local at(double p, const Series& k) noexcept {
     double d = (p - anchor) * inv_anchor;
     if (!(std::abs(d) <= kBand && anchor > 0)) {  // also: no anchor yet, or p not finite
       anchor = p;
-      anchor_pow = std::pow(p, n);
+      anchor_pow = std::pow(p, k.n);
       inv_anchor = 1 / p;
       d = 0;
     }
-    const double c1 = n, c2 = c1 * (n - 1) / 2, c3 = c2 * (n - 2) / 3, c4 = c3 * (n - 3) / 4;
-    const double value = anchor_pow * (1 + d * (c1 + d * (c2 + d * (c3 + d * c4))));
-    const double slope = anchor_pow * inv_anchor * (c1 + d * (2 * c2 + d * (3 * c3 + d * 4 * c4)));
-    const double curve = anchor_pow * inv_anchor * inv_anchor * (c2 + d * (3 * c3 + d * 6 * c4));
+    const double value = anchor_pow * (1 + d * (k.c1 + d * (k.c2 + d * (k.c3 + d * k.c4))));
+    const double slope = anchor_pow * inv_anchor * (k.c1 + d * (2 * k.c2 + d * (3 * k.c3 + d * 4 * k.c4)));
+    const double curve = anchor_pow * inv_anchor * inv_anchor * (k.c2 + d * (3 * k.c3 + d * 6 * k.c4));
     return {value, slope, curve};
   }
-  double value(double p, double n) noexcept {
+  Local at(double p, double n) noexcept { return at(p, series(n)); }
+  double value(double p, const Series& k) noexcept {
     double d = (p - anchor) * inv_anchor;
     if (!(std::abs(d) <= kBand && anchor > 0)) {
       anchor = p;
-      anchor_pow = std::pow(p, n);
+      anchor_pow = std::pow(p, k.n);
       inv_anchor = 1 / p;
       return anchor_pow;
     }
-    const double c1 = n, c2 = c1 * (n - 1) / 2, c3 = c2 * (n - 2) / 3, c4 = c3 * (n - 3) / 4;
-    return anchor_pow * (1 + d * (c1 + d * (c2 + d * (c3 + d * c4))));
+    return anchor_pow * (1 + d * (k.c1 + d * (k.c2 + d * (k.c3 + d * k.c4))));
   }
+  double value(double p, double n) noexcept { return value(p, series(n)); }
 };
 
 // A lumped chamber filled by an end-burning grain and emptied through a choked throat:
@@ -106,13 +116,37 @@ struct GasGenerator {
     return throat_area_m2(p_pa, std::pow(p_pa, pressure_exponent), dpdt_pa_s, volume_m3);
   }
   // The same with p^n given.
-  double throat_area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {
-    const double mdot_gen = propellant_density_kg_m3 * burning_area_m2 * burn_coeff_si * p_pow_n;
-    const double mdot_out =
-        mdot_gen * (1 - volume_growth * p_pa / (propellant_density_kg_m3 * rtc_m2_s2)) - volume_m3 / rtc_m2_s2 * dpdt_pa_s;
+  double throat_area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept;
+};
+
+// GasGenerator::throat_area_m2 for a caller that solves it every period (the robust observer):
+// the constant factors, and the two divisions among them, taken once.
+struct ThroatAreaSolver {
+  double gen_per_pn = 0;   // rho_p Ab a_si: generated mass flow per P^n
+  double kept_per_pa = 0;  // g / (rho_p RTc): the share of it that stays to fill the freed volume, per Pa
+  double inv_rtc = 0;      // 1 / RTc
+  double cstar_m_s = 0;
+  PowNear::Series pow_series{};  // for P^n
+
+  ThroatAreaSolver() = default;
+  explicit ThroatAreaSolver(const GasGenerator& g) noexcept
+      : gen_per_pn(g.propellant_density_kg_m3 * g.burning_area_m2 * g.burn_coeff_si),
+        kept_per_pa(g.volume_growth / (g.propellant_density_kg_m3 * g.rtc_m2_s2)),
+        inv_rtc(1 / g.rtc_m2_s2),
+        cstar_m_s(g.cstar_m_s),
+        pow_series(PowNear::series(g.pressure_exponent)) {}
+  // The area through which the chamber at pressure p (p^n given), free volume v discharges what
+  // makes it change at dp/dt: mdot_out = mdot_gen (1 - g P / (rho_p RTc)) - V / RTc dP/dt.
+  double area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {
+    const double mdot_gen = gen_per_pn * p_pow_n;
+    const double mdot_out = mdot_gen * (1 - kept_per_pa * p_pa) - volume_m3 * inv_rtc * dpdt_pa_s;
     return mdot_out * cstar_m_s / p_pa;
   }
 };
+
+inline double GasGenerator::throat_area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {
+  return ThroatAreaSolver(*this).area_m2(p_pa, p_pow_n, dpdt_pa_s, volume_m3);
+}
 
 // Position servo, one step: a first-order lag on the command, discretised exactly
 // (keep = exp(-dt / tau), so the step size does not change the response), then a slew-rate limit

@@ -63,7 +63,7 @@ class Replayer {
     }
     return state_.s.p_meas_pa;
   }
-  // Longest step the plant is trusted with: the chamber's RK4 is accurate well below its ~0.1 s
+  // Longest step the plant is trusted with: the chamber's integrator is accurate well below its ~0.1 s
   // time constant, the servo and sensor lags are discretised exactly. Coarse fits step 12 ms.
   static constexpr double kMaxStepS = 0.02;
   const plant::Signals& signals() const { return state_.s; }

@@ -32,8 +32,10 @@ struct ChamberModel : physics::GasGenerator {
   // The chamber equation solved for the throat area, exactly (no linearisation): the area that
   // makes the chamber at pressure p, volume v change at dp/dt.
   double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3) const noexcept;
-  // The same with p^n from an expansion about an anchor the caller keeps (a slowly moving p).
-  double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near) const noexcept;
+  // The same with p^n from an expansion about an anchor the caller keeps (a slowly moving p) and
+  // the equation's constants from a solver the caller built once from this model.
+  double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near,
+                        const physics::ThroatAreaSolver& solver) const noexcept;
   // Slope of the map at the angle whose area holds `p_pa` steady.
   double map_slope_m2_per_rad(double p_pa) const noexcept;
   // Linearised chamber time constant tau = V c* / (RTc At0 (1 - n)).

@@ -151,6 +151,8 @@ class RobustObserver {
  private:
   RobustObserverParams p_;
   ChamberModel chamber_;
+  physics::ThroatAreaSolver area_solver_;      // chamber_'s equation solved for the throat area
+  double inv_period_s_ = 0;                    // 1 / period: the derivative multiplies, off the division
   double alpha_ = 0;                           // per-step factor of each low-pass stage
   double alpha_slow_ = 0;                      // per-step factor of the hold level's extra smoothing
   double var_p_ = 0, var_pd_ = 0, var_d_ = 0;  // noise gains of LP(p), cross, LP(dp/dt)

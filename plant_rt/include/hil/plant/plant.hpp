@@ -72,6 +72,13 @@ class Plant {
 
   std::vector<std::shared_ptr<const Effect>> effects_;
   std::vector<std::size_t> offsets_;  // start of each effect's state slice
+  // What step() needs of each effect, in chain order, gathered once: a plain pointer and the
+  // state slice, so a period makes one virtual call per effect (step) and no others.
+  struct Link {
+    const Effect* effect;
+    std::size_t offset, size;
+  };
+  std::vector<Link> chain_;
   std::size_t state_size_ = 0;
   std::size_t first_sensor_ = 0;  // index of the first effect after the chamber
 };
