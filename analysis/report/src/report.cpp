@@ -204,6 +204,7 @@ void Document::figure(const Figure& fig) {
     json += "]}";
     json += kDataClose;
     close_block();
+    ++plots_;
   } catch (...) {
     body_.resize(mark);  // no half figure in the page
     throw;
@@ -232,6 +233,7 @@ void Document::bars(const Bars& chart) {
   }
   json += "]}";
   block(figure_head("bars", next_id_++, chart.title) + std::string(kDataOpen) + json + std::string(kDataClose));
+  ++plots_;
 }
 
 void Document::columns_begin(int n) {
@@ -248,28 +250,42 @@ void Document::columns_end() {
 
 std::string Document::page_head() const {
   std::string head;
-  head.reserve(detail::kReportCss.size() + 1024);
+  head.reserve(detail::kDygraphCss.size() + detail::kReportCss.size() + 1024);
   head +=
       "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
       "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
       "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
   head += html_escape(title_);
   head += "</title>\n<style>\n";
+  head += detail::kDygraphCss;
+  head += "\n";
   head += detail::kReportCss;
   head += "</style>\n</head>\n<body>\n<header class=\"hil-header\"><h1>";
   head += html_escape(title_);
-  head +=
-      "</h1><p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
-      "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; "
-      "click a legend entry to hide it, double-click to show it alone.</p></header>\n<main>\n";
+  head += "</h1>";
+  // How to use the plots, only where there are plots (a sweep report has tables only).
+  if (plots_ > 0) {
+    head +=
+        "<p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
+        "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; hover for values &middot; "
+        "click a legend entry to hide it, double-click to show it alone.</p>";
+  }
+  head += "</header>\n<main>\n";
   return head;
 }
 
 std::string Document::page_tail() const {
   std::string tail;
-  tail.reserve(detail::kReportJs.size() + 256);
+  tail.reserve(detail::kDygraphJs.size() + detail::kReportJs.size() + 256);
   if (columns_ > 0) tail += "</div>\n";  // an unclosed columns_begin still gives valid HTML
-  tail += "</main>\n<div class=\"hil-tip\" hidden></div>\n<script>\n";
+  tail += "</main>\n";
+  // The plotting library and its layer only where there is something to plot.
+  if (plots_ > 0) {
+    tail += "<script>\n";
+    tail += detail::kDygraphJs;
+    tail += "\n</script>\n";
+  }
+  tail += "<script>\n";
   tail += detail::kReportJs;
   tail += "</script>\n</body></html>\n";
   return tail;

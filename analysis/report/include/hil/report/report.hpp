@@ -1,6 +1,6 @@
 // Offline HTML report writer: one self-contained report.html (inline CSS, JS and data; no network)
-// with interactive canvas plots: box/wheel zoom, pan, hover read-out, legend toggles, and x-zoom
-// linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
+// with interactive plots drawn by Debian's dygraphs (embedded at build time): box/wheel zoom, pan,
+// hover read-out, legend toggles, and x-zoom linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
 //
 // Series are decimated when added (min and max per index bucket, at most kMaxBuckets buckets), so
 // a Document holds only what it will write and a million-point series costs a few milliseconds.
@@ -101,6 +101,7 @@ class Document {
   std::string title_;
   std::string body_;  // HTML of the blocks so far; figure data already decimated and encoded
   int next_id_ = 0;
+  int plots_ = 0;    // figures and bar charts: the page carries dygraphs and the plot help only if > 0
   int columns_ = 0;  // > 0 while inside columns_begin/columns_end
 };
 
