@@ -125,12 +125,25 @@ void Document::heatmap(const Heatmap& map) {
     throw std::invalid_argument("report heatmap '" + map.title + "': needs " + std::to_string(map.y_ticks.size()) + " rows of " +
                                 std::to_string(map.x_ticks.size()) + " cells");
   }
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  const bool banded = map.pass_min.has_value() || map.pass_max.has_value();
+  const bool by_mark = !banded && !map.marked.empty();
+  // Signed distance of a value from the pass band's nearest bound: > 0 inside, < 0 outside.
+  const auto inside = [&](double v) {
+    double d = std::numeric_limits<double>::infinity();
+    if (map.pass_min) d = std::min(d, v - *map.pass_min);
+    if (map.pass_max) d = std::min(d, *map.pass_max - v);
+    return d;
+  };
+  // Scales for the shades: the value range, or the furthest cell on each side of the band.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, in_max = 0, out_max = 0;
   for (const auto& row : map.values) {
     for (double v : row) {
       if (!std::isfinite(v)) continue;
       lo = std::min(lo, v);
       hi = std::max(hi, v);
+      if (!banded) continue;
+      const double d = inside(v);
+      if (std::isfinite(d)) (d >= 0 ? in_max : out_max) = std::max(d >= 0 ? in_max : out_max, std::abs(d));
     }
   }
   std::string h = "<div class=\"hil-table-wrap\"><table class=\"hil-table\"><caption style=\"text-align:left\"><b>" +
@@ -145,11 +158,23 @@ void Document::heatmap(const Heatmap& map) {
       const double v = map.values[y][x];
       const bool marked = !map.marked.empty() && map.marked[y][x];
       std::string style;
-      if (std::isfinite(v)) {
+      if (banded) {
+        // Green inside the band, red outside; lighter at the bound, darker away from it.
+        const double d = std::isfinite(v) ? inside(v) : -std::numeric_limits<double>::infinity();
+        const bool pass = d >= 0;
+        const double scale = pass ? in_max : out_max;
+        const double f = !std::isfinite(d) ? 1.0 : scale > 0 ? std::abs(d) / scale : 0.0;
+        std::snprintf(text, sizeof text, "background:hsl(%d,60%%,%.0f%%);", pass ? 120 : 0, 86.0 - 22.0 * f);
+        style = text;
+      } else if (by_mark) {
+        style = marked ? "background:hsl(0,60%,76%);" : "background:hsl(120,60%,76%);";
+      } else if (std::isfinite(v)) {
         // Green (hue 120) for the smallest value to red (hue 0) for the largest, light enough for black text.
         const double f = hi > lo ? (v - lo) / (hi - lo) : 0.0;
         std::snprintf(text, sizeof text, "background:hsl(%.0f,70%%,72%%);", 120.0 * (1.0 - f));
         style = text;
+      }
+      if (std::isfinite(v)) {
         std::snprintf(text, sizeof text, "%.*g", map.digits, v);
       } else {
         std::snprintf(text, sizeof text, "-");
@@ -159,7 +184,20 @@ void Document::heatmap(const Heatmap& map) {
     }
     h += "</tr>";
   }
-  h += "</tbody></table></div>";
+  h += "</tbody></table><p class=\"hil-map-key\">";
+  if (banded) {
+    std::string band;
+    char num[32];
+    if (map.pass_min) std::snprintf(num, sizeof num, "%.*g", map.digits, *map.pass_min), band += std::string("&ge; ") + num;
+    if (map.pass_min && map.pass_max) band += " and ";
+    if (map.pass_max) std::snprintf(num, sizeof num, "%.*g", map.digits, *map.pass_max), band += std::string("&le; ") + num;
+    h += "Colour: green passes (" + band + "), red fails; darker is further from the threshold.";
+  } else if (by_mark) {
+    h += "Colour: red where a point of the cell fails, green where all pass.";
+  } else {
+    h += "Colour: green for the smallest value to red for the largest.";
+  }
+  h += "</p></div>";
   block(h);
 }
 

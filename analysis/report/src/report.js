@@ -1,4 +1,4 @@
-// hilbench report: turns each figure's JSON (a non-executed <script class="hil-data"> written by
+// hilbench report: turns each figure's JSON (in a non-executed script element of class hil-data, written by
 // report.cpp) into a Dygraph (Debian's libjs-dygraphs, inlined before this script). Dygraphs does
 // the drawing, the axes, box zoom, shift+drag pan, double-click reset and the hover read-out; this
 // layer adds what a report needs on top: series styles, bands and reference lines, linked x zoom and
