@@ -81,6 +81,9 @@ document.addEventListener('DOMContentLoaded', async () => {
     const tip = a.fig.querySelector('.dygraph-legend');
     check(tip && tip.style.display !== 'none' && tip.textContent.includes('measured') && tip.textContent.includes('time [s]'),
       'hover shows a read-out: ' + (tip && tip.textContent));
+    // Every series reads its drawn curve at the cursor (lines interpolate, steps hold), also where
+    // its samples fall between the rows of another series.
+    check(tip && !tip.textContent.includes('\u2014'), 'every series has a value at the cursor: ' + (tip && tip.textContent));
     const xa = a.graph.getSelection() >= 0 ? a.graph.getValue(a.graph.getSelection(), 0) : NaN;
     const xb = b.graph.getSelection() >= 0 ? b.graph.getValue(b.graph.getSelection(), 0) : NaN;
     check(Math.abs(xa - (range(a)[0] + 0.3 * full)) < 0.01 * full, 'hover selects the x under the cursor: ' + xa + ' in ' + range(a));

@@ -134,12 +134,25 @@
     return chart;
   }
 
+  // A series' value at x where its own samples do not fall on that row: lines interpolate, steps
+  // hold, so the read-out is the drawn curve; null outside the series or for scatter.
+  function valueAt(s, x) {
+    let lo = 0, hi = s.x.length;
+    while (lo < hi) { const mid = (lo + hi) >> 1; if (s.x[mid] < x) lo = mid + 1; else hi = mid; }
+    if (s.x[lo] === x) return s.y[lo];
+    if (s.style === 'points' || lo === 0 || lo >= s.x.length) return null;
+    const y0 = s.y[lo - 1], y1 = s.y[lo];
+    if (y0 === null || (y1 === null && s.style !== 'step')) return NaN;  // inside a gap
+    return s.style === 'step' ? y0 : y0 + ((y1 - y0) * (x - s.x[lo - 1])) / (s.x[lo] - s.x[lo - 1]);
+  }
+
   // Read-out next to the cursor: x with its axis name, every visible series, the band under it.
   const readout = (chart, xName, xText) => data => {
     if (data.x === undefined || data.x === null) return '';
     const rows = data.series.filter(s => s.isVisible).map(s => {
-      const it = chart.items[chart.labels.indexOf(s.label)];
-      return swatch(it) + esc(it.name) + '<span class="v">' + fmtVal(s.y) + '</span>';
+      const i = chart.labels.indexOf(s.label), it = chart.items[i];
+      const y = s.y !== undefined && s.y !== null ? s.y : chart.spec.series ? valueAt(chart.spec.series[i], data.x) : null;
+      return swatch(it) + esc(it.name) + '<span class="v">' + fmtVal(y) + '</span>';
     });
     for (const b of chart.spec.bands || []) {
       if (b.label && data.x >= Math.min(b.x0, b.x1) && data.x <= Math.max(b.x0, b.x1)) rows.push('<span class="band">\u25A0 ' + esc(b.label) + '</span>');
