@@ -143,7 +143,8 @@ void Document::heatmap(const Heatmap& map) {
       hi = std::max(hi, v);
       if (!banded) continue;
       const double d = inside(v);
-      if (std::isfinite(d)) (d >= 0 ? in_max : out_max) = std::max(d >= 0 ? in_max : out_max, std::abs(d));
+      double& furthest = d >= 0 ? in_max : out_max;
+      if (std::isfinite(d)) furthest = std::max(furthest, std::abs(d));
     }
   }
   std::string h = "<div class=\"hil-table-wrap\"><table class=\"hil-table\"><caption style=\"text-align:left\"><b>" +
@@ -186,11 +187,13 @@ void Document::heatmap(const Heatmap& map) {
   }
   h += "</tbody></table><p class=\"hil-map-key\">";
   if (banded) {
-    std::string band;
-    char num[32];
-    if (map.pass_min) std::snprintf(num, sizeof num, "%.*g", map.digits, *map.pass_min), band += std::string("&ge; ") + num;
-    if (map.pass_min && map.pass_max) band += " and ";
-    if (map.pass_max) std::snprintf(num, sizeof num, "%.*g", map.digits, *map.pass_max), band += std::string("&le; ") + num;
+    const auto bound = [&](const char* relation, double v) {
+      char num[32];
+      std::snprintf(num, sizeof num, "%.*g", map.digits, v);
+      return std::string(relation) + num;
+    };
+    std::string band = map.pass_min ? bound("&ge; ", *map.pass_min) : "";
+    if (map.pass_max) band += (map.pass_min ? " and " : "") + bound("&le; ", *map.pass_max);
     h += "Colour: green passes (" + band + "), red fails; darker is further from the threshold.";
   } else if (by_mark) {
     h += "Colour: red where a point of the cell fails, green where all pass.";
@@ -317,7 +320,7 @@ std::string Document::page_tail() const {
   tail.reserve(detail::kDygraphJs.size() + detail::kReportJs.size() + 256);
   if (columns_ > 0) tail += "</div>\n";  // an unclosed columns_begin still gives valid HTML
   tail += "</main>\n";
-  // The plotting library and its layer only where there is something to plot.
+  // The plotting library only where there is something to plot; report.js also sorts tables.
   if (plots_ > 0) {
     tail += "<script>\n";
     tail += detail::kDygraphJs;
