@@ -56,20 +56,23 @@
     return rows;
   }
 
-  // Counts the pixels of the plot area that the data drew: the canvas before the series are drawn
-  // (grid and axes already there) against after. Only on a chart's first draw: reading pixels back
-  // costs more than drawing.
+  // Counts the pixels of the plot area that the data drew: the canvas read back before the series
+  // are drawn (a plotter ahead of the real one: dygraphs runs plugins' willDrawChart in reverse
+  // order, so a plugin would read before the grid and axes) against after. Only on a chart's
+  // first draw: reading pixels back costs more than drawing.
   function inkCounter(chart) {
     let before = null, box = null;
     const pixels = e => new Uint32Array(e.drawingContext.getImageData(...box).data.buffer);
-    return { toString: () => 'hil ink counter', activate: () => ({
+    const snapshot = e => {
+      if (e.seriesIndex !== 0 || !chart.countInk) return;
+      const a = e.dygraph.getArea(), c = e.drawingContext.canvas, r = c.width / (parseFloat(c.style.width) || c.width);
+      box = [a.x, a.y, a.w, a.h].map(v => Math.max(1, Math.floor(v * r)));
+      before = pixels(e);
+    };
+    const plugin = { toString: () => 'hil ink counter', activate: () => ({
       willDrawChart: e => {
         e.canvas.classList.add('hil-plot');
         if (chart.empty) e.canvas.setAttribute('data-empty', '1');
-        if (!chart.countInk) return;
-        const a = e.dygraph.getArea(), r = e.canvas.width / (parseFloat(e.canvas.style.width) || e.canvas.width);
-        box = [a.x, a.y, a.w, a.h].map(v => Math.max(1, Math.floor(v * r)));
-        before = pixels(e);
       },
       didDrawChart: e => {
         e.canvas.setAttribute('data-rendered', '1');
@@ -82,6 +85,7 @@
         before = null;
       },
     }) };
+    return { plugin, plotters: draw => [snapshot, draw] };
   }
 
   // Wheel zoom around the cursor in x: ctrl/cmd+wheel always, plain wheel once the plot has been
@@ -230,13 +234,13 @@
       if (b.label && !items.some(it => it.name === b.label && !it.toggles)) items.push({ name: b.label, color: b.color || '#d62728', kind: 'box band' });
     }
     if (chart.group) groups.set(chart.group, (groups.get(chart.group) || []).concat([chart]));
-    const axis = log => Object.assign({ logscale: !!log }, log ? { axisLabelFormatter: fmtLogTick } : {});
+    const ink = inkCounter(chart), axis = log => Object.assign({ logscale: !!log }, log ? { axisLabelFormatter: fmtLogTick } : {});
     chart.graph = new Dygraph(chart.div, chart.empty ? [0, 1].map(x => [x, ...series.map(() => null)]) : chart.rows, Object.assign({}, COMMON, {
       labels: ['x', ...chart.labels], series: opts, xlabel: esc(spec.xLabel || ''), ylabel: esc(spec.yLabel || ''),
       axes: { x: axis(spec.xLog), y: axis(spec.yLog) }, valueRange: chart.empty ? [0, 1] : null,
       legendFormatter: readout(chart, spec.xLabel || 'x', fmtVal), underlayCallback: underlay(spec), drawCallback: onDraw(chart),
       highlightCallback: (e, x) => hoverLinked(chart, x), unhighlightCallback: () => hoverLinked(chart, null),
-      interactionModel: wheelModel(chart), plugins: [inkCounter(chart)],
+      interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(Dygraph.Plotters.linePlotter),
     }));
     legend(chart, items);
     if (chart.empty) chart.div.insertAdjacentHTML('afterend', '<div class="hil-nodata">no data</div>');
@@ -271,14 +275,15 @@
     chart.empty = !chart.rows.some(r => r.some((v, i) => i > 0 && isFinite(v)));
     // Each category's label gets its slot's width and wraps in it.
     const slot = Math.max(30, ((fig.clientWidth || 600) - 70) / Math.max(1, cats.length));
+    const ink = inkCounter(chart);
     const label = c => '<span title="' + esc(c) + '">' + esc(c.length > 28 ? c.slice(0, 27) + '\u2026' : c) + '</span>';
     chart.graph = new Dygraph(chart.div, chart.rows.length ? chart.rows : [[0, ...grs.map(() => null)]], Object.assign({}, COMMON, {
       labels: ['category', ...chart.labels], ylabel: esc(spec.yLabel || ''), includeZero: true, valueRange: chart.empty ? [0, 1] : null,
-      dateWindow: [-0.5, Math.max(0.5, cats.length - 0.5)], plotter: barPlotter(chart), xAxisHeight: 46,
+      dateWindow: [-0.5, Math.max(0.5, cats.length - 0.5)], plotter: ink.plotters(barPlotter(chart)), xAxisHeight: 46,
       axes: { x: { drawGrid: false, axisLabelWidth: slot, ticker: () => cats.map((c, i) => ({ v: i, label: label(c) })) } },
       legendFormatter: readout(chart, 'category', i => (cats[Math.round(i)] === undefined ? '' : cats[Math.round(i)])),
       interactionModel: { dblclick: () => {} },  // categories: nothing to zoom or pan
-      drawCallback: () => { chart.resetButton.style.visibility = 'hidden'; }, plugins: [inkCounter(chart)],
+      drawCallback: () => { chart.resetButton.style.visibility = 'hidden'; }, plugins: [ink.plugin],
     }));
     legend(chart, grs.length > 1 || (grs.length === 1 && grs[0].name) ? chart.items : []);
     return chart;
