@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "assets.hpp"
 #include "sample_reports.hpp"
 
 namespace fs = std::filesystem;
@@ -69,15 +70,19 @@ TEST(Document, HostileTextCannotBreakThePage) {
                     .bands = {{0, 1, "<!-- band", ""}},
                     .hlines = {{0.5, "</script>"}}});
   doc.bars(Bars{.title = "<b>", .y_label = "<i>", .categories = {"</script>"}, .groups = {{"<g>", {1.0}}}});
-  const std::string page = doc.html();
+  std::string page = doc.html();
+  // The embedded plotting library is trusted text with markup of its own: checked apart.
+  const auto lib = page.find(hil::report::detail::kDygraphJs);
+  ASSERT_NE(lib, std::string::npos);
+  page.erase(lib, hil::report::detail::kDygraphJs.size());
   EXPECT_EQ(page.find("<b>"), std::string::npos);
   EXPECT_EQ(page.find("<i>"), std::string::npos);
   EXPECT_EQ(page.find("<img"), std::string::npos);
   EXPECT_EQ(page.find("<!-- band"), std::string::npos);
   EXPECT_EQ(page.find("<script>alert"), std::string::npos);
-  // Exactly the page's own scripts: one data script per figure and the plotting script.
-  EXPECT_EQ(count(page, "<script"), 3u);
-  EXPECT_EQ(count(page, "</script>"), 3u);
+  // Exactly the page's own scripts: one data script per figure, dygraphs and the plotting layer.
+  EXPECT_EQ(count(page, "<script"), 4u);
+  EXPECT_EQ(count(page, "</script>"), 4u);
   EXPECT_EQ(count(page, "<figure"), 2u);
   EXPECT_EQ(count(page, "</figure>"), 2u);
 }
@@ -99,8 +104,9 @@ TEST(Document, TablesMarkNumericCells) {
   EXPECT_EQ(count(page, "<td class=\"num\">"), 2u);
 }
 
-// A heatmap: every value printed in its cell, the smallest green (hue 120), the largest red (hue
-// 0), a cell without a value blank, marked cells flagged, the labels escaped.
+// A heatmap without a pass band: every value printed in its cell, a cell without a value blank,
+// marked cells flagged, the labels escaped. Coloured red where marked (failing) and green elsewhere;
+// with no marks at all, from green (hue 120, the smallest) to red (hue 0, the largest).
 TEST(Document, HeatmapColoursAndFlagsCells) {
   Document doc("h");
   hil::report::Heatmap h{.title = "<iae>",
@@ -112,15 +118,77 @@ TEST(Document, HeatmapColoursAndFlagsCells) {
                          .marked = {{false, false}, {true, false}}};
   doc.heatmap(h);
   const std::string page = doc.html();
-  EXPECT_NE(page.find("background:hsl(120,70%,72%);\">1</td>"), std::string::npos);
-  EXPECT_NE(page.find("background:hsl(60,70%,72%);\">2</td>"), std::string::npos);
-  EXPECT_NE(page.find("background:hsl(0,70%,72%);outline:2px solid #b00;outline-offset:-2px;font-weight:bold;\">3 &#x2717;</td>"),
+  EXPECT_NE(page.find("background:hsl(120,60%,76%);\">1</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(120,60%,76%);\">2</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(0,60%,76%);outline:2px solid #b00;outline-offset:-2px;font-weight:bold;\">3 &#x2717;</td>"),
             std::string::npos);
-  EXPECT_NE(page.find("style=\"\">-</td>"), std::string::npos);
+  EXPECT_NE(page.find("red where a point of the cell fails"), std::string::npos);
   EXPECT_EQ(count(page, "&#x2717;"), 1u);
   EXPECT_NE(page.find("&lt;iae&gt;"), std::string::npos);
+
+  Document plain("h");
+  h.marked.clear();
+  plain.heatmap(h);
+  const std::string ranked = plain.html();
+  EXPECT_NE(ranked.find("background:hsl(120,70%,72%);\">1</td>"), std::string::npos);
+  EXPECT_NE(ranked.find("background:hsl(60,70%,72%);\">2</td>"), std::string::npos);
+  EXPECT_NE(ranked.find("background:hsl(0,70%,72%);\">3</td>"), std::string::npos);
+  EXPECT_NE(ranked.find("style=\"\">-</td>"), std::string::npos);
+  EXPECT_NE(ranked.find("green for the smallest value to red for the largest"), std::string::npos);
   h.values.pop_back();
   EXPECT_THROW(doc.heatmap(h), std::invalid_argument);
+}
+
+// With a pass band the colour says pass or fail, not the value's rank: a "higher is better" metric
+// (pass at >= 2) whose smallest cell fails is red there, though it is the smallest value; passing
+// cells are green, darker the further inside; a missing value counts as failing.
+TEST(Document, HeatmapColoursByThePassBand) {
+  Document doc("h");
+  doc.heatmap(hil::report::Heatmap{.title = "margin",
+                                   .x_ticks = {"a", "b", "c", "d"},
+                                   .y_ticks = {"1"},
+                                   .values = {{1.0, 2.5, 4.0, NAN}},
+                                   .marked = {{true, false, false, true}},
+                                   .pass_min = 2.0});
+  const std::string page = doc.html();
+  // 1 is 1 below the bound, the furthest out: the darkest red (86 - 22 = 64 % lightness).
+  EXPECT_NE(page.find("background:hsl(0,60%,64%);outline"), std::string::npos) << page;
+  // 2.5 is 0.5 inside of at most 2: a quarter of the way to the darkest green; 4 the darkest.
+  EXPECT_NE(page.find("background:hsl(120,60%,80%);\">2.5</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(120,60%,64%);\">4</td>"), std::string::npos);
+  EXPECT_NE(page.find("background:hsl(0,60%,64%);outline:2px solid #b00;outline-offset:-2px;font-weight:bold;\">- &#x2717;"),
+            std::string::npos);
+  EXPECT_EQ(count(page, "hsl(120,"), 2u);
+  EXPECT_EQ(count(page, "hsl(0,"), 2u);
+  EXPECT_NE(page.find("green passes (&ge; 2), red fails"), std::string::npos);
+
+  Document upper("h");
+  upper.heatmap(hil::report::Heatmap{
+      .title = "iae", .x_ticks = {"a", "b"}, .y_ticks = {"1"}, .values = {{0.1, 0.3}}, .pass_min = 0.0, .pass_max = 0.2});
+  const std::string both = upper.html();
+  EXPECT_NE(both.find("background:hsl(120,60%,64%);\">0.1</td>"), std::string::npos) << both;
+  EXPECT_NE(both.find("background:hsl(0,60%,64%);\">0.3</td>"), std::string::npos);
+  EXPECT_NE(both.find("(&ge; 0 and &le; 0.2)"), std::string::npos);
+}
+
+// The plot help and the plotting library come with plots only: a page of tables and maps (a sweep
+// report) has neither; a page with one figure or one bar chart has both.
+TEST(Document, PlotHelpOnlyOnPagesWithPlots) {
+  Document tables("tables");
+  tables.table({"a"}, {{"1"}});
+  tables.heatmap(hil::report::Heatmap{.title = "m", .x_ticks = {"a"}, .y_ticks = {"1"}, .values = {{1.0}}});
+  const std::string none = tables.html();
+  const auto library = hil::report::detail::kDygraphJs.substr(0, 200);
+  EXPECT_EQ(none.find("class=\"hil-help\""), std::string::npos);
+  EXPECT_EQ(none.find("drag to zoom"), std::string::npos);
+  EXPECT_EQ(none.find(library), std::string::npos);
+
+  const std::string one = small_doc().html();
+  EXPECT_NE(one.find("class=\"hil-help\">Plots: drag to zoom"), std::string::npos);
+  EXPECT_NE(one.find(library), std::string::npos);
+  Document bars("bars");
+  bars.bars(Bars{.title = "b", .categories = {"a"}, .groups = {{"g", {1.0}}}});
+  EXPECT_NE(bars.html().find("class=\"hil-help\""), std::string::npos);
 }
 
 TEST(DocumentWrite, WritesTheWholePageAndNoTemporary) {

@@ -125,12 +125,26 @@ void Document::heatmap(const Heatmap& map) {
     throw std::invalid_argument("report heatmap '" + map.title + "': needs " + std::to_string(map.y_ticks.size()) + " rows of " +
                                 std::to_string(map.x_ticks.size()) + " cells");
   }
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  const bool banded = map.pass_min.has_value() || map.pass_max.has_value();
+  const bool by_mark = !banded && !map.marked.empty();
+  // Signed distance of a value from the pass band's nearest bound: > 0 inside, < 0 outside.
+  const auto inside = [&](double v) {
+    double d = std::numeric_limits<double>::infinity();
+    if (map.pass_min) d = std::min(d, v - *map.pass_min);
+    if (map.pass_max) d = std::min(d, *map.pass_max - v);
+    return d;
+  };
+  // Scales for the shades: the value range, or the furthest cell on each side of the band.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, in_max = 0, out_max = 0;
   for (const auto& row : map.values) {
     for (double v : row) {
       if (!std::isfinite(v)) continue;
       lo = std::min(lo, v);
       hi = std::max(hi, v);
+      if (!banded) continue;
+      const double d = inside(v);
+      double& furthest = d >= 0 ? in_max : out_max;
+      if (std::isfinite(d)) furthest = std::max(furthest, std::abs(d));
     }
   }
   std::string h = "<div class=\"hil-table-wrap\"><table class=\"hil-table\"><caption style=\"text-align:left\"><b>" +
@@ -145,11 +159,23 @@ void Document::heatmap(const Heatmap& map) {
       const double v = map.values[y][x];
       const bool marked = !map.marked.empty() && map.marked[y][x];
       std::string style;
-      if (std::isfinite(v)) {
+      if (banded) {
+        // Green inside the band, red outside; lighter at the bound, darker away from it.
+        const double d = std::isfinite(v) ? inside(v) : -std::numeric_limits<double>::infinity();
+        const bool pass = d >= 0;
+        const double scale = pass ? in_max : out_max;
+        const double f = !std::isfinite(d) ? 1.0 : scale > 0 ? std::abs(d) / scale : 0.0;
+        std::snprintf(text, sizeof text, "background:hsl(%d,60%%,%.0f%%);", pass ? 120 : 0, 86.0 - 22.0 * f);
+        style = text;
+      } else if (by_mark) {
+        style = marked ? "background:hsl(0,60%,76%);" : "background:hsl(120,60%,76%);";
+      } else if (std::isfinite(v)) {
         // Green (hue 120) for the smallest value to red (hue 0) for the largest, light enough for black text.
         const double f = hi > lo ? (v - lo) / (hi - lo) : 0.0;
         std::snprintf(text, sizeof text, "background:hsl(%.0f,70%%,72%%);", 120.0 * (1.0 - f));
         style = text;
+      }
+      if (std::isfinite(v)) {
         std::snprintf(text, sizeof text, "%.*g", map.digits, v);
       } else {
         std::snprintf(text, sizeof text, "-");
@@ -159,7 +185,22 @@ void Document::heatmap(const Heatmap& map) {
     }
     h += "</tr>";
   }
-  h += "</tbody></table></div>";
+  h += "</tbody></table><p class=\"hil-map-key\">";
+  if (banded) {
+    const auto bound = [&](const char* relation, double v) {
+      char num[32];
+      std::snprintf(num, sizeof num, "%.*g", map.digits, v);
+      return std::string(relation) + num;
+    };
+    std::string band = map.pass_min ? bound("&ge; ", *map.pass_min) : "";
+    if (map.pass_max) band += (map.pass_min ? " and " : "") + bound("&le; ", *map.pass_max);
+    h += "Colour: green passes (" + band + "), red fails; darker is further from the threshold.";
+  } else if (by_mark) {
+    h += "Colour: red where a point of the cell fails, green where all pass.";
+  } else {
+    h += "Colour: green for the smallest value to red for the largest.";
+  }
+  h += "</p></div>";
   block(h);
 }
 
@@ -204,6 +245,7 @@ void Document::figure(const Figure& fig) {
     json += "]}";
     json += kDataClose;
     close_block();
+    ++plots_;
   } catch (...) {
     body_.resize(mark);  // no half figure in the page
     throw;
@@ -232,6 +274,7 @@ void Document::bars(const Bars& chart) {
   }
   json += "]}";
   block(figure_head("bars", next_id_++, chart.title) + std::string(kDataOpen) + json + std::string(kDataClose));
+  ++plots_;
 }
 
 void Document::columns_begin(int n) {
@@ -248,28 +291,42 @@ void Document::columns_end() {
 
 std::string Document::page_head() const {
   std::string head;
-  head.reserve(detail::kReportCss.size() + 1024);
+  head.reserve(detail::kDygraphCss.size() + detail::kReportCss.size() + 1024);
   head +=
       "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
       "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
       "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
   head += html_escape(title_);
   head += "</title>\n<style>\n";
+  head += detail::kDygraphCss;
+  head += "\n";
   head += detail::kReportCss;
   head += "</style>\n</head>\n<body>\n<header class=\"hil-header\"><h1>";
   head += html_escape(title_);
-  head +=
-      "</h1><p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
-      "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; "
-      "click a legend entry to hide it, double-click to show it alone.</p></header>\n<main>\n";
+  head += "</h1>";
+  // How to use the plots, only where there are plots (a sweep report has tables only).
+  if (plots_ > 0) {
+    head +=
+        "<p class=\"hil-help\">Plots: drag to zoom in x &middot; shift+drag to pan &middot; "
+        "click a plot then wheel (or ctrl+wheel) to zoom &middot; double-click to reset &middot; hover for values &middot; "
+        "click a legend entry to hide it, double-click to show it alone.</p>";
+  }
+  head += "</header>\n<main>\n";
   return head;
 }
 
 std::string Document::page_tail() const {
   std::string tail;
-  tail.reserve(detail::kReportJs.size() + 256);
+  tail.reserve(detail::kDygraphJs.size() + detail::kReportJs.size() + 256);
   if (columns_ > 0) tail += "</div>\n";  // an unclosed columns_begin still gives valid HTML
-  tail += "</main>\n<div class=\"hil-tip\" hidden></div>\n<script>\n";
+  tail += "</main>\n";
+  // The plotting library only where there is something to plot; report.js also sorts tables.
+  if (plots_ > 0) {
+    tail += "<script>\n";
+    tail += detail::kDygraphJs;
+    tail += "\n</script>\n";
+  }
+  tail += "<script>\n";
   tail += detail::kReportJs;
   tail += "</script>\n</body></html>\n";
   return tail;

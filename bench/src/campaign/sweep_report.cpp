@@ -114,9 +114,11 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
   if (plan.samples > 1) others += (others.empty() ? "" : ", ") + std::string("samples (") + map.reduce + ")";
   h.title = map.metric;
   h.value_label = others.empty() ? "" : "over " + others;
+  if (bound != nullptr) h.pass_min = bound->min, h.pass_max = bound->max;  // coloured by pass/fail, not by range
   doc.heatmap(h);
-  doc.paragraph(bound != nullptr ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
-                                 : "Marked x: a point of the cell fails the thresholds.");
+  doc.paragraph(bound != nullptr
+                    ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
+                    : "Marked x: a point of the cell fails the thresholds (" + map.metric + " has none of its own).");
 }
 
 }  // namespace

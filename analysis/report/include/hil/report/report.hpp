@@ -1,6 +1,6 @@
 // Offline HTML report writer: one self-contained report.html (inline CSS, JS and data; no network)
-// with interactive canvas plots: box/wheel zoom, pan, hover read-out, legend toggles, and x-zoom
-// linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
+// with interactive plots drawn by Debian's dygraphs (embedded at build time): box/wheel zoom, pan,
+// hover read-out, legend toggles, and x-zoom linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
 //
 // Series are decimated when added (min and max per index bucket, at most kMaxBuckets buckets), so
 // a Document holds only what it will write and a million-point series costs a few milliseconds.
@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -61,6 +62,9 @@ struct Heatmap {  // a value per (x, y) cell as a table of coloured cells, e.g. 
   std::vector<std::vector<double>> values = {};  // [y][x]; NaN: no value, a blank cell
   std::vector<std::vector<bool>> marked = {};    // [y][x]: outlined and flagged "x" (failing); empty: none
   int digits = 3;                                // significant digits of the value shown in each cell
+  // The pass band of the value (a threshold: either bound or both). With one, a cell is green when
+  // its value is inside, red when outside (or missing), darker the further from the nearest bound.
+  std::optional<double> pass_min = std::nullopt, pass_max = std::nullopt;
 };
 
 class Document {
@@ -76,9 +80,10 @@ class Document {
   void figure(const Figure& fig);
   // Throws std::invalid_argument if a group does not have one value per category.
   void bars(const Bars& chart);
-  // Cells coloured from green (the smallest value) to red (the largest), the value printed in
-  // each; works without JavaScript. Throws std::invalid_argument if values or marked is not
-  // y_ticks x x_ticks.
+  // A table of cells, the value printed in each; works without JavaScript. Coloured by pass/fail:
+  // against the pass band if the map has one, else red for marked cells and green for the others;
+  // without either, from green (the smallest value) to red (the largest). A line under the map
+  // says which. Throws std::invalid_argument if values or marked is not y_ticks x x_ticks.
   void heatmap(const Heatmap& map);
   // Side-by-side layout: the blocks added until columns_end() fill n columns row by row (so add
   // run 1's pressure, run 2's pressure, ..., then run 1's angle, ...). No nesting.
@@ -101,6 +106,7 @@ class Document {
   std::string title_;
   std::string body_;  // HTML of the blocks so far; figure data already decimated and encoded
   int next_id_ = 0;
+  int plots_ = 0;    // figures and bar charts: the page carries dygraphs and the plot help only if > 0
   int columns_ = 0;  // > 0 while inside columns_begin/columns_end
 };
 

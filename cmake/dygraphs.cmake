@@ -1,0 +1,13 @@
+# Debian's dygraphs (libjs-dygraphs, its UMD build), the one plotting library of every page the
+# project writes: the campaign and analysis reports (analysis/report) and the operator console
+# (bench). Looked up here once; both embed the same two files at configure time so every page
+# works offline. scripts/setup.sh installs the package.
+set(HIL_DYGRAPHS_DIR /usr/share/javascript/dygraphs CACHE PATH "Debian's libjs-dygraphs")
+set(HIL_DYGRAPHS_JS ${HIL_DYGRAPHS_DIR}/dygraph.min.js)
+set(HIL_DYGRAPHS_CSS ${HIL_DYGRAPHS_DIR}/dygraph.min.css)
+foreach(_f IN ITEMS ${HIL_DYGRAPHS_JS} ${HIL_DYGRAPHS_CSS})
+  if(NOT EXISTS ${_f})
+    message(FATAL_ERROR "${_f} is missing (dygraphs: apt-get install libjs-dygraphs, or run scripts/setup.sh)")
+  endif()
+endforeach()
+set_property(DIRECTORY ${PROJECT_SOURCE_DIR} APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${HIL_DYGRAPHS_JS} ${HIL_DYGRAPHS_CSS})
