@@ -105,6 +105,7 @@ struct Cia402DriveEmulator::Impl {
   bool following_out = false;
   Clock::time_point qs_t0{};  // quick stop ramp: start, position, speed
   double qs_p0 = 0, qs_v0 = 0;
+  bool qs_started = false;
 
   Impl(Cia402EmulatorConfig c, DriveModel& m) : cfg(std::move(c)), model(m), n(cfg.node_id) {}
 
@@ -350,6 +351,7 @@ struct Cia402DriveEmulator::Impl {
             qs_t0 = Clock::now();
             qs_p0 = s.position_rad;
             qs_v0 = s.velocity_rad_s;
+            qs_started = true;
           } else if (quick_stop) {
             state = State::switch_on_disabled;  // quick stop option 0: stop at once, drive function off
           }
@@ -539,6 +541,14 @@ std::optional<std::uint32_t> Cia402DriveEmulator::object(std::uint16_t index, st
     const auto it = m.od.find(key(index, sub));
     if (it == m.od.end()) return std::nullopt;
     return it->second.value;
+  });
+}
+
+std::optional<Cia402DriveEmulator::RampStart> Cia402DriveEmulator::quick_stop_ramp_start() {
+  auto& m = *impl_;
+  return m.on_io([&m]() -> std::optional<RampStart> {
+    if (!m.qs_started) return std::nullopt;
+    return RampStart{m.qs_p0, m.qs_v0};
   });
 }
 

@@ -61,6 +61,13 @@ class Cia402DriveEmulator {
   std::uint64_t syncs_seen() const;
   // Reads an object from the dictionary; nullopt when it does not exist.
   std::optional<std::uint32_t> object(std::uint16_t index, std::uint8_t sub);
+  // Where and how fast the motor was when the last quick stop ramp began (quick_stop_ramp
+  // variant); nullopt before the first. A test measures the ramp from here, not from a position
+  // its own thread read at some earlier moment.
+  struct RampStart {
+    double position_rad = 0, velocity_rad_s = 0;
+  };
+  std::optional<RampStart> quick_stop_ramp_start();
 
   // Misbehaviour on command, thread-safe.
   void stop_heartbeat(bool stopped);
