@@ -172,9 +172,9 @@ void JobQueue::stop(const std::string& why) {
     waiting_.clear();
   }
   wake_.notify_all();
+  for (auto& [w, s] : calls) w(s);
   // The running job ends first: its output is renamed into place whole or removed, never left half.
   if (worker_.joinable() && worker_.get_id() != std::this_thread::get_id()) worker_.join();
-  for (auto& [w, s] : calls) w(s);
 }
 
 }  // namespace hil::bench
