@@ -48,7 +48,7 @@ struct CompareOptions {
   bool progress = true;
   bool quiet = false;
   // When set, called instead of the progress line on stderr (the server's job shows it).
-  Progress on_progress;
+  Progress on_progress = {};
 };
 // The whole command: prints the summary, writes DIR/compare.json and DIR/report.html.
 ResidualReport run_compare(const CompareOptions& options);
