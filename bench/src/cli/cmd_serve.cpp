@@ -168,7 +168,7 @@ CommandRun define_serve(CLI::App& cmd) {
   cmd.add_option("--max-waiting-jobs", args->max_waiting_jobs,
                  "reports and analyses that may wait for the job worker; more are refused (503)")
       ->type_name("N")
-      ->check(whole_number(0, 1000))
+      ->check(whole_number(1, 1000))
       ->capture_default_str();
   cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
   return [args] { return run_serve(*args); };
