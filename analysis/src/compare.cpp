@@ -318,8 +318,8 @@ ResidualReport run_compare(const CompareOptions& o) {
   const plant::Plant model = plant::Plant::load(o.model_file);
   const bool tty = ::isatty(STDERR_FILENO);
   int last_decile = -1;
-  Progress progress;
-  if (o.progress && !o.quiet) {
+  Progress progress = o.on_progress;
+  if (!progress && o.progress && !o.quiet) {
     progress = [&](double f, std::size_t rows) {
       const int decile = static_cast<int>(f * 10);
       if (!tty && decile == last_decile) return;

@@ -2,7 +2,9 @@
 // choose paper_adaptive's adaptive run on the sim rig and click Start; the plots grow (the page's
 // redraw counter and held rows rise); a gap change injected through the page (with its confirm
 // step) shows in the events list and as the true gap in the gap plot's data; Abort ends the run
-// "aborted" in the runs list; the run's report link opens the paper-style report with its figures.
+// "aborted" in the runs list; the run's report link opens the paper-style report with its figures;
+// Compare against the nominal model, clicked in the run's row, runs to done and its report opens;
+// the gap plot's y tick labels are distinct numbers whatever the range.
 // No console error or page error on either page; screenshots at 1400 and 390 px are not blank.
 //   node console_browser_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
 import { spawn } from "node:child_process";
@@ -33,9 +35,9 @@ async function finish() {
   process.exit(failed ? 1 : 0);
 }
 const deadline = setTimeout(() => {
-  fail("timed out after 150 s");
+  fail("timed out after 240 s");
   finish();
-}, 150_000);
+}, 240_000);
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 // The pixels of an 8-bit RGB or RGBA PNG (what Chromium writes), decoded here so that the check
@@ -242,6 +244,43 @@ async function main() {
   const figures = await reportPage.$$eval("figure.hil-fig", (f) => f.length);
   const title = await reportPage.title();
   if (figures < 3) fail(`the report has ${figures} figures`);
+
+  // Compare the aborted run against the nominal plant model by clicking; its state is shown
+  // live, and once done its report opens from the link.
+  await page.bringToFront();  // a background tab gets no animation frames: clicks in it never finish
+  const row = `#runs-table tr[data-run="${run.id}"]`;
+  if (!(await waitFor(page, "the plant models in the run's row", (row) => [...document.querySelectorAll(row + " select.model option")].some((o) => o.value === "nominal"), row))) return;
+  await page.select(row + " select.model", "nominal");
+  await page.click(row + ' button.analyse[data-kind="compare"]');
+  if (!(await waitFor(page, "the compare analysis done", (row) => !!document.querySelector(row + ' ul.analyses li[data-kind="compare"][data-state="done"] a.analysis-report'), row, 90_000))) return;
+  const analysis = await page.$eval(row + ' ul.analyses li[data-kind="compare"]', (li) => ({ text: li.textContent, href: li.querySelector("a.analysis-report").href }));
+  if (!/compare vs nominal: fit -?\d+(\.\d)? %/.test(analysis.text)) fail("the analysis as shown: " + JSON.stringify(analysis));
+  const analysisPage = await browser.newPage();
+  watch(analysisPage, "analysis report");
+  const ares = await analysisPage.goto(analysis.href, { waitUntil: "load", timeout: 60_000 });
+  if (ares.status() !== 200) fail("the analysis report answered " + ares.status());
+  const analysisFigures = await analysisPage.$$eval("figure.hil-fig", (f) => f.length);
+  if (analysisFigures < 1) fail(`the analysis report has ${analysisFigures} figures`);
+  if (!(await analysisPage.content()).includes("nominal.yaml")) fail("the analysis report does not name the model");
+
+  await page.bringToFront();
+  // The gap plot's y ticks print distinct values with the decimals their spacing needs, also
+  // when the axis spans a tenth of a degree (dygraphs' default printed "1" and "1").
+  const tickSets = [];
+  for (const range of [null, [0.98, 1.02], [0.9, 1.3], [0, 4]]) {
+    const labels = await page.evaluate(async (range) => {
+      const g = window.hilConsole.plots.gap;
+      g.updateOptions({ valueRange: range });
+      await new Promise((r) => requestAnimationFrame(r));
+      return [...document.querySelectorAll("#plot-gap .dygraph-axis-label-y")].map((e) => e.textContent.trim()).filter((t) => t);
+    }, range);
+    tickSets.push(labels);
+    if (labels.length < 3) fail(`gap plot, y range ${JSON.stringify(range)}: ${labels.length} tick labels ${JSON.stringify(labels)}`);
+    if (new Set(labels).size !== labels.length) fail(`gap plot, y range ${JSON.stringify(range)}: tick labels repeat: ${JSON.stringify(labels)}`);
+    const values = labels.map(Number);
+    if (values.some((v) => !isFinite(v))) fail(`gap plot tick labels not numbers: ${JSON.stringify(labels)}`);
+  }
+  await page.evaluate(() => window.hilConsole.plots.gap.updateOptions({ valueRange: null }));
   await sleep(500);
 
   const ds = await dataset(page);
@@ -249,7 +288,7 @@ async function main() {
   // The one refusal provoked above shows in the browser's log as a failed load: nothing else may.
   for (const p of problems) if (!expectedRefusal(p)) fail(p);
   if (problems.filter(expectedRefusal).length > 2) fail("more refusals than the one provoked: " + problems.join("; "));
-  console.log(`run ${run.id}: ${run.outcome} (${run.reason}); frames ${ds.framesRendered}, points ${ds.points}; report "${title}" with ${figures} figures; ${shots.join("; ")}`);
+  console.log(`run ${run.id}: ${run.outcome} (${run.reason}); frames ${ds.framesRendered}, points ${ds.points}; report "${title}" with ${figures} figures; ${analysis.text.trim()} (${analysisFigures} figures); gap ticks ${JSON.stringify(tickSets)}; ${shots.join("; ")}`);
 }
 
 main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {

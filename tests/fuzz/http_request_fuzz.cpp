@@ -35,6 +35,7 @@ struct Server {
     o.port = 0;
     o.campaigns_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/campaigns";
     o.rigs_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/rigs";
+    o.plant_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/plant";
     o.runs_dir = runs;
     o.max_body_bytes = 64 * 1024;
     api = std::make_unique<hil::bench::ApiServer>(io, o, *runner, hub);

@@ -1,5 +1,5 @@
 // hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
-//                [--max-body-kb N] [--no-mlock]
+//                [--max-body-kb N] [--max-waiting-jobs N] [--no-mlock]
 #include <cstdio>
 #include <string>
 #include <memory>
@@ -47,6 +47,7 @@ struct ServeArgs {
   std::string runs_dir = "runs";
   std::string port_file;  // empty: none
   std::size_t max_body_kb = 1024;
+  std::size_t max_waiting_jobs = 8;
   bool no_mlock = false;
 };
 
@@ -57,9 +58,11 @@ int run_serve(const ServeArgs& args) {
   const std::filesystem::path configs = args.configs_dir;
   api.campaigns_dir = configs / "campaigns";
   api.rigs_dir = configs / "rigs";
+  api.plant_dir = configs / "plant";
   api.runs_dir = args.runs_dir;
   api.version = HIL_VERSION;
   api.max_body_bytes = args.max_body_kb * 1024;
+  api.max_waiting_jobs = args.max_waiting_jobs;
   for (const auto& dir : {api.campaigns_dir, api.rigs_dir}) {
     if (!std::filesystem::is_directory(dir)) {
       throw std::runtime_error("no folder " + dir.string() + " (give --configs DIR, the folder holding campaigns/ and rigs/)");
@@ -159,6 +162,11 @@ CommandRun define_serve(CLI::App& cmd) {
   cmd.add_option("--max-body-kb", args->max_body_kb, "the largest request body")
       ->type_name("N")
       ->check(whole_number(0, 1024 * 1024))
+      ->capture_default_str();
+  cmd.add_option("--max-waiting-jobs", args->max_waiting_jobs,
+                 "reports and analyses that may wait for the job worker; more are refused (503)")
+      ->type_name("N")
+      ->check(whole_number(1, 1000))
       ->capture_default_str();
   cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
   return [args] { return run_serve(*args); };

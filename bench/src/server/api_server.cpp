@@ -17,10 +17,13 @@
 #include <boost/beast/websocket.hpp>
 #include <spdlog/spdlog.h>
 
+#include "analyses.hpp"
 #include "console/assets.hpp"
 #include "foxglove.hpp"
+#include "jobs.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/config.hpp"
+#include "hil/plant/plant.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -36,14 +39,25 @@ using Request = http::request<http::string_body>;
 
 constexpr std::size_t kWsQueueLimit = 1024;  // messages per client; beyond: dropped and counted
 
+struct Reply;
+
+// An answer that waits for a job: the connection sends `then(final state)` once the job has
+// finished, without holding the io thread meanwhile. Without a connection (answer_raw) the reply's
+// own body (202, the job's state) is the answer.
+struct JobWait {
+  std::string run, id;
+  std::function<Reply(const JobStatus&)> then;
+};
+
 // An answer: JSON (or text) in memory, or a file streamed from disk.
 struct Reply {
   http::status status = http::status::ok;
   std::string body;
   std::string content_type = "application/json";
-  std::filesystem::path file;  // non-empty: send this file
-  std::string extra_header;    // Content-Disposition for downloads
-  bool no_store = false;       // Cache-Control: no-store (the console: a new build is a new page)
+  std::filesystem::path file;                     // non-empty: send this file
+  std::string extra_header;                       // Content-Disposition for downloads
+  bool no_store = false;                          // Cache-Control: no-store (the console: a new build is a new page)
+  std::shared_ptr<const JobWait> wait = nullptr;  // set: the final answer comes when the job has finished
 };
 
 // Text from a request (a path, a query, a parser's message quoting the body) may hold bytes
@@ -51,9 +65,10 @@ struct Reply {
 std::string dump_json(const json& j, int indent = -1) { return j.dump(indent, ' ', false, json::error_handler_t::replace); }
 
 Reply json_reply(http::status status, const json& j) { return {status, dump_json(j, 2) + "\n", "application/json", {}, {}}; }
-Reply error_reply(http::status status, const std::string& error, const std::string& detail = "") {
+Reply error_reply(http::status status, const std::string& error, const std::string& detail = "", const std::string& field = "") {
   json j = {{"error", error}};
   if (!detail.empty()) j["detail"] = detail;
+  if (!field.empty()) j["field"] = field;  // the request field at fault, for a client to point at
   return json_reply(status, j);
 }
 
@@ -79,6 +94,7 @@ if (kept && !new URLSearchParams(location.search).has("token")) location.replace
 struct ApiError {
   http::status status;
   std::string error, detail;
+  std::string field = {};  // the body field at fault, where one is
 };
 
 std::string percent_decode(std::string_view s) {
@@ -191,16 +207,16 @@ T field(const json& j, const char* key, T fallback) {
   try {
     return j[key].get<T>();
   } catch (const json::exception&) {
-    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' has the wrong type"};
+    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' has the wrong type", key};
   }
 }
 
 double number_field(const json& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number()) {
-    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be a number"};
+    throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be a number", key};
   }
   const double v = j[key].get<double>();
-  if (!std::isfinite(v)) throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be finite"};
+  if (!std::isfinite(v)) throw ApiError{http::status::bad_request, "bad field", std::string("'") + key + "' must be finite", key};
   return v;
 }
 
@@ -211,7 +227,7 @@ void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
       std::vector<std::string> names(allowed.begin(), allowed.end());
       const std::string hint = cfg::closest(k, names);
       throw ApiError{http::status::bad_request, "unknown field",
-                     "'" + k + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+                     "'" + k + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)"), k};
     }
   }
 }
@@ -485,7 +501,7 @@ void TelemetryHub::publish_notice(const json& j) {
 
 struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
-      : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_) {}
+      : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_), jobs(options.max_waiting_jobs) {}
 
   asio::io_context& io;
   ApiOptions options;
@@ -493,6 +509,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   TelemetryHub& hub;
   tcp::acceptor acceptor;
   std::string refuse_starts;  // io thread only
+  JobQueue jobs;              // submitted to on the io thread only: a check and its submit never race
 
   void accept();
   bool authorised(const Request& req, const Target& t) const;
@@ -510,8 +527,17 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply runs();
   Reply run(const std::string& id);
   Reply run_file(const std::string& id, const std::string& file);
-  Reply run_report(const std::string& id);
+  Reply run_report(const std::string& id, const Target& t);
+  Reply models();
+  Reply analyses(const std::string& id);
+  Reply start_analysis(const std::string& id, const Request& req);
+  Reply analysis(const std::string& id, const std::string& aid);
+  Reply analysis_file(const std::string& id, const std::string& aid, const std::string& file);
   RigConfig rig_named(const std::string& name) const;
+  // The folder of a recorded run (404 otherwise) and its record (422 when unreadable), 409 while it runs.
+  std::filesystem::path ended_run(const std::string& id, RunRecord* record = nullptr) const;
+  // An analysis of the run, from the jobs (queued, running, failed) or from its folder (done).
+  std::optional<json> find_analysis(const std::string& id, const std::string& aid) const;
 };
 
 bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
@@ -793,40 +819,218 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
   return r;
 }
 
-Reply ApiServer::Impl::run_report(const std::string& id) {
+std::filesystem::path ApiServer::Impl::ended_run(const std::string& id, RunRecord* record) const {
   const auto dir = options.runs_dir / id;
   if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
     throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
   }
-  RunRecord record;
+  RunRecord r;
   try {
-    record = read_run_record(dir);
+    r = read_run_record(dir);
   } catch (const std::exception& e) {
-    throw ApiError{http::status::internal_server_error, "unreadable run.json", e.what()};
+    throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
   }
-  if (record.outcome == Outcome::running) {
+  if (r.outcome == Outcome::running) {
     throw ApiError{http::status::conflict, "the run is still running",
-                   "run '" + id + "' has no report before it ends; abort or stop it, or wait"};
+                   "run '" + id + "' is reviewed once it has ended; abort or stop it, or wait"};
   }
-  // Made once per run and kept in its folder: run.json is rewritten only by the run's end or by
-  // a server finding it interrupted, so a report newer than run.json is that run's report.
-  const auto out = dir / "report.html";
-  std::error_code ec;
-  const auto made = std::filesystem::last_write_time(out, ec);
-  if (ec || made < std::filesystem::last_write_time(dir / "run.json")) {
-    const auto part = dir / "report.html.tmp";  // a half-written report is never served or listed
-    try {
-      write_run_report({dir}, part);
-    } catch (const std::exception& e) {
-      std::filesystem::remove(part, ec);
-      throw ApiError{http::status::unprocessable_entity, "cannot make the report", e.what()};
-    }
-    std::filesystem::rename(part, out);
-  }
+  if (record != nullptr) *record = std::move(r);
+  return dir;
+}
+
+namespace {
+
+Reply html_file(const std::filesystem::path& file) {
   Reply r;
-  r.file = out;
+  r.file = file;
   r.content_type = "text/html; charset=utf-8";
   r.extra_header = "inline";
+  return r;
+}
+
+}  // namespace
+
+Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
+  const auto dir = ended_run(id);
+  // Made once per run, on the job worker, and kept in its folder (analyses.hpp run_report_current).
+  if (run_report_current(dir)) return html_file(dir / "report.html");
+  std::optional<JobStatus> job = jobs.find(id, "report");
+  if (job && (job->state == JobState::done || job->state == JobState::failed)) {
+    jobs.forget(id, "report");  // a failure is answered once; the next request tries again
+    if (job->state == JobState::failed) throw ApiError{http::status::unprocessable_entity, "cannot make the report", job->error};
+    job.reset();
+  }
+  if (!job) {
+    JobStatus s;
+    s.run = id;
+    s.id = "report";
+    s.kind = "report";
+    try {
+      job = jobs.submit(s, [dir](const JobQueue::Progress&) { return make_run_report(dir); });
+    } catch (const JobRefused& e) {
+      throw ApiError{http::status::service_unavailable, "cannot queue the job", e.what()};
+    }
+  }
+  Reply reply = json_reply(http::status::accepted, {{"report", job->to_json()}});
+  const auto wait = t.query.find("wait");
+  if (wait != t.query.end() && wait->second == "0") return reply;
+  auto w = std::make_shared<JobWait>();
+  w->run = id;
+  w->id = "report";
+  w->then = [this, dir, id](const JobStatus& s) -> Reply {
+    if (s.state == JobState::done && std::filesystem::exists(dir / "report.html")) return html_file(dir / "report.html");
+    jobs.forget(id, "report");
+    return error_reply(http::status::unprocessable_entity, "cannot make the report", s.error);
+  };
+  reply.wait = std::move(w);
+  return reply;
+}
+
+Reply ApiServer::Impl::models() {
+  json list = json::array();
+  for (const auto& name : yaml_stems(options.plant_dir)) {
+    const auto file = options.plant_dir / (name + ".yaml");
+    json j = {{"name", name}, {"file", file.string()}};
+    try {
+      plant::Plant::load(file);
+      j["description"] = cfg::Node::load_file(file).text("description", "");
+    } catch (const std::exception& e) {
+      j["error"] = e.what();
+    }
+    list.push_back(j);
+  }
+  return json_reply(http::status::ok, {{"models", list}, {"kinds", {kAnalysisKinds[0], kAnalysisKinds[1]}}});
+}
+
+std::optional<json> ApiServer::Impl::find_analysis(const std::string& id, const std::string& aid) const {
+  if (const auto job = jobs.find(id, aid); job && job->kind != "report" && job->state != JobState::done) return job->to_json();
+  for (auto& a : finished_analyses(options.runs_dir / id)) {
+    if (a.value("id", "") == aid) return a;
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+// What every analysis in a list or alone carries: where its report is, once there is one.
+json with_links(json a, const std::string& run) {
+  const std::string base = "/api/runs/" + run + "/analyses/" + a.value("id", "");
+  a["run"] = run;
+  a["url"] = base;
+  if (a.value("state", "") == "done") a["report"] = base + "/report.html";
+  return a;
+}
+
+}  // namespace
+
+Reply ApiServer::Impl::analyses(const std::string& id) {
+  const auto dir = options.runs_dir / id;
+  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
+    throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
+  }
+  json list = json::array();
+  std::vector<std::string> on_disk;
+  for (auto& a : finished_analyses(dir)) {
+    on_disk.push_back(a.value("id", ""));
+    list.push_back(with_links(std::move(a), id));
+  }
+  for (const auto& job : jobs.of_run(id)) {
+    if (job.kind == "report" || std::find(on_disk.begin(), on_disk.end(), job.id) != on_disk.end()) continue;
+    list.push_back(with_links(job.to_json(), id));
+  }
+  return json_reply(http::status::ok, {{"run", id}, {"analyses", list}});
+}
+
+Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req) {
+  if (!refuse_starts.empty()) throw ApiError{http::status::service_unavailable, "not accepting jobs", refuse_starts};
+  // The body first: a malformed request is named whatever the run.
+  const json body = parse_json_body(req);
+  allow_fields(body, {"kind", "model"});
+  const std::string kind = field<std::string>(body, "kind", "");
+  const std::vector<std::string> kinds(std::begin(kAnalysisKinds), std::end(kAnalysisKinds));
+  if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end()) {
+    const std::string hint = kind.empty() ? "" : cfg::closest(kind, kinds);
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'kind' must be compare or diagnose" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)"), "kind"};
+  }
+  const std::string model = field<std::string>(body, "model", "");
+  const auto names = yaml_stems(options.plant_dir);
+  if (model.empty()) {
+    throw ApiError{http::status::bad_request, "bad field", "'model' is required: a plant model's name from GET /api/models",
+                   "model"};
+  }
+  if (!cfg::plain_name(model) || std::find(names.begin(), names.end(), model) == names.end()) {
+    const std::string hint = cfg::closest(model, names);
+    throw ApiError{http::status::not_found, "unknown model",
+                   "'model': '" + model + "' is not a plant model in " + options.plant_dir.string() +
+                       (hint.empty() ? "" : " (did you mean '" + hint + "'?)"),
+                   "model"};
+  }
+  const auto dir = ended_run(id);
+  if (!std::filesystem::is_regular_file(dir / "telemetry.csv")) {
+    throw ApiError{http::status::unprocessable_entity, "no measurement", "run '" + id + "' has no telemetry.csv"};
+  }
+  // The same analysis already waiting or running: that one is the answer, not a second copy.
+  std::vector<std::string> live;
+  for (const auto& job : jobs.of_run(id)) {
+    if (job.state != JobState::queued && job.state != JobState::running) continue;
+    if (job.kind == kind && job.model == model) {
+      return json_reply(http::status::accepted, {{"analysis", with_links(job.to_json(), id)},
+                                                 {"note", "the same analysis is already " + std::string(to_string(job.state))}});
+    }
+    live.push_back(job.id);
+  }
+  AnalysisSpec spec;
+  spec.run_dir = dir;
+  spec.kind = kind;
+  spec.model = model;
+  spec.model_file = std::filesystem::absolute(options.plant_dir / (model + ".yaml"));
+  spec.id = next_analysis_id(dir, kind, model, live);
+  JobStatus s;
+  s.run = id;
+  s.id = spec.id;
+  s.kind = kind;
+  s.model = model;
+  JobStatus queued;
+  try {
+    queued = jobs.submit(s, [spec](const JobQueue::Progress& progress) { return run_analysis(spec, progress); });
+  } catch (const JobRefused& e) {
+    throw ApiError{http::status::service_unavailable, "cannot queue the job", e.what()};
+  }
+  spdlog::info("run {}: {} against {} queued as {}", id, kind, model, spec.id);
+  return json_reply(http::status::accepted, {{"analysis", with_links(queued.to_json(), id)}});
+}
+
+Reply ApiServer::Impl::analysis(const std::string& id, const std::string& aid) {
+  const auto a = cfg::plain_name(id) && cfg::plain_name(aid) ? find_analysis(id, aid) : std::nullopt;
+  if (!a) {
+    throw ApiError{http::status::not_found, "unknown analysis",
+                   "run '" + id + "' has no analysis '" + aid + "' (GET /api/runs/" + id + "/analyses lists them)"};
+  }
+  return json_reply(http::status::ok, {{"analysis", with_links(*a, id)}});
+}
+
+Reply ApiServer::Impl::analysis_file(const std::string& id, const std::string& aid, const std::string& file) {
+  const auto a = cfg::plain_name(id) && cfg::plain_name(aid) ? find_analysis(id, aid) : std::nullopt;
+  if (!a) {
+    throw ApiError{http::status::not_found, "unknown analysis",
+                   "run '" + id + "' has no analysis '" + aid + "' (GET /api/runs/" + id + "/analyses lists them)"};
+  }
+  const std::string state = a->value("state", "");
+  if (state == "queued" || state == "running") return json_reply(http::status::accepted, {{"analysis", with_links(*a, id)}});
+  if (state != "done") throw ApiError{http::status::unprocessable_entity, "the analysis failed", a->value("error", "")};
+  const auto path = analysis_dir(options.runs_dir / id, aid) / file;
+  if (!cfg::plain_name(file) || !std::filesystem::is_regular_file(path)) {
+    throw ApiError{http::status::not_found, "unknown file",
+                   "analysis '" + aid + "' of run '" + id + "' has no file '" + file + "'"};
+  }
+  if (path.extension() == ".html") return html_file(path);
+  Reply r;
+  r.file = path;
+  r.content_type = path.extension() == ".json"   ? "application/json"
+                   : path.extension() == ".yaml" ? "application/yaml"
+                                                 : "text/plain";
+  r.extra_header = "attachment; filename=\"" + file + "\"";
   return r;
 }
 
@@ -864,6 +1068,8 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.campaigns(); }},
     {http::verb::get, "/api/rigs", "the rig files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.rigs(); }},
+    {http::verb::get, "/api/models", "the plant models a run can be analysed against",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.models(); }},
     {http::verb::get, "/api/status", "the campaign running now, its loop's health and interlocks",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) {
        return json_reply(http::status::ok, api.runner.status());
@@ -884,8 +1090,27 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.runs(); }},
     {http::verb::get, "/api/runs/{id}", "a run's record and its files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
-    {http::verb::get, "/api/runs/{id}/report.html", "a run's paper-style report (HTML; made once the run has ended)",
-     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run_report(a[0]); }},
+    {http::verb::get, "/api/runs/{id}/report.html",
+     "a run's paper-style report (HTML, made on the job worker once the run has ended; ?wait=0: 202 and the job's state until "
+     "made)",
+     [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {
+       return api.run_report(a[0], t);
+     }},
+    {http::verb::get, "/api/runs/{id}/analyses", "a run's analyses against plant models: queued, running, done or failed",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.analyses(a[0]); }},
+    {http::verb::post, "/api/runs/{id}/analyses", "analyse an ended run against a plant model: {kind: compare | diagnose, model}",
+     [](ApiServer::Impl& api, const Request& req, const Target&, const std::vector<std::string>& a) {
+       return api.start_analysis(a[0], req);
+     }},
+    {http::verb::get, "/api/runs/{id}/analyses/{analysis}", "one analysis: its state, progress, error or result",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
+       return api.analysis(a[0], a[1]);
+     }},
+    {http::verb::get, "/api/runs/{id}/analyses/{analysis}/{file}",
+     "a file of a finished analysis: report.html, compare.json or diagnosis.json, fitted_model.yaml, analysis.json",
+     [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
+       return api.analysis_file(a[0], a[1], a[2]);
+     }},
     {http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.run_file(a[0], a[1]);
@@ -997,7 +1222,7 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
     try {
       reply = handle(req, t);
     } catch (const ApiError& e) {
-      reply = error_reply(e.status, e.error, e.detail);
+      reply = error_reply(e.status, e.error, e.detail, e.field);
     } catch (const std::exception& e) {
       spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
       reply = error_reply(http::status::internal_server_error, "internal error", e.what());
@@ -1079,6 +1304,24 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   }
 
   void send(Reply reply, bool keep_alive) {
+    if (reply.wait) {
+      // The answer waits for a job: the io thread goes on serving; the job's end posts it here.
+      const auto wait = std::move(reply.wait);
+      const bool waiting =
+          api_->jobs.when_finished(wait->run, wait->id, [self = shared_from_this(), wait, keep_alive](const JobStatus& s) {
+            asio::post(self->stream_.get_executor(), [self, wait, s, keep_alive] {
+              Reply r;
+              try {
+                r = wait->then(s);
+              } catch (const std::exception& e) {
+                r = error_reply(http::status::internal_server_error, "internal error", e.what());
+              }
+              self->stream_.expires_after(std::chrono::seconds(60));  // the read's deadline may have passed while waiting
+              self->send(std::move(r), keep_alive);
+            });
+          });
+      if (waiting) return;
+    }
     if (!reply.file.empty()) {
       http::file_body::value_type body;
       beast::error_code ec;
@@ -1165,6 +1408,9 @@ ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& r
                                 "'Authorization: Bearer T'");
   }
   impl_ = std::make_shared<Impl>(io, std::move(options), runner, hub);
+  if (const auto removed = remove_job_leftovers(impl_->options.runs_dir))
+    spdlog::warn("removed {} half-made reports or analyses a previous server left in {}", removed,
+                 impl_->options.runs_dir.string());
   const tcp::endpoint endpoint(address, impl_->options.port);
   auto& a = impl_->acceptor;
   a.open(endpoint.protocol());
@@ -1181,8 +1427,11 @@ ApiServer::~ApiServer() {
   if (impl_) {
     beast::error_code ec;
     impl_->acceptor.close(ec);
+    stop_jobs();
   }
 }
+
+void ApiServer::stop_jobs() { impl_->jobs.stop("the server is shutting down"); }
 
 unsigned short ApiServer::port() const { return impl_->acceptor.local_endpoint().port(); }
 

@@ -1,6 +1,7 @@
 // The operator API of `hilbench serve`: HTTP/JSON and a WebSocket telemetry stream on
 // Boost.Beast, served by one io_context thread. Endpoints: see bench/SERVER.md.
-// Requests never wait for the loop: they read the runner's status and hand requests over.
+// Requests never wait for the loop: they read the runner's status and hand requests over. Reports
+// and analyses of recorded runs run on the server's job worker (jobs.hpp), never on the io thread.
 #pragma once
 
 #include <atomic>
@@ -26,7 +27,9 @@ struct ApiOptions {
   std::filesystem::path campaigns_dir = "configs/campaigns";
   std::filesystem::path rigs_dir = "configs/rigs";
   std::filesystem::path runs_dir = "runs";
+  std::filesystem::path plant_dir = "configs/plant";  // the models analyses may name
   std::size_t max_body_bytes = 1 << 20;
+  std::size_t max_waiting_jobs = 8;  // reports and analyses queued behind the running one
   std::string version;
 };
 
@@ -70,6 +73,10 @@ class ApiServer {
   unsigned short port() const;
   bool loopback() const { return loopback_; }
   void refuse_starts(const std::string& why);  // shutting down: new campaigns get 503
+
+  // Ends the report and analysis jobs: the queued ones fail, the running one is waited for
+  // (its output renamed into place whole, or removed). The destructor does it too.
+  void stop_jobs();
 
   // One raw HTTP/1.1 request answered as a connection would answer it (parser limits, token,
   // routes, errors), without a socket: for the fuzz target. Call on the io thread, or with the

@@ -35,12 +35,6 @@ std::string utc(SysClock::time_point t, const char* format) {
   std::strftime(buf, sizeof buf, format, &tm);
   return buf;
 }
-std::string utc_iso(SysClock::time_point t) {
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count() % 1000;
-  char frac[8];
-  std::snprintf(frac, sizeof frac, ".%03dZ", static_cast<int>(ms));
-  return utc(t, "%Y-%m-%dT%H:%M:%S") + frac;
-}
 
 std::string hostname() {
   char buf[256] = {};
@@ -168,6 +162,13 @@ json faults_json(const LoopSnapshot& s) {
 }
 
 }  // namespace
+
+std::string utc_iso(SysClock::time_point t) {
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count() % 1000;
+  char frac[8];
+  std::snprintf(frac, sizeof frac, ".%03dZ", static_cast<int>(ms));
+  return utc(t, "%Y-%m-%dT%H:%M:%S") + frac;
+}
 
 struct CampaignRunner::Active {
   StartRequest req;

@@ -47,6 +47,8 @@ struct CompareOptions {
   std::filesystem::path model_file, data_file, out_dir;
   bool progress = true;
   bool quiet = false;
+  // When set, called instead of the progress line on stderr (the server's job shows it).
+  Progress on_progress = {};
 };
 // The whole command: prints the summary, writes DIR/compare.json and DIR/report.html.
 ResidualReport run_compare(const CompareOptions& options);

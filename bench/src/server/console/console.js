@@ -128,6 +128,27 @@
   let shownRange = null;  // the x range we last gave the plots
   let markTimes = [];   // the current run's events, drawn as lines
 
+  // Y tick labels with the decimals their spacing needs (dygraphs' default rounds to 2 significant
+  // digits, so sub-degree ticks of the gap plot printed as "1" and "1"). Dygraphs spaces ticks by
+  // the smallest of 1, 2, 5 x 10^k that leaves pixelsPerLabel pixels between labels; that step,
+  // from the axis range and the plot's height, sets the decimals, and a value the step does not
+  // predict (another tick rule) gets the decimals it needs itself.
+  function yTickFormatter(value, granularity, opts, g) {
+    const range = g && g.yAxisRange ? g.yAxisRange() : null;
+    const area = g && g.getArea ? g.getArea() : null;
+    const h = area && area.h > 0 ? area.h : g && g.graphDiv ? g.graphDiv.clientHeight - 40 : 0;
+    const least = range && h > 0 ? (Math.abs(range[1] - range[0]) * (opts("pixelsPerLabel") || 30)) / h : 0;
+    let decimals = 0;
+    if (least > 0 && isFinite(least)) {
+      const k = Math.floor(Math.log10(least));
+      const mantissa = [1, 2, 5, 10].find((m) => m * 10 ** k >= least * (1 - 1e-9));
+      decimals = Math.max(0, -Math.floor(Math.log10(mantissa * 10 ** k) + 1e-9));
+    }
+    while (decimals < 6 && Math.abs(value * 10 ** decimals - Math.round(value * 10 ** decimals)) > 1e-6 * Math.max(1, Math.abs(value * 10 ** decimals)))
+      ++decimals;
+    return value.toFixed(decimals);
+  }
+
   function plotData(def) {
     return rows.map((r) => {
       const out = [r[C.t_s]];
@@ -196,6 +217,7 @@
         connectSeparatedPoints: false,
         animatedZooms: false,
         xLabelHeight: 0,
+        axes: { y: { axisLabelFormatter: yTickFormatter } },
         drawCallback: onDraw,
         underlayCallback: underlay,
       });
@@ -526,7 +548,7 @@
   $("inject-clear").addEventListener("click", () => ask("Clear every injected fault?", () => inject("clear", {}, "faults cleared")));
 
   // ---------------------------------------------------------------------------------------------
-  // Recorded runs, each with its report and its files.
+  // Recorded runs, each with its report, its files and its analyses against a plant model.
   function link(href, text, newTab) {
     const a = document.createElement("a");
     a.href = withToken(href);
@@ -537,10 +559,97 @@
   function refreshRuns() {
     return loadRuns().catch((e) => showMessage("cannot list runs: " + e.message, false));
   }
+
+  let models = [];
+  const analysesOf = new Map();  // run id -> its analyses, as last listed
+  const analysisPolls = new Map();  // run id -> timer while one of its analyses is queued or running
+  const kAnalysedRuns = 20;  // the newest runs whose analyses are listed
+
+  async function loadModels() {
+    models = (await api("GET", "/api/models")).models.filter((m) => !m.error);
+    for (const sel of document.querySelectorAll("#runs-table select.model")) fillModels(sel);
+  }
+  function fillModels(sel) {
+    const keep = sel.value;
+    sel.replaceChildren(...models.map((m) => new Option(m.name, m.name, false, m.name === (keep || "nominal"))));
+  }
+
+  function renderAnalyses(runId) {
+    const ul = document.querySelector(`#runs-table tr[data-run="${CSS.escape(runId)}"] ul.analyses`);
+    if (!ul) return;
+    ul.replaceChildren(...(analysesOf.get(runId) || []).map((a) => {
+      const li = document.createElement("li");
+      li.dataset.id = a.id;
+      li.dataset.kind = a.kind || "";
+      li.dataset.state = a.state || "";
+      const what = (a.kind || "?") + " vs " + (a.model || "?") + ": ";
+      if (a.state === "done") {
+        const r = a.result || {};
+        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" : (r.verdict || "") +
+          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "");
+        const open = link(a.report, "report", true);
+        open.className = "analysis-report";
+        li.append(what + figure + " ", open);
+      } else if (a.state === "failed") {
+        li.className = "bad";
+        li.append(what + "failed: " + (a.error || "?"));
+      } else {
+        li.append(what + a.state + (typeof a.progress === "number" ? " " + Math.round(100 * a.progress) + " %" : "") + "…");
+      }
+      return li;
+    }));
+  }
+
+  async function refreshAnalyses(runId) {
+    clearTimeout(analysisPolls.get(runId));
+    analysisPolls.delete(runId);
+    try {
+      const list = (await api("GET", "/api/runs/" + encodeURIComponent(runId) + "/analyses")).analyses;
+      analysesOf.set(runId, list);
+      renderAnalyses(runId);
+      // Followed live while one is queued or running.
+      if (list.some((a) => a.state === "queued" || a.state === "running"))
+        analysisPolls.set(runId, setTimeout(() => refreshAnalyses(runId), 700));
+    } catch (e) {
+      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // the next refresh tries again
+    }
+  }
+
+  async function analyse(runId, kind, model) {
+    const reply = await act(kind + " of " + runId + " against " + model, "POST", "/api/runs/" + encodeURIComponent(runId) + "/analyses",
+      { kind, model });
+    if (reply) await refreshAnalyses(runId);
+  }
+
+  function analysisCell(r) {
+    const td = document.createElement("td");
+    td.className = "analysis";
+    if (!r.outcome || r.outcome === "running") return td;
+    const sel = document.createElement("select");
+    sel.className = "model";
+    sel.title = "the plant model (configs/plant)";
+    fillModels(sel);
+    const buttons = ["compare", "diagnose"].map((kind) => {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.className = "analyse";
+      b.dataset.kind = kind;
+      b.textContent = kind === "compare" ? "Compare" : "Diagnose";
+      b.title = kind === "compare" ? "replay the run through the model: where does it fail?" : "which missing effect explains the misfit?";
+      b.addEventListener("click", () => analyse(r.id, kind, sel.value));
+      return b;
+    });
+    const ul = document.createElement("ul");
+    ul.className = "analyses";
+    td.append(sel, ...buttons, ul);
+    return td;
+  }
+
   async function loadRuns() {
     const reply = await api("GET", "/api/runs");
     const tbody = $("runs-table").querySelector("tbody");
-    tbody.replaceChildren(...reply.runs.slice(0, 200).map((r) => {
+    const shown = reply.runs.slice(0, 200);
+    tbody.replaceChildren(...shown.map((r) => {
       const tr = document.createElement("tr");
       tr.dataset.run = r.id;
       const cells = [r.id, (r.campaign || "?") + " / " + (r.run || "?"), r.outcome || r.error || "?", r.reason || ""].map((text) => {
@@ -557,15 +666,20 @@
         files.append(report);
       }
       for (const f of ["telemetry.csv", "events.jsonl", "run.json"]) files.append(link(base + "/" + f, f, false));
-      tr.append(...cells, files);
+      tr.append(...cells, files, analysisCell(r));
       return tr;
     }));
+    for (const r of shown.slice(0, kAnalysedRuns)) {
+      renderAnalyses(r.id);
+      if (r.outcome && r.outcome !== "running") refreshAnalyses(r.id);
+    }
   }
   $("runs-refresh").addEventListener("click", refreshRuns);
 
-  window.hilConsole = { plots, rows, columns, view };
+  window.hilConsole = { plots, rows, columns, view, yTickFormatter };
 
   loadChoices().catch((e) => showMessage("cannot load campaigns and rigs: " + e.message, false));
+  loadModels().catch((e) => showMessage("cannot load the plant models: " + e.message, false));
   refreshRuns();
   pollStatus();
   connect();

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -42,6 +43,9 @@ class InsufficientStorage : public std::runtime_error {
 // is really on disk (a half-written last line is cut off and counted) and appends an event.
 // Returns the folders it marked. Safe while another server runs on the same folder.
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
+
+// "2026-11-21T06:19:25.123Z": the time stamps of run.json, events and the server's jobs.
+std::string utc_iso(std::chrono::system_clock::time_point t);
 
 struct StartRequest {
   Campaign campaign;

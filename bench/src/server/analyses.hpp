@@ -1,0 +1,63 @@
+// What the server makes of a recorded run, off the io thread (jobs.hpp): its paper-style report
+// and its analyses against a plant model. A run's telemetry.csv is a measurement file as it is
+// (physics.md section 4: t_s, theta_cmd_deg, p_meas_mpa, theta_motor_deg, p_ref_mpa, other
+// columns ignored; a period without a reading repeats the last values, never nan), so an analysis
+// is `hilbench compare` / `hilbench diagnose` on RUN_DIR/telemetry.csv: the same library calls
+// (analysis::run_compare, analysis::run_diagnose), quiet, with the outputs in
+//   RUN_DIR/analyses/<id>/   report.html, compare.json or diagnosis.json (+ fitted_model.yaml),
+//                            analysis.json (what was asked, when, the result's summary)
+// written into RUN_DIR/analyses/.<id>.tmp and renamed into place at the end: an analysis folder
+// is complete or absent, and a failure (or a server killed mid-job) leaves only the .tmp, which is
+// removed at once or by the next server's start.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "jobs.hpp"
+
+namespace hil::bench {
+
+inline constexpr const char* kAnalysisKinds[] = {"compare", "diagnose"};
+
+struct AnalysisSpec {
+  std::filesystem::path run_dir;
+  std::string id;    // a plain name, unique in the run (next_analysis_id)
+  std::string kind;  // compare | diagnose
+  std::string model;
+  std::filesystem::path model_file;
+};
+
+std::filesystem::path analysis_dir(const std::filesystem::path& run_dir, const std::string& id);
+
+// "<kind>_<model>_<n>" with the smallest n >= 1 that names neither a folder (finished or .tmp) of
+// the run nor one of `taken` (the jobs queued or running for it).
+std::string next_analysis_id(const std::filesystem::path& run_dir, const std::string& kind, const std::string& model,
+                             const std::vector<std::string>& taken);
+
+// The job's work: runs the analysis into its .tmp folder, renames it into place, and returns the
+// summary kept in analysis.json (compare: fit, RMSE, noise floor, the residual's signature;
+// diagnose: the verdict, the effects added and the first round's candidates). Throws naming the
+// cause (a telemetry.csv the measurement reader refuses, a model that does not load), with the
+// .tmp folder removed.
+nlohmann::json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress);
+
+// The run's finished analyses, from their analysis.json, oldest first; a folder whose
+// analysis.json is unreadable is listed with state "failed" and the reason.
+std::vector<nlohmann::json> finished_analyses(const std::filesystem::path& run_dir);
+
+// The job's work for GET /api/runs/ID/report.html: write_run_report into RUN_DIR/report.html.tmp,
+// renamed to report.html (removed on failure).
+nlohmann::json make_run_report(const std::filesystem::path& run_dir);
+// Whether RUN_DIR/report.html is that run's report: made after run.json was last written (run.json
+// is rewritten only by the run's end or by a server finding the run interrupted).
+bool run_report_current(const std::filesystem::path& run_dir);
+
+// Removes what a server that died during a job left in the run folders: RUN_DIR/report.html.tmp
+// and RUN_DIR/analyses/.*.tmp. Returns how many it removed.
+std::size_t remove_job_leftovers(const std::filesystem::path& runs_dir);
+
+}  // namespace hil::bench

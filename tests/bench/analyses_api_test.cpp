@@ -1,0 +1,275 @@
+// Analyses of recorded runs against the real `hilbench serve` (POST/GET /api/runs/{id}/analyses,
+// GET /api/models) and the job worker they and the run reports share: compare and diagnose of a
+// run with a gap step (1 -> 2 deg at 4 s; the nominal model has 1 deg), judged against the
+// campaign's own gap programme and against `hilbench compare` run on the same file; hostile
+// requests; the io thread answering while a job runs (by the job's state, not by timing); the
+// bounded queue; the report waiting on the worker; shutdown with jobs in flight.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "server_process.hpp"
+
+using namespace std::chrono_literals;
+using hil::test::ServerProcess;
+using nlohmann::json;
+
+namespace {
+
+bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+std::size_t count(const std::string& text, const std::string& part) {
+  std::size_t n = 0;
+  for (auto at = text.find(part); at != std::string::npos; at = text.find(part, at + part.size())) ++n;
+  return n;
+}
+
+// An 8 s campaign on the nominal plant whose true gap steps from 1 to 2 deg at 4 s: what the
+// nominal model (1 deg, no change) lacks is that step.
+const std::string kGapStepYaml = R"(name: gap_step
+description: the gap steps from 1 to 2 deg at 4 s
+plant: ../plant/nominal.yaml
+duration_s: 8
+period_ms: 1
+seed: 1
+sensor_noise_kpa: 2.0
+reference:
+  initial_mpa: 1.0
+  profile:
+    - square: {from_s: 0.5, half_period_s: 1.0, low_mpa: 1.0, high_mpa: 1.5}
+gap:
+  initial_deg: 1.0
+  changes:
+    - step: {at_s: 4, to_deg: 2.0}
+runs:
+  - name: adaptive
+    compensation: adaptive
+)";
+
+// Records kGapStepYaml's run (at 4 periods per period of wall time: 2 s) and returns its id.
+std::string record_run(const hil::bench::ApiClient& api) {
+  const auto started = api.post("/api/start", {{"campaign_yaml", kGapStepYaml}, {"speed", 4}});
+  if (started.status != 202) throw std::runtime_error("start: " + started.body);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle" && x["last"].is_object(); }, 120s);
+  if (!s["last"].is_object() || s["last"]["outcome"] != "completed")
+    throw std::runtime_error("the run did not complete: " + s.dump());
+  return api.get("/api/runs").json()["runs"][0]["id"];
+}
+
+json analysis_of(const hil::bench::ApiClient& api, const std::string& run, const std::string& id) {
+  const json list = api.get("/api/runs/" + run + "/analyses").json();  // kept: the loop below refers into it
+  for (const auto& a : list["analyses"]) {
+    if (a["id"] == id) return a;
+  }
+  return nullptr;
+}
+
+template <class Pred>
+json wait_analysis(const hil::bench::ApiClient& api, const std::string& run, const std::string& id, Pred pred,
+                   std::chrono::seconds timeout = 120s) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  json a;
+  do {
+    a = analysis_of(api, run, id);
+    if (pred(a)) return a;
+    std::this_thread::sleep_for(10ms);
+  } while (std::chrono::steady_clock::now() < end);
+  return a;
+}
+
+bool finished(const json& a) { return a.is_object() && (a["state"] == "done" || a["state"] == "failed"); }
+
+std::vector<std::string> leftovers(const std::filesystem::path& runs_dir) {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(runs_dir)) {
+    if (e.path().extension() == ".tmp") out.push_back(e.path().string());
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(AnalysesApi, CompareAndDiagnoseARunOnTheWorkerWhileTheIoThreadAnswers) {
+  ServerProcess server({"--max-waiting-jobs", "2"});
+  const auto api = server.client();
+  const json models = api.get("/api/models").json()["models"];
+  ASSERT_TRUE(std::any_of(models.begin(), models.end(), [](const json& m) { return m["name"] == "nominal"; })) << models;
+
+  // A run still running is not analysed.
+  ASSERT_EQ(api.post("/api/start", {{"campaign_yaml", kGapStepYaml}}).status, 202);
+  const json running = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "running" && x.contains("run_dir"); }, 30s);
+  const std::string live_run = running["run_dir"];
+  const auto busy = api.post("/api/runs/" + live_run + "/analyses", {{"kind", "compare"}, {"model", "nominal"}});
+  EXPECT_EQ(busy.status, 409) << busy.body;
+  EXPECT_EQ(busy.json()["error"], "the run is still running");
+  ASSERT_EQ(api.post("/api/abort", json::object()).status, 202);
+  hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+
+  const std::string run = record_run(api);
+  const std::string base = "/api/runs/" + run + "/analyses";
+
+  // Diagnose first: it keeps the worker busy for a while (seconds here).
+  const auto posted = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
+  ASSERT_EQ(posted.status, 202) << posted.body;
+  const std::string diag_id = posted.json()["analysis"]["id"];
+  EXPECT_EQ(posted.json()["analysis"]["state"], "queued");
+  json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
+  ASSERT_EQ(d["state"], "running") << d.dump(2);
+
+  // While it runs: the io thread answers status, and the report request is queued behind it.
+  EXPECT_EQ(api.get("/api/status").status, 200);
+  const auto report_queued = api.get("/api/runs/" + run + "/report.html?wait=0");
+  EXPECT_EQ(report_queued.status, 202) << report_queued.body;
+  EXPECT_EQ(report_queued.json()["report"]["state"], "queued") << report_queued.body;
+  const auto again = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
+  EXPECT_EQ(again.status, 202);
+  EXPECT_EQ(again.json()["analysis"]["id"], diag_id) << "the same analysis in flight is not queued twice: " << again.body;
+  const auto compare_posted = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
+  ASSERT_EQ(compare_posted.status, 202) << compare_posted.body;
+  const std::string cmp_id = compare_posted.json()["analysis"]["id"];
+  const auto full = api.post(base, {{"kind", "compare"}, {"model", "constant_volume"}});
+  EXPECT_EQ(full.status, 503) << full.body;
+  EXPECT_EQ(full.json()["error"], "cannot queue the job");
+  // Every answer above came while the diagnosis was still running: the io thread never waited for it.
+  EXPECT_EQ(analysis_of(api, run, diag_id)["state"], "running");
+
+  // The report request that waits (what a browser's link does) gets the report once it is made.
+  const auto report = api.get("/api/runs/" + run + "/report.html");
+  ASSERT_EQ(report.status, 200) << report.body.substr(0, 300);
+  EXPECT_TRUE(has(report.content_type, "text/html"));
+  EXPECT_GE(count(report.body, "<figure class=\"hil-fig"), 3u);
+
+  d = wait_analysis(api, run, diag_id, finished);
+  const json c = wait_analysis(api, run, cmp_id, finished);
+  ASSERT_EQ(d["state"], "done") << d.dump(2);
+  ASSERT_EQ(c["state"], "done") << c.dump(2);
+
+  // Diagnose finds the campaign's gap step (1 -> 2 deg at 4 s), which the nominal model lacks.
+  const json& dr = d["result"];
+  EXPECT_EQ(dr["verdict"], "explained") << dr.dump(2);
+  ASSERT_GE(dr["candidates"].size(), 3u) << dr.dump(2);
+  EXPECT_EQ(dr["candidates"][0]["effect"], "backlash_change") << dr.dump(2);
+  ASSERT_EQ(dr["added"].size(), 1u) << dr.dump(2);
+  std::map<std::string, double> fitted;
+  for (const auto& p : dr["added"][0]["parameters"]) fitted[p["key"]] = p["value"].get<double>();
+  EXPECT_NEAR(fitted["gap_deg"], 1.0, 0.02) << dr.dump(2);
+  EXPECT_NEAR(fitted["step_deg"], 1.0, 0.02) << dr.dump(2);
+  EXPECT_NEAR(fitted["step_time_s"], 4.0, 0.5) << dr.dump(2);
+  const auto diag_report = api.get(d["report"].get<std::string>());
+  ASSERT_EQ(diag_report.status, 200);
+  EXPECT_TRUE(has(diag_report.body, "nominal.yaml")) << "the report names the model";
+  EXPECT_TRUE(has(diag_report.body, "backlash_change"));
+  EXPECT_EQ(api.get(base + "/" + diag_id + "/fitted_model.yaml").status, 200);
+
+  // Compare: the same numbers as `hilbench compare` on the run's file, run as its own process.
+  const auto cmp_report = api.get(c["report"].get<std::string>());
+  ASSERT_EQ(cmp_report.status, 200);
+  EXPECT_TRUE(has(cmp_report.body, "nominal.yaml")) << "the report names the model";
+  EXPECT_GE(count(cmp_report.body, "<figure class=\"hil-fig"), 1u);
+  const auto cli_out = server.dir() / "cli_compare";
+  const pid_t pid = hil::test::spawn(
+      {hil::test::hilbench_exe(), "compare", "--model", hil::test::source_path("configs/plant/nominal.yaml").string(), "--data",
+       (server.runs_dir() / run / "telemetry.csv").string(), "--out", cli_out.string(), "--quiet"},
+      server.dir() / "cli.log");
+  ASSERT_EQ(hil::test::wait_exit(pid, 120s), 0) << hil::test::slurp(server.dir() / "cli.log");
+  const json cli = json::parse(hil::test::slurp(cli_out / "compare.json"));
+  EXPECT_DOUBLE_EQ(c["result"]["fit_pct"].get<double>(), cli["fit_pct"].get<double>());
+  EXPECT_EQ(json::parse(hil::test::slurp(server.runs_dir() / run / "analyses" / cmp_id / "compare.json"))["fit_pct"],
+            cli["fit_pct"]);
+
+  // Everything stayed inside the run's folder, whole.
+  for (const auto& id : {diag_id, cmp_id}) {
+    EXPECT_TRUE(std::filesystem::exists(server.runs_dir() / run / "analyses" / id / "report.html")) << id;
+    EXPECT_TRUE(std::filesystem::exists(server.runs_dir() / run / "analyses" / id / "analysis.json")) << id;
+  }
+  EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+
+  // A second compare of the same run is a new analysis beside the first.
+  const auto second = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
+  ASSERT_EQ(second.status, 202);
+  EXPECT_NE(second.json()["analysis"]["id"], cmp_id);
+}
+
+TEST(AnalysesApi, HostileRequestsAreRefusedNamingTheField) {
+  ServerProcess server({"--max-body-kb", "64"});
+  const auto api = server.client();
+  const std::string run = record_run(api);
+  const std::string base = "/api/runs/" + run + "/analyses";
+
+  struct Case {
+    std::string body;
+    int status;
+    std::string field;
+  };
+  const std::vector<Case> cases = {
+      {R"({"kind": "comparison", "model": "nominal"})", 400, "kind"},
+      {R"({"kind": 3, "model": "nominal"})", 400, "kind"},
+      {R"({"model": "nominal"})", 400, "kind"},
+      {R"({"kind": "compare"})", 400, "model"},
+      {R"({"kind": "compare", "model": "nomnal"})", 404, "model"},
+      {R"({"kind": "compare", "model": "../plant/nominal"})", 404, "model"},
+      {R"({"kind": "compare", "model": "/etc/passwd"})", 404, "model"},
+      {R"({"kind": "compare", "model": "nominal", "out": "/tmp/x"})", 400, "out"},
+      {R"([1, 2])", 400, ""},
+      {R"({"kind": "compare", "model": )", 400, ""},
+  };
+  for (const auto& k : cases) {
+    const auto r = api.request("POST", base, k.body, "application/json");
+    EXPECT_EQ(r.status, k.status) << k.body << " -> " << r.body;
+    const json j = r.json();
+    EXPECT_TRUE(j.contains("error")) << r.body;
+    if (!k.field.empty()) {
+      EXPECT_EQ(j.value("field", ""), k.field) << k.body << " -> " << r.body;
+      EXPECT_TRUE(has(j.value("detail", ""), "'" + k.field + "'")) << r.body;
+    }
+  }
+  const auto huge = api.request("POST", base, std::string(200 * 1024, ' '), "application/json");
+  EXPECT_EQ(huge.status, 413);
+  EXPECT_EQ(api.post("/api/runs/nope/analyses", {{"kind", "compare"}, {"model", "nominal"}}).status, 404);
+  EXPECT_EQ(api.post("/api/runs/..%2F..%2Fetc/analyses", {{"kind", "compare"}, {"model", "nominal"}}).status, 404);
+  EXPECT_EQ(api.get("/api/runs/" + run + "/analyses/nope").status, 404);
+  EXPECT_EQ(api.get("/api/runs/" + run + "/analyses/..%2F..%2F" + run + "/run.json").status, 404);
+
+  // A run whose files are bad: no telemetry at all is refused at once; a telemetry.csv the
+  // measurement reader refuses fails the job, which names the file; nothing is left behind.
+  for (const char* name : {"no_telemetry", "bad_telemetry"}) {
+    std::filesystem::create_directory(server.runs_dir() / name);
+    std::filesystem::copy_file(server.runs_dir() / run / "run.json", server.runs_dir() / name / "run.json");
+  }
+  const auto none = api.post("/api/runs/no_telemetry/analyses", {{"kind", "compare"}, {"model", "nominal"}});
+  EXPECT_EQ(none.status, 422) << none.body;
+  std::ofstream(server.runs_dir() / "bad_telemetry" / "telemetry.csv") << "t_s,theta_cmd_deg,p_meas_mpa\n0.000,1.0,abc\n";
+  const auto bad = api.post("/api/runs/bad_telemetry/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
+  ASSERT_EQ(bad.status, 202) << bad.body;
+  const std::string id = bad.json()["analysis"]["id"];
+  const json failed = wait_analysis(api, "bad_telemetry", id, finished);
+  EXPECT_EQ(failed["state"], "failed") << failed.dump(2);
+  EXPECT_TRUE(has(failed.value("error", ""), "telemetry.csv:2:")) << failed.dump(2);
+  const auto its_report = api.get("/api/runs/bad_telemetry/analyses/" + id + "/report.html");
+  EXPECT_EQ(its_report.status, 422) << its_report.body;
+  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / "bad_telemetry" / "analyses" / id));
+  EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+TEST(AnalysesApi, ShutdownWithJobsInFlightLeavesWholeResultsOnly) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string run = record_run(api);
+  const std::string base = "/api/runs/" + run + "/analyses";
+  const auto diag = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
+  ASSERT_EQ(diag.status, 202);
+  const auto queued = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
+  ASSERT_EQ(queued.status, 202);
+  const std::string diag_id = diag.json()["analysis"]["id"], cmp_id = queued.json()["analysis"]["id"];
+  const json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
+  ASSERT_EQ(d["state"], "running") << d.dump(2);
+  ASSERT_EQ(server.terminate(120s), 0);
+  // The running diagnosis ended whole (the server waits for it); the queued compare never ran.
+  EXPECT_TRUE(std::filesystem::exists(server.runs_dir() / run / "analyses" / diag_id / "analysis.json"));
+  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / run / "analyses" / cmp_id));
+  EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+}
