@@ -157,8 +157,8 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   for (const auto& p : (d.explained ? d.after : d.before).diagnostics.peaks)
     peaks.push_back({{"hz", p.hz}, {"power_share", p.power_share}, {"name", p.name}});
   j["signature_peaks"] = peaks;
-  j["before"] = detail::headline_json(d.before);
-  j["after"] = detail::headline_json(d.after);
+  j["before"] = headline_json(d.before);
+  j["after"] = headline_json(d.after);
   j["before"]["regimes"] = detail::residual_to_json(d.before)["regimes"];
   j["after"]["regimes"] = detail::residual_to_json(d.after)["regimes"];
   j["method"] = {{"coarse_decimation", d.decimation},

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "hil/analysis/compare.hpp"
 #include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
@@ -42,18 +43,6 @@ nlohmann::json binned_json(const Binned& b) {
 }
 
 }  // namespace
-
-nlohmann::json headline_json(const ResidualReport& r) {
-  return {{"rows", r.rows},
-          {"duration_s", number(r.duration_s)},
-          {"fit_pct", number(r.fit_pct)},
-          {"noise_floor_fit_pct", number(r.noise_floor_fit_pct)},
-          {"rmse_kpa", number(r.error.rmse_pa / kKpa)},
-          {"max_error_kpa", number(r.error.max_abs_pa / kKpa)},
-          {"max_error_t_s", number(r.error.t_at_max_s)},
-          {"bias_kpa", number(r.error.bias_pa / kKpa)},
-          {"noise_sigma_kpa", number(r.noise_sigma_pa / kKpa)}};
-}
 
 nlohmann::json residual_to_json(const ResidualReport& r) {
   nlohmann::json j = headline_json(r);
@@ -181,3 +170,20 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
 void write_text(const std::filesystem::path& file, const std::string& text) { hil::replace_file(file, text); }
 
 }  // namespace hil::analysis::detail
+
+namespace hil::analysis {
+
+nlohmann::json headline_json(const ResidualReport& r) {
+  using detail::kKpa, detail::number;
+  return {{"rows", r.rows},
+          {"duration_s", number(r.duration_s)},
+          {"fit_pct", number(r.fit_pct)},
+          {"noise_floor_fit_pct", number(r.noise_floor_fit_pct)},
+          {"rmse_kpa", number(r.error.rmse_pa / kKpa)},
+          {"max_error_kpa", number(r.error.max_abs_pa / kKpa)},
+          {"max_error_t_s", number(r.error.t_at_max_s)},
+          {"bias_kpa", number(r.error.bias_pa / kKpa)},
+          {"noise_sigma_kpa", number(r.noise_sigma_pa / kKpa)}};
+}
+
+}  // namespace hil::analysis

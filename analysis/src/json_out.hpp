@@ -15,8 +15,6 @@ class Document;
 namespace hil::analysis::detail {
 
 nlohmann::json residual_to_json(const ResidualReport& r);
-// The headline numbers as one object (before/after blocks of diagnose).
-nlohmann::json headline_json(const ResidualReport& r);
 void add_summary_table(report::Document& doc, const ResidualReport& r);
 std::string summary_text(const ResidualReport& r, const std::string& model_name);
 // Writes atomically (temp file + rename); throws std::runtime_error naming the file.

@@ -11,7 +11,6 @@
 #include "hil/bench/server/runner.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
-#include "hil/units.hpp"
 
 namespace hil::bench {
 namespace {
@@ -24,14 +23,9 @@ json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 fs::path tmp_dir(const fs::path& run_dir, const std::string& id) { return run_dir / "analyses" / ("." + id + ".tmp"); }
 
 json compare_summary(const analysis::ResidualReport& r) {
-  return {{"fit_pct", number(r.fit_pct)},
-          {"noise_floor_fit_pct", number(r.noise_floor_fit_pct)},
-          {"rmse_kpa", number(r.error.rmse_pa / units::kPaPerKpa)},
-          {"bias_kpa", number(r.error.bias_pa / units::kPaPerKpa)},
-          {"max_abs_kpa", number(r.error.max_abs_pa / units::kPaPerKpa)},
-          {"rows", r.rows},
-          {"duration_s", number(r.duration_s)},
-          {"signature", r.signature}};
+  json j = analysis::headline_json(r);  // compare.json's own headline
+  j["signature"] = r.signature;
+  return j;
 }
 
 json diagnose_summary(const analysis::Diagnosis& d) {

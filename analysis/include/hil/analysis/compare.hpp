@@ -8,6 +8,8 @@
 #include <functional>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "hil/analysis/measurement.hpp"
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
@@ -42,6 +44,9 @@ AnalyzerOptions analyzer_options_for(const plant::Plant& model);
 void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
                            const std::string& model_label);
 std::string residual_json(const ResidualReport& r, int indent = 2);  // the compare.json body
+// compare.json's headline numbers (rows, fit, noise floor, RMSE, largest error, bias, noise), as
+// diagnose's before/after blocks and the server's analysis result give them.
+nlohmann::json headline_json(const ResidualReport& r);
 
 struct CompareOptions {
   std::filesystem::path model_file, data_file, out_dir;
