@@ -13,6 +13,7 @@
 #include <ctime>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -67,19 +68,20 @@ SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
   };
   // A sweep being resumed: its points were checked when it was planned (a campaign load each,
   // seconds for a large sweep), so a plan with plan.json's hash skips that check.
+  std::optional<SweepPlan> old;  // the folder's plan.json, read once
   const auto checked_hash = [&](const std::string& name) {
-    return std::filesystem::exists(dir_of(name) / "plan.json") ? read_plan(dir_of(name)).hash : std::string();
+    if (std::filesystem::exists(dir_of(name) / "plan.json")) old = read_plan(dir_of(name));
+    return old ? old->hash : std::string();
   };
   SweepPlan plan = plan_sweep(args.sweep_file, kMaxSweepPoints, checked_hash);
   dir = dir_of(plan.name);
-  if (std::filesystem::exists(dir / "plan.json")) {
-    const SweepPlan old = read_plan(dir);
-    if (old.hash != plan.hash) {
+  if (old) {
+    if (old->hash != plan.hash) {
       throw std::runtime_error(dir.string() + " was planned from another sweep: " + args.sweep_file +
                                ", its base campaign or its plant changed since. Use another --out, or remove " + dir.string() +
                                " to start this sweep afresh");
     }
-    return old;
+    return *old;
   }
   write_plan(dir, plan);
   return plan;
