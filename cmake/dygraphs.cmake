@@ -11,3 +11,9 @@ foreach(_f IN ITEMS ${HIL_DYGRAPHS_JS} ${HIL_DYGRAPHS_CSS})
   endif()
 endforeach()
 set_property(DIRECTORY ${PROJECT_SOURCE_DIR} APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${HIL_DYGRAPHS_JS} ${HIL_DYGRAPHS_CSS})
+# The texts to inline, read once: without the source-map comments, which point at files no page
+# carries (a browser would ask the console's server or a report's folder for them).
+file(READ ${HIL_DYGRAPHS_JS} HIL_DYGRAPHS_JS_TEXT)
+file(READ ${HIL_DYGRAPHS_CSS} HIL_DYGRAPHS_CSS_TEXT)
+string(REGEX REPLACE "//# sourceMappingURL=[^\n]*" "" HIL_DYGRAPHS_JS_TEXT "${HIL_DYGRAPHS_JS_TEXT}")
+string(REGEX REPLACE "/\\*# sourceMappingURL=[^\n]*\\*/" "" HIL_DYGRAPHS_CSS_TEXT "${HIL_DYGRAPHS_CSS_TEXT}")
