@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "hil/physics.hpp"
 
@@ -38,38 +41,69 @@ double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t s
   return c;
 }
 
+namespace {
+
+// Two lanes of doubles side by side: one SSE2 register (every x86-64 has SSE2), plain pairs
+// elsewhere. Each lane gets exactly the IEEE operations of the scalar code, so the results are
+// the same bits either way.
+using Pair = double __attribute__((vector_size(16)));
+
+// physics::play_rad lane by lane, without branches: the follower clamped to
+// [driver - half, driver + half] is max(driver - half, min(follower, driver + half)) for
+// half >= 0 (minpd/maxpd return their second operand unless the comparison holds, which is
+// play_rad's order of tests).
+inline Pair play(Pair follower, Pair driver, Pair half) noexcept {
+#if defined(__SSE2__)
+  return _mm_max_pd(driver - half, _mm_min_pd(driver + half, follower));
+#else
+  Pair out;
+  for (int j = 0; j < 2; ++j) out[j] = physics::play_rad(follower[j], driver[j], half[j]);
+  return out;
+#endif
+}
+
+}  // namespace
+
 template <int K>
 void GapFit::costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
                    double* cost_out) const noexcept {
   // cost() for K gaps at once, lane by lane the same operations in the same order (so the same
   // numbers): one gap's samples form a chain of dependent low-pass updates, K of them side by side
-  // keep the FPU busy instead of waiting on each.
-  double half[K], valve[K], lp1[K], lp2[K], sum[K], sum2[K];
-  for (int j = 0; j < K; ++j) {
-    half[j] = gap_rad[j] / 2;
-    valve[j] = w.extreme >= 0 ? w.motor_rad[0] + dir * half[j] : extreme_rad + dir * half[j];
-    lp1[j] = lp2[j] = valve[j];
-    sum[j] = sum2[j] = 0;
+  // keep the FPU busy instead of waiting on each. Lanes go in pairs; an odd K's last pair repeats
+  // its last gap.
+  constexpr int kPairs = (K + 1) / 2;
+  Pair half[kPairs], valve[kPairs], lp1[kPairs], lp2[kPairs], sum[kPairs], sum2[kPairs];
+  const double d = dir;
+  for (int p = 0; p < kPairs; ++p) {
+    for (int l = 0; l < 2; ++l) half[p][l] = gap_rad[std::min(2 * p + l, K - 1)] / 2;
+    valve[p] = (w.extreme >= 0 ? w.motor_rad[0] : extreme_rad) + d * half[p];
+    lp1[p] = lp2[p] = valve[p];
+    sum[p] = sum2[p] = Pair{0, 0};
   }
-  const double alpha = alpha_;
+  const Pair alpha{alpha_, alpha_};
   for (std::int64_t i = 0; i < w.n; ++i) {
     const double m = w.motor_rad[static_cast<std::size_t>(i)];
-    for (int j = 0; j < K; ++j) {
-      valve[j] = physics::play_rad(valve[j], m, half[j]);
-      lp1[j] += alpha * (valve[j] - lp1[j]);
-      lp2[j] += alpha * (lp1[j] - lp2[j]);
+    const Pair mm{m, m};
+    for (int p = 0; p < kPairs; ++p) {
+      valve[p] = play(valve[p], mm, half[p]);
+      lp1[p] += alpha * (valve[p] - lp1[p]);
+      lp2[p] += alpha * (lp1[p] - lp2[p]);
     }
     if (i >= skip) {
       const double eq = w.valve_eq_rad[static_cast<std::size_t>(i)];
-      for (int j = 0; j < K; ++j) {
-        const double r = eq - lp2[j];
-        sum[j] += r;
-        sum2[j] += r * r;
+      const Pair eqq{eq, eq};
+      for (int p = 0; p < kPairs; ++p) {
+        const Pair r = eqq - lp2[p];
+        sum[p] += r;
+        sum2[p] += r * r;
       }
     }
   }
   const std::int64_t n = std::max<std::int64_t>(w.n - std::max<std::int64_t>(skip, 0), 0);
-  for (int j = 0; j < K; ++j) cost_out[j] = n == 0 ? 0 : sum2[j] - sum[j] * sum[j] / static_cast<double>(n);
+  for (int j = 0; j < K; ++j) {
+    const double s = sum[j / 2][j % 2], s2 = sum2[j / 2][j % 2];
+    cost_out[j] = n == 0 ? 0 : s2 - s * s / static_cast<double>(n);
+  }
 }
 
 GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
@@ -105,9 +139,10 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
   const double cell = gap_max_rad_ / kGrid;
   double a = std::max(best - cell, 0.0), b = std::min(best + cell, gap_max_rad_);
   constexpr double kInvPhi = 0.6180339887498949;
-  // Golden section, two iterations per pass: the point the first one evaluates and both points
-  // the second may evaluate (which one depends on the first's cost) go through costs<3>
-  // together; the sequence of points and costs is the one-at-a-time search's.
+  // Golden section, three iterations per pass: the point the first one evaluates, both points
+  // the second may evaluate (which one depends on the first's cost) and the four the third may
+  // go through costs<7> together; the sequence of points and costs is the one-at-a-time
+  // search's.
   struct Golden {
     double a, b, x1, x2, f1, f2;
   };
@@ -130,16 +165,30 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
     costs<2>(w, extreme_rad, dir, skip, x, f);
     g.f1 = f[0], g.f2 = f[1];
   }
-  for (int it = 0; it < 18; it += 2) {  // the cell shrinks to 1e-4 of itself
+  // The pass's possible iterations as a tree in breadth-first order: node 0 is the first
+  // iteration (its direction is known), node j's children 2j+1 and 2j+2 go left and right after it.
+  constexpr int kDepth = 3, kNodes = (1 << kDepth) - 1, kIterations = 18;  // the cell shrinks to 1e-4 of itself
+  static_assert(kIterations % kDepth == 0);
+  for (int it = 0; it < kIterations; it += kDepth) {
     const bool left = g.f1 < g.f2;
-    Golden g1 = advance(g, left);
-    const double x[3] = {left ? g1.x1 : g1.x2, advance(g1, true).x1, advance(g1, false).x2};
-    double f[3];
-    costs<3>(w, extreme_rad, dir, skip, x, f);
-    (left ? g1.f1 : g1.f2) = f[0];
-    const bool left2 = g1.f1 < g1.f2;
-    g = advance(g1, left2);
-    (left2 ? g.f1 : g.f2) = left2 ? f[1] : f[2];
+    Golden node[kNodes];
+    double x[kNodes], f[kNodes];
+    node[0] = advance(g, left);
+    x[0] = left ? node[0].x1 : node[0].x2;
+    for (int j = 1; j < kNodes; ++j) {
+      const bool goes_left = j % 2 == 1;
+      node[j] = advance(node[(j - 1) / 2], goes_left);
+      x[j] = goes_left ? node[j].x1 : node[j].x2;
+    }
+    costs<kNodes>(w, extreme_rad, dir, skip, x, f);
+    g = node[0];
+    (left ? g.f1 : g.f2) = f[0];
+    for (int j = 0, level = 1; level < kDepth; ++level) {
+      const bool l = g.f1 < g.f2;
+      j = 2 * j + (l ? 1 : 2);
+      g = advance(g, l);
+      (l ? g.f1 : g.f2) = f[j];
+    }
   }
   a = g.a, b = g.b;
   out.gap_rad = 0.5 * (a + b);
