@@ -20,6 +20,9 @@ double Schedule::base_between(std::size_t next, double t_s) const noexcept {
   const Breakpoint& a = points_[next - 1];
   if (next == points_.size()) return a.value;
   const Breakpoint& b = points_[next];
+  // A level between two breakpoints (every step profile, most of the time) needs no division;
+  // the interpolation would give a.value too (plus a zero).
+  if (b.value == a.value) return a.value;
   return a.value + (b.value - a.value) * (t_s - a.t_s) / (b.t_s - a.t_s);
 }
 
