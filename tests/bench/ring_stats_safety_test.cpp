@@ -3,6 +3,7 @@
 
 #include <random>
 #include <thread>
+#include <vector>
 
 #include "hil/bench/rt/loop_stats.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
@@ -42,6 +43,22 @@ TEST(SpscRing, TwoThreadsPassEveryValueInOrder) {
     for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(buf[i], expected++);
   }
   producer.join();
+}
+
+// consume() reads the values where they lie, in order, and frees exactly the slots it handed out.
+TEST(SpscRing, ConsumeHandsOutInOrderAndFreesTheSlots) {
+  SpscRing<int> ring(4);
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(ring.try_push(i));
+  EXPECT_FALSE(ring.try_push(99));
+  std::vector<int> seen;
+  EXPECT_EQ(ring.consume(3, [&](const int& v) { seen.push_back(v); }), 3u);
+  EXPECT_EQ(seen, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(ring.size(), 1u);
+  for (int i = 4; i < 7; ++i) EXPECT_TRUE(ring.try_push(i));  // the three freed slots, wrapping
+  EXPECT_FALSE(ring.try_push(99));
+  EXPECT_EQ(ring.consume(16, [&](const int& v) { seen.push_back(v); }), 4u);
+  EXPECT_EQ(seen, (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(ring.consume(16, [&](const int&) { ADD_FAILURE() << "an empty ring handed out a value"; }), 0u);
 }
 
 TEST(LatencyHistogram, PercentilesWithinTheBucketWidth) {

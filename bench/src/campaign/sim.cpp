@@ -143,13 +143,13 @@ SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)
   loop_.begin(t_);
 }
 
-bool SimulatedRun::next(TelemetryRecord& out) noexcept {
+bool SimulatedRun::advance() noexcept {
   if (loop_.end() != LoopEnd::running) return false;
   // Each period wakes on its deadline and ends there: no latency, no compute time, no overrun.
   loop_.cycle(t_, t_);
   loop_.finish_cycle(t_);
   t_ += loop_.wall_period();
-  return telemetry_.pop(&out, 1) == 1;
+  return true;
 }
 
 RunSummary summarise_run(const Campaign& c, const RunSpec& run) {

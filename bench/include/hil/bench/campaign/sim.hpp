@@ -34,10 +34,16 @@ class SimulatedRun {
   SimulatedRun(const SimulatedRun&) = delete;
   SimulatedRun& operator=(const SimulatedRun&) = delete;
 
-  // The next period's record; false once the run is over. Real-time safe.
-  bool next(TelemetryRecord& out) noexcept;
+  // Runs the next period and hands its record to on_record(const TelemetryRecord&), read where
+  // the loop left it; false once the run is over. Real-time safe when on_record is.
+  template <class OnRecord>
+  bool next(OnRecord&& on_record) {
+    return advance() && telemetry_.consume(1, on_record) == 1;
+  }
 
  private:
+  bool advance() noexcept;  // one period; false once the run is over
+
   SimRig rig_;
   SpscRing<TelemetryRecord> telemetry_;
   SpscRing<LoopEvent> events_;
@@ -51,9 +57,7 @@ class SimulatedRun {
 template <class OnStep>
 void simulate_run(const Campaign& c, const RunSpec& run, OnStep&& on_step, std::atomic<long>* steps_done = nullptr) {
   SimulatedRun sim(c, run);
-  TelemetryRecord rec;
-  for (long k = 1; sim.next(rec); ++k) {
-    on_step(static_cast<const TelemetryRecord&>(rec));
+  for (long k = 1; sim.next(on_step); ++k) {
     if (steps_done != nullptr && (k & 1023) == 0) steps_done->fetch_add(1024, std::memory_order_relaxed);
   }
 }

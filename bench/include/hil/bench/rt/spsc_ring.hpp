@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <memory>
 #include <type_traits>
+#include <utility>
 
 namespace hil::bench {
 
@@ -39,6 +40,18 @@ class SpscRing {
     std::size_t n = head_.load(std::memory_order_acquire) - tail;
     if (n > max) n = max;
     for (std::size_t i = 0; i < n; ++i) out[i] = slots_[(tail + i) & mask_];
+    tail_.store(tail + n, std::memory_order_release);
+    return n;
+  }
+
+  // Consumer only. Hands up to max values to f(const T&) where they lie, then frees their slots;
+  // returns how many. For a consumer that only reads each value once: no copy out.
+  template <class F>
+  std::size_t consume(std::size_t max, F&& f) noexcept(noexcept(f(std::declval<const T&>()))) {
+    const std::size_t tail = tail_.load(std::memory_order_relaxed);
+    std::size_t n = head_.load(std::memory_order_acquire) - tail;
+    if (n > max) n = max;
+    for (std::size_t i = 0; i < n; ++i) f(static_cast<const T&>(slots_[(tail + i) & mask_]));
     tail_.store(tail + n, std::memory_order_release);
     return n;
   }
