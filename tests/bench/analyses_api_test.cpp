@@ -3,9 +3,12 @@
 // run with a gap step (1 -> 2 deg at 4 s; the nominal model has 1 deg), judged against the
 // campaign's own gap programme and against `hilbench compare` run on the same file; hostile
 // requests; the io thread answering while a job runs (by the job's state, not by timing); the
-// bounded queue; the report waiting on the worker; shutdown with jobs in flight.
+// bounded queue; the report waiting on the worker; shutdown stopping a running diagnosis, and its
+// failure still listed by the next server.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <fstream>
 #include <map>
 
 #include "server_process.hpp"
@@ -79,6 +82,13 @@ json wait_analysis(const hil::bench::ApiClient& api, const std::string& run, con
 }
 
 bool finished(const json& a) { return a.is_object() && (a["state"] == "done" || a["state"] == "failed"); }
+
+std::vector<std::string> files_in(const std::filesystem::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) out.push_back(e.path().filename().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
 
 std::vector<std::string> leftovers(const std::filesystem::path& runs_dir) {
   std::vector<std::string> out;
@@ -250,26 +260,61 @@ TEST(AnalysesApi, HostileRequestsAreRefusedNamingTheField) {
   EXPECT_TRUE(has(failed.value("error", ""), "telemetry.csv:2:")) << failed.dump(2);
   const auto its_report = api.get("/api/runs/bad_telemetry/analyses/" + id + "/report.html");
   EXPECT_EQ(its_report.status, 422) << its_report.body;
-  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / "bad_telemetry" / "analyses" / id));
+  // Its folder holds the failure's record alone, with the same reason.
+  EXPECT_EQ(files_in(server.runs_dir() / "bad_telemetry" / "analyses" / id), std::vector<std::string>{"failed.json"});
+  const json record = json::parse(hil::test::slurp(server.runs_dir() / "bad_telemetry" / "analyses" / id / "failed.json"));
+  EXPECT_EQ(record["reason"], failed["error"]);
+  EXPECT_EQ(record["kind"], "diagnose");
   EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
 
-TEST(AnalysesApi, ShutdownWithJobsInFlightLeavesWholeResultsOnly) {
-  ServerProcess server;
-  const auto api = server.client();
-  const std::string run = record_run(api);
-  const std::string base = "/api/runs/" + run + "/analyses";
-  const auto diag = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
-  ASSERT_EQ(diag.status, 202);
-  const auto queued = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
-  ASSERT_EQ(queued.status, 202);
-  const std::string diag_id = diag.json()["analysis"]["id"], cmp_id = queued.json()["analysis"]["id"];
-  const json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
-  ASSERT_EQ(d["state"], "running") << d.dump(2);
-  ASSERT_EQ(server.terminate(120s), 0);
-  // The running diagnosis ended whole (the server waits for it); the queued compare never ran.
-  EXPECT_TRUE(std::filesystem::exists(server.runs_dir() / run / "analyses" / diag_id / "analysis.json"));
-  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / run / "analyses" / cmp_id));
-  EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+TEST(AnalysesApi, ShutdownStopsARunningDiagnosisWhichTheNextServerListsAsFailed) {
+  std::string run, diag_id, cmp_id;
+  hil::test::TempDir kept;
+  {
+    ServerProcess server;
+    const auto api = server.client();
+    run = record_run(api);
+    const std::string base = "/api/runs/" + run + "/analyses";
+    const auto diag = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
+    ASSERT_EQ(diag.status, 202);
+    const auto queued = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
+    ASSERT_EQ(queued.status, 202);
+    diag_id = diag.json()["analysis"]["id"];
+    cmp_id = queued.json()["analysis"]["id"];
+    const json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
+    ASSERT_EQ(d["state"], "running") << d.dump(2);
+    ASSERT_EQ(server.terminate(120s), 0);
+    // The diagnosis stopped at a cancel point instead of running its search to the end: its folder
+    // holds the failure's record and no result (no analysis.json, diagnosis.json, report or model).
+    const auto folder = server.runs_dir() / run / "analyses" / diag_id;
+    EXPECT_EQ(files_in(folder), std::vector<std::string>{"failed.json"});
+    const json record = json::parse(hil::test::slurp(folder / "failed.json"));
+    EXPECT_EQ(record["reason"], "server stopped");
+    EXPECT_EQ(record["kind"], "diagnose");
+    EXPECT_EQ(record["model"], "nominal");
+    EXPECT_TRUE(record["finished_utc"].is_string());
+    // The queued compare never ran and is not kept (SERVER.md: queued jobs do not survive).
+    EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / run / "analyses" / cmp_id));
+    EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+    std::filesystem::copy(server.runs_dir() / run, kept.path() / run, std::filesystem::copy_options::recursive);
+  }
+  // The next server, on the same run folder, still lists it as failed with the reason.
+  ServerProcess next;
+  std::filesystem::copy(kept.path() / run, next.runs_dir() / run, std::filesystem::copy_options::recursive);
+  const auto api = next.client();
+  const json a = analysis_of(api, run, diag_id);
+  ASSERT_TRUE(a.is_object()) << api.get("/api/runs/" + run + "/analyses").body;
+  EXPECT_EQ(a["state"], "failed");
+  EXPECT_EQ(a["error"], "server stopped");
+  EXPECT_EQ(a["kind"], "diagnose");
+  EXPECT_EQ(api.get("/api/runs/" + run + "/analyses/" + diag_id).json()["analysis"]["error"], "server stopped");
+  const auto report = api.get("/api/runs/" + run + "/analyses/" + diag_id + "/report.html");
+  EXPECT_EQ(report.status, 422) << report.body;
+  EXPECT_EQ(report.json()["detail"], "server stopped");
+  // Its id stays taken: the same analysis asked again is a new one.
+  const auto again = api.post("/api/runs/" + run + "/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
+  ASSERT_EQ(again.status, 202) << again.body;
+  EXPECT_NE(again.json()["analysis"]["id"], diag_id);
 }
