@@ -108,7 +108,7 @@ AnalyzerOptions analyzer_options_for(const plant::Plant& model) {
 }
 
 ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info,
-                            const Progress& progress) {
+                            const Progress& progress, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
   MeasurementReader reader(data_file);
   MeasurementRows first;
@@ -139,6 +139,7 @@ ResidualReport compare_file(const plant::Plant& model, const std::filesystem::pa
   }
   auto last_report = Clock::now();
   auto next = [&](MeasurementRows& rows) {
+    throw_if_cancelled(cancel);
     if (progress && Clock::now() - last_report > std::chrono::milliseconds(500)) {
       progress(reader.progress(), reader.rows_read());
       last_report = Clock::now();
@@ -329,7 +330,8 @@ ResidualReport run_compare(const CompareOptions& o) {
     };
   }
   ReplayInfo info;
-  const ResidualReport r = compare_file(model, o.data_file, &info, progress);
+  const ResidualReport r = compare_file(model, o.data_file, &info, progress, o.cancel);
+  throw_if_cancelled(o.cancel);
 
   std::filesystem::create_directories(o.out_dir);
   auto j = detail::residual_to_json(r);

@@ -92,6 +92,7 @@ struct Context {
   const ReplayData& full;
   const ReplayData& coarse;
   unsigned threads;
+  const std::atomic<bool>* cancel;  // looked at before every fit (cancel.hpp)
 };
 
 plant::Plant model_for(const plant::Plant& attached, const VariantFit& v, double grid_value) {
@@ -110,6 +111,7 @@ void split_params(const Candidate& cand, VariantFit& vf) {
 }
 
 void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  throw_if_cancelled(ctx.cancel);
   const plant::Plant attached = cand.attach(base);
   split_params(cand, vf);
   const bool same = &ctx.coarse == &ctx.full || ctx.coarse.size() == ctx.full.size();
@@ -136,6 +138,7 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
     std::vector<bool> tried(n, false);
     std::size_t lo = 0, hi = n - 1, stride = std::max<std::size_t>(1, (n + kGridCoarse - 1) / kGridCoarse);
     for (;;) {
+      throw_if_cancelled(ctx.cancel);  // a level is the longest unit of a round
       std::vector<std::size_t> level;
       for (std::size_t i = lo + stride / 2; i <= hi; i += stride)
         if (!tried[i]) level.push_back(i), tried[i] = true;
@@ -184,12 +187,14 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
 
 // RSS on every row at the coarse fit's values.
 void evaluate_full(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  throw_if_cancelled(ctx.cancel);
   const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
   vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
   ++vf.evaluations;
 }
 
 void refine_variant(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
+  throw_if_cancelled(ctx.cancel);
   if (vf.refined || !std::isfinite(vf.rss_full)) return;
   const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
   detail::Fitter f(m, vf.continuous, ctx.full);
@@ -241,6 +246,7 @@ plant::Plant apply_added(const plant::Plant& model, const std::vector<Added>& ad
 // Jointly refits every added effect's continuous parameters (the first fit of an effect absorbed
 // part of the ones found after it).
 void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Added>& added, int& evaluations) {
+  throw_if_cancelled(ctx.cancel);
   std::vector<FreeParam> params;
   std::vector<double> x;
   for (const auto& a : added) {
@@ -295,6 +301,7 @@ void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Adde
 // took part of it). The candidate's RSS for the criterion is the joint one.
 void refine_jointly(const Context& ctx, const plant::Plant& base0, const std::vector<Added>& added, const Candidate& cand,
                     VariantFit& vf) {
+  throw_if_cancelled(ctx.cancel);
   if (!std::isfinite(vf.rss_full)) return;
   std::vector<FreeParam> params;
   std::vector<double> x;
@@ -365,6 +372,7 @@ struct RoundOutcome {
 
 RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::vector<Added>& added,
                        const std::vector<const Candidate*>& pool, int& evaluations) {
+  throw_if_cancelled(su.ctx.cancel);
   const plant::Plant current = apply_added(base0, added);
   const Context& ctx = su.ctx;
   const ReplayData& full = ctx.full;
@@ -690,6 +698,7 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   // Each file compared on its own; the criterion's noise power and spread are pooled over them.
   double noise_rss = 0, spread2 = 0, rss_before = 0;
   for (std::size_t i = 0; i < files.size(); ++i) {
+    throw_if_cancelled(s.cancel);
     FileFit f;
     f.rows = files[i]->rows.size();
     f.time_origin_s = full.segments[i].start.t0_s;
@@ -707,7 +716,7 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   d.noise_floor_fit_pct = fit_percent(noise_rss, spread, full.size());
   d.rmse_before_pa = std::sqrt(rss_before / N);
   d.fit_before_pct = fit_percent(rss_before, spread, full.size());
-  const Setup su{{full, dec > 1 ? coarse : full, threads}, noise_rss, spread, s.progress, t_start};
+  const Setup su{{full, dec > 1 ? coarse : full, threads, s.cancel}, noise_rss, spread, s.progress, t_start};
 
   const std::vector<Candidate> all = candidates_for(base0, s.candidates);
   std::vector<const Candidate*> pool;

@@ -358,6 +358,7 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
   std::vector<Measurement> data;
   data.reserve(o.data_files.size());
   for (const auto& f : o.data_files) {
+    throw_if_cancelled(o.settings.cancel);
     data.push_back(load_measurement(f));
     if (data.back().has_encoder != data.front().has_encoder) {
       throw std::invalid_argument(f.string() + ": " + (data.back().has_encoder ? "has" : "has no") +
@@ -371,6 +372,7 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
   DiagnoseSettings s = o.settings;
   s.progress = s.progress || !o.quiet;
   const Diagnosis d = diagnose(model, files, s);
+  throw_if_cancelled(s.cancel);
   std::filesystem::create_directories(o.out_dir);
   detail::write_text(o.out_dir / "diagnosis.json", diagnosis_json(d, o.model_file, o.data_files));
   write_diagnosis_report(d, o.model_file, o.data_files, o.out_dir / "report.html");

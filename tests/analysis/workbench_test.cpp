@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -14,6 +15,7 @@
 
 #include "hil/analysis/candidates.hpp"
 #include "hil/analysis/compare.hpp"
+#include "hil/analysis/diagnose.hpp"
 #include "hil/analysis/measurement.hpp"
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
@@ -162,6 +164,34 @@ TEST(MeasurementFile, TimeJumpsAndSlowLogsAreRefusedAtTheirLine) {
   const auto r = compare_file(nominal(), f);
   EXPECT_TRUE(std::isfinite(r.fit_pct));
   EXPECT_TRUE(std::isfinite(r.error.rmse_pa));
+}
+
+// A raised cancel flag (a server shutting down) stops compare and diagnose before their next unit
+// of work, and nothing is written; without it the same calls run to their outputs.
+TEST(Cancel, CompareAndDiagnoseStopAndWriteNothing) {
+  hil::test::TempDir dir;
+  const auto f = dir.write("steady.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows(2000));
+  const std::atomic<bool> raised{true}, lowered{false};
+  hil::analysis::CompareOptions c;
+  c.model_file = hil::test::nominal_model();
+  c.data_file = f;
+  c.quiet = true;
+  c.out_dir = dir.path() / "cmp_cancelled";
+  c.cancel = &raised;
+  EXPECT_THROW(hil::analysis::run_compare(c), hil::analysis::Cancelled);
+  EXPECT_FALSE(fs::exists(c.out_dir));
+  hil::analysis::DiagnoseOptions d;
+  d.model_file = hil::test::nominal_model();
+  d.data_files = {f};
+  d.quiet = true;
+  d.out_dir = dir.path() / "diag_cancelled";
+  d.settings.cancel = &raised;
+  EXPECT_THROW(hil::analysis::run_diagnose(d), hil::analysis::Cancelled);
+  EXPECT_FALSE(fs::exists(d.out_dir));
+  c.out_dir = dir.path() / "cmp";
+  c.cancel = &lowered;
+  hil::analysis::run_compare(c);
+  EXPECT_TRUE(fs::exists(c.out_dir / "compare.json"));
 }
 
 // The replay itself cannot be made to overflow or run away by a time stamp.

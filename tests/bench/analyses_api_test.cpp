@@ -3,9 +3,14 @@
 // run with a gap step (1 -> 2 deg at 4 s; the nominal model has 1 deg), judged against the
 // campaign's own gap programme and against `hilbench compare` run on the same file; hostile
 // requests; the io thread answering while a job runs (by the job's state, not by timing); the
-// bounded queue; the report waiting on the worker; shutdown with jobs in flight.
+// bounded queue; the report waiting on the worker; shutdown stopping a running diagnosis, and its
+// failure still listed by the next server; `hilbench ctl analyse`, `analyses` and `get` of an
+// analysis's file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
 #include <map>
 
 #include "server_process.hpp"
@@ -79,6 +84,28 @@ json wait_analysis(const hil::bench::ApiClient& api, const std::string& run, con
 }
 
 bool finished(const json& a) { return a.is_object() && (a["state"] == "done" || a["state"] == "failed"); }
+
+std::vector<std::string> files_in(const std::filesystem::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) out.push_back(e.path().filename().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// `hilbench ctl --server URL ARGS...` as its own process: the exit status and what it printed.
+struct CtlResult {
+  int rc = -1;
+  std::string out;
+};
+CtlResult ctl(const ServerProcess& server, std::vector<std::string> args) {
+  static int n = 0;
+  const auto log = server.dir() / ("ctl_" + std::to_string(++n) + ".log");
+  std::vector<std::string> argv = {hil::test::hilbench_exe(), "ctl", "--server",
+                                   "http://127.0.0.1:" + std::to_string(server.port())};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto rc = hil::test::wait_exit(hil::test::spawn(argv, log), 180s);
+  return {rc.value_or(-1000), hil::test::slurp(log)};
+}
 
 std::vector<std::string> leftovers(const std::filesystem::path& runs_dir) {
   std::vector<std::string> out;
@@ -250,26 +277,130 @@ TEST(AnalysesApi, HostileRequestsAreRefusedNamingTheField) {
   EXPECT_TRUE(has(failed.value("error", ""), "telemetry.csv:2:")) << failed.dump(2);
   const auto its_report = api.get("/api/runs/bad_telemetry/analyses/" + id + "/report.html");
   EXPECT_EQ(its_report.status, 422) << its_report.body;
-  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / "bad_telemetry" / "analyses" / id));
+  // Its folder holds the failure's record alone, with the same reason.
+  EXPECT_EQ(files_in(server.runs_dir() / "bad_telemetry" / "analyses" / id), std::vector<std::string>{"failed.json"});
+  const json record = json::parse(hil::test::slurp(server.runs_dir() / "bad_telemetry" / "analyses" / id / "failed.json"));
+  EXPECT_EQ(record["reason"], failed["error"]);
+  EXPECT_EQ(record["kind"], "diagnose");
   EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
 
-TEST(AnalysesApi, ShutdownWithJobsInFlightLeavesWholeResultsOnly) {
+TEST(AnalysesApi, ShutdownStopsARunningDiagnosisWhichTheNextServerListsAsFailed) {
+  std::string run, diag_id, cmp_id;
+  hil::test::TempDir kept;
+  {
+    ServerProcess server;
+    const auto api = server.client();
+    run = record_run(api);
+    const std::string base = "/api/runs/" + run + "/analyses";
+    const auto diag = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
+    ASSERT_EQ(diag.status, 202);
+    const auto queued = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
+    ASSERT_EQ(queued.status, 202);
+    diag_id = diag.json()["analysis"]["id"];
+    cmp_id = queued.json()["analysis"]["id"];
+    const json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
+    ASSERT_EQ(d["state"], "running") << d.dump(2);
+    ASSERT_EQ(server.terminate(120s), 0);
+    // The diagnosis stopped at a cancel point instead of running its search to the end: its folder
+    // holds the failure's record and no result (no analysis.json, diagnosis.json, report or model).
+    const auto folder = server.runs_dir() / run / "analyses" / diag_id;
+    EXPECT_EQ(files_in(folder), std::vector<std::string>{"failed.json"});
+    const json record = json::parse(hil::test::slurp(folder / "failed.json"));
+    EXPECT_EQ(record["reason"], "server stopped");
+    EXPECT_EQ(record["kind"], "diagnose");
+    EXPECT_EQ(record["model"], "nominal");
+    EXPECT_TRUE(record["finished_utc"].is_string());
+    // The queued compare never ran and is not kept (SERVER.md: queued jobs do not survive).
+    EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / run / "analyses" / cmp_id));
+    EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+    std::filesystem::copy(server.runs_dir() / run, kept.path() / run, std::filesystem::copy_options::recursive);
+  }
+  // The next server, on the same run folder, still lists it as failed with the reason.
+  ServerProcess next;
+  std::filesystem::copy(kept.path() / run, next.runs_dir() / run, std::filesystem::copy_options::recursive);
+  const auto api = next.client();
+  const json a = analysis_of(api, run, diag_id);
+  ASSERT_TRUE(a.is_object()) << api.get("/api/runs/" + run + "/analyses").body;
+  EXPECT_EQ(a["state"], "failed");
+  EXPECT_EQ(a["error"], "server stopped");
+  EXPECT_EQ(a["kind"], "diagnose");
+  EXPECT_EQ(api.get("/api/runs/" + run + "/analyses/" + diag_id).json()["analysis"]["error"], "server stopped");
+  const auto report = api.get("/api/runs/" + run + "/analyses/" + diag_id + "/report.html");
+  EXPECT_EQ(report.status, 422) << report.body;
+  EXPECT_EQ(report.json()["detail"], "server stopped");
+  // Its id stays taken: the same analysis asked again is a new one.
+  const auto again = api.post("/api/runs/" + run + "/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
+  ASSERT_EQ(again.status, 202) << again.body;
+  EXPECT_NE(again.json()["analysis"]["id"], diag_id);
+}
+
+TEST(AnalysesApi, CtlAnalysesARunListsItsAnalysesAndFetchesTheirFiles) {
   ServerProcess server;
   const auto api = server.client();
   const std::string run = record_run(api);
-  const std::string base = "/api/runs/" + run + "/analyses";
-  const auto diag = api.post(base, {{"kind", "diagnose"}, {"model", "nominal"}});
-  ASSERT_EQ(diag.status, 202);
-  const auto queued = api.post(base, {{"kind", "compare"}, {"model", "nominal"}});
-  ASSERT_EQ(queued.status, 202);
-  const std::string diag_id = diag.json()["analysis"]["id"], cmp_id = queued.json()["analysis"]["id"];
-  const json d = wait_analysis(api, run, diag_id, [](const json& a) { return a.is_object() && a["state"] != "queued"; });
-  ASSERT_EQ(d["state"], "running") << d.dump(2);
-  ASSERT_EQ(server.terminate(120s), 0);
-  // The running diagnosis ended whole (the server waits for it); the queued compare never ran.
-  EXPECT_TRUE(std::filesystem::exists(server.runs_dir() / run / "analyses" / diag_id / "analysis.json"));
-  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / run / "analyses" / cmp_id));
-  EXPECT_EQ(leftovers(server.runs_dir()), std::vector<std::string>{});
+
+  // analyse --wait: the compare's headline, as compare.json has it, and the report's URL.
+  const CtlResult c = ctl(server, {"analyse", run, "--kind", "compare", "--model", "nominal", "--wait"});
+  ASSERT_EQ(c.rc, 0) << c.out;
+  const json list = api.get("/api/runs/" + run + "/analyses").json()["analyses"];
+  ASSERT_EQ(list.size(), 1u) << list.dump(2);
+  const std::string id = list[0]["id"];
+  const auto folder = server.runs_dir() / run / "analyses" / id;
+  const json compare = json::parse(hil::test::slurp(folder / "compare.json"));
+  char fit[64];
+  std::snprintf(fit, sizeof fit, "fit %.2f %%", compare["fit_pct"].get<double>());
+  EXPECT_TRUE(has(c.out, id + " done: " + fit)) << c.out;
+  const std::string url =
+      "http://127.0.0.1:" + std::to_string(server.port()) + "/api/runs/" + run + "/analyses/" + id + "/report.html";
+  EXPECT_TRUE(has(c.out, "report: " + url)) << c.out;
+  EXPECT_EQ(api.get(url.substr(url.find("/api/"))).status, 200);
+
+  // analyses: each with its state and headline.
+  const CtlResult l = ctl(server, {"analyses", run});
+  ASSERT_EQ(l.rc, 0) << l.out;
+  EXPECT_TRUE(has(l.out, id)) << l.out;
+  EXPECT_TRUE(has(l.out, "done")) << l.out;
+  EXPECT_TRUE(has(l.out, fit)) << l.out;
+
+  // get: an analysis's file, byte for byte.
+  const auto out = server.dir() / "fetched_compare.json";
+  const CtlResult g = ctl(server, {"get", run, "analyses/" + id + "/compare.json", "--out", out.string()});
+  ASSERT_EQ(g.rc, 0) << g.out;
+  EXPECT_EQ(hil::test::slurp(out), hil::test::slurp(folder / "compare.json"));
+
+  // The server's refusals, each naming the field it blamed; nothing is queued.
+  const CtlResult model = ctl(server, {"analyse", run, "--kind", "compare", "--model", "nomnal"});
+  EXPECT_EQ(model.rc, 1) << model.out;
+  EXPECT_TRUE(has(model.out, "unknown model (field 'model')")) << model.out;
+  EXPECT_TRUE(has(model.out, "did you mean 'nominal'")) << model.out;
+  EXPECT_TRUE(has(model.out, "(HTTP 404)")) << model.out;
+  const CtlResult kind = ctl(server, {"analyse", run, "--kind", "comparison", "--model", "nominal"});
+  EXPECT_EQ(kind.rc, 1) << kind.out;
+  EXPECT_TRUE(has(kind.out, "bad field (field 'kind')")) << kind.out;
+  EXPECT_TRUE(has(kind.out, "(HTTP 400)")) << kind.out;
+  const CtlResult unknown = ctl(server, {"analyse", "nope", "--kind", "compare", "--model", "nominal"});
+  EXPECT_EQ(unknown.rc, 1) << unknown.out;
+  EXPECT_TRUE(has(unknown.out, "(HTTP 404)")) << unknown.out;
+  EXPECT_EQ(api.get("/api/runs/" + run + "/analyses").json()["analyses"].size(), 1u);
+
+  // A failing analysis followed with --wait: exit 3 with the server's reason; its files are refused.
+  std::filesystem::create_directory(server.runs_dir() / "bad_telemetry");
+  std::filesystem::copy_file(server.runs_dir() / run / "run.json", server.runs_dir() / "bad_telemetry" / "run.json");
+  std::ofstream(server.runs_dir() / "bad_telemetry" / "telemetry.csv") << "t_s,theta_cmd_deg,p_meas_mpa\n0.000,1.0,abc\n";
+  const CtlResult bad = ctl(server, {"analyse", "bad_telemetry", "--kind", "compare", "--model", "nominal", "--wait"});
+  EXPECT_EQ(bad.rc, 3) << bad.out;
+  EXPECT_TRUE(has(bad.out, "failed: ")) << bad.out;
+  EXPECT_TRUE(has(bad.out, "telemetry.csv:2:")) << bad.out;
+  const std::string bad_id = api.get("/api/runs/bad_telemetry/analyses").json()["analyses"][0]["id"];
+  const CtlResult bad_get =
+      ctl(server, {"get", "bad_telemetry", "analyses/" + bad_id + "/report.html", "--out", (server.dir() / "bad.html").string()});
+  EXPECT_EQ(bad_get.rc, 1) << bad_get.out;
+  EXPECT_TRUE(has(bad_get.out, "the analysis failed")) << bad_get.out;
+  EXPECT_FALSE(std::filesystem::exists(server.dir() / "bad.html"));
+  const CtlResult bad_list = ctl(server, {"analyses", "bad_telemetry"});
+  EXPECT_EQ(bad_list.rc, 0) << bad_list.out;
+  EXPECT_TRUE(has(bad_list.out, "failed")) << bad_list.out;
+  EXPECT_TRUE(has(bad_list.out, "telemetry.csv:2:")) << bad_list.out;
 }

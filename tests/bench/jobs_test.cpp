@@ -1,11 +1,15 @@
 // The server's job worker (bench/src/server/jobs.hpp) on its own: one job at a time in submission
-// order, a bounded queue, a throwing job failed with its message, waiters told once, and stop()
-// failing what waits while the running job ends whole. Every wait is for a state, none for a time.
+// order, a bounded queue, a throwing job failed with its message, waiters told once, stop()
+// failing what waits and raising the running job's cancel flag (a job that ignores it ends whole,
+// one that looks at it gives up), failed analyses recorded in their folder. Every wait is for a
+// state, none for a time.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <future>
+#include <map>
 
 #include "server/analyses.hpp"
 #include "server/jobs.hpp"
@@ -67,7 +71,7 @@ TEST(JobQueue, RunsInOrderBoundsTheQueueAndFailsAThrowingJobWithItsMessage) {
     std::lock_guard l(order_m);
     order.push_back(id);
   };
-  q.submit(job("a"), [&](const JobQueue::Progress& progress) {
+  q.submit(job("a"), [&](const JobQueue::Progress& progress, const std::atomic<bool>&) {
     progress(0.5);
     gate.wait();
     note("a");
@@ -76,13 +80,16 @@ TEST(JobQueue, RunsInOrderBoundsTheQueueAndFailsAThrowingJobWithItsMessage) {
   gate.wait_reached();
   EXPECT_EQ(q.find("r", "a")->state, JobState::running);
   EXPECT_DOUBLE_EQ(q.find("r", "a")->progress, 0.5);
-  q.submit(job("b"), [&](const JobQueue::Progress&) -> json { throw std::runtime_error("telemetry.csv:2:3: not a number"); });
-  q.submit(job("c"), [&](const JobQueue::Progress&) {
+  q.submit(job("b"), [&](const JobQueue::Progress&, const std::atomic<bool>&) -> json {
+    throw std::runtime_error("telemetry.csv:2:3: not a number");
+  });
+  q.submit(job("c"), [&](const JobQueue::Progress&, const std::atomic<bool>&) {
     note("c");
     return json{{"n", 3}};
   });
-  EXPECT_THROW(q.submit(job("d"), [](const JobQueue::Progress&) { return json(); }), JobRefused);
-  EXPECT_THROW(q.submit(job("a"), [](const JobQueue::Progress&) { return json(); }), JobRefused) << "the queue is still full";
+  EXPECT_THROW(q.submit(job("d"), [](const JobQueue::Progress&, const std::atomic<bool>&) { return json(); }), JobRefused);
+  EXPECT_THROW(q.submit(job("a"), [](const JobQueue::Progress&, const std::atomic<bool>&) { return json(); }), JobRefused)
+      << "the queue is still full";
   EXPECT_EQ(q.find("r", "b")->state, JobState::queued);
   auto fa = finished(q, "a"), fb = finished(q, "b"), fc = finished(q, "c");
   gate.release();
@@ -106,11 +113,12 @@ TEST(JobQueue, StopFailsTheWaitingJobsAndLetsTheRunningOneEnd) {
   JobQueue q(4);
   Gate gate;
   std::atomic<bool> second_ran{false};
-  q.submit(job("running"), [&](const JobQueue::Progress&) {
+  q.submit(job("running"), [&](const JobQueue::Progress&, const std::atomic<bool>& cancel) {
+    const bool before = cancel.load();
     gate.wait();
-    return json{{"whole", true}};
+    return json{{"whole", true}, {"cancel_before", before}, {"cancel_after", cancel.load()}};
   });
-  q.submit(job("waiting"), [&](const JobQueue::Progress&) {
+  q.submit(job("waiting"), [&](const JobQueue::Progress&, const std::atomic<bool>&) {
     second_ran = true;
     return json();
   });
@@ -122,10 +130,38 @@ TEST(JobQueue, StopFailsTheWaitingJobsAndLetsTheRunningOneEnd) {
   stopper.join();
   const JobStatus r = fr.get();
   EXPECT_EQ(r.state, JobState::done);
-  EXPECT_EQ(r.result["whole"], true);
+  EXPECT_EQ(r.result["whole"], true) << "a job without a cancel point ends whole";
+  EXPECT_EQ(r.result["cancel_before"], false);
+  EXPECT_EQ(r.result["cancel_after"], true) << "the running job was asked to stop before the waiting ones were failed";
   EXPECT_FALSE(second_ran);
-  EXPECT_THROW(q.submit(job("late"), [](const JobQueue::Progress&) { return json(); }), JobRefused);
+  EXPECT_THROW(q.submit(job("late"), [](const JobQueue::Progress&, const std::atomic<bool>&) { return json(); }), JobRefused);
   q.stop("again");  // idempotent
+}
+
+TEST(JobQueue, CancelReturnsAtOnceAndTheRunningJobStopsAtItsCancelPoint) {
+  JobQueue q(4);
+  Gate gate;
+  std::atomic<int> units{0};
+  // A job of many units that looks at the flag between them, as an analysis does.
+  q.submit(job("long"), [&](const JobQueue::Progress&, const std::atomic<bool>& cancel) -> json {
+    for (int i = 0; i < 1000000; ++i) {
+      if (cancel.load()) throw std::runtime_error("stopped after " + std::to_string(i) + " units");
+      if (i == 3) gate.wait();
+      ++units;
+    }
+    return json{{"whole", true}};
+  });
+  gate.wait_reached();
+  auto f = finished(q, "long");
+  q.cancel("the server is shutting down");  // does not wait: the job is parked at the gate
+  EXPECT_EQ(q.find("r", "long")->state, JobState::running);
+  EXPECT_THROW(q.submit(job("late"), [](const JobQueue::Progress&, const std::atomic<bool>&) { return json(); }), JobRefused);
+  gate.release();
+  const JobStatus s = f.get();
+  EXPECT_EQ(s.state, JobState::failed);
+  EXPECT_EQ(s.error, "stopped after 4 units");
+  EXPECT_EQ(units.load(), 4);
+  q.stop("the server is shutting down");
 }
 
 TEST(JobLeftovers, AStartRemovesHalfMadeReportsAndAnalysesOnly) {
@@ -146,4 +182,60 @@ TEST(JobLeftovers, AStartRemovesHalfMadeReportsAndAnalysesOnly) {
   EXPECT_EQ(hil::bench::next_analysis_id(run, "compare", "nominal", {"compare_nominal_1"}), "compare_nominal_3");
   EXPECT_EQ(hil::bench::next_analysis_id(run, "diagnose", "nominal", {}), "diagnose_nominal_1");
   EXPECT_EQ(hil::bench::remove_job_leftovers(dir.path() / "missing"), 0u);
+}
+
+TEST(AnalysisJob, AFailureIsRecordedInItsFolderAndListedAfterARestart) {
+  hil::test::TempDir dir;
+  const auto run = dir.path() / "20261126T000000Z_c_r";
+  std::filesystem::create_directories(run);
+  hil::bench::AnalysisSpec spec;
+  spec.run_dir = run;
+  spec.model = "nominal";
+  spec.model_file = hil::test::source_path("configs/plant/nominal.yaml");
+  const auto no_progress = [](double) {};
+
+  // Cancelled before its first unit of work: "server stopped", no result, no temporary.
+  spec.kind = "diagnose";
+  spec.id = "diagnose_nominal_1";
+  const std::atomic<bool> cancel{true};
+  try {
+    hil::bench::run_analysis(spec, no_progress, &cancel);
+    ADD_FAILURE() << "a cancelled analysis returned";
+  } catch (const std::exception& e) {
+    EXPECT_STREQ(e.what(), hil::bench::kServerStopped);
+  }
+  // A run without telemetry.csv fails with the reader's reason.
+  spec.kind = "compare";
+  spec.id = "compare_nominal_1";
+  std::string reason;
+  try {
+    hil::bench::run_analysis(spec, no_progress);
+    ADD_FAILURE() << "an analysis of a missing file returned";
+  } catch (const std::exception& e) {
+    reason = e.what();
+  }
+  EXPECT_NE(reason.find("telemetry.csv"), std::string::npos) << reason;
+
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(run / "analyses"))
+    files.push_back(std::filesystem::relative(e.path(), run / "analyses").string());
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(files, (std::vector<std::string>{"compare_nominal_1", "compare_nominal_1/failed.json", "diagnose_nominal_1",
+                                             "diagnose_nominal_1/failed.json"}))
+      << "each failure is its folder with failed.json alone";
+
+  // What a restarted server lists, from the folders alone.
+  const auto list = hil::bench::finished_analyses(run);
+  ASSERT_EQ(list.size(), 2u);
+  std::map<std::string, json> by_id;
+  for (const auto& a : list) by_id[a.value("id", "")] = a;
+  EXPECT_EQ(by_id["diagnose_nominal_1"]["state"], "failed");
+  EXPECT_EQ(by_id["diagnose_nominal_1"]["error"], "server stopped");
+  EXPECT_EQ(by_id["diagnose_nominal_1"]["kind"], "diagnose");
+  EXPECT_EQ(by_id["diagnose_nominal_1"]["model"], "nominal");
+  EXPECT_TRUE(by_id["diagnose_nominal_1"]["finished_utc"].is_string());
+  EXPECT_EQ(by_id["compare_nominal_1"]["state"], "failed");
+  EXPECT_EQ(by_id["compare_nominal_1"]["error"], reason);
+  // The failed ids stay taken: the next analysis is a new one.
+  EXPECT_EQ(hil::bench::next_analysis_id(run, "diagnose", "nominal", {}), "diagnose_nominal_2");
 }

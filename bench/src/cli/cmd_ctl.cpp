@@ -17,16 +17,19 @@ namespace {
 
 using nlohmann::json;
 
+// An error reply as one line: the server's error and detail, and the request field it blamed.
 [[noreturn]] void fail(const ApiReply& r) {
-  std::string error = "HTTP " + std::to_string(r.status), detail;
+  std::string error = "HTTP " + std::to_string(r.status), detail, field;
   try {
     const json j = r.json();
     error = j.value("error", error);
     detail = j.value("detail", "");
+    field = j.value("field", "");
   } catch (const std::exception&) {
     detail = r.body.substr(0, 300);
   }
-  throw std::runtime_error(error + (detail.empty() ? "" : ": " + detail) + " (HTTP " + std::to_string(r.status) + ")");
+  throw std::runtime_error(error + (field.empty() ? "" : " (field '" + field + "')") + (detail.empty() ? "" : ": " + detail) +
+                           " (HTTP " + std::to_string(r.status) + ")");
 }
 
 json checked(const ApiReply& r) {
@@ -151,6 +154,34 @@ int watch(const ApiClient& api) {
   }
 }
 
+// A member of a JSON object, null when absent (a const json's operator[] must not be asked for a
+// key it lacks).
+json member(const json& j, const char* key) { return j.is_object() && j.contains(key) ? j[key] : json(nullptr); }
+
+// An analysis's headline: compare's fit against the noise floor, diagnose's verdict and what it
+// added; a failure's reason; the progress while it runs.
+std::string analysis_headline(const json& a) {
+  const std::string state = a.value("state", "?");
+  if (state == "failed") return a.value("error", "");
+  const json r = member(a, "result");
+  if (state != "done" || !r.is_object()) {
+    const json p = member(a, "progress");
+    return p.is_number() ? number(p.get<double>() * 100, "%.0f %%") : "";
+  }
+  if (a.value("kind", "") == "diagnose") {
+    std::string added;
+    for (const auto& e : r.value("added", json::array())) {
+      added += (added.empty() ? "" : ", ") + e.value("effect", "?") + " (" + e.value("variant", "?") + ")";
+    }
+    return "verdict " + r.value("verdict", "?") + ", fit " + number(member(r, "fit_before_pct"), "%.2f") + " % -> " +
+           number(member(r, "fit_after_pct"), "%.2f") + " % (noise floor " + number(member(r, "noise_floor_fit_pct"), "%.2f") +
+           " %)" + (added.empty() ? "" : "; added " + added);
+  }
+  return "fit " + number(member(r, "fit_pct"), "%.2f") + " % (noise floor " + number(member(r, "noise_floor_fit_pct"), "%.2f") +
+         " %), RMSE " + number(member(r, "rmse_kpa"), "%.3g") + " kPa, largest error " +
+         number(member(r, "max_error_kpa"), "%.3g") + " kPa at " + number(member(r, "max_error_t_s"), "%.4g") + " s";
+}
+
 std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read " + path);
@@ -177,7 +208,9 @@ struct CtlArgs {
   bool off = false;                          // inject drive / rig
   double rate_hz = 10;                       // telemetry
   long count = 0;                            // telemetry; 0: until the stream ends
-  std::string run, file, out;                // show, get
+  std::string run, file, out;                // show, get, analyse, analyses
+  std::string kind, model;                   // analyse
+  bool wait = false;                         // analyse
 };
 
 using Handler = std::function<int(const CtlArgs&, const ApiClient&)>;
@@ -208,6 +241,41 @@ int start(const CtlArgs& a, const ApiClient& api) {
   std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
   std::fflush(stdout);
   return a.detach ? 0 : watch(api);
+}
+
+// Posts an analysis of a run; with --wait follows it to the end: the headline and the report's URL,
+// or the server's reason for the failure (exit 3).
+int analyse(const CtlArgs& a, const ApiClient& api) {
+  const std::string base = "/api/runs/" + a.run + "/analyses";
+  const json posted = checked(api.post(base, {{"kind", a.kind}, {"model", a.model}}));
+  json job = posted.value("analysis", json::object());
+  const std::string id = job.value("id", "?");
+  std::printf("%s: %s of %s against %s, %s%s\n", id.c_str(), a.kind.c_str(), a.run.c_str(), a.model.c_str(),
+              job.value("state", "?").c_str(), posted.contains("note") ? (" (" + posted.value("note", "") + ")").c_str() : "");
+  std::fflush(stdout);
+  if (!a.wait) return 0;
+  std::string last_line;
+  for (;;) {
+    const std::string state = job.value("state", "?");
+    if (state == "done" || state == "failed") break;
+    const std::string line = state + (member(job, "progress").is_number() ? " " + analysis_headline(job) : "");
+    if (line != last_line) std::fprintf(stderr, "%s: %s\n", id.c_str(), line.c_str());
+    last_line = line;
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    job = checked(api.get(base + "/" + id)).value("analysis", json::object());
+  }
+  if (job.value("state", "") == "failed") {
+    std::fprintf(stderr, "%s failed: %s\n", id.c_str(), job.value("error", "").c_str());
+    return 3;
+  }
+  std::printf("%s done: %s\n", id.c_str(), analysis_headline(job).c_str());
+  if (member(job, "result").is_object()) {
+    for (const auto& line : job["result"].value("summary", json::array())) {
+      if (line.is_string()) std::printf("  %s\n", line.get<std::string>().c_str());
+    }
+  }
+  std::printf("report: http://%s:%s%s\n", api.host().c_str(), api.port().c_str(), job.value("report", "").c_str());
+  return 0;
 }
 
 int telemetry(const CtlArgs& a, const ApiClient& api) {
@@ -379,15 +447,44 @@ void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const C
       ->required()
       ->type_name("RUN");
   CLI::App* get = command(ctl, "get", "download a file of a past run", [](const CtlArgs& a, const ApiClient& api) {
-    const std::filesystem::path out = a.out.empty() ? a.file : a.out;
+    // FILE may be a path in the run (analyses/AID/report.html); what is written is its last part.
+    const std::filesystem::path out = a.out.empty() ? std::filesystem::path(a.file).filename() : std::filesystem::path(a.out);
+    if (out.empty()) throw UsageError("'" + a.file + "' names no file; --out says where it goes");
     const ApiReply r = api.download("/api/runs/" + a.run + "/" + a.file, out);
+    if (r.status == 202) {
+      const std::string state = r.json().value("analysis", json::object()).value("state", "in flight");
+      throw std::runtime_error("the analysis is " + state + "; nothing to download yet (hilbench ctl analyses " + a.run + ")");
+    }
     if (!r.ok()) fail(r);
     std::printf("%s (%ju bytes)\n", out.c_str(), static_cast<std::uintmax_t>(std::filesystem::file_size(out)));
     return 0;
   });
   get->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
-  get->add_option("file", args.file, "the file's name in the run")->required()->type_name("FILE");
-  get->add_option("--out", args.out, "where it goes (default: FILE)")->type_name("PATH");
+  get->add_option("file", args.file, "the file's name in the run, or analyses/AID/FILE of an analysis")
+      ->required()
+      ->type_name("FILE");
+  get->add_option("--out", args.out, "where it goes (default: FILE's name, in the current folder)")->type_name("PATH");
+
+  // The kind is checked by the server (GET /api/models lists the kinds it has).
+  CLI::App* an = command(ctl, "analyse", "compare or diagnose an ended run against a plant model of the server", analyse);
+  an->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
+  an->add_option("--kind", args.kind, "compare or diagnose")->required()->type_name("compare|diagnose");
+  an->add_option("--model", args.model, "a plant model's name on the server (GET /api/models)")->required()->type_name("NAME");
+  an->add_flag("--wait", args.wait, "follow it to the end: the headline and the report's URL");
+  CLI::App* list = command(ctl, "analyses", "a run's analyses with their state", [](const CtlArgs& a, const ApiClient& api) {
+    const json j = checked(api.get("/api/runs/" + a.run + "/analyses"));
+    if (a.json) {
+      std::printf("%s\n", j.dump(2).c_str());
+      return 0;
+    }
+    for (const auto& x : j["analyses"]) {
+      std::printf("%-28s %-9s %-16s %-8s %s\n", x.value("id", "?").c_str(), x.value("kind", "?").c_str(),
+                  x.value("model", "?").c_str(), x.value("state", "?").c_str(), analysis_headline(x).c_str());
+    }
+    return 0;
+  });
+  list->add_option("run", args.run, "the run's id (hilbench ctl runs)")->required()->type_name("RUN");
+  list->add_flag("--json", args.json, "the server's answer as JSON");
 }
 
 }  // namespace
@@ -404,7 +501,8 @@ CommandRun define_ctl(CLI::App& ctl) {
   ctl.fallthrough(false);
   ctl.footer(
       "exit status: 0 success (a followed campaign completed), 1 error reply or failure,\n"
-      "             2 usage, 3 a followed campaign ended stopped, aborted or in error");
+      "             2 usage, 3 a followed campaign ended stopped, aborted or in error,\n"
+      "             or an analysis followed with --wait failed");
   return [args, handlers, &ctl] {
     const CLI::App* at = &ctl;
     while (!at->get_subcommands().empty()) at = at->get_subcommands().front();

@@ -118,6 +118,7 @@ int run_serve(const ServeArgs& args) {
     } else {
       spdlog::warn("{} received: the running campaign goes to its safe state, then the server exits", name);
       server.refuse_starts("the server is shutting down (" + name + ")");
+      server.cancel_jobs();  // a diagnosis stops at its next fit instead of holding the exit for minutes
       try {
         runner.abort(name + " received");
       } catch (const Conflict&) {  // idle

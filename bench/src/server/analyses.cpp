@@ -5,6 +5,8 @@
 #include <cmath>
 #include <fstream>
 
+#include <spdlog/spdlog.h>
+
 #include "hil/analysis/compare.hpp"
 #include "hil/analysis/diagnose.hpp"
 #include "hil/bench/campaign/run_report.hpp"
@@ -76,7 +78,34 @@ std::string next_analysis_id(const fs::path& run_dir, const std::string& kind, c
   }
 }
 
-json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress) {
+namespace {
+
+// The failure's record, in place of the results: the folder holds failed.json alone. Best effort:
+// a disk that refuses it must not hide the failure's own reason, which the job keeps.
+void record_failure(const AnalysisSpec& spec, const std::string& reason, const std::string& started_utc) {
+  const fs::path tmp = tmp_dir(spec.run_dir, spec.id);
+  std::error_code ec;
+  try {
+    fs::remove_all(tmp, ec);
+    fs::create_directories(tmp);
+    const json record = {{"id", spec.id},
+                         {"kind", spec.kind},
+                         {"model", spec.model},
+                         {"state", "failed"},
+                         {"reason", reason},
+                         {"started_utc", started_utc},
+                         {"finished_utc", utc_iso(std::chrono::system_clock::now())}};
+    replace_file(tmp / "failed.json", record.dump(2) + "\n");
+    fs::rename(tmp, analysis_dir(spec.run_dir, spec.id));
+  } catch (const std::exception& e) {
+    fs::remove_all(tmp, ec);
+    spdlog::warn("analysis {} of {}: cannot record its failure: {}", spec.id, spec.run_dir.string(), e.what());
+  }
+}
+
+}  // namespace
+
+json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress, const std::atomic<bool>* cancel) {
   const fs::path tmp = tmp_dir(spec.run_dir, spec.id);
   const fs::path data = spec.run_dir / "telemetry.csv";
   const std::string started_utc = utc_iso(std::chrono::system_clock::now());
@@ -92,6 +121,7 @@ json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress) 
       o.out_dir = tmp;
       o.quiet = true;
       o.on_progress = [&progress](double fraction, std::size_t) { progress(fraction); };
+      o.cancel = cancel;
       result = compare_summary(analysis::run_compare(o));
     } else if (spec.kind == "diagnose") {
       analysis::DiagnoseOptions o;
@@ -103,6 +133,7 @@ json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress) 
       // One fitter thread: the worker shares the machine with the loop's recorder and the io
       // thread, which must stay responsive while a diagnosis runs.
       o.settings.threads = 1;
+      o.settings.cancel = cancel;
       result = diagnose_summary(analysis::run_diagnose(o));
     } else {
       throw std::invalid_argument("unknown analysis kind '" + spec.kind + "'");
@@ -119,8 +150,14 @@ json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress) 
     replace_file(tmp / "analysis.json", record.dump(2) + "\n");
     fs::rename(tmp, analysis_dir(spec.run_dir, spec.id));
     return result;
+  } catch (const analysis::Cancelled&) {
+    record_failure(spec, kServerStopped, started_utc);
+    throw std::runtime_error(kServerStopped);
+  } catch (const std::exception& e) {
+    record_failure(spec, e.what(), started_utc);
+    throw;
   } catch (...) {
-    fs::remove_all(tmp, ec);
+    record_failure(spec, "the analysis failed with an exception that is not a std::exception", started_utc);
     throw;
   }
 }
@@ -135,14 +172,22 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
   std::vector<std::pair<std::string, json>> out;
   for (const auto& d : dirs) {
     const std::string id = d.filename().string();
+    // A done analysis has analysis.json; a failed one failed.json alone.
+    const bool failed = !fs::exists(d / "analysis.json", ec) && fs::exists(d / "failed.json", ec);
+    const std::string file = failed ? "failed.json" : "analysis.json";
     try {
-      std::ifstream in(d / "analysis.json");
+      std::ifstream in(d / file);
       json j = json::parse(in);
       if (!j.is_object()) throw std::runtime_error("not a JSON object");
       j["id"] = id;
+      if (failed) {
+        j["state"] = "failed";
+        j["error"] = j.value("reason", "");
+        j.erase("reason");
+      }
       out.emplace_back(j.value("finished_utc", ""), std::move(j));
     } catch (const std::exception& e) {
-      out.emplace_back("", json{{"id", id}, {"state", "failed"}, {"error", std::string("analysis.json: ") + e.what()}});
+      out.emplace_back("", json{{"id", id}, {"state", "failed"}, {"error", file + ": " + e.what()}});
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });

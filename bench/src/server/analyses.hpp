@@ -7,10 +7,13 @@
 //   RUN_DIR/analyses/<id>/   report.html, compare.json or diagnosis.json (+ fitted_model.yaml),
 //                            analysis.json (what was asked, when, the result's summary)
 // written into RUN_DIR/analyses/.<id>.tmp and renamed into place at the end: an analysis folder
-// is complete or absent, and a failure (or a server killed mid-job) leaves only the .tmp, which is
-// removed at once or by the next server's start.
+// is complete or absent. A failure (a bad file, or the server stopping it at a cancel point)
+// leaves RUN_DIR/analyses/<id>/failed.json alone (what was asked, when, why), made the same way,
+// so that the run's list still shows it failed after a restart; a server killed mid-job leaves
+// only the .tmp, which the next server's start removes.
 #pragma once
 
+#include <atomic>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -38,15 +41,21 @@ std::filesystem::path analysis_dir(const std::filesystem::path& run_dir, const s
 std::string next_analysis_id(const std::filesystem::path& run_dir, const std::string& kind, const std::string& model,
                              const std::vector<std::string>& taken);
 
+// The reason a job gives when the server stopped it at a cancel point.
+inline constexpr const char* kServerStopped = "server stopped";
+
 // The job's work: runs the analysis into its .tmp folder, renames it into place, and returns the
 // summary kept in analysis.json (compare: fit, RMSE, noise floor, the residual's signature;
-// diagnose: the verdict, the effects added and the first round's candidates). Throws naming the
-// cause (a telemetry.csv the measurement reader refuses, a model that does not load), with the
-// .tmp folder removed.
-nlohmann::json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress);
+// diagnose: the verdict, the effects added and the first round's candidates). `cancel` raised:
+// stops at the analysis's next cancel point (hil/analysis/cancel.hpp). Throws naming the cause (a
+// telemetry.csv the measurement reader refuses, a model that does not load; kServerStopped when
+// cancelled), with the .tmp folder removed and failed.json written in the analysis's folder.
+nlohmann::json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress,
+                            const std::atomic<bool>* cancel = nullptr);
 
-// The run's finished analyses, from their analysis.json, oldest first; a folder whose
-// analysis.json is unreadable is listed with state "failed" and the reason.
+// The run's finished analyses (done, or failed with a failed.json), oldest first, as the API's
+// JOB objects (a failure's reason is its "error"); a folder with neither file readable is listed
+// with state "failed" and the reason.
 std::vector<nlohmann::json> finished_analyses(const std::filesystem::path& run_dir);
 
 // The job's work for GET /api/runs/ID/report.html: write_run_report into RUN_DIR/report.html.tmp,

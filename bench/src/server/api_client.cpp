@@ -139,7 +139,8 @@ ApiReply ApiClient::download(const std::string& target, const std::filesystem::p
     reply.status = parser.get().result_int();
     reply.content_type = std::string(parser.get()[http::field::content_type]);
     parser.get().body().close();
-    if (reply.ok()) {
+    // Only a 200 is the file: a 202 (an analysis still running) is a JSON answer like an error.
+    if (reply.status == 200) {
       std::filesystem::rename(tmp, to);
     } else {
       std::ifstream in(tmp);

@@ -866,7 +866,8 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
     s.id = "report";
     s.kind = "report";
     try {
-      job = jobs.submit(s, [dir](const JobQueue::Progress&) { return make_run_report(dir); });
+      // A report has no cancel point: it takes a fraction of a second to seconds.
+      job = jobs.submit(s, [dir](const JobQueue::Progress&, const std::atomic<bool>&) { return make_run_report(dir); });
     } catch (const JobRefused& e) {
       throw ApiError{http::status::service_unavailable, "cannot queue the job", e.what()};
     }
@@ -993,7 +994,9 @@ Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req)
   s.model = model;
   JobStatus queued;
   try {
-    queued = jobs.submit(s, [spec](const JobQueue::Progress& progress) { return run_analysis(spec, progress); });
+    queued = jobs.submit(s, [spec](const JobQueue::Progress& progress, const std::atomic<bool>& cancel) {
+      return run_analysis(spec, progress, &cancel);
+    });
   } catch (const JobRefused& e) {
     throw ApiError{http::status::service_unavailable, "cannot queue the job", e.what()};
   }
@@ -1432,6 +1435,8 @@ ApiServer::~ApiServer() {
 }
 
 void ApiServer::stop_jobs() { impl_->jobs.stop("the server is shutting down"); }
+
+void ApiServer::cancel_jobs() { impl_->jobs.cancel("the server is shutting down"); }
 
 unsigned short ApiServer::port() const { return impl_->acceptor.local_endpoint().port(); }
 

@@ -74,9 +74,13 @@ class ApiServer {
   bool loopback() const { return loopback_; }
   void refuse_starts(const std::string& why);  // shutting down: new campaigns get 503
 
-  // Ends the report and analysis jobs: the queued ones fail, the running one is waited for
-  // (its output renamed into place whole, or removed). The destructor does it too.
+  // Ends the report and analysis jobs: the queued ones fail, the running one is waited for (an
+  // analysis stops at its next cancel point, failed "server stopped"; a report ends whole). The
+  // destructor does it too.
   void stop_jobs();
+  // The same without waiting (a signal, on the io thread): the queued jobs fail, later ones are
+  // refused, and the running one is asked to stop.
+  void cancel_jobs();
 
   // One raw HTTP/1.1 request answered as a connection would answer it (parser limits, token,
   // routes, errors), without a socket: for the fuzz target. Call on the io thread, or with the

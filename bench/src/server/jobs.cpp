@@ -124,10 +124,12 @@ void JobQueue::work_loop() {
     std::string error;
     bool ok = false;
     try {
-      result = e->work([this, e](double fraction) {
-        std::lock_guard lock(mutex_);
-        e->status.progress = std::clamp(fraction, 0.0, 1.0);
-      });
+      result = e->work(
+          [this, e](double fraction) {
+            std::lock_guard lock(mutex_);
+            e->status.progress = std::clamp(fraction, 0.0, 1.0);
+          },
+          cancel_);
       ok = true;
     } catch (const std::exception& ex) {
       error = ex.what();
@@ -154,13 +156,15 @@ void JobQueue::work_loop() {
   }
 }
 
-void JobQueue::stop(const std::string& why) {
+void JobQueue::cancel(const std::string& why) {
   std::vector<std::pair<Finished, JobStatus>> calls;
   {
     std::lock_guard lock(mutex_);
-    if (stopping_ && !worker_.joinable()) return;
-    stopping_ = true;
-    stop_reason_ = why;
+    if (!stopping_) {
+      stopping_ = true;
+      stop_reason_ = why;
+    }
+    cancel_.store(true);
     for (auto& e : waiting_) {
       e->status.state = JobState::failed;
       e->status.error = why + "; the job did not run";
@@ -173,7 +177,13 @@ void JobQueue::stop(const std::string& why) {
   }
   wake_.notify_all();
   for (auto& [w, s] : calls) w(s);
-  // The running job ends first: its output is renamed into place whole or removed, never left half.
+}
+
+void JobQueue::stop(const std::string& why) {
+  cancel(why);
+  // The running job ends first, at its next cancel point or whole: its output is renamed into place
+  // or removed, never left half.
+  std::lock_guard join_lock(join_mutex_);
   if (worker_.joinable() && worker_.get_id() != std::this_thread::get_id()) worker_.join();
 }
 

@@ -6,6 +6,7 @@
 // with the reason (503), never buffered without bound.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
@@ -47,8 +48,10 @@ class JobRefused : public std::runtime_error {
 class JobQueue {
  public:
   using Progress = std::function<void(double fraction)>;
-  // The work: runs on the worker thread; what it throws fails the job with the message.
-  using Work = std::function<nlohmann::json(const Progress& progress)>;
+  // The work: runs on the worker thread; what it throws fails the job with the message. `cancel`
+  // is raised by cancel()/stop(): a long job looks at it between units of work and gives up
+  // (analyses.hpp), a short one may ignore it and end.
+  using Work = std::function<nlohmann::json(const Progress& progress, const std::atomic<bool>& cancel)>;
   using Finished = std::function<void(const JobStatus& s)>;
 
   // max_waiting: jobs queued behind the running one; keep_finished: finished jobs remembered for
@@ -68,8 +71,11 @@ class JobQueue {
   bool when_finished(const std::string& run, const std::string& id, Finished finished);
   // Forgets a finished job (a failed report, so that the next request tries again).
   void forget(const std::string& run, const std::string& id);
-  // Fails the queued jobs with `why`, waits for the running one to end, stops the worker.
-  // Later submissions are refused. Idempotent.
+  // Shutting down, without waiting: later submissions are refused, the queued jobs fail with `why`,
+  // and the running job's cancel flag is raised. Idempotent; safe on the io thread.
+  void cancel(const std::string& why);
+  // cancel(why), then waits for the running job to end (at its next cancel point, or whole when
+  // it has none) and stops the worker. Idempotent.
   void stop(const std::string& why);
 
  private:
@@ -88,7 +94,9 @@ class JobQueue {
   std::deque<std::shared_ptr<Entry>> all_;  // every job remembered, in submission order
   bool stopping_ = false;
   std::string stop_reason_;
-  std::thread worker_;  // last: started once the rest exists
+  std::atomic<bool> cancel_{false};  // raised once by cancel(); the running job's stop request
+  std::mutex join_mutex_;            // stop() from two threads joins the worker once
+  std::thread worker_;               // last: started once the rest exists
 };
 
 }  // namespace hil::bench

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "hil/analysis/cancel.hpp"
 #include "hil/analysis/measurement.hpp"
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
@@ -32,8 +33,9 @@ struct ReplayInfo {
 using Progress = std::function<void(double fraction, std::size_t rows)>;
 
 // Streams `data_file` through `model` (its sensor noise is ignored) and analyses the residual.
+// `cancel` set (from another thread): throws Cancelled before the next chunk of rows.
 ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info = nullptr,
-                            const Progress& progress = {});
+                            const Progress& progress = {}, const std::atomic<bool>* cancel = nullptr);
 // The same on a measurement already in memory (diagnose: before/after).
 ResidualReport compare_measurement(const plant::Plant& model, const Measurement& m, bool keep_series = true);
 
@@ -54,6 +56,9 @@ struct CompareOptions {
   bool quiet = false;
   // When set, called instead of the progress line on stderr (the server's job shows it).
   Progress on_progress = {};
+  // Set from another thread to stop: run_compare throws Cancelled before the next chunk of rows
+  // or before it writes its outputs, and writes nothing (cancel.hpp).
+  const std::atomic<bool>* cancel = nullptr;
 };
 // The whole command: prints the summary, writes DIR/compare.json and DIR/report.html.
 ResidualReport run_compare(const CompareOptions& options);

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "hil/analysis/cancel.hpp"
 #include "hil/analysis/candidates.hpp"
 #include "hil/analysis/measurement.hpp"
 #include "hil/analysis/residuals.hpp"
@@ -135,6 +136,8 @@ struct DiagnoseSettings {
   std::size_t coarse_rows = 50000;  // coarse fits run on a decimated copy about this long
   bool keep_series = true;          // plots for the report
   bool progress = false;            // one line per round on stderr
+  // Set from another thread to stop: diagnose throws Cancelled before its next fit (cancel.hpp).
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& data, const DiagnoseSettings& settings = {});

@@ -36,7 +36,8 @@ class ApiClient {
   ApiReply post(const std::string& target, const nlohmann::json& body) const;
   ApiReply request(const std::string& method, const std::string& target, const std::string& body,
                    const std::string& content_type) const;
-  // Streams a file to disk; returns the reply without its body (the body is in `to`).
+  // Streams a file to disk; returns the reply without its body (the body is in `to`). Any answer
+  // but 200 leaves `to` alone and comes back with its body.
   ApiReply download(const std::string& target, const std::filesystem::path& to) const;
 
   // Opens the WebSocket telemetry stream and calls on_message for every message until it returns
