@@ -34,15 +34,31 @@
   const swatch = it => '<span class="hil-sw ' + it.kind + '" style="' +
     (it.kind === 'dashed' || it.kind === '' ? 'border-top-color:' : 'background:') + esc(it.color) + '"></span>';
 
-  // Dygraph wants one table: a row per x, a column per series. Entries of all series sorted by x
-  // fill rows; a series without a value at a row's x gets null, which connectSeparatedPoints skips,
-  // and a gap in a series (NaN or null in the JSON) is NaN, which dygraphs draws as a break.
-  // On a log axis, values <= 0 are left out.
+  // Dygraph wants one table: a row per x, a column per series. Series that share their x (report.cpp
+  // decimates a figure's lines over the same buckets and writes "xOf" for the x of another) give
+  // a row per x directly. Otherwise entries of all series sorted by x fill rows; a series without a
+  // value at a row's x gets null, which connectSeparatedPoints skips. A gap in a series (NaN or
+  // null in the JSON) is NaN, which dygraphs draws as a break. On a log axis, values <= 0 are left out.
   function toRows(series, xLog, yLog) {
+    const yOf = v => (v === null || !isFinite(v) ? NaN : v);
+    const shared = series.length > 0 && series.every(s => s.x === series[0].x && s.y.length === s.x.length);
+    if (shared) {
+      const xs = series[0].x, rows = [];
+      let sorted = true;
+      for (let k = 0; k < xs.length && sorted; k++) {
+        const x = xs[k];
+        if (x === null || !isFinite(x) || (xLog && x <= 0)) continue;
+        if (rows.length && x < rows[rows.length - 1][0]) sorted = false;
+        const row = [x];
+        for (const s of series) { const y = yOf(s.y[k]); row.push(yLog && y <= 0 ? null : y); }
+        rows.push(row);
+      }
+      if (sorted) return rows;
+    }
     const entries = [];
     series.forEach((s, j) => {
       for (let k = 0; k < Math.min(s.x.length, s.y.length); k++) {
-        const x = s.x[k], y = s.y[k] === null || !isFinite(s.y[k]) ? NaN : s.y[k];
+        const x = s.x[k], y = yOf(s.y[k]);
         if (x !== null && isFinite(x) && !(xLog && x <= 0) && !(yLog && y <= 0)) entries.push([x, j, y, k]);
       }
     });
@@ -217,6 +233,7 @@
 
   function plot(fig, spec) {
     const series = spec.series || [];
+    series.forEach(s => { if (!s.x && series[s.xOf]) s.x = series[s.xOf].x; s.x = s.x || []; s.y = s.y || []; });
     const chart = makeChart(fig, spec, series.map((s, i) => ({
       index: i, name: s.name || 'series ' + (i + 1), color: s.color || PALETTE[i % PALETTE.length], hidden: false, toggles: true,
       kind: s.style === 'points' ? 'dot' : s.dashed ? 'dashed' : '',
