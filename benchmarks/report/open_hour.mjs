@@ -8,6 +8,8 @@
 //   first render  ms from navigation start to the first frame after every plot was drawn
 //   plot script   ms the DOMContentLoaded handlers took (parsing the data, building, drawing)
 //   zoom          ms from a 10x x-zoom of the first plot (its group follows) to the next frame
+//   CPU to open   CPU ms of the page's renderer process (main and raster threads) from before
+//                 navigation to the first frame (above); CPU to zoom: the same for the zoom
 //   table rows    the rows of the tables dygraphs draws, summed over the plots (not for canvas)
 // Needs the console test's packages (puppeteer-core): run it from that test's node folder.
 //   build/bench/hilbench sim configs/campaigns/soak_random.yaml --no-telemetry --out /tmp/hour
@@ -64,33 +66,36 @@ async function measure(file) {
     const errors = [];
     page.on("pageerror", (e) => errors.push(String(e)));
     await page.evaluateOnNewDocument(probe);
+    // CPU time of the page's renderer process (its main thread and the raster threads), which a
+    // loaded machine stretches far less than the wall clock.
+    const cdp = await page.target().createCDPSession();
+    await cdp.send("Performance.enable");
+    const cpu = async () => (await cdp.send("Performance.getMetrics")).metrics.find((m) => m.name === "ProcessTime").value * 1e3;
+    const cpu0 = await cpu();
     await page.goto("file://" + file, { waitUntil: "load" });
-    return await page.evaluate(async () => {
+    const opened = await page.evaluate(async () => {
       const first = await window.__firstFrame;
       const nav = performance.getEntriesByType("navigation")[0];
-      const charts = window.hilReport.charts;
-      const c = charts[0];
-      const frame = () => new Promise((r) => requestAnimationFrame(() => setTimeout(r)));
-      // 10x zoom around the middle of the first plot's full x range, the way each layer applies one.
-      let zoom;
-      if (c.graph) {
-        const [a, b] = c.graph.xAxisRange(), m = (a + b) / 2, h = (b - a) / 20;
-        const t0 = performance.now();
-        c.graph.updateOptions({ dateWindow: [m - h, m + h] });
-        await frame();
-        zoom = performance.now() - t0;
-      } else {
-        const [a, b] = c.fullX, m = (a + b) / 2, h = (b - a) / 20;
-        const t0 = performance.now();
-        c.setView([m - h, m + h]);
-        await frame();
-        zoom = performance.now() - t0;
-      }
-      const rows = c.graph ? charts.reduce((n, o) => n + (o.rows ? o.rows.length : 0), 0) : null;
-      return { first, script: nav.domContentLoadedEventEnd - nav.domContentLoadedEventStart, zoom, rows,
+      const charts = window.hilReport.charts, c = charts[0];
+      return { first, script: nav.domContentLoadedEventEnd - nav.domContentLoadedEventStart,
+        rows: c.graph ? charts.reduce((n, o) => n + (o.rows ? o.rows.length : 0), 0) : null,
         plots: Number(document.body.dataset.plots), errors: Number(document.body.dataset.plotErrors),
         group: charts.filter((o) => o.group && o.group === c.group).length };
-    }).then((r) => Object.assign(r, { pageErrors: errors.length }));
+    });
+    const cpu1 = await cpu();
+    const zoom = await page.evaluate(async () => {
+      const c = window.hilReport.charts[0];
+      const frame = () => new Promise((r) => requestAnimationFrame(() => setTimeout(r)));
+      // 10x zoom around the middle of the first plot's full x range, the way each layer applies one.
+      const [a, b] = c.graph ? c.graph.xAxisRange() : c.fullX, m = (a + b) / 2, h = (b - a) / 20;
+      const t0 = performance.now();
+      if (c.graph) c.graph.updateOptions({ dateWindow: [m - h, m + h] });
+      else c.setView([m - h, m + h]);
+      await frame();
+      return performance.now() - t0;
+    });
+    const cpu2 = await cpu();
+    return Object.assign(opened, { zoom, openCpu: cpu1 - cpu0, zoomCpu: cpu2 - cpu1, pageErrors: errors.length });
   } finally {
     await browser.close();
   }
@@ -99,8 +104,8 @@ async function measure(file) {
 const median = (v) => v.slice().sort((a, b) => a - b)[Math.floor(v.length / 2)];
 const mb = (file) => (statSync(file).size / 1e6).toFixed(2) + " MB";
 console.log(`report: ${Object.entries(pages).map(([k, f]) => `${k} ${mb(f)}`).join(", ")}; ${rounds} rounds, median (min-max)`);
-console.log("| plotting layer | plots | table rows | first render (ms) | plot script (ms) | 10x zoom of a linked plot (ms) |");
-console.log("|---|---|---|---|---|---|");
+console.log("| plotting layer | plots | table rows | first render (ms) | plot script (ms) | 10x zoom of a linked plot (ms) | CPU to open (ms) | CPU to zoom (ms) |");
+console.log("|---|---|---|---|---|---|---|---|");
 const results = Object.fromEntries(Object.keys(pages).map((k) => [k, []]));
 for (let i = 0; i < rounds; ++i) for (const [name, file] of Object.entries(pages)) results[name].push(await measure(file));
 for (const [name, rs] of Object.entries(results)) {
@@ -108,6 +113,6 @@ for (const [name, rs] of Object.entries(results)) {
     `${Math.max(...rs.map((r) => r[key])).toFixed(0)})`;
   const bad = rs.filter((r) => r.errors || r.pageErrors).length;
   console.log(`| ${name} | ${rs[0].plots} (group of ${rs[0].group})${bad ? ` ERRORS in ${bad} rounds` : ""} | ${rs[0].rows ?? "-"} | ` +
-    `${f("first")} | ${f("script")} | ${f("zoom")} |`);
+    `${f("first")} | ${f("script")} | ${f("zoom")} | ${f("openCpu")} | ${f("zoomCpu")} |`);
 }
 rmSync(dir, { recursive: true, force: true });

@@ -42,6 +42,9 @@
   function toRows(series, xLog, yLog) {
     const yOf = v => (v === null || !isFinite(v) ? NaN : v);
     const shared = series.length > 0 && series.every(s => s.x === series[0].x && s.y.length === s.x.length);
+    // A value inside a run of equal values of its series is null: the drawn line is the same
+    // (connected over), and dygraphs draws only the run's ends (a step that is flat while the
+    // measurement beside it moves costs no segments).
     if (shared) {
       const xs = series[0].x, rows = [];
       let sorted = true;
@@ -50,7 +53,10 @@
         if (x === null || !isFinite(x) || (xLog && x <= 0)) continue;
         if (rows.length && x < rows[rows.length - 1][0]) sorted = false;
         const row = [x];
-        for (const s of series) { const y = yOf(s.y[k]); row.push(yLog && y <= 0 ? null : y); }
+        for (const s of series) {
+          const y = yOf(s.y[k]);
+          row.push((yLog && y <= 0) || (k > 0 && k + 1 < xs.length && s.y[k - 1] === y && s.y[k + 1] === y) ? null : y);
+        }
         rows.push(row);
       }
       if (sorted) return rows;
@@ -102,6 +108,37 @@
       },
     }) };
     return { plugin, plotters: draw => [snapshot, draw] };
+  }
+
+  // Steps as one path: dygraphs' own step drawing starts a sub-path at every point (moveTo, then
+  // across and up), which the rasteriser strokes one by one and a dash pattern restarts on; a
+  // figure of long steps opened measurably slower. Lines go to dygraphs' plotter. A point without a
+  // value (null) is connected over; NaN is a gap, up to which the step holds; a point alone
+  // between gaps is drawn as a dot.
+  function linesAndSteps(e) {
+    const g = e.dygraph;
+    if (!g.getBooleanOption('stepPlot', e.setName)) return Dygraph.Plotters.linePlotter(e);
+    const ctx = e.drawingContext, pattern = g.getOption('strokePattern', e.setName), single = [];
+    if (pattern) ctx.setLineDash(pattern);
+    ctx.beginPath();
+    let px = null, py = null, run = 0;
+    for (const p of e.points) {
+      if (p.yval === null) continue;
+      if (!(p.canvasy === p.canvasy)) {  // NaN: a gap
+        if (px !== null) ctx.lineTo(p.canvasx, py);
+        if (run === 1) single.push([px, py]);
+        px = null, run = 0;
+        continue;
+      }
+      if (px === null) ctx.moveTo(p.canvasx, p.canvasy);
+      else ctx.lineTo(p.canvasx, py), ctx.lineTo(p.canvasx, p.canvasy);
+      px = p.canvasx, py = p.canvasy, run++;
+    }
+    if (run === 1) single.push([px, py]);
+    ctx.stroke();
+    if (pattern) ctx.setLineDash([]);
+    ctx.fillStyle = e.color;
+    for (const [x, y] of single) ctx.fillRect(x - 1.5, y - 1.5, 3, 3);
   }
 
   // Wheel zoom around the cursor in x: ctrl/cmd+wheel always, plain wheel once the plot has been
@@ -257,7 +294,7 @@
       axes: { x: axis(spec.xLog), y: axis(spec.yLog) }, valueRange: chart.empty ? [0, 1] : null,
       legendFormatter: readout(chart, spec.xLabel || 'x', fmtVal), underlayCallback: underlay(spec), drawCallback: onDraw(chart),
       highlightCallback: (e, x) => hoverLinked(chart, x), unhighlightCallback: () => hoverLinked(chart, null),
-      interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(Dygraph.Plotters.linePlotter),
+      interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(linesAndSteps),
     }));
     legend(chart, items);
     if (chart.empty) chart.div.insertAdjacentHTML('afterend', '<div class="hil-nodata">no data</div>');
