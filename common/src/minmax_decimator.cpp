@@ -125,7 +125,7 @@ void MinMaxDecimator::take(std::vector<double>& t_out, std::vector<std::vector<d
       if (x.min.i != kNone) list[n++] = {x.min.i, x.min.v};
       if (x.max.i != kNone && x.max.i != x.min.i) list[n++] = {x.max.i, x.max.v};
       if (x.gap != kNone) list[n++] = {x.gap, kNan};
-      if (n == 0) list[n++] = {0, kNan};  // a bucket without rows does not occur; be safe
+      if (n == 0) list[n++] = {0, kNan};  // unreachable: every row gives each column one
       std::sort(list.begin(), list.begin() + static_cast<long>(n), [](const Entry& a, const Entry& e) { return a.i < e.i; });
       counts[c] = n;
       most = std::max(most, n);
