@@ -77,18 +77,28 @@ struct WindowAcc {
   }
 };
 
-// A plotted series: min/max decimated as the rows stream by (hil/minmax_decimator.hpp).
+// The plotted series (measured, model, residual, drive, reference): min/max decimated as the rows
+// stream by, over shared buckets so they share their times (hil/minmax_decimator.hpp).
 class SeriesDecimator {
  public:
-  void add(double t, double v) { d_.add(t, v); }
-  TimeSeries take() const {
-    TimeSeries s;
-    d_.take(s.t_s, s.value);
-    return s;
+  void add(double t, const std::array<double, 5>& values) { d_.add(t, values); }
+  ReportSeries take() const {
+    std::vector<double> t;
+    std::vector<std::vector<double>> v;
+    d_.take(t, v);
+    ReportSeries out;
+    TimeSeries* series[] = {&out.measured_mpa, &out.model_mpa, &out.residual_kpa, &out.drive_deg, &out.reference_mpa};
+    for (std::size_t i = 0; i < std::size(series); ++i) {
+      // A column without a finite value (a measurement without a reference) stays empty: no line.
+      if (std::none_of(v[i].begin(), v[i].end(), [](double x) { return std::isfinite(x); })) continue;
+      series[i]->t_s = t;
+      series[i]->value = std::move(v[i]);
+    }
+    return out;
   }
 
  private:
-  MinMaxDecimator d_{kSeriesBuckets};
+  MinMaxDecimator d_{kSeriesBuckets, 5};
 };
 
 // Histogram of |x| on log-spaced bins, for a streaming median.
@@ -335,7 +345,7 @@ struct ResidualAnalyzer::Impl {
   std::vector<double> hann;
   double hann_power = 0;
 
-  SeriesDecimator s_meas, s_model, s_res, s_drive, s_ref;
+  SeriesDecimator plotted;
 
   explicit Impl(const AnalyzerOptions& o) : opt(o) {
     const std::size_t locked_bins = static_cast<std::size_t>(std::lround(kLockedSpanS / kLockedBinS));
@@ -556,11 +566,8 @@ struct ResidualAnalyzer::Impl {
     }
 
     if (opt.keep_series) {
-      s_meas.add(s.t_s, units::pa_to_mpa(s.y_pa));
-      s_model.add(s.t_s, units::pa_to_mpa(s.yhat_pa));
-      s_res.add(s.t_s, e / units::kPaPerKpa);
-      s_drive.add(s.t_s, units::rad_to_deg(s.drive_rad));
-      s_ref.add(s.t_s, units::pa_to_mpa(s.p_ref_pa));
+      plotted.add(s.t_s, {units::pa_to_mpa(s.y_pa), units::pa_to_mpa(s.yhat_pa), e / units::kPaPerKpa,
+                          units::rad_to_deg(s.drive_rad), units::pa_to_mpa(s.p_ref_pa)});
     }
     t_last = s.t_s;
     ++n;
@@ -692,11 +699,7 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   find_segments(r);
   describe(r);
   if (opt.keep_series) {
-    r.series.measured_mpa = s_meas.take();
-    r.series.model_mpa = s_model.take();
-    r.series.residual_kpa = s_res.take();
-    r.series.drive_deg = s_drive.take();
-    r.series.reference_mpa = s_ref.take();
+    r.series = plotted.take();
   }
   return r;
 }

@@ -4,11 +4,14 @@
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cmath>
 #include <fstream>
 #include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "assets.hpp"
 #include "sample_reports.hpp"
@@ -293,4 +296,44 @@ TEST(DocumentSize, HourAt1kHzDecimatesQuickly) {
               static_cast<double>(page.size()) / 1e3);
   EXPECT_LT(page.size(), 400'000u);
   EXPECT_NE(page.find("\"n\":3600000"), std::string::npos);
+}
+
+TEST(Document, SeriesOfOneXAreWrittenWithOneXEveryOtherWithItsOwn) {
+  const std::size_t n = 30000;
+  std::vector<double> t(n), ref(n), meas(n), valve(n), t2(n / 3), other(n / 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    t[i] = 1e-3 * static_cast<double>(i);
+    ref[i] = i < n / 2 ? 1.0 : 2.0;
+    meas[i] = ref[i] + 0.1 * std::sin(0.37 * static_cast<double>(i));
+    valve[i] = i == 12345 ? NAN : std::cos(0.001 * static_cast<double>(i));
+  }
+  for (std::size_t i = 0; i < t2.size(); ++i)
+    t2[i] = 3e-3 * static_cast<double>(i), other[i] = std::sin(0.01 * static_cast<double>(i));
+  Document doc("shared");
+  doc.figure(Figure{.title = "f",
+                    .series = {Series{.name = "reference", .x = t, .y = ref, .style = Series::Style::step},
+                               Series{.name = "measured", .x = t, .y = meas}, Series{.name = "other", .x = t2, .y = other},
+                               Series{.name = "valve", .x = t, .y = valve}}});
+  const std::string page = doc.html();
+  const std::string open = "class=\"hil-data\">";
+  const auto a = page.find(open) + open.size();
+  const auto spec = nlohmann::json::parse(page.substr(a, page.find("</script>", a) - a));
+  const auto& s = spec["series"];
+  ASSERT_EQ(s.size(), 4u);
+  ASSERT_TRUE(s[0].contains("x"));
+  EXPECT_EQ(s[1]["xOf"], 0);
+  EXPECT_EQ(s[3]["xOf"], 0);
+  EXPECT_FALSE(s[1].contains("x"));
+  ASSERT_TRUE(s[2].contains("x")) << "a series of another x keeps its own";
+  EXPECT_FALSE(s[2].contains("xOf"));
+  const auto& x = s[0]["x"];
+  EXPECT_LE(x.size(), 3u * hil::report::kMaxBuckets);
+  for (int i : {0, 1, 3}) EXPECT_EQ(s[i]["y"].size(), x.size()) << "series " << i;
+  EXPECT_EQ(s[2]["y"].size(), s[2]["x"].size());
+  // The step's change, the measurement's extremes and the valve's gap survive on the shared x.
+  EXPECT_GT(std::count(s[0]["y"].begin(), s[0]["y"].end(), 2.0), 0);
+  EXPECT_EQ(std::count(s[3]["y"].begin(), s[3]["y"].end(), nullptr), 1);
+  double mx = -INFINITY;
+  for (const auto& v : s[1]["y"]) mx = std::max(mx, v.get<double>());
+  EXPECT_NEAR(mx, *std::max_element(meas.begin(), meas.end()), 1e-5);  // written with 6 digits
 }

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <random>
 #include <set>
+#include <span>
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -21,9 +22,10 @@ std::string fmt(double v) {
   return std::string(buf, format_number(buf, v));
 }
 
-bool contains(const Decimated& d, double x, double y) {
-  for (std::size_t i = 0; i < d.x.size(); ++i) {
-    if (d.x[i] == x && d.y[i] == y) return true;
+// Is y drawn at an x in [x0, x1]?
+bool contains(const std::vector<double>& xs, const std::vector<double>& ys, double x0, double x1, double y) {
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    if (xs[i] >= x0 && xs[i] <= x1 && ys[i] == y) return true;
   }
   return false;
 }
@@ -93,19 +95,75 @@ TEST(Decimate, KeepsMinAndMaxOfEveryBucketAndTheEnds) {
   }
   const auto d = decimate(x, y, buckets, Thin::line, false, false);
   ASSERT_FALSE(d.x.empty());
-  EXPECT_LE(d.x.size(), 4 * buckets + 2);
-  EXPECT_EQ(d.x.front(), x.front());
-  EXPECT_EQ(d.y.front(), y.front());
+  EXPECT_LE(d.x.size(), 2 * buckets);
+  EXPECT_EQ(d.x.front(), x.front()) << "the line spans the whole range";
   EXPECT_EQ(d.x.back(), x.back());
-  EXPECT_EQ(d.y.back(), y.back());
   EXPECT_TRUE(std::is_sorted(d.x.begin(), d.x.end())) << "points stay in input order";
+  // Each bucket's extremes, drawn within the bucket (at its first or last x).
   for (std::size_t b = 0; b < buckets; ++b) {
     const std::size_t lo = b * n / buckets, hi = (b + 1) * n / buckets;
     const auto [mn, mx] = std::minmax_element(y.begin() + static_cast<long>(lo), y.begin() + static_cast<long>(hi));
-    EXPECT_TRUE(contains(d, x[static_cast<std::size_t>(mn - y.begin())], *mn)) << "bucket " << b << " min";
-    EXPECT_TRUE(contains(d, x[static_cast<std::size_t>(mx - y.begin())], *mx)) << "bucket " << b << " max";
+    EXPECT_TRUE(contains(d.x, d.y, x[lo], x[hi - 1], *mn)) << "bucket " << b << " min";
+    EXPECT_TRUE(contains(d.x, d.y, x[lo], x[hi - 1], *mx)) << "bucket " << b << " max";
   }
-  for (std::size_t i = 0; i < n; i += 7919) EXPECT_TRUE(contains(d, x[i], y[i])) << "spike at " << i;
+  for (std::size_t i = 0; i < n; i += 7919) {
+    const std::size_t b = i * buckets / n;
+    EXPECT_TRUE(contains(d.x, d.y, x[b * n / buckets], x[(b + 1) * n / buckets - 1], y[i])) << "spike at " << i;
+  }
+}
+
+TEST(DecimateShared, SeriesOfOneXKeepOneXAndEachBucketsExtremes) {
+  const std::size_t n = 50021, buckets = 64;
+  std::vector<double> x(n);
+  std::vector<std::vector<double>> y(3, std::vector<double>(n));
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0, 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double k = static_cast<double>(i);
+    x[i] = 0.001 * k;
+    y[0][i] = std::floor(k / 7000);                                    // a step reference
+    y[1][i] = y[0][i] + 0.2 * noise(rng) + (i % 4999 == 3 ? 4 : 0);    // its measurement, with spikes
+    y[2][i] = (i >= 20000 && i < 20500) ? NAN : std::cos(0.0003 * k);  // a gap
+  }
+  const std::vector<std::span<const double>> ys = {y[0], y[1], y[2]};
+  const auto d = decimate_shared(x, ys, buckets, false, false);
+  ASSERT_EQ(d.y.size(), 3u);
+  for (const auto& col : d.y) ASSERT_EQ(col.size(), d.x.size()) << "every series has a value (or a gap) at every shared x";
+  EXPECT_LE(d.x.size(), 3 * buckets);
+  EXPECT_EQ(d.x.front(), x.front());
+  EXPECT_EQ(d.x.back(), x.back());
+  EXPECT_TRUE(std::is_sorted(d.x.begin(), d.x.end()));
+  for (std::size_t b = 0; b < buckets; ++b) {
+    const std::size_t lo = b * n / buckets, hi = (b + 1) * n / buckets;
+    for (std::size_t c = 0; c < 3; ++c) {
+      double mn = INFINITY, mx = -INFINITY;
+      for (std::size_t i = lo; i < hi; ++i) {
+        if (std::isfinite(y[c][i])) mn = std::min(mn, y[c][i]), mx = std::max(mx, y[c][i]);
+      }
+      if (!std::isfinite(mn)) continue;
+      EXPECT_TRUE(contains(d.x, d.y[c], x[lo], x[hi - 1], mn)) << "bucket " << b << " series " << c << " min";
+      EXPECT_TRUE(contains(d.x, d.y[c], x[lo], x[hi - 1], mx)) << "bucket " << b << " series " << c << " max";
+    }
+  }
+  // The gap breaks series 2 between its last point before and its first after; the others go on.
+  std::vector<std::size_t> gaps;
+  for (std::size_t k = 0; k < d.x.size(); ++k)
+    if (std::isnan(d.y[2][k])) gaps.push_back(k);
+  ASSERT_FALSE(gaps.empty());
+  EXPECT_LE(d.x[gaps.front() - 1], x[20000]);
+  EXPECT_GE(d.x[gaps.back() + 1], x[20499]);
+  for (std::size_t c = 0; c < 2; ++c)
+    EXPECT_EQ(std::count_if(d.y[c].begin(), d.y[c].end(), [](double v) { return std::isnan(v); }), 0);
+}
+
+TEST(DecimateShared, ShortSeriesAreKeptWholeButRowsFlatInEverySeries) {
+  const std::vector<double> x = {0, 1, 2, 3, 4, 5, 6};
+  const std::vector<double> a = {1, 1, 1, 1, 2, 2, 2}, b = {5, 5, 6, 5, 5, 5, 5};
+  const std::vector<std::span<const double>> ys = {a, b};
+  const auto d = decimate_shared(x, ys, 100, false, false);
+  EXPECT_EQ(d.x, (std::vector<double>{0, 1, 2, 3, 4, 6}));  // 5 is flat in both
+  EXPECT_EQ(d.y[0], (std::vector<double>{1, 1, 1, 1, 2, 2}));
+  EXPECT_EQ(d.y[1], (std::vector<double>{5, 5, 6, 5, 5, 5}));
 }
 
 TEST(Decimate, ShortSeriesKeepAllButRedundantPointsOfFlatRuns) {

@@ -126,25 +126,51 @@ Decimated decimate(std::span<const double> x, std::span<const double> y, std::si
     return out;
   }
 
-  // Log axes leave out what they cannot draw, without a gap; the rest is min/max decimated over
-  // index buckets (hil/minmax_decimator.hpp), which also keeps the ends and one marker per gap.
+  const std::span<const double> column = y.first(n);
+  DecimatedShared shared = decimate_shared(x.first(n), std::span(&column, 1), max_buckets, x_log, y_log);
+  out.x = std::move(shared.x);
+  out.y = std::move(shared.y.front());
+  return out;
+}
+
+DecimatedShared decimate_shared(std::span<const double> x, std::span<const std::span<const double>> ys, std::size_t max_buckets,
+                                bool x_log, bool y_log) {
+  std::size_t n = x.size();
+  for (const auto& y : ys) n = std::min(n, y.size());
+  const std::size_t columns = std::max<std::size_t>(ys.size(), 1);
+  const bool drop_y = y_log && ys.size() == 1;
+  // NaN compares false, so a NaN is not "dropped" but becomes a gap below.
+  auto dropped = [&](std::size_t i) { return (x_log && x[i] <= 0) || (drop_y && ys[0][i] <= 0); };
   std::size_t drawable = 0;
   for (std::size_t i = 0; i < n; ++i) drawable += dropped(i) ? 0 : 1;
-  auto decimator = MinMaxDecimator::for_length(drawable, buckets);
+  auto decimator = MinMaxDecimator::for_length(drawable, std::max<std::size_t>(max_buckets, 1), columns);
+  std::vector<double> row(columns, std::numeric_limits<double>::quiet_NaN());
   for (std::size_t i = 0; i < n; ++i) {
-    if (!dropped(i)) decimator.add(x[i], y[i]);
+    if (dropped(i)) continue;
+    for (std::size_t c = 0; c < ys.size(); ++c)
+      row[c] = y_log && ys[c][i] <= 0 ? std::numeric_limits<double>::quiet_NaN() : ys[c][i];
+    decimator.add(x[i], row);
   }
-  Decimated kept;
+  DecimatedShared kept;
   decimator.take(kept.x, kept.y);
+  kept.y.resize(ys.size());
 
-  // Interior points of an equal-y run with x in order add nothing to the drawn line.
+  // A row inside an equal-y run of every series, with x in order, adds nothing to the drawn lines.
   const std::size_t m = kept.x.size();
+  auto flat = [&](std::size_t i) {
+    if (i == 0 || i + 1 >= m || !(kept.x[i - 1] <= kept.x[i] && kept.x[i] <= kept.x[i + 1])) return false;
+    for (const auto& y : kept.y)
+      if (!(y[i - 1] == y[i] && y[i] == y[i + 1])) return false;
+    return true;
+  };
+  DecimatedShared out;
+  out.y.resize(ys.size());
   out.x.reserve(m);
-  out.y.reserve(m);
+  for (auto& y : out.y) y.reserve(m);
   for (std::size_t i = 0; i < m; ++i) {
-    const bool interior = i > 0 && i + 1 < m && kept.y[i - 1] == kept.y[i] && kept.y[i] == kept.y[i + 1] &&
-                          kept.x[i - 1] <= kept.x[i] && kept.x[i] <= kept.x[i + 1];
-    if (!interior) out.x.push_back(kept.x[i]), out.y.push_back(kept.y[i]);
+    if (flat(i)) continue;
+    out.x.push_back(kept.x[i]);
+    for (std::size_t c = 0; c < ys.size(); ++c) out.y[c].push_back(kept.y[c][i]);
   }
   return out;
 }

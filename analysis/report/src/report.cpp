@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <system_error>
 
@@ -35,16 +36,59 @@ void append_number(std::string& out, double v) {
   out.append(buf, detail::format_number(buf, v));
 }
 
-// "a-b" style keys keep the embedded JSON small; report.js reads the same names.
-void append_series(std::string& out, const Series& s, bool x_log, bool y_log) {
-  const auto thin = s.style == Series::Style::points ? detail::Thin::points : detail::Thin::line;
-  const auto d = detail::decimate(s.x, s.y, kMaxBuckets, thin, x_log, y_log);
+// "a-b" style keys keep the embedded JSON small; report.js reads the same names. A series whose x
+// is another's (x_of) writes "xOf" (that series' index) instead of its x.
+void append_series(std::string& out, const Series& s, std::size_t index, std::size_t x_of, std::span<const double> x,
+                   std::span<const double> y) {
   out += "{\"name\":" + json_string(s.name) + ",\"color\":" + json_string(s.color) + ",\"style\":\"" + style_name(s.style) +
-         "\",\"dashed\":" + (s.dashed ? "true" : "false") + ",\"n\":" + std::to_string(s.x.size()) + ",\"x\":";
-  detail::append_numbers(out, d.x);
+         "\",\"dashed\":" + (s.dashed ? "true" : "false") + ",\"n\":" + std::to_string(s.x.size());
+  if (x_of == index) {
+    out += ",\"x\":";
+    detail::append_numbers(out, x);
+  } else {
+    out += ",\"xOf\":" + std::to_string(x_of);
+  }
   out += ",\"y\":";
-  detail::append_numbers(out, d.y);
+  detail::append_numbers(out, y);
   out += '}';
+}
+
+// The figure's series, decimated: lines and steps with the same x together (they keep sharing it,
+// so a plot merging them into one table gets no more rows than one of them), scatters alone.
+void append_figure_series(std::string& out, const Figure& fig) {
+  const std::size_t n = fig.series.size();
+  std::vector<std::size_t> x_of(n);  // the first series with the same x, for lines and steps
+  for (std::size_t i = 0; i < n; ++i) {
+    x_of[i] = i;
+    if (fig.series[i].style == Series::Style::points) continue;
+    for (std::size_t j = 0; j < i; ++j) {
+      if (x_of[j] == j && fig.series[j].style != Series::Style::points && fig.series[j].x == fig.series[i].x) {
+        x_of[i] = j;
+        break;
+      }
+    }
+  }
+  std::vector<detail::DecimatedShared> groups(n);  // at each group's first series
+  std::vector<std::size_t> column(n, 0);           // the series' column in its group
+  for (std::size_t i = 0; i < n; ++i) {
+    if (x_of[i] != i || fig.series[i].style == Series::Style::points) continue;
+    std::vector<std::span<const double>> ys;
+    for (std::size_t j = i; j < n; ++j) {
+      if (x_of[j] == i) column[j] = ys.size(), ys.push_back(fig.series[j].y);
+    }
+    groups[i] = detail::decimate_shared(fig.series[i].x, ys, kMaxBuckets, fig.x_log, fig.y_log);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) out += ',';
+    const Series& s = fig.series[i];
+    if (s.style == Series::Style::points) {
+      const auto d = detail::decimate(s.x, s.y, kMaxBuckets, detail::Thin::points, fig.x_log, fig.y_log);
+      append_series(out, s, i, i, d.x, d.y);
+    } else {
+      const auto& g = groups[x_of[i]];
+      append_series(out, s, i, x_of[i], g.x, g.y[column[i]]);
+    }
+  }
 }
 
 // Figure data sits in a non-executed <script> next to its canvas; report.js parses it.
@@ -222,10 +266,7 @@ void Document::figure(const Figure& fig) {
             ",\"group\":" + json_string(fig.group) + ",\"xLog\":" + (fig.x_log ? "true" : "false") +
             ",\"yLog\":" + (fig.y_log ? "true" : "false") + ",\"height\":" + std::to_string(std::max(fig.height_px, 80)) +
             ",\"series\":[";
-    for (std::size_t i = 0; i < fig.series.size(); ++i) {
-      if (i > 0) json += ',';
-      append_series(json, fig.series[i], fig.x_log, fig.y_log);
-    }
+    append_figure_series(json, fig);
     json += "],\"bands\":[";
     for (std::size_t i = 0; i < fig.bands.size(); ++i) {
       const auto& b = fig.bands[i];

@@ -34,15 +34,37 @@
   const swatch = it => '<span class="hil-sw ' + it.kind + '" style="' +
     (it.kind === 'dashed' || it.kind === '' ? 'border-top-color:' : 'background:') + esc(it.color) + '"></span>';
 
-  // Dygraph wants one table: a row per x, a column per series. Entries of all series sorted by x
-  // fill rows; a series without a value at a row's x gets null, which connectSeparatedPoints skips,
-  // and a gap in a series (NaN or null in the JSON) is NaN, which dygraphs draws as a break.
-  // On a log axis, values <= 0 are left out.
+  // Dygraph wants one table: a row per x, a column per series. Series that share their x (report.cpp
+  // decimates a figure's lines over the same buckets and writes "xOf" for the x of another) give
+  // a row per x directly. Otherwise entries of all series sorted by x fill rows; a series without a
+  // value at a row's x gets null, which connectSeparatedPoints skips. A gap in a series (NaN or
+  // null in the JSON) is NaN, which dygraphs draws as a break. On a log axis, values <= 0 are left out.
   function toRows(series, xLog, yLog) {
+    const yOf = v => (v === null || !isFinite(v) ? NaN : v);
+    const shared = series.length > 0 && series.every(s => s.x === series[0].x && s.y.length === s.x.length);
+    // A value inside a run of equal values of its series is null: the drawn line is the same
+    // (connected over), and dygraphs draws only the run's ends (a step that is flat while the
+    // measurement beside it moves costs no segments).
+    if (shared) {
+      const xs = series[0].x, rows = [];
+      let sorted = true;
+      for (let k = 0; k < xs.length && sorted; k++) {
+        const x = xs[k];
+        if (x === null || !isFinite(x) || (xLog && x <= 0)) continue;
+        if (rows.length && x < rows[rows.length - 1][0]) sorted = false;
+        const row = [x];
+        for (const s of series) {
+          const y = yOf(s.y[k]);
+          row.push((yLog && y <= 0) || (k > 0 && k + 1 < xs.length && s.y[k - 1] === y && s.y[k + 1] === y) ? null : y);
+        }
+        rows.push(row);
+      }
+      if (sorted) return rows;
+    }
     const entries = [];
     series.forEach((s, j) => {
       for (let k = 0; k < Math.min(s.x.length, s.y.length); k++) {
-        const x = s.x[k], y = s.y[k] === null || !isFinite(s.y[k]) ? NaN : s.y[k];
+        const x = s.x[k], y = yOf(s.y[k]);
         if (x !== null && isFinite(x) && !(xLog && x <= 0) && !(yLog && y <= 0)) entries.push([x, j, y, k]);
       }
     });
@@ -86,6 +108,37 @@
       },
     }) };
     return { plugin, plotters: draw => [snapshot, draw] };
+  }
+
+  // Steps as one path: dygraphs' own step drawing starts a sub-path at every point (moveTo, then
+  // across and up), which the rasteriser strokes one by one and a dash pattern restarts on; a
+  // figure of long steps opened measurably slower. Lines go to dygraphs' plotter. A point without a
+  // value (null) is connected over; NaN is a gap, up to which the step holds; a point alone
+  // between gaps is drawn as a dot.
+  function linesAndSteps(e) {
+    const g = e.dygraph;
+    if (!g.getBooleanOption('stepPlot', e.setName)) return Dygraph.Plotters.linePlotter(e);
+    const ctx = e.drawingContext, pattern = g.getOption('strokePattern', e.setName), single = [];
+    if (pattern) ctx.setLineDash(pattern);
+    ctx.beginPath();
+    let px = null, py = null, run = 0;
+    for (const p of e.points) {
+      if (p.yval === null) continue;
+      if (!(p.canvasy === p.canvasy)) {  // NaN: a gap
+        if (px !== null) ctx.lineTo(p.canvasx, py);
+        if (run === 1) single.push([px, py]);
+        px = null, run = 0;
+        continue;
+      }
+      if (px === null) ctx.moveTo(p.canvasx, p.canvasy);
+      else ctx.lineTo(p.canvasx, py), ctx.lineTo(p.canvasx, p.canvasy);
+      px = p.canvasx, py = p.canvasy, run++;
+    }
+    if (run === 1) single.push([px, py]);
+    ctx.stroke();
+    if (pattern) ctx.setLineDash([]);
+    ctx.fillStyle = e.color;
+    for (const [x, y] of single) ctx.fillRect(x - 1.5, y - 1.5, 3, 3);
   }
 
   // Wheel zoom around the cursor in x: ctrl/cmd+wheel always, plain wheel once the plot has been
@@ -217,6 +270,7 @@
 
   function plot(fig, spec) {
     const series = spec.series || [];
+    series.forEach(s => { if (!s.x && series[s.xOf]) s.x = series[s.xOf].x; s.x = s.x || []; s.y = s.y || []; });
     const chart = makeChart(fig, spec, series.map((s, i) => ({
       index: i, name: s.name || 'series ' + (i + 1), color: s.color || PALETTE[i % PALETTE.length], hidden: false, toggles: true,
       kind: s.style === 'points' ? 'dot' : s.dashed ? 'dashed' : '',
@@ -240,7 +294,7 @@
       axes: { x: axis(spec.xLog), y: axis(spec.yLog) }, valueRange: chart.empty ? [0, 1] : null,
       legendFormatter: readout(chart, spec.xLabel || 'x', fmtVal), underlayCallback: underlay(spec), drawCallback: onDraw(chart),
       highlightCallback: (e, x) => hoverLinked(chart, x), unhighlightCallback: () => hoverLinked(chart, null),
-      interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(Dygraph.Plotters.linePlotter),
+      interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(linesAndSteps),
     }));
     legend(chart, items);
     if (chart.empty) chart.div.insertAdjacentHTML('afterend', '<div class="hil-nodata">no data</div>');

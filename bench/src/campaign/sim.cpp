@@ -7,7 +7,9 @@
 #include <cstdlib>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <thread>
@@ -22,7 +24,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// At most 2 x 5000 buckets of two points: a report plot of a run holds at most 20 000 points.
+// At most 2 x 5000 buckets of two rows (three where a column has a gap): a report plot of a run
+// holds at most ~20 000 points.
 constexpr std::size_t kReportBuckets = 5000;
 
 // The telemetry columns the campaign report plots.
@@ -31,25 +34,32 @@ constexpr telemetry::Col kReportColumns[] = {
     telemetry::Col::theta_motor_deg, telemetry::Col::theta_valve_deg, telemetry::Col::theta_cmd_deg,
     telemetry::Col::gap_est_deg,     telemetry::Col::gap_true_deg,    telemetry::Col::theta_target_deg};
 
-// The report's series, min/max decimated as the run goes (hil/minmax_decimator.hpp).
+// The report's series, min/max decimated as the run goes over shared buckets, so they share their
+// times (hil/minmax_decimator.hpp). A column without a finite value is left empty: no line.
 class ReportDecimator {
  public:
-  ReportDecimator() : series_(std::size(kReportColumns), MinMaxDecimator(kReportBuckets)) {}
   void add(const TelemetryRow& row) {
     const double t = row[telemetry::index(telemetry::Col::t_s)];
-    for (std::size_t i = 0; i < series_.size(); ++i) series_[i].add(t, row[telemetry::index(kReportColumns[i])]);
+    for (std::size_t i = 0; i < std::size(kReportColumns); ++i) values_[i] = row[telemetry::index(kReportColumns[i])];
+    decimator_.add(t, values_);
   }
   std::vector<ReportSeries> take() const {
-    std::vector<ReportSeries> out(series_.size());
-    for (std::size_t i = 0; i < series_.size(); ++i) {
+    std::vector<double> t;
+    std::vector<std::vector<double>> values;
+    decimator_.take(t, values);
+    std::vector<ReportSeries> out(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) {
       out[i].name = std::string(telemetry::name(kReportColumns[i]));
-      series_[i].take(out[i].t_s, out[i].value);
+      if (std::none_of(values[i].begin(), values[i].end(), [](double v) { return std::isfinite(v); })) continue;
+      out[i].t_s = t;
+      out[i].value = std::move(values[i]);
     }
     return out;
   }
 
  private:
-  std::vector<MinMaxDecimator> series_;
+  MinMaxDecimator decimator_{kReportBuckets, std::size(kReportColumns)};
+  std::array<double, std::size(kReportColumns)> values_{};
 };
 
 void write_text(const std::filesystem::path& file, const std::string& text) {

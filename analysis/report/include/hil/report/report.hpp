@@ -2,8 +2,11 @@
 // with interactive plots drawn by Debian's dygraphs (embedded at build time): box/wheel zoom, pan,
 // hover read-out, legend toggles, and x-zoom linked across figures of the same group. Used by `hilbench sim` and `hilbench compare/diagnose`.
 //
-// Series are decimated when added (min and max per index bucket, at most kMaxBuckets buckets), so
-// a Document holds only what it will write and a million-point series costs a few milliseconds.
+// Series are decimated when added (min and max per index bucket, at most kMaxBuckets buckets;
+// hil/minmax_decimator.hpp), so a Document holds only what it will write and a million-point
+// series costs a few milliseconds. Line and step series of a figure with the same x are decimated
+// over the same buckets and written with one x, so the plot's table has a row per x, not the
+// union of every series' own.
 // Not real-time safe: allocates, formats and does file I/O.
 #pragma once
 
@@ -16,7 +19,7 @@
 namespace hil::report {
 
 // A series longer than 2 * kMaxBuckets points is reduced to the min and max of each of
-// kMaxBuckets index buckets (plus its first and last points); NaN gaps survive.
+// kMaxBuckets index buckets, drawn at the bucket's first and last x; NaN gaps survive.
 inline constexpr int kMaxBuckets = 4000;
 
 struct Series {
