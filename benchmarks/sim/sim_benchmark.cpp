@@ -8,6 +8,9 @@
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
+#include "hil/ctl/gap_fit.hpp"
+#include "hil/physics.hpp"
+#include "hil/plant/rng.hpp"
 
 namespace {
 
@@ -59,6 +62,29 @@ void BM_Run(benchmark::State& state, const char* run_name) {
 }
 BENCHMARK_CAPTURE(BM_Run, robust_adaptive, "adaptive")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Run, none, "none")->Unit(benchmark::kMillisecond);
+
+// One gap fit (the observer's measurement at a reversal) over a full 700-sample window: a 2 deg
+// gap crossed at 8 deg/s behind the observer's two 15 ms low-pass stages, 0.02 deg of noise.
+// Arg: 1 = four gaps to an AVX2 register where the CPU has it, 0 = two to an SSE2 register.
+void BM_GapFit(benchmark::State& state) {
+  constexpr double kDeg = 0.017453292519943295, kGap = 2 * kDeg, kAlpha = 0.06449301496838222;  // 1 - exp(-1/15.5)
+  hil::ctl::GapFit::History h;
+  hil::plant::Rng rng(7);
+  double motor = 0.2, valve = motor + kGap / 2, lp1 = valve, lp2 = valve;
+  for (int k = 0; k < 1024; ++k) {
+    if (k > 300) motor += 8 * kDeg * 1e-3;
+    valve = hil::physics::play_rad(valve, motor, kGap / 2);
+    lp1 += kAlpha * (valve - lp1);
+    lp2 += kAlpha * (lp1 - lp2);
+    hil::ctl::GapFit::push(h, motor, lp2 + 0.02 * kDeg * rng.gaussian());
+  }
+  const hil::ctl::GapFit fit(kAlpha, 6 * kDeg);
+  const bool wide = hil::ctl::GapFit::use_wide_lanes(state.range(0) != 0);
+  if (wide != (state.range(0) != 0)) state.SkipWithError("this CPU has no AVX2");
+  for (auto _ : state) benchmark::DoNotOptimize(fit.fit(h, 300, 0.2, +1, 400, 30));
+  hil::ctl::GapFit::use_wide_lanes(true);
+}
+BENCHMARK(BM_GapFit)->Arg(0)->Arg(1)->ArgName("avx2")->Unit(benchmark::kMicrosecond);
 
 // `hilbench sim paper_adaptive.yaml` end to end (all runs, report, and telemetry or not).
 void BM_Campaign(benchmark::State& state) {

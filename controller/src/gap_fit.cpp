@@ -1,10 +1,8 @@
 #include "hil/ctl/gap_fit.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 #include "hil/physics.hpp"
 
@@ -43,67 +41,91 @@ double GapFit::cost(const Window& w, double extreme_rad, int dir, std::int64_t s
 
 namespace {
 
-// Two lanes of doubles side by side: one SSE2 register (every x86-64 has SSE2), plain pairs
-// elsewhere. Each lane gets exactly the IEEE operations of the scalar code, so the results are
-// the same bits either way.
-using Pair = double __attribute__((vector_size(16)));
-
-// physics::play_rad lane by lane, without branches: the follower clamped to
-// [driver - half, driver + half] is max(driver - half, min(follower, driver + half)) for
-// half >= 0 (minpd/maxpd return their second operand unless the comparison holds, which is
-// play_rad's order of tests).
-inline Pair play(Pair follower, Pair driver, Pair half) noexcept {
-#if defined(__SSE2__)
-  return _mm_max_pd(driver - half, _mm_min_pd(driver + half, follower));
-#else
-  Pair out;
-  for (int j = 0; j < 2; ++j) out[j] = physics::play_rad(follower[j], driver[j], half[j]);
-  return out;
-#endif
-}
-
-}  // namespace
-
-template <int K>
-void GapFit::costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
-                   double* cost_out) const noexcept {
-  // cost() for K gaps at once, lane by lane the same operations in the same order (so the same
-  // numbers): one gap's samples form a chain of dependent low-pass updates, K of them side by side
-  // keep the FPU busy instead of waiting on each. Lanes go in pairs; an odd K's last pair repeats
-  // its last gap.
-  constexpr int kPairs = (K + 1) / 2;
-  Pair half[kPairs], valve[kPairs], lp1[kPairs], lp2[kPairs], sum[kPairs], sum2[kPairs];
+// K gaps' costs side by side, in vectors V of kWidth doubles: one gap's samples form a chain of
+// dependent low-pass updates, and K of them side by side keep the FPU busy instead of waiting on
+// each. Lane by lane these are cost()'s IEEE operations in the same order, so every vector width
+// gives the same bits. The play operator without branches: t = min(driver + half, follower), then
+// max(driver - half, t), which is play_rad's order of tests for half >= 0 (a NaN leaves the
+// follower, as there). A K that is no multiple of the width repeats its last gap in the spare
+// lanes. The vectors are GCC/Clang vector extensions: SSE2 or AVX2 registers on x86-64, whatever
+// the target has elsewhere.
+template <int K, class V>
+[[gnu::always_inline]] inline void cost_lanes(const GapFit::Window& w, double alpha_1, double extreme_rad, int dir,
+                                              std::int64_t skip, const double* gap_rad, double* cost_out) noexcept {
+  constexpr int kWidth = sizeof(V) / sizeof(double);
+  constexpr int kVectors = (K + kWidth - 1) / kWidth;
+  V half[kVectors], valve[kVectors], lp1[kVectors], lp2[kVectors], sum[kVectors], sum2[kVectors], alpha;
+  const double start = w.extreme >= 0 ? w.motor_rad[0] : extreme_rad;
   const double d = dir;
-  for (int p = 0; p < kPairs; ++p) {
-    for (int l = 0; l < 2; ++l) half[p][l] = gap_rad[std::min(2 * p + l, K - 1)] / 2;
-    valve[p] = (w.extreme >= 0 ? w.motor_rad[0] : extreme_rad) + d * half[p];
-    lp1[p] = lp2[p] = valve[p];
-    sum[p] = sum2[p] = Pair{0, 0};
+  for (int l = 0; l < kWidth; ++l) alpha[l] = alpha_1;
+  for (int v = 0; v < kVectors; ++v) {
+    for (int l = 0; l < kWidth; ++l) {
+      half[v][l] = gap_rad[std::min(kWidth * v + l, K - 1)] / 2;
+      valve[v][l] = start + d * half[v][l];
+      sum[v][l] = sum2[v][l] = 0;
+    }
+    lp1[v] = lp2[v] = valve[v];
   }
-  const Pair alpha{alpha_, alpha_};
   for (std::int64_t i = 0; i < w.n; ++i) {
-    const double m = w.motor_rad[static_cast<std::size_t>(i)];
-    const Pair mm{m, m};
-    for (int p = 0; p < kPairs; ++p) {
-      valve[p] = play(valve[p], mm, half[p]);
-      lp1[p] += alpha * (valve[p] - lp1[p]);
-      lp2[p] += alpha * (lp1[p] - lp2[p]);
+    V m;
+    for (int l = 0; l < kWidth; ++l) m[l] = w.motor_rad[static_cast<std::size_t>(i)];
+    for (int v = 0; v < kVectors; ++v) {
+      const V upper = m + half[v], lower = m - half[v];
+      const V held = upper < valve[v] ? upper : valve[v];
+      valve[v] = lower > held ? lower : held;
+      lp1[v] += alpha * (valve[v] - lp1[v]);
+      lp2[v] += alpha * (lp1[v] - lp2[v]);
     }
     if (i >= skip) {
-      const double eq = w.valve_eq_rad[static_cast<std::size_t>(i)];
-      const Pair eqq{eq, eq};
-      for (int p = 0; p < kPairs; ++p) {
-        const Pair r = eqq - lp2[p];
-        sum[p] += r;
-        sum2[p] += r * r;
+      V eq;
+      for (int l = 0; l < kWidth; ++l) eq[l] = w.valve_eq_rad[static_cast<std::size_t>(i)];
+      for (int v = 0; v < kVectors; ++v) {
+        const V r = eq - lp2[v];
+        sum[v] += r;
+        sum2[v] += r * r;
       }
     }
   }
   const std::int64_t n = std::max<std::int64_t>(w.n - std::max<std::int64_t>(skip, 0), 0);
   for (int j = 0; j < K; ++j) {
-    const double s = sum[j / 2][j % 2], s2 = sum2[j / 2][j % 2];
+    const double s = sum[j / kWidth][j % kWidth], s2 = sum2[j / kWidth][j % kWidth];
     cost_out[j] = n == 0 ? 0 : s2 - s * s / static_cast<double>(n);
   }
+}
+
+using Pair = double __attribute__((vector_size(16)));  // SSE2: every x86-64
+
+#if defined(__x86_64__)
+using Quad = double __attribute__((vector_size(32)));
+
+template <int K>
+[[gnu::target("avx2")]] void cost_lanes_avx2(const GapFit::Window& w, double alpha, double extreme_rad, int dir,
+                                             std::int64_t skip, const double* gap_rad, double* cost_out) noexcept {
+  cost_lanes<K, Quad>(w, alpha, extreme_rad, dir, skip, gap_rad, cost_out);
+}
+
+bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
+#else
+bool cpu_has_avx2() noexcept { return false; }
+#endif
+
+std::atomic<bool> g_wide_lanes{cpu_has_avx2()};
+
+}  // namespace
+
+bool GapFit::use_wide_lanes(bool wanted) noexcept {
+  g_wide_lanes.store(wanted && cpu_has_avx2(), std::memory_order_relaxed);
+  return g_wide_lanes.load(std::memory_order_relaxed);
+}
+
+template <int K>
+void GapFit::costs(const Window& w, double extreme_rad, int dir, std::int64_t skip, const double* gap_rad,
+                   double* cost_out) const noexcept {
+#if defined(__x86_64__)
+  if (g_wide_lanes.load(std::memory_order_relaxed))
+    return cost_lanes_avx2<K>(w, alpha_, extreme_rad, dir, skip, gap_rad, cost_out);
+#endif
+  cost_lanes<K, Pair>(w, alpha_, extreme_rad, dir, skip, gap_rad, cost_out);
 }
 
 GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead,
@@ -124,17 +146,15 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
     w.motor_rad[static_cast<std::size_t>(i)] = h.motor_rad[slot];
     w.valve_eq_rad[static_cast<std::size_t>(i)] = h.valve_eq_rad[slot];
   }
-  // Coarse grid, then golden section around the best cell.
+  // Coarse grid (all its points in one pass), then golden section around the best cell.
   constexpr int kGrid = 24;
   double best = 0, best_cost = 1e300;
-  constexpr int kLanes = 5;
-  static_assert((kGrid + 1) % kLanes == 0);
-  for (int i0 = 0; i0 <= kGrid; i0 += kLanes) {
-    double g[kLanes], c[kLanes];
-    for (int j = 0; j < kLanes; ++j) g[j] = gap_max_rad_ * (i0 + j) / kGrid;
-    costs<kLanes>(w, extreme_rad, dir, skip, g, c);
-    for (int j = 0; j < kLanes; ++j)
-      if (c[j] < best_cost) best_cost = c[j], best = g[j];
+  {
+    double g[kGrid + 1], c[kGrid + 1];
+    for (int i = 0; i <= kGrid; ++i) g[i] = gap_max_rad_ * i / kGrid;
+    costs<kGrid + 1>(w, extreme_rad, dir, skip, g, c);
+    for (int i = 0; i <= kGrid; ++i)
+      if (c[i] < best_cost) best_cost = c[i], best = g[i];
   }
   const double cell = gap_max_rad_ / kGrid;
   double a = std::max(best - cell, 0.0), b = std::min(best + cell, gap_max_rad_);

@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <memory>
 #include <random>
@@ -99,3 +101,34 @@ TEST(GapFit, ReversalAtTheFirstSampleAndTooFewSamples) {
 }
 
 }  // namespace
+
+// The cost lanes come four to an AVX2 register or two to an SSE2 one (GapFit::use_wide_lanes):
+// the fits must be the same bits, over gaps, directions, noise and a window that starts before
+// the extreme as well as after it.
+TEST(GapFit, WideAndNarrowLanesGiveTheSameBits) {
+  if (!GapFit::use_wide_lanes(true)) GTEST_SKIP() << "this CPU has no AVX2: only the SSE2 lanes exist";
+  const GapFit fit(1 - std::exp(-1e-3 / 0.015), 6 * kDeg);
+  int compared = 0;
+  for (double gap_deg : {0.3, 1.3, 2.4, 5.0}) {
+    for (int dir : {-1, +1}) {
+      for (double noise_deg : {0.0, 0.02, 0.3}) {
+        for (std::int64_t lead : {20, 400}) {
+          std::int64_t ext;
+          double ext_rad;
+          auto h = history(gap_deg * kDeg, dir, 8.0, noise_deg, 300, 1000, &ext, &ext_rad);
+          GapFit::use_wide_lanes(true);
+          const auto wide = fit.fit(h, ext, ext_rad, dir, lead, 30);
+          GapFit::use_wide_lanes(false);
+          const auto narrow = fit.fit(h, ext, ext_rad, dir, lead, 30);
+          EXPECT_EQ(wide.ok, narrow.ok);
+          EXPECT_EQ(std::bit_cast<std::uint64_t>(wide.gap_rad), std::bit_cast<std::uint64_t>(narrow.gap_rad)) << gap_deg;
+          EXPECT_EQ(std::bit_cast<std::uint64_t>(wide.rms_rad), std::bit_cast<std::uint64_t>(narrow.rms_rad)) << gap_deg;
+          EXPECT_EQ(std::bit_cast<std::uint64_t>(wide.excursion_rad), std::bit_cast<std::uint64_t>(narrow.excursion_rad));
+          compared += wide.ok ? 1 : 0;
+        }
+      }
+    }
+  }
+  GapFit::use_wide_lanes(true);
+  EXPECT_GT(compared, 20);  // most of them are real measurements, not refusals
+}

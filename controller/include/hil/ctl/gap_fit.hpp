@@ -56,6 +56,11 @@ class GapFit {
   // `skip` samples at the start are simulated but not scored (the filters' start-up).
   Result fit(History& h, std::int64_t extreme, double extreme_rad, int dir, std::int64_t lead, std::int64_t skip) const noexcept;
 
+  // The cost evaluations run four gaps to a register where the CPU has AVX2, else two (SSE2);
+  // both give the same bits. Chosen once per process from the CPU; tests and benchmarks switch
+  // here to compare (wanted and available). Returns whether the wide lanes are now in use.
+  static bool use_wide_lanes(bool wanted) noexcept;
+
  private:
   double cost(const Window& w, double extreme_rad, int dir, std::int64_t skip, double gap_rad, double* rms = nullptr,
               double* excursion = nullptr) const noexcept;
