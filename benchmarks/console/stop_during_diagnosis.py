@@ -3,24 +3,14 @@
 # campaign of tests/bench/analyses_api_test.cpp, DURATION_S long (default 300 s at 1 kHz, recorded
 # at speed 50); one diagnosis runs to its end for its length, a second gets SIGTERM DELAY_S into it.
 #   python3 benchmarks/console/stop_during_diagnosis.py build/bench/hilbench . [DURATION_S] [DELAY_S]
-import json, os, shutil, signal, subprocess, sys, tempfile, time, urllib.request
+import os, signal, sys, time
+from recorded_run import Server
 exe, src = sys.argv[1], sys.argv[2]
 duration_s = float(sys.argv[3]) if len(sys.argv) > 3 else 300
 delay_s = float(sys.argv[4]) if len(sys.argv) > 4 else 0.5
-d = tempfile.mkdtemp()
-p = subprocess.Popen([exe, "serve", "--listen", "127.0.0.1:0", "--configs", src + "/configs", "--runs-dir", d + "/runs", "--port-file", d + "/port", "--no-mlock"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-while not os.path.exists(d + "/port"): time.sleep(0.05)
-base = "http://127.0.0.1:%d" % int(open(d + "/port").read())
-def req(path, body=None):
-    r = urllib.request.Request(base + path, data=None if body is None else json.dumps(body).encode(), method="GET" if body is None else "POST")
-    try:
-        with urllib.request.urlopen(r) as f: return json.loads(f.read() or b"{}")
-    except urllib.error.HTTPError as e: return json.loads(e.read())
-yaml = open(src + "/tests/bench/analyses_api_test.cpp").read().split('R"(')[1].split(')"')[0]
-yaml = yaml.replace("duration_s: 8", "duration_s: %g" % duration_s)
-req("/api/start", {"campaign_yaml": yaml, "speed": 50})
-while req("/api/status")["state"] != "idle" or req("/api/status")["last"] is None: time.sleep(0.1)
-run = req("/api/runs")["runs"][0]["id"]
+srv = Server(exe, src)
+req, p = srv.req, srv.proc
+run = srv.record_run(speed=50, duration_s=duration_s)
 def state(a): return req("/api/runs/%s/analyses/%s" % (run, a))["analysis"]
 t = time.perf_counter()
 a = req("/api/runs/%s/analyses" % run, {"kind": "diagnose", "model": "nominal"})["analysis"]["id"]
@@ -30,7 +20,7 @@ b = req("/api/runs/%s/analyses" % run, {"kind": "diagnose", "model": "nominal"})
 while state(b)["state"] != "running": time.sleep(0.01)
 time.sleep(delay_s)
 t = time.perf_counter(); p.send_signal(signal.SIGTERM); p.wait(); stop_s = time.perf_counter() - t
-folder = "%s/runs/%s/analyses/%s" % (d, run, b)
+folder = "%s/runs/%s/analyses/%s" % (srv.dir, run, b)
 left = sorted(os.listdir(folder)) if os.path.isdir(folder) else []
 print("%g s run: diagnosis %.2f s; SIGTERM %.1f s into the next one -> exit in %.3f s, exit status %d, %s left %s" % (duration_s, full_s, delay_s, stop_s, p.returncode, b, left))
-shutil.rmtree(d, ignore_errors=True)
+srv.close()
