@@ -25,13 +25,6 @@ extern char** environ;
 
 namespace hil::test {
 
-inline std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // Runs a program; stdout and stderr go to `log`. Returns the pid.
 inline pid_t spawn(const std::vector<std::string>& argv, const std::filesystem::path& log) {
   posix_spawn_file_actions_t fa;

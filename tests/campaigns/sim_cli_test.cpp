@@ -14,16 +14,10 @@
 
 using hil::test::hilbench;
 using hil::test::run_command;
+using hil::test::slurp;
 using hil::test::source_path;
 
 namespace {
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 
 TEST(SimCli, PaperAdaptiveWritesTelemetrySummariesAndReport) {
   hil::test::TempDir out;

@@ -15,12 +15,15 @@
 
 #include "assets.hpp"
 #include "sample_reports.hpp"
+#include "temp_file.hpp"
 
 namespace fs = std::filesystem;
 using hil::report::Bars;
 using hil::report::Document;
 using hil::report::Figure;
 using hil::report::Series;
+using hil::test::slurp;
+using hil::test::TempDir;
 
 namespace {
 
@@ -30,23 +33,8 @@ std::size_t count(const std::string& text, const std::string& what) {
   return n;
 }
 
-std::string slurp(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// A fresh folder per test, removed afterwards.
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "hil-report-test-XXXXXX").string();
-    path = ::mkdtemp(t.data());
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::size_t entries() const { return static_cast<std::size_t>(std::distance(fs::directory_iterator(path), {})); }
-};
+// What a folder holds: a write that leaves its temporary behind has two entries.
+std::size_t entries(const fs::path& dir) { return static_cast<std::size_t>(std::distance(fs::directory_iterator(dir), {})); }
 
 Document small_doc() {
   Document doc("small");
@@ -196,18 +184,18 @@ TEST(Document, PlotHelpOnlyOnPagesWithPlots) {
 
 TEST(DocumentWrite, WritesTheWholePageAndNoTemporary) {
   TempDir dir;
-  const auto file = dir.path / "report.html";
+  const auto file = dir.path() / "report.html";
   const auto doc = small_doc();
   doc.write(file);
   EXPECT_EQ(slurp(file), doc.html());
-  EXPECT_EQ(dir.entries(), 1u);
+  EXPECT_EQ(entries(dir.path()), 1u);
   doc.write(file);  // replaces
-  EXPECT_EQ(dir.entries(), 1u);
+  EXPECT_EQ(entries(dir.path()), 1u);
 }
 
 TEST(DocumentWrite, FailedRenameLeavesNoTemporary) {
   TempDir dir;
-  const auto target = dir.path / "report.html";
+  const auto target = dir.path() / "report.html";
   fs::create_directory(target);
   fs::create_directory(target / "keep");  // a non-empty folder cannot be renamed over
   try {
@@ -217,7 +205,7 @@ TEST(DocumentWrite, FailedRenameLeavesNoTemporary) {
     EXPECT_NE(std::string(e.what()).find("report.html"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(fs::is_directory(target / "keep"));
-  EXPECT_EQ(dir.entries(), 1u);
+  EXPECT_EQ(entries(dir.path()), 1u);
 }
 
 TEST(DocumentWrite, MissingFolderThrowsNamingTheFile) {
@@ -233,7 +221,7 @@ TEST(DocumentWrite, MissingFolderThrowsNamingTheFile) {
 // previous report whole and no partial file behind.
 TEST(DocumentWrite, FailureHalfwayKeepsThePreviousReport) {
   TempDir dir;
-  const auto file = dir.path / "report.html";
+  const auto file = dir.path() / "report.html";
   { std::ofstream(file) << "previous report"; }
   const auto doc = small_doc();
   ASSERT_GT(doc.html().size(), 8192u);
@@ -254,7 +242,7 @@ TEST(DocumentWrite, FailureHalfwayKeepsThePreviousReport) {
   std::signal(SIGXFSZ, old_handler);
   EXPECT_TRUE(threw);
   EXPECT_EQ(slurp(file), "previous report");
-  EXPECT_EQ(dir.entries(), 1u);
+  EXPECT_EQ(entries(dir.path()), 1u);
 }
 
 // Budget: `hilbench sim` writes a 3-run, 18-s campaign report in its ~20 ms command.
@@ -266,9 +254,9 @@ TEST(DocumentSize, CampaignReportIsSmallAndQuick) {
   Document doc("Campaign report");
   hil::test::add_campaign(doc, runs);
   const auto t1 = clock::now();
-  doc.write(dir.path / "report.html");
+  doc.write(dir.path() / "report.html");
   const auto t2 = clock::now();
-  const auto size = fs::file_size(dir.path / "report.html");
+  const auto size = fs::file_size(dir.path() / "report.html");
   const double build_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   const double write_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
   std::printf(

@@ -25,16 +25,10 @@ namespace {
 
 using hil::test::hilbench;
 using hil::test::run_command;
+using hil::test::slurp;
 using hil::test::source_path;
 using hil::test::TempDir;
 namespace fs = std::filesystem;
-
-std::string read(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 std::string q(const fs::path& p) {
   std::string quoted(1, '\'');
@@ -44,13 +38,13 @@ std::string q(const fs::path& p) {
 }
 
 long lines_in(const fs::path& file) {
-  const std::string s = read(file);
+  const std::string s = slurp(file);
   return static_cast<long>(std::count(s.begin(), s.end(), '\n'));
 }
 
 std::vector<std::vector<std::string>> csv_rows(const fs::path& file) {
   std::vector<std::vector<std::string>> rows;
-  std::stringstream in(read(file));
+  std::stringstream in(slurp(file));
   for (std::string line; std::getline(in, line);) {
     std::vector<std::string> cells;
     std::stringstream l(line);
@@ -97,10 +91,10 @@ TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
   const auto one = dir.path() / "one", two = dir.path() / "two";
   ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(one) + " --jobs 1 --quiet").status, 0);
   ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(two) + " --jobs 2 --quiet").status, 0);
-  const std::string expected = read(one / "sweep.csv");
+  const std::string expected = slurp(one / "sweep.csv");
   ASSERT_EQ(csv_rows(one / "sweep.csv").size(), 121u);
-  EXPECT_EQ(read(two / "sweep.csv"), expected);
-  EXPECT_EQ(read(two / "sweep.json"), read(one / "sweep.json"));
+  EXPECT_EQ(slurp(two / "sweep.csv"), expected);
+  EXPECT_EQ(slurp(two / "sweep.json"), slurp(one / "sweep.json"));
 
   // SIGINT: the point in flight finishes, the process says how to continue and exits 130 with
   // whole lines only; the rerun runs only what is missing.
@@ -114,19 +108,19 @@ TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
     ASSERT_LT(before, 120) << "the sweep finished before the signal: make it longer";
     EXPECT_FALSE(fs::exists(out / "sweep.csv"));
     if (sig == SIGINT) {
-      EXPECT_EQ(read(rows).back(), '\n');
+      EXPECT_EQ(slurp(rows).back(), '\n');
     }
     const auto rerun = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --jobs 2");
     ASSERT_EQ(rerun.status, 0) << rerun.output;
     EXPECT_NE(rerun.output.find("ran " + std::to_string(120 - before) + " points"), std::string::npos) << before << " before\n"
                                                                                                        << rerun.output;
-    EXPECT_EQ(read(out / "sweep.csv"), expected) << "signal " << sig;
+    EXPECT_EQ(slurp(out / "sweep.csv"), expected) << "signal " << sig;
   }
   // A third run has nothing left to do, and says so by running nothing.
   const auto again = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(one));
   EXPECT_EQ(again.status, 0);
   EXPECT_EQ(again.output.find("ran "), std::string::npos) << again.output;
-  EXPECT_EQ(read(one / "sweep.csv"), expected);
+  EXPECT_EQ(slurp(one / "sweep.csv"), expected);
 }
 
 TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {
@@ -207,7 +201,7 @@ TEST(Sweep, APointsMetricsAreThoseOfTheSameCampaignRunBySim) {
         run_command(hilbench() + " sim " + q(e.path() / "campaign.yaml") + " --out " + q(sim_out) + " --no-telemetry --quiet");
     ASSERT_EQ(s.status, 0) << s.output;
     const auto& row = rows.at(static_cast<std::size_t>(p) + 1);
-    auto summary = [&](const std::string& run) { return nlohmann::json::parse(read(sim_out / "tiny" / run / "summary.json")); };
+    auto summary = [&](const std::string& run) { return nlohmann::json::parse(slurp(sim_out / "tiny" / run / "summary.json")); };
     auto stall_per_reversal = [](const nlohmann::json& j) {
       double sum = 0;
       for (const auto& rev : j["reversals"]) sum += rev["stall_s"].get<double>();
@@ -254,7 +248,7 @@ TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
   const auto out = dir.path() / "out";
   const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
-  const std::string p0 = read(out / "points" / "0" / "campaign.yaml"), p1 = read(out / "points" / "1" / "campaign.yaml");
+  const std::string p0 = slurp(out / "points" / "0" / "campaign.yaml"), p1 = slurp(out / "points" / "1" / "campaign.yaml");
   EXPECT_NE(p0.find("initial_deg: 0.5"), std::string::npos) << p0;
   EXPECT_NE(p0.find("to_deg: 0.75"), std::string::npos) << p0;
   EXPECT_NE(p1.find("initial_deg: 2"), std::string::npos) << p1;
@@ -275,7 +269,7 @@ TEST(Sweep, APointsCampaignFindsTheBaseCampaignsReferenceFile) {
   const auto sim = run_command(hilbench() + " sim " + q(out / "points" / "1" / "campaign.yaml") + " --out " +
                                q(dir.path() / "sim") + " --no-telemetry --quiet");
   ASSERT_EQ(sim.status, 0) << sim.output;
-  const auto j = nlohmann::json::parse(read(dir.path() / "sim" / "tiny_csv" / "adaptive" / "summary.json"));
+  const auto j = nlohmann::json::parse(slurp(dir.path() / "sim" / "tiny_csv" / "adaptive" / "summary.json"));
   EXPECT_EQ(j["reversals"].size(), 4u);
   char iae[32];
   std::snprintf(iae, sizeof iae, "%.6g", j["iae_mpa_s"].get<double>());
@@ -302,10 +296,10 @@ TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
   ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 2/4 --quiet").status, 0);
   const auto full = run_command(hilbench() + " sweep --out " + q(sharded) + " --aggregate");
   ASSERT_EQ(full.status, 0) << full.output;
-  EXPECT_EQ(read(sharded / "sweep.csv"), read(local / "sweep.csv"));
-  EXPECT_EQ(read(sharded / "sweep.json"), read(local / "sweep.json"));
+  EXPECT_EQ(slurp(sharded / "sweep.csv"), slurp(local / "sweep.csv"));
+  EXPECT_EQ(slurp(sharded / "sweep.json"), slurp(local / "sweep.json"));
   EXPECT_EQ(csv_rows(local / "sweep.csv").size(), 7u);
-  const std::string html = read(local / "report.html");
+  const std::string html = slurp(local / "report.html");
   EXPECT_NE(html.find("adaptive.stall_vs_none"), std::string::npos);
   EXPECT_NE(html.find("hilbench sim " + (local / "points").string()), std::string::npos);
 }
@@ -333,17 +327,17 @@ TEST(Sweep, SlurmSubmitsAnArrayAndAnAggregationJobAfterIt) {
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("array 101"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("aggregate 102"), std::string::npos) << r.output;
-  const std::string calls = read(log);
+  const std::string calls = slurp(log);
   EXPECT_NE(calls.find("--parsable --partition=debug --array=0,2%2 " + (out / "slurm" / "array.sh").string()), std::string::npos)
       << calls;
   EXPECT_NE(calls.find("--parsable --partition=debug --dependency=afterany:101 " + (out / "slurm" / "aggregate.sh").string()),
             std::string::npos)
       << calls;
-  const std::string array = read(out / "slurm" / "array.sh");
+  const std::string array = slurp(out / "slurm" / "array.sh");
   EXPECT_NE(array.find(fs::canonical(hilbench()).string()), std::string::npos) << array;
   EXPECT_NE(array.find("--shard \"${SLURM_ARRAY_TASK_ID}/3\""), std::string::npos) << array;
-  EXPECT_NE(read(out / "slurm" / "aggregate.sh").find("--aggregate"), std::string::npos);
-  const auto jobs = nlohmann::json::parse(read(out / "slurm" / "jobs.json"));
+  EXPECT_NE(slurp(out / "slurm" / "aggregate.sh").find("--aggregate"), std::string::npos);
+  const auto jobs = nlohmann::json::parse(slurp(out / "slurm" / "jobs.json"));
   EXPECT_EQ(jobs["submissions"][0]["array"], "101");
   EXPECT_EQ(jobs["submissions"][0]["aggregate"], "102");
   const auto status = run_command(env + hilbench() + " sweep --status " + q(out));
