@@ -110,7 +110,8 @@ struct LockstepResult {
   std::vector<bench::TelemetryRecord> rows;
   bench::LoopEnd end = bench::LoopEnd::running;
   long missed = 0;
-  std::string error;  // a chain that broke: what it waited for
+  std::string first_miss;  // the first missed read: its period and what the rig said (a failure names the device)
+  std::string error;       // a chain that broke: what it waited for
   double wall_s = 0;
 };
 
@@ -233,7 +234,8 @@ inline LockstepResult run_lockstep_on(const bench::Campaign& c, const std::strin
       break;
     }
     res.rows.push_back(rec);
-    res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
+    if ((rec.flags & bench::kFlagReadMissed) != 0 && res.missed++ == 0)
+      res.first_miss = "period " + std::to_string(k) + ": " + std::string(rig.health().last_error_text());
     if (!more) break;
     // The drive has this period's target once the emulator applied RPDO k (at its SYNC).
     const double want = wire_target(rec.theta_target_rad);  // what the rig sent: the command, shaped where set
@@ -371,7 +373,8 @@ inline LockstepResult run_lockstep_hybrid(
       break;
     }
     res.rows.push_back(rec);
-    res.missed += (rec.flags & bench::kFlagReadMissed) != 0;
+    if ((rec.flags & bench::kFlagReadMissed) != 0 && res.missed++ == 0)
+      res.first_miss = "period " + std::to_string(k) + ": " + std::string(rig.health().last_error_text());
     if (!more) break;
     const double want = through_counts(rec.theta_target_rad + offset);
     std::optional<double> got;

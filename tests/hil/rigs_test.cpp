@@ -240,7 +240,7 @@ TEST(CanRig, PaperAdaptiveInLockstepMatchesTheSimulation) {
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), 18000u);
-  EXPECT_EQ(r.missed, 0);
+  EXPECT_EQ(r.missed, 0) << r.first_miss;
   for (std::size_t i = 0; i < r.rows.size(); ++i) ASSERT_EQ(r.rows[i].flags & ~bench::kFlagCmdLimited, 0u) << "row " << i;
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
   const double count_rad = 2 * std::numbers::pi / kUnits.counts_per_rev;
@@ -262,7 +262,7 @@ TEST(ModbusRig, ShortPaperInLockstepMatchesTheSimulation) {
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), 8000u);
-  EXPECT_EQ(r.missed, 0);
+  EXPECT_EQ(r.missed, 0) << r.first_miss;
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
   std::printf(
       "Modbus rig in lock-step: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
@@ -288,7 +288,7 @@ TEST(HybridRig, ProgrammedGapChangeWithARealDriveMatchesTheSimulation) {
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), 8000u);
-  EXPECT_EQ(r.missed, 0);
+  EXPECT_EQ(r.missed, 0) << r.first_miss;
   double lo = 1e300, hi = -1e300;
   for (std::size_t i = 0; i < r.rows.size(); ++i) {
     const auto& s = r.rows[i].step;
@@ -326,7 +326,7 @@ TEST(HybridRig, OperatorGapChangeMovesTheFlanksInLockstep) {
       });
   ASSERT_TRUE(r.error.empty()) << r.error;
   ASSERT_EQ(r.rows.size(), 4000u);
-  EXPECT_EQ(r.missed, 0);
+  EXPECT_EQ(r.missed, 0) << r.first_miss;
   const auto deg = [&](std::size_t i, double bench::StepRecord::*m) { return units::rad_to_deg(r.rows[i].step.*m); };
   EXPECT_DOUBLE_EQ(deg(499, &bench::StepRecord::gap_true_rad), 1.0);
   EXPECT_DOUBLE_EQ(deg(500, &bench::StepRecord::gap_true_rad), 2.5);

@@ -61,7 +61,7 @@ TEST(VcanCanRig, LockstepMatchesTheSimulation) {
   ASSERT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.end, bench::LoopEnd::completed);
   ASSERT_EQ(r.rows.size(), static_cast<std::size_t>(std::lround(campaign.duration_s / campaign.period_s)));
-  EXPECT_EQ(r.missed, 0);
+  EXPECT_EQ(r.missed, 0) << r.first_miss;
   const LockstepDiff d = compare_lockstep(campaign, "adaptive", r.rows);
   std::printf(
       "CAN rig in lock-step on vcan0: %zu periods in %.1f s wall; pressure RMS difference to the simulation %.3f kPa = "
