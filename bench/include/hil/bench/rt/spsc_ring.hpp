@@ -36,12 +36,7 @@ class SpscRing {
 
   // Consumer only. Copies up to max values into out; returns how many.
   std::size_t pop(T* out, std::size_t max) noexcept {
-    const std::size_t tail = tail_.load(std::memory_order_relaxed);
-    std::size_t n = head_.load(std::memory_order_acquire) - tail;
-    if (n > max) n = max;
-    for (std::size_t i = 0; i < n; ++i) out[i] = slots_[(tail + i) & mask_];
-    tail_.store(tail + n, std::memory_order_release);
-    return n;
+    return consume(max, [&out](const T& value) noexcept { *out++ = value; });
   }
 
   // Consumer only. Hands up to max values to f(const T&) where they lie, then frees their slots;
