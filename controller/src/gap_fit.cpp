@@ -44,9 +44,7 @@ namespace {
 // K gaps' costs side by side, in vectors V of kWidth doubles: one gap's samples form a chain of
 // dependent low-pass updates, and K of them side by side keep the FPU busy instead of waiting on
 // each. Lane by lane these are cost()'s IEEE operations in the same order, so every vector width
-// gives the same bits. The play operator without branches: t = min(driver + half, follower), then
-// max(driver - half, t), which is play_rad's order of tests for half >= 0 (a NaN leaves the
-// follower, as there). A K that is no multiple of the width repeats its last gap in the spare
+// gives the same bits (physics::play_in_place is branch-free for that). A K that is no multiple of the width repeats its last gap in the spare
 // lanes. The vectors are GCC/Clang vector extensions: SSE2 or AVX2 registers on x86-64, whatever
 // the target has elsewhere.
 template <int K, class V>
@@ -70,9 +68,7 @@ template <int K, class V>
     V m;
     for (int l = 0; l < kWidth; ++l) m[l] = w.motor_rad[static_cast<std::size_t>(i)];
     for (int v = 0; v < kVectors; ++v) {
-      const V upper = m + half[v], lower = m - half[v];
-      const V held = upper < valve[v] ? upper : valve[v];
-      valve[v] = lower > held ? lower : held;
+      physics::play_in_place(valve[v], m, half[v]);
       lp1[v] += alpha * (valve[v] - lp1[v]);
       lp2[v] += alpha * (lp1[v] - lp2[v]);
     }

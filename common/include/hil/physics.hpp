@@ -159,9 +159,18 @@ inline double servo_step_rad(double angle_rad, double cmd_rad, double keep, doub
 
 // The play (backlash) operator: the follower stays where it is while the driver moves inside the
 // gap, and is pushed by the flank it touches: follower in [driver - half_gap, driver + half_gap].
+// half_gap_rad >= 0 (or NaN: then, as for a NaN driver, the follower stays). Written without
+// branches (a min, then a max) so that T may also be a GCC vector of doubles: the gap fit runs
+// several candidate gaps side by side through this same operator. In place and by reference, so
+// that a wide vector never crosses a call by value (its ABI differs with and without AVX).
+template <class T>
+[[gnu::always_inline]] inline void play_in_place(T& follower_rad, const T& driver_rad, const T& half_gap_rad) noexcept {
+  const T upper = driver_rad + half_gap_rad, lower = driver_rad - half_gap_rad;
+  const T held = upper < follower_rad ? upper : follower_rad;  // the negative flank pushes
+  follower_rad = lower > held ? lower : held;                  // the positive flank pushes
+}
 inline double play_rad(double follower_rad, double driver_rad, double half_gap_rad) noexcept {
-  if (driver_rad - half_gap_rad > follower_rad) return driver_rad - half_gap_rad;  // the positive flank pushes
-  if (driver_rad + half_gap_rad < follower_rad) return driver_rad + half_gap_rad;  // the negative flank pushes
+  play_in_place(follower_rad, driver_rad, half_gap_rad);
   return follower_rad;
 }
 
