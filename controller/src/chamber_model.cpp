@@ -41,10 +41,10 @@ double ChamberModel::throat_area_m2(double p_pa, double dpdt_pa_s, double volume
   return GasGenerator::throat_area_m2(std::max(p_pa, 1.0), dpdt_pa_s, volume_m3);
 }
 
-double ChamberModel::throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near,
-                                    const physics::ThroatAreaSolver& solver) const noexcept {
+ChamberModel::Discharge ChamberModel::discharge(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near,
+                                                const physics::ThroatAreaSolver& solver) const noexcept {
   p_pa = std::max(p_pa, 1.0);
-  return solver.area_m2(p_pa, pow_near.value(p_pa, solver.pow_series), dpdt_pa_s, volume_m3);
+  return {p_pa, solver.outflow_kg_s(p_pa, pow_near.value(p_pa, solver.pow_series), dpdt_pa_s, volume_m3)};
 }
 
 double ChamberModel::angle_for_area_rad(double area) const noexcept {

@@ -138,9 +138,9 @@ GapFit::Result GapFit::fit(History& h, std::int64_t extreme, double extreme_rad,
   w.n = to - from + 1;
   w.extreme = extreme - from;
   for (std::int64_t i = 0; i < w.n; ++i) {
-    const auto slot = static_cast<std::size_t>((from + i) % kCapacity);
-    w.motor_rad[static_cast<std::size_t>(i)] = h.motor_rad[slot];
-    w.valve_eq_rad[static_cast<std::size_t>(i)] = h.valve_eq_rad[slot];
+    const std::size_t at = slot(from + i);
+    w.motor_rad[static_cast<std::size_t>(i)] = h.motor_rad[at];
+    w.valve_eq_rad[static_cast<std::size_t>(i)] = h.valve_eq_rad[at];
   }
   // Coarse grid (all its points in one pass), then golden section around the best cell.
   constexpr int kGrid = 24;

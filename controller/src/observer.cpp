@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -126,9 +127,10 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
   s.err_lp += alpha_ * (in.error_pa - s.err_lp);
   const double tau = in.tau_s * p_.time_constant_scale;
   s.p_eq_pa = s.p_lp2 + tau * s.d_lp2;
-  // The fit's valve angle: the chamber equation inverted for the throat area (no linearisation).
-  GapFit::push(s.history, in.theta_motor_rad,
-               chamber_.angle_for_area_rad(chamber_.throat_area_m2(s.p_lp2, s.d_lp2, in.volume_m3, s.p_lp2_pow, area_solver_)));
+  // The fit's valve angle: the chamber equation inverted for the throat area (no linearisation),
+  // finished by fill_valve_eq when a fit needs it.
+  s.discharge[GapFit::slot(s.history.count)] = chamber_.discharge(s.p_lp2, s.d_lp2, in.volume_m3, s.p_lp2_pow, area_solver_);
+  GapFit::push(s.history, in.theta_motor_rad, std::numeric_limits<double>::quiet_NaN());
   const std::int64_t now = s.history.count - 1;
   s.p_eq_slow_pa += alpha_slow_ * (s.p_eq_pa - s.p_eq_slow_pa);
 
@@ -192,9 +194,19 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
   return out;
 }
 
+void RobustObserver::fill_valve_eq(RobustObserverState& s) const noexcept {
+  GapFit::History& h = s.history;
+  for (std::int64_t i = std::max(s.valve_eq_known, h.count - GapFit::kMaxWindow); i < h.count; ++i) {
+    const std::size_t at = GapFit::slot(i);
+    h.valve_eq_rad[at] = chamber_.angle_for_area_rad(ChamberModel::throat_area_m2(s.discharge[at], area_solver_));
+  }
+  s.valve_eq_known = h.count;
+}
+
 void RobustObserver::measure(RobustObserverState& s, ObserverOutputs& out) const noexcept {
   const bool motion_goes_on = !out.reversed;
   s.fit_at = -1;
+  fill_valve_eq(s);
   const GapFit::Result r =
       fit_.fit(s.history, s.transition_extreme_at, s.transition_extreme_rad, s.touch, lead_samples_, skip_samples_);
   if (!r.ok) {

@@ -136,12 +136,17 @@ struct ThroatAreaSolver {
         cstar_m_s(g.cstar_m_s),
         pow_series(PowNear::series(g.pressure_exponent)) {}
   // The area through which the chamber at pressure p (p^n given), free volume v discharges what
-  // makes it change at dp/dt: mdot_out = mdot_gen (1 - g P / (rho_p RTc)) - V / RTc dP/dt.
+  // makes it change at dp/dt. In two halves for a caller that needs the second for only some
+  // periods: the discharge, then the area that passes it at p.
   double area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {
-    const double mdot_gen = gen_per_pn * p_pow_n;
-    const double mdot_out = mdot_gen * (1 - kept_per_pa * p_pa) - volume_m3 * inv_rtc * dpdt_pa_s;
-    return mdot_out * cstar_m_s / p_pa;
+    return area_for_outflow_m2(outflow_kg_s(p_pa, p_pow_n, dpdt_pa_s, volume_m3), p_pa);
   }
+  // mdot_out = mdot_gen (1 - g P / (rho_p RTc)) - V / RTc dP/dt
+  double outflow_kg_s(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {
+    const double mdot_gen = gen_per_pn * p_pow_n;
+    return mdot_gen * (1 - kept_per_pa * p_pa) - volume_m3 * inv_rtc * dpdt_pa_s;
+  }
+  double area_for_outflow_m2(double mdot_out_kg_s, double p_pa) const noexcept { return mdot_out_kg_s * cstar_m_s / p_pa; }
 };
 
 inline double GasGenerator::throat_area_m2(double p_pa, double p_pow_n, double dpdt_pa_s, double volume_m3) const noexcept {

@@ -32,10 +32,19 @@ struct ChamberModel : physics::GasGenerator {
   // The chamber equation solved for the throat area, exactly (no linearisation): the area that
   // makes the chamber at pressure p, volume v change at dp/dt.
   double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3) const noexcept;
-  // The same with p^n from an expansion about an anchor the caller keeps (a slowly moving p) and
-  // the equation's constants from a solver the caller built once from this model.
-  double throat_area_m2(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near,
-                        const physics::ThroatAreaSolver& solver) const noexcept;
+  // The same in two halves, for a caller that solves the equation every period but needs the
+  // area for only some periods (the robust observer's fit history): the discharge at (p, dp/dt,
+  // v), with p^n from an expansion about an anchor the caller keeps and the equation's constants
+  // from a solver the caller built once from this model; later, the area of that discharge.
+  struct Discharge {
+    double p_pa = 0;  // as clamped
+    double outflow_kg_s = 0;
+  };
+  Discharge discharge(double p_pa, double dpdt_pa_s, double volume_m3, physics::PowNear& pow_near,
+                      const physics::ThroatAreaSolver& solver) const noexcept;
+  static double throat_area_m2(const Discharge& d, const physics::ThroatAreaSolver& solver) noexcept {
+    return solver.area_for_outflow_m2(d.outflow_kg_s, d.p_pa);
+  }
   // Slope of the map at the angle whose area holds `p_pa` steady.
   double map_slope_m2_per_rad(double p_pa) const noexcept;
   // Linearised chamber time constant tau = V c* / (RTc At0 (1 - n)).

@@ -46,10 +46,13 @@ class GapFit {
   GapFit(double alpha, double gap_max_rad) : alpha_(alpha), gap_max_rad_(gap_max_rad) {}
 
   static void push(History& h, double motor_rad, double valve_eq_rad) noexcept {
-    h.motor_rad[static_cast<std::size_t>(h.count % kCapacity)] = motor_rad;
-    h.valve_eq_rad[static_cast<std::size_t>(h.count % kCapacity)] = valve_eq_rad;
+    h.motor_rad[slot(h.count)] = motor_rad;
+    h.valve_eq_rad[slot(h.count)] = valve_eq_rad;
     ++h.count;
   }
+  // Where sample i (count - kCapacity <= i < count) lives in the ring, for a caller that keeps
+  // more per sample alongside, or fills valve_eq_rad in after push (before fit reads it).
+  static std::size_t slot(std::int64_t i) noexcept { return static_cast<std::size_t>(i % kCapacity); }
 
   // Fits over samples [extreme - lead, last]: `extreme` is the sample at which the motor turned
   // (last pushing the valve in -dir), `extreme_rad` its angle; dir is the new direction.

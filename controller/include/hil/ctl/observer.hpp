@@ -135,6 +135,13 @@ struct RobustObserverState {
   std::int64_t fit_at = -1;  // sample number at which to fit; -1: none pending
   int fit_tries_left = 0;    // a slow contact may need a longer look before it shows enough
   GapFit::History history;
+  // The fit's valve angle of each sample is the chamber equation inverted for the throat area,
+  // then the map inverted: a division and a search. A fit reads a few hundred samples per
+  // reversal, so the period keeps only the equation's discharge and a fit converts what it may
+  // read (the last GapFit::kMaxWindow samples) first: the same angles, computed once each, for a
+  // fraction of the samples.
+  std::array<ChamberModel::Discharge, GapFit::kCapacity> discharge{};
+  std::int64_t valve_eq_known = 0;  // history samples before this one have their valve angle
 };
 
 class RobustObserver {
@@ -160,6 +167,7 @@ class RobustObserver {
   GapFit fit_;
   std::int64_t lead_samples_ = 0, after_samples_ = 0, skip_samples_ = 0;
   void measure(RobustObserverState& s, ObserverOutputs& out) const noexcept;
+  void fill_valve_eq(RobustObserverState& s) const noexcept;  // the angles a fit may read
 };
 
 }  // namespace hil::ctl
