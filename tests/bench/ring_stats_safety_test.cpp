@@ -61,6 +61,29 @@ TEST(SpscRing, ConsumeHandsOutInOrderAndFreesTheSlots) {
   EXPECT_EQ(ring.consume(16, [&](const int&) { ADD_FAILURE() << "an empty ring handed out a value"; }), 0u);
 }
 
+// claim() lends the next slot to be written in place: the consumer sees nothing of it before
+// publish(), the same slot comes back until then, and a full ring lends none.
+TEST(SpscRing, AClaimedSlotIsInvisibleUntilPublished) {
+  SpscRing<int> ring(2);
+  int* slot = ring.claim();
+  ASSERT_NE(slot, nullptr);
+  *slot = 7;
+  EXPECT_EQ(ring.size(), 0u);
+  EXPECT_EQ(ring.consume(16, [](const int&) { ADD_FAILURE() << "an unpublished value was handed out"; }), 0u);
+  EXPECT_EQ(ring.claim(), slot);
+  ring.publish();
+  ASSERT_TRUE(ring.try_push(8));
+  EXPECT_EQ(ring.claim(), nullptr);  // full
+  std::vector<int> seen;
+  EXPECT_EQ(ring.consume(1, [&](const int& v) { seen.push_back(v); }), 1u);
+  int* again = ring.claim();  // the freed slot, wrapping
+  EXPECT_EQ(again, slot);
+  *again = 9;
+  ring.publish();
+  EXPECT_EQ(ring.consume(16, [&](const int& v) { seen.push_back(v); }), 2u);
+  EXPECT_EQ(seen, (std::vector<int>{7, 8, 9}));
+}
+
 TEST(LatencyHistogram, PercentilesWithinTheBucketWidth) {
   LatencyHistogram h;
   std::mt19937_64 rng(3);

@@ -292,13 +292,17 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   if (rig_silent_) flags |= kFlagRigFault;
   if (!std::isnan(gap_override_rad_)) flags |= kFlagGapOverride;
 
-  StepRecord& r = rec_.step;
+  TelemetryRecord* const slot = telemetry_.claim();
+  rec_ = slot != nullptr ? slot : &spare_;
+  // Every field is written below or in finish_cycle (the slot holds an old row).
+  static_assert(sizeof(TelemetryRecord) == sizeof(StepRecord) + 4 * sizeof(double), "a new field: write it here");
+  StepRecord& r = rec_->step;
   r.t_s = t;
   r.p_ref_pa = p_ref;
   r.p_chamber_pa = rd.p_chamber_pa;
   r.p_meas_pa = rd.p_meas_pa;
   r.theta_cmd_rad = cmd;
-  rec_.theta_target_rad = target;
+  rec_->theta_target_rad = target;
   r.theta_motor_rad = rd.theta_motor_rad;
   r.theta_valve_rad = rd.theta_valve_rad;
   r.gap_true_rad = gap_to_rig_ ? gap : kNaN;
@@ -307,32 +311,34 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   r.touch = out_.touch_state;
   r.intention = out_.motion_intention;
   r.gap_measured = out_.gap_measured;
-  rec_.wake_latency_us = std::chrono::duration<double, std::micro>(woke - deadline).count();
-  rec_.flags = flags;
+  rec_->wake_latency_us = std::chrono::duration<double, std::micro>(woke - deadline).count();
+  rec_->flags = flags;
   if (timed_) wake_latency_.add(woke - deadline);
 }
 
 bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   if (timed_) compute_.add(end - woke_);
-  rec_.compute_us = std::chrono::duration<double, std::micro>(end - woke_).count();
+  TelemetryRecord& rec = *rec_;
+  rec.compute_us = std::chrono::duration<double, std::micro>(end - woke_).count();
   const auto late = end - (deadline_ + wall_period_);
   if (late > Clock::duration::zero()) {
-    rec_.flags |= kFlagOverrun;
+    rec.flags |= kFlagOverrun;
     ++overruns_;
     if (overruns_in_a_row_++ == 0) {
-      emit(rec_.step.t_s, event::Overrun{std::chrono::duration<double, std::micro>(late).count()});
+      emit(rec.step.t_s, event::Overrun{std::chrono::duration<double, std::micro>(late).count()});
     }
     if (loop_.overrun_policy == OverrunPolicy::abort && overruns_in_a_row_ >= loop_.overrun_abort_after) overrun_trip_ = true;
   } else {
     overruns_in_a_row_ = 0;
   }
-  if (telemetry_.try_push(rec_)) {
+  if (rec_ != &spare_) {
+    telemetry_.publish();
     ++rows_pushed_;
   } else {
     ++rows_lost_;
     ring_full_ = true;
   }
-  const double t = rec_.step.t_s;
+  const double t = rec.step.t_s;
   ++k_;
   if (stop_requested_ && !safe_) {
     end_ = LoopEnd::stopped;
@@ -350,10 +356,10 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   snap.t_s = t;
   snap.periods = k_;
   snap.total_periods = n_;
-  snap.flags = rec_.flags;
+  snap.flags = rec.flags;
   snap.end = end_;
   snap.trip = trip_;
-  snap.gap_rad = rec_.step.gap_true_rad;
+  snap.gap_rad = rec.step.gap_true_rad;
   snap.gap_override_rad = gap_override_rad_;
   snap.sensor = sensor_;
   snap.sensor_value = sensor_value_;
@@ -365,9 +371,9 @@ bool RunLoop::finish_cycle(Clock::time_point end) noexcept {
   snap.limited_periods = limited_periods_;
   snap.rows_lost = rows_lost_;
   snap.events_lost = events_lost_;
-  snap.p_meas_pa = rec_.step.p_meas_pa;
-  snap.p_ref_pa = rec_.step.p_ref_pa;
-  snap.theta_cmd_rad = rec_.step.theta_cmd_rad;
+  snap.p_meas_pa = rec.step.p_meas_pa;
+  snap.p_ref_pa = rec.step.p_ref_pa;
+  snap.theta_cmd_rad = rec.step.theta_cmd_rad;
   snapshot_.store(snap);
   return end_ == LoopEnd::running;
 }

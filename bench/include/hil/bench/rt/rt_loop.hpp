@@ -252,7 +252,12 @@ class RunLoop {
   std::int64_t overruns_ = 0, overruns_in_a_row_ = 0, skipped_ = 0, missed_reads_ = 0, limited_periods_ = 0;
   std::uint64_t rows_pushed_ = 0, rows_lost_ = 0, events_lost_ = 0;
   Clock::time_point deadline_{}, woke_{};
-  TelemetryRecord rec_;
+  // The period's record, written where the recorder will read it: in the ring's next slot, or
+  // in spare_ when the ring is full (the row is then lost, and counted). Composing it elsewhere
+  // and copying it in cost a stall each period (the copy's wide loads waited for the narrow
+  // stores just made: no store-to-load forwarding).
+  TelemetryRecord spare_;
+  TelemetryRecord* rec_ = &spare_;
   drv::Mailbox<LoopSnapshot> snapshot_;
 };
 

@@ -24,15 +24,27 @@ class SpscRing {
 
   // Producer only. Real-time safe. False when full (nothing written).
   bool try_push(const T& value) noexcept {
+    T* slot = claim();
+    if (slot == nullptr) return false;
+    *slot = value;
+    publish();
+    return true;
+  }
+
+  // Producer only, real-time safe: the slot the next push fills, for a producer that writes its
+  // value in place over a while rather than copying it in at once; nullptr when full. The
+  // consumer sees nothing of it before publish(). Until then, claim() returns the same slot.
+  T* claim() noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);
     if (head - tail_cache_ > mask_) {
       tail_cache_ = tail_.load(std::memory_order_acquire);
-      if (head - tail_cache_ > mask_) return false;
+      if (head - tail_cache_ > mask_) return nullptr;
     }
-    slots_[head & mask_] = value;
-    head_.store(head + 1, std::memory_order_release);
-    return true;
+    return &slots_[head & mask_];
   }
+  // Producer only: hands the claimed slot to the consumer (call only after claim() gave one).
+  // The producer may still read it; only the consumer frees it.
+  void publish() noexcept { head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release); }
 
   // Consumer only. Copies up to max values into out; returns how many.
   std::size_t pop(T* out, std::size_t max) noexcept {
