@@ -17,3 +17,10 @@ file(READ ${HIL_DYGRAPHS_JS} HIL_DYGRAPHS_JS_TEXT)
 file(READ ${HIL_DYGRAPHS_CSS} HIL_DYGRAPHS_CSS_TEXT)
 string(REGEX REPLACE "//# sourceMappingURL=[^\n]*" "" HIL_DYGRAPHS_JS_TEXT "${HIL_DYGRAPHS_JS_TEXT}")
 string(REGEX REPLACE "/\\*# sourceMappingURL=[^\n]*\\*/" "" HIL_DYGRAPHS_CSS_TEXT "${HIL_DYGRAPHS_CSS_TEXT}")
+
+# A generated .cpp holding pages as raw string literals: longer than the 65 536 characters the
+# standard asks every compiler to accept, which GCC and Clang both exceed without limit; Clang's
+# -Wpedantic says so each build (-Woverlength-strings). The length is intended, so not that warning.
+function(hil_embedded_pages_source file)
+  set_source_files_properties(${file} PROPERTIES COMPILE_OPTIONS -Wno-overlength-strings)
+endfunction()
