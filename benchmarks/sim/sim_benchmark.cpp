@@ -75,6 +75,7 @@ void BM_Run(benchmark::State& state, const char* run_name) {
   state.counters["x_real_time"] = benchmark::Counter(c.duration_s * state.iterations(), benchmark::Counter::kIsRate);
 }
 BENCHMARK_CAPTURE(BM_Run, robust_adaptive, "adaptive")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Run, paper_adaptive, "adaptive_paper")->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Run, none, "none")->Unit(benchmark::kMillisecond);
 
 // One gap fit (the observer's measurement at a reversal) over a full 700-sample window: a 2 deg
