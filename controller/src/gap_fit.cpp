@@ -44,9 +44,9 @@ namespace {
 // K gaps' costs side by side, in vectors V of kWidth doubles: one gap's samples form a chain of
 // dependent low-pass updates, and K of them side by side keep the FPU busy instead of waiting on
 // each. Lane by lane these are cost()'s IEEE operations in the same order, so every vector width
-// gives the same bits (physics::play_in_place is branch-free for that). A K that is no multiple of the width repeats its last gap in the spare
-// lanes. The vectors are GCC/Clang vector extensions: SSE2 or AVX2 registers on x86-64, whatever
-// the target has elsewhere.
+// gives the same bits (the play operator, physics::play_in_place, is branch-free for that). A K
+// that is no multiple of the width repeats its last gap in the spare lanes. The vectors are
+// GCC/Clang vector extensions: SSE2 or AVX2 registers on x86-64, whatever the target has elsewhere.
 template <int K, class V>
 [[gnu::always_inline]] inline void cost_lanes(const GapFit::Window& w, double alpha_1, double extreme_rad, int dir,
                                               std::int64_t skip, const double* gap_rad, double* cost_out) noexcept {
