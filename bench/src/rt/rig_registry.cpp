@@ -1,37 +1,20 @@
 #include "hil/bench/rt/rig_registry.hpp"
 
-#include <map>
-
 #include "hil/config.hpp"
+#include "hil/registry.hpp"
 
 namespace hil::bench {
-namespace {
-// A function-local table: kinds register from other translation units' static initialisers,
-// whose order against this one's is unspecified.
-std::map<std::string, RigKindInfo, std::less<>>& table() {
-  static std::map<std::string, RigKindInfo, std::less<>> kinds;
-  return kinds;
-}
-}  // namespace
 
 bool register_rig_kind(std::string_view kind, RigKindInfo info) {
-  auto& t = table();
-  const auto [it, added] = t.emplace(std::string(kind), info);
-  // The view points at the table's own key, which lives as long as the table.
-  if (added) it->second.kind = it->first;
+  // The kind's view points at the registry's own copy of the name, which outlives every caller.
+  auto [name, kept] = Registry<RigKindInfo>::add(kind, info);
+  kept.kind = name;
   return true;
 }
 
-const RigKindInfo* find_rig_kind(std::string_view kind) {
-  const auto it = table().find(kind);
-  return it == table().end() ? nullptr : &it->second;
-}
+const RigKindInfo* find_rig_kind(std::string_view kind) { return Registry<RigKindInfo>::find(kind); }
 
-std::vector<std::string> rig_kind_names() {
-  std::vector<std::string> names;
-  for (const auto& [name, info] : table()) names.push_back(name);
-  return names;
-}
+std::vector<std::string> rig_kind_names() { return Registry<RigKindInfo>::names(); }
 
 std::string unknown_rig_kind_text(std::string_view kind) {
   const std::vector<std::string> names = rig_kind_names();
