@@ -40,7 +40,7 @@ void BM_Step(benchmark::State& state, const char* run_name) {
   const hil::ctl::Controller ctl(run.controller);
   const long periods = std::lround(c.duration_s / c.period_s);
   auto ps = plant.make_state(c.seed);
-  auto cs = ctl.initial_state(0, 0, +1);
+  auto cs = ctl.initial_state(0, 0, run.initial_touch);  // replaced before the first period
   // The schedules read through cursors, as the run loop reads them.
   Schedule::Cursor ref_cursor, gap_cursor;
   long k = periods;
@@ -49,7 +49,7 @@ void BM_Step(benchmark::State& state, const char* run_name) {
       state.PauseTiming();
       ps = plant.make_state(c.seed);  // as SimRig::configure starts a run
       plant.settle(ps, c.reference_pa.at(0.0), hil::plant::kNaN, 0.0, c.gap_rad.at(0.0));
-      cs = ctl.initial_state(ps.s.theta_cmd_rad, ps.s.p_meas_pa, +1);
+      cs = ctl.initial_state(ps.s.theta_cmd_rad, ps.s.p_meas_pa, run.initial_touch);  // as RunLoop::begin
       ref_cursor = {};
       gap_cursor = {};
       k = 0;
