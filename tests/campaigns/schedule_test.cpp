@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
+
+#include "hil/plant/rng.hpp"
+
 using hil::bench::Schedule;
 
 TEST(Schedule, StepsRampsAndSines) {
@@ -25,6 +29,25 @@ TEST(Schedule, CursorAgreesWithRandomAccess) {
   for (int i = 0; i < 50; ++i) s.add(0.3 * i, (i % 3) * 0.7), s.add(0.3 * i + 0.1, (i % 5) * 0.2);
   Schedule::Cursor c;
   for (int k = 0; k < 16000; ++k) ASSERT_DOUBLE_EQ(s.at(k * 1e-3, c), s.at(k * 1e-3)) << k;
+}
+
+// The cursor keeps the level it last found (a step profile between steps): the same bits as a
+// search, on levels, ramps, jumps, a sine window, times going back and times out of range.
+TEST(Schedule, CursorLevelsGiveTheSearchedBits) {
+  Schedule steps(-0.0);  // -0.0 + 0.0 is +0.0: the kept level must be the returned value
+  steps.add(1, -0.0), steps.add(1, 2.0), steps.add(2, 2.0), steps.add(3, 4.0), steps.add(3, 1.0), steps.add(5, 1.0);
+  Schedule with_sine = steps;
+  with_sine.add_sine({1.5, 2.5, 0.3, 0.4});
+  hil::plant::Rng rng(3);
+  for (const Schedule* s : {&steps, &with_sine}) {
+    Schedule::Cursor c;
+    double t = -1;
+    for (int k = 0; k < 20000; ++k) {
+      t += rng.uniform() < 0.01 ? -2 * rng.uniform() : 1e-3 * rng.uniform();  // now and then back in time
+      const double a = s->at(t, c), b = s->at(t);
+      ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0) << "t=" << t << " cursor " << a << " search " << b;
+    }
+  }
 }
 
 TEST(Schedule, ReversalsAndMoves) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace hil::bench {
@@ -34,11 +35,20 @@ double Schedule::at(double t_s) const noexcept {
   return base + sines_at(t_s);
 }
 
-double Schedule::at(double t_s, Cursor& c) const noexcept {
+double Schedule::at_searched(double t_s, Cursor& c) const noexcept {
   if (c.next > 0 && t_s < points_[c.next - 1].t_s) c.next = 0;  // went back in time: restart
   while (c.next < points_.size() && points_[c.next].t_s <= t_s) ++c.next;
   const double base = c.next == 0 ? initial_ : base_between(c.next, t_s);
-  return base + (sines_.empty() ? 0.0 : sines_at(t_s));
+  const double value = base + (sines_.empty() ? 0.0 : sines_at(t_s));
+  // Keep the level for the calls to come when the value holds until the next breakpoint: every
+  // time in [from, until) finds the same `next` and the same value (the same bits: + 0.0 too).
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const bool level =
+      sines_.empty() && (c.next == 0 || c.next == points_.size() || points_[c.next].value == points_[c.next - 1].value);
+  c.level_from_s = level ? (c.next == 0 ? -kInf : points_[c.next - 1].t_s) : kInf;
+  c.level_until_s = level ? (c.next == points_.size() ? kInf : points_[c.next].t_s) : -kInf;
+  c.level = value;
+  return value;
 }
 
 std::vector<double> reversal_times(const Schedule& s, double duration_s, double period_s, double hysteresis) {

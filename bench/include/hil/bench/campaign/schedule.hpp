@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace hil::bench {
@@ -30,8 +31,17 @@ class Schedule {
   // For increasing times: O(1) amortised, no allocation. Real-time safe.
   struct Cursor {
     std::size_t next = 0;
+    // The level the schedule holds over [level_from_s, level_until_s), where the last evaluation
+    // found one (a step profile between its steps, no sine): most periods of a run return it
+    // without a search. Empty until then.
+    double level_from_s = std::numeric_limits<double>::infinity();
+    double level_until_s = -std::numeric_limits<double>::infinity();
+    double level = 0;
   };
-  double at(double t_s, Cursor& cursor) const noexcept;
+  double at(double t_s, Cursor& cursor) const noexcept {
+    if (t_s >= cursor.level_from_s && t_s < cursor.level_until_s) return cursor.level;
+    return at_searched(t_s, cursor);
+  }
 
   double initial() const { return initial_; }
   const std::vector<Breakpoint>& points() const { return points_; }
@@ -40,6 +50,7 @@ class Schedule {
   double last_level() const { return points_.empty() ? initial_ : points_.back().value; }
 
  private:
+  double at_searched(double t_s, Cursor& cursor) const noexcept;  // at() past the cursor's level
   double base_between(std::size_t next, double t_s) const noexcept;
   double sines_at(double t_s) const noexcept;
   double initial_ = 0;
