@@ -1,7 +1,6 @@
 #include "hil/bench/campaign/run_metrics.hpp"
 
 #include <cmath>
-#include <limits>
 
 #include "hil/units.hpp"
 
@@ -15,11 +14,6 @@ RunMetrics::RunMetrics(std::vector<double> reversals_s, long reference_changes, 
   sum_.reference_changes = reference_changes;
   sum_.reversals.reserve(reversals_s.size());
   for (double t : reversals_s) sum_.reversals.push_back({t});
-  next_reversal_from_s_ = reversal_from_s(0);
-}
-
-double RunMetrics::reversal_from_s(std::size_t i) const noexcept {
-  return i < sum_.reversals.size() ? sum_.reversals[i].t_s - 1e-9 : std::numeric_limits<double>::infinity();
 }
 
 void RunMetrics::add(const StepRecord& r) noexcept {
@@ -28,11 +22,11 @@ void RunMetrics::add(const StepRecord& r) noexcept {
   sq_error_ += err_mpa * err_mpa;
   ++steps_;
   // Enter the window of a reversal: note what the compensator held just before it.
-  while (r.t_s >= next_reversal_from_s_) {
+  while (next_reversal_ < sum_.reversals.size() && r.t_s >= sum_.reversals[next_reversal_].t_s - 1e-9) {
     const StepRecord& before = have_prev_ ? prev_ : r;
     sum_.reversals[next_reversal_].gap_est_deg = rad_to_deg(before.gap_est_rad);
     sum_.reversals[next_reversal_].gap_true_deg = rad_to_deg(r.gap_true_rad);
-    next_reversal_from_s_ = reversal_from_s(++next_reversal_);
+    ++next_reversal_;
   }
   ReversalSummary* window = next_reversal_ > 0 ? &sum_.reversals[next_reversal_ - 1] : nullptr;
   if (window) window->iae_mpa_s += std::abs(err_mpa) * period_s_;

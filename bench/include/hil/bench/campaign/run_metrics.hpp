@@ -63,11 +63,7 @@ class RunMetrics {
  private:
   double period_s_, motion_step_rad_;
   RunSummary sum_;
-  // When the next reversal's window opens (1 ns early, against rounding in t_s); +inf after the
-  // last. Kept rather than looked up: the test runs every period.
-  double reversal_from_s(std::size_t i) const noexcept;
   std::size_t next_reversal_ = 0;
-  double next_reversal_from_s_;
   bool have_prev_ = false;
   StepRecord prev_;
   double sq_error_ = 0, motor_moving_s_ = 0;
