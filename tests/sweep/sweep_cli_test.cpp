@@ -159,6 +159,10 @@ TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
       {"  - path: campaign.gap.initial_deg\n    uniform: {low: 1, high: 2}\n", "bad.yaml:1:1", "missing required key 'samples'"},
       {"  - path: campaign.gap.initial_deg\n    values: [1]\n    range: {from: 1, to: 1, count: 1}\n", "bad.yaml:3:5: axes[0]",
        "exactly one of"},
+      // Too many points: the product that makes them, so the user sees which axis to thin.
+      {"  - path: campaign.gap.initial_deg\n    range: {from: 1, to: 2, count: 10000}\n  - path: campaign.sensor_noise_kpa\n"
+       "    range: {from: 0, to: 5, count: 10000}\n  - path: campaign.seed\n    range: {from: 1, to: 9, count: 9}\n",
+       "bad.yaml:2:1: axes", "10000 x 10000 x 9 = 9e+08 points; a sweep has at most 1000000"},
   };
   for (const auto& c : cases) {
     const auto file = dir.write("bad.yaml", head + c.axes);

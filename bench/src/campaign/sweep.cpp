@@ -455,15 +455,22 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
     root.fail("missing required key 'samples' (draws per grid cell of the distribution axes)");
   }
 
-  const std::string too_many = "more than " + std::to_string(max_points) + " points";
-  long cells = 1;
+  // The count as the product that makes it (in floating point: it may not fit a long), so the
+  // user sees which axis to thin.
+  std::string product;
+  double points = static_cast<double>(plan.samples);
   for (const auto& a : plan.axes) {
     if (a.random()) continue;
-    const long n = static_cast<long>(a.values.size());
-    axes.require(cells <= max_points / n, too_many);
-    cells *= n;
+    points *= static_cast<double>(a.values.size());
+    product += (product.empty() ? "" : " x ") + std::to_string(a.values.size());
   }
-  axes.require(cells <= max_points / plan.samples, too_many);
+  if (plan.samples > 1) product += (product.empty() ? "" : " x ") + std::to_string(plan.samples) + " samples";
+  char count[32];
+  std::snprintf(count, sizeof count, "%.4g", points);
+  if (points > static_cast<double>(max_points))
+    axes.fail(product + " = " + count + " points; a sweep has at most " + std::to_string(max_points));
+  long cells = 1;
+  for (const auto& a : plan.axes) cells *= a.random() ? 1 : static_cast<long>(a.values.size());
   // Point p = cell * samples + sample; the cell's grid values with the last axis fastest.
   const long total = cells * plan.samples;
   plan.points.reserve(static_cast<std::size_t>(total));
