@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "run_command.hpp"
+#include "small_disk.hpp"
 #include "temp_file.hpp"
 
 namespace {
@@ -121,6 +122,40 @@ TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
   EXPECT_EQ(again.status, 0);
   EXPECT_EQ(again.output.find("ran "), std::string::npos) << again.output;
   EXPECT_EQ(slurp(one / "sweep.csv"), expected);
+}
+
+// The disk fills up part way: whole rows only, an error that says how many points are kept and
+// that the same command goes on; once there is room, it runs only the rest, to the same sweep.csv.
+TEST(Sweep, AFullDiskKeepsWholeRowsAndTheSameCommandGoesOn) {
+  TempDir dir;
+  const auto sweep = write_grid_sweep(dir, "grid.yaml", 10, 12);  // 120 points
+  const auto reference = dir.path() / "reference";
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(reference) + " --jobs 2 --quiet").status, 0);
+  hil::test::SmallDisk disk(dir.path() / "disk", "1m");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?): the full-disk case needs its own small disk";
+  const auto out = dir.path() / "disk" / "sweep";
+  ASSERT_EQ(interrupt_after_first_row(sweep, out, SIGINT), 128 + SIGINT);
+  const auto rows = out / "rows" / "local.jsonl";
+  ASSERT_LT(lines_in(rows), 120) << "the sweep finished before the signal: make it longer";
+
+  disk.fill();
+  const auto full = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --jobs 2 --quiet");
+  EXPECT_EQ(full.status, 1) << full.output;
+  EXPECT_NE(full.output.find("No space left on device"), std::string::npos) << full.output;
+  const long kept = lines_in(rows);
+  EXPECT_EQ(slurp(rows).back(), '\n') << "the rows end on a whole line";
+  EXPECT_NE(full.output.find(std::to_string(kept) + " of 120 points are kept in " + out.string() +
+                             ", and the same command goes on from there"),
+            std::string::npos)
+      << full.output;
+  EXPECT_FALSE(fs::exists(out / "sweep.csv"));
+
+  disk.unfill();
+  const auto rerun = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --jobs 2");
+  ASSERT_EQ(rerun.status, 0) << rerun.output;
+  EXPECT_NE(rerun.output.find("ran " + std::to_string(120 - kept) + " points"), std::string::npos) << kept << " kept\n"
+                                                                                                   << rerun.output;
+  EXPECT_EQ(slurp(out / "sweep.csv"), slurp(reference / "sweep.csv"));
 }
 
 TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {

@@ -334,18 +334,30 @@ int run_sweep_command(const SweepArgs& args) {
     options.shards = n;
     options.rows_name = "shard-" + std::to_string(i) + "-of-" + std::to_string(n);
   }
-  const SweepRunResult r = run_sweep(dir, plan, options);
-  if (r.cancelled) return exit_after_signal(plan, r);
-  if (!args.shard.empty()) {
-    if (!args.quiet)
-      std::printf("sweep %s shard %s: ran %ld points in %.2f s\n", plan.name.c_str(), args.shard.c_str(), r.ran, r.wall_s);
-    return 0;
+  try {
+    const SweepRunResult r = run_sweep(dir, plan, options);
+    if (r.cancelled) return exit_after_signal(plan, r);
+    if (!args.shard.empty()) {
+      if (!args.quiet)
+        std::printf("sweep %s shard %s: ran %ld points in %.2f s\n", plan.name.c_str(), args.shard.c_str(), r.ran, r.wall_s);
+      return 0;
+    }
+    if (!args.quiet && r.ran > 0) {
+      std::printf("sweep %s: ran %ld points in %.2f s (%.1f points/s on %d jobs)\n", plan.name.c_str(), r.ran, r.wall_s,
+                  r.wall_s > 0 ? r.ran / r.wall_s : 0.0, options.jobs);
+    }
+    return aggregate(dir, plan, args.quiet);
+  } catch (const std::exception& e) {
+    // A full disk, say, part way: say what is kept, so nobody starts afresh and loses the rest.
+    std::string kept;
+    try {
+      kept = "; " + std::to_string(read_rows(dir, plan).size()) + " of " + std::to_string(plan.size()) + " points are kept in " +
+             dir.string() + ", and the same command goes on from there once the cause is fixed";
+    } catch (const std::exception&) {
+      // The rows cannot be read either: the first error is the one to show.
+    }
+    throw std::runtime_error(e.what() + kept);
   }
-  if (!args.quiet && r.ran > 0) {
-    std::printf("sweep %s: ran %ld points in %.2f s (%.1f points/s on %d jobs)\n", plan.name.c_str(), r.ran, r.wall_s,
-                r.wall_s > 0 ? r.ran / r.wall_s : 0.0, options.jobs);
-  }
-  return aggregate(dir, plan, args.quiet);
 }
 
 }  // namespace
