@@ -4,7 +4,8 @@
 // through the campaign loader. The sweep file sits in a folder where `campaigns/` and `plant/`
 // are the shipped configs, so "campaign: campaigns/paper_adaptive.yaml" loads a real base.
 // A plan is then written to JSON and read back (plan.json), which must give the same plan; and
-// the bytes are read as a plan.json themselves (a damaged output folder).
+// the bytes are read as a plan.json themselves (a damaged output folder), and as a rows file of a
+// fixed three-point plan (rows/<writer>.jsonl, which a killed writer or a hand edit may damage).
 // Clear errors: hil::cfg::Error from planning (file:line:column: key: what); std::runtime_error
 // naming the file from reading a plan.
 #include <cstddef>
@@ -43,6 +44,29 @@ const std::filesystem::path& sweep_file() {
   return file.path();
 }
 
+// The fixed plan the bytes are read against as a rows file, and its folder.
+struct RowsFolder {
+  hil::bench::SweepPlan plan;
+  std::filesystem::path dir;
+};
+const RowsFolder& rows_folder() {
+  static const RowsFolder folder = [] {
+    const auto base = sweep_file().parent_path();
+    const auto plan_file = base / "rows_plan.yaml";
+    {
+      std::FILE* f = std::fopen(plan_file.c_str(), "wb");
+      const std::string text =
+          "name: rows\ncampaign: campaigns/paper_adaptive.yaml\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [1, 2, "
+          "3]\n";
+      if (f == nullptr || std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fclose(f) != 0) std::abort();
+    }
+    RowsFolder r{hil::bench::plan_sweep(plan_file, kFuzzMaxPoints), base / "rows_sweep"};
+    std::filesystem::create_directories(r.dir / "rows");
+    return r;
+  }();
+  return folder;
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -61,6 +85,22 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     if (plan.size() > 0) (void)hil::bench::point_yaml(plan, plan.size() - 1);
   });
+  // As a rows file: whatever the bytes, only rows of the plan come back, each of the plan's width.
+  {
+    const RowsFolder& folder = rows_folder();
+    const auto rows_file = folder.dir / "rows" / "local.jsonl";
+    std::FILE* f = std::fopen(rows_file.c_str(), "wb");
+    if (f == nullptr || std::fwrite(data, 1, size, f) != size || std::fclose(f) != 0) std::abort();
+    long damaged = -1;
+    const auto rows = hil::bench::read_rows(folder.dir, folder.plan, &damaged);
+    const std::size_t width = folder.plan.metric_names().size();
+    bool bad = damaged < 0 || static_cast<long>(rows.size()) > folder.plan.size();
+    for (const auto& [p, metrics] : rows) bad = bad || p < 0 || p >= folder.plan.size() || metrics.size() != width;
+    if (bad) {
+      std::fprintf(stderr, "\nFINDING: read_rows gave %zu rows (damaged %ld) outside the plan\n", rows.size(), damaged);
+      std::abort();
+    }
+  }
   const nlohmann::json j = nlohmann::json::parse(data, data + size, nullptr, /*allow_exceptions=*/false);
   if (!j.is_discarded()) {
     hil::fuzz::expect_clear_errors<std::runtime_error>("bench::SweepPlan::from_json",

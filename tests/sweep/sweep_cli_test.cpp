@@ -158,6 +158,35 @@ TEST(Sweep, AFullDiskKeepsWholeRowsAndTheSameCommandGoesOn) {
   EXPECT_EQ(slurp(out / "sweep.csv"), slurp(reference / "sweep.csv"));
 }
 
+// Lines of a rows file that are no row of the plan (damaged, or edited by hand) are counted and
+// shown; their points count as missing and run again, to the same sweep.csv.
+TEST(Sweep, DamagedRowLinesAreShownAndTheirPointsRunAgain) {
+  TempDir dir;
+  const auto sweep = write_grid_sweep(dir, "grid.yaml", 2, 3);  // 6 points
+  const auto out = dir.path() / "out";
+  ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet").status, 0);
+  const std::string expected = slurp(out / "sweep.csv");
+  const auto rows = out / "rows" / "local.jsonl";
+  std::string text = slurp(rows);
+  ASSERT_EQ(lines_in(rows), 6);
+  const auto second = text.find('\n') + 1;
+  text.replace(second, text.find('\n', second) - second, "{\"point\": 2, \"metr\x01");  // a damaged line
+  text += "{\"point\": 6, \"metrics\": []}\n";                                          // no point of this plan
+  std::ofstream(rows, std::ios::binary | std::ios::trunc) << text;
+
+  const auto status = run_command(hilbench() + " sweep --status " + q(out));
+  EXPECT_EQ(status.status, 0) << status.output;
+  EXPECT_NE(status.output.find("5 of 6 points done, 1 missing"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("2 line(s) in " + (out / "rows").string() + " are no row of this sweep"), std::string::npos)
+      << status.output;
+  const auto rerun = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(rerun.status, 0) << rerun.output;
+  EXPECT_NE(rerun.output.find("2 line(s) in " + (out / "rows").string() + " are no row of this sweep"), std::string::npos)
+      << rerun.output;
+  EXPECT_EQ(slurp(out / "sweep.csv"), expected);
+  EXPECT_EQ(lines_in(rows), 8) << "the point is appended again; the damaged lines stay as they were";
+}
+
 TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {
   TempDir dir;
   const auto sweep = write_grid_sweep(dir, "grid.yaml", 2, 2);

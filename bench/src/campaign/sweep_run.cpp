@@ -63,8 +63,9 @@ SweepPlan read_plan(const std::filesystem::path& dir) {
   return SweepPlan::from_json(j, file.string());
 }
 
-std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan) {
+std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan, long* damaged_lines) {
   std::map<long, std::vector<double>> rows;
+  long damaged = 0;
   const auto rows_dir = dir / "rows";
   if (!std::filesystem::is_directory(rows_dir)) return rows;
   const std::size_t width = plan.metric_names().size();
@@ -82,15 +83,21 @@ std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, 
     std::size_t start = 0;
     for (std::size_t end = all.find('\n'); end != std::string::npos; start = end + 1, end = all.find('\n', start)) {
       const json j = json::parse(all.begin() + static_cast<long>(start), all.begin() + static_cast<long>(end), nullptr, false);
-      if (j.is_discarded() || !j.is_object() || !j.contains("point") || !j.contains("metrics")) continue;
-      if (!j["point"].is_number_integer() || !j["metrics"].is_array() || j["metrics"].size() != width) continue;
+      const bool row = !j.is_discarded() && j.is_object() && j.contains("point") && j.contains("metrics") &&
+                       j["point"].is_number_integer() && j["metrics"].is_array() && j["metrics"].size() == width &&
+                       j["point"].get<long>() >= 0 && j["point"].get<long>() < plan.size();
+      if (!row) {
+        ++damaged;
+        continue;
+      }
       const long p = j["point"].get<long>();
-      if (p < 0 || p >= plan.size() || rows.count(p)) continue;
+      if (rows.count(p)) continue;
       std::vector<double> m;
       for (const auto& v : j["metrics"]) m.push_back(v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN());
       rows.emplace(p, std::move(m));
     }
   }
+  if (damaged_lines != nullptr) *damaged_lines = damaged;
   return rows;
 }
 
@@ -98,7 +105,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   const auto t0 = Clock::now();
   SweepRunResult result;
   result.total = plan.size();
-  const auto done = read_rows(dir, plan);
+  const auto done = read_rows(dir, plan, &result.damaged_lines);
   std::vector<long> todo;
   for (long p = options.shard; p < plan.size(); p += options.shards) {
     if (!done.count(p)) todo.push_back(p);

@@ -261,7 +261,8 @@ int run_slurm(const SweepArgs& args) {
 int run_status(const SweepArgs& args) {
   const std::filesystem::path dir = args.status_dir;
   const SweepPlan plan = read_plan(dir);
-  const auto rows = read_rows(dir, plan);
+  long damaged = 0;
+  const auto rows = read_rows(dir, plan, &damaged);
   const long done = static_cast<long>(rows.size());
   // The outputs are of every point; with points missing, a sweep.csv there is from an earlier state.
   const bool outputs = std::filesystem::exists(dir / "sweep.csv");
@@ -269,6 +270,12 @@ int run_status(const SweepArgs& args) {
               !outputs              ? ""
               : done == plan.size() ? "; outputs written"
                                     : "; the outputs there are out of date (written before points went missing)");
+  if (damaged > 0) {
+    std::printf(
+        "  %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good row counts as "
+        "missing\n",
+        damaged, (dir / "rows").c_str());
+  }
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) return 0;
   const json jobs = json::parse(read_file(jobs_file), nullptr, false);
@@ -336,6 +343,12 @@ int run_sweep_command(const SweepArgs& args) {
   }
   try {
     const SweepRunResult r = run_sweep(dir, plan, options);
+    if (r.damaged_lines > 0) {
+      std::fprintf(stderr,
+                   "sweep %s: %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good "
+                   "row is run again\n",
+                   plan.name.c_str(), r.damaged_lines, (dir / "rows").c_str());
+    }
     if (r.cancelled) return exit_after_signal(plan, r);
     if (!args.shard.empty()) {
       if (!args.quiet)

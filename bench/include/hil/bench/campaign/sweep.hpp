@@ -103,8 +103,10 @@ void write_plan(const std::filesystem::path& dir, const SweepPlan& plan);  // at
 // Throws std::runtime_error naming the file when DIR holds no plan.
 SweepPlan read_plan(const std::filesystem::path& dir);
 // The finished points of every rows file under DIR/rows/, by point (a point written twice counts
-// once: every writer computes the same row).
-std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan);
+// once: every writer computes the same row). Whole lines that are no row of this plan (damaged,
+// or edited by hand) are skipped, their points left missing, and counted into `damaged_lines`.
+std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan,
+                                              long* damaged_lines = nullptr);
 
 struct SweepRunOptions {
   int jobs = 1;
@@ -119,7 +121,8 @@ struct SweepRunResult {
   long ran = 0;   // points this call ran
   long done = 0;  // points of the sweep finished, by every writer
   long total = 0;
-  long missing = 0;  // of this call's share
+  long missing = 0;        // of this call's share
+  long damaged_lines = 0;  // rows-file lines that were no row (read_rows); their points are run again
   bool cancelled = false;
   double wall_s = 0;
 };
