@@ -80,6 +80,20 @@ TEST(SimCli, UsageErrorsSuggest) {
   r = run_command(hilbench() + " sim /no/such/campaign.yaml");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("/no/such/campaign.yaml: cannot open"), std::string::npos) << r.output;
+  // An output folder that is a file: the path first, the reason, what was being done.
+  hil::test::TempDir dir;
+  const auto file = dir.write("a_file", "not a folder\n");
+  const auto sweep = dir.write("sweep.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                                                 "\naxes:\n  - path: campaign.seed\n    values: [1]\n");
+  for (const std::string cmd :
+       {" sim " + source_path("configs/campaigns/paper_fig6.yaml").string(), " sweep " + sweep.string()}) {
+    r = run_command(hilbench() + cmd + " --quiet --out " + file.string());
+    EXPECT_EQ(r.status, 1) << cmd;
+    EXPECT_NE(r.output.find(": error: " + file.string() + ": Not a directory (cannot create directories)"), std::string::npos)
+        << cmd << "\n"
+        << r.output;
+    EXPECT_EQ(slurp(file), "not a folder\n");
+  }
   // An override outside the sensor's range is the option's error, not the campaign's.
   r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_fig6.yaml").string() +
                   " --sensor-noise-kpa 6e16 --out /tmp/x");

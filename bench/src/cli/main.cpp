@@ -3,6 +3,7 @@
 // configuration or measurement file or a failed job.
 #include <algorithm>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -200,6 +201,18 @@ int main(int argc, char** argv) {
       return 1;
     } catch (const hil::CsvError& e) {
       std::cerr << where << ": " << e.what() << "\n";
+      return 1;
+    } catch (const std::filesystem::filesystem_error& e) {
+      // The path first, as every other error here names where: "DIR: Not a directory (cannot
+      // create directories)". libstdc++'s what() is "filesystem error: OP: REASON [P1] [P2]".
+      const std::string what = e.what(), reason = e.code().message(), head = "filesystem error: ";
+      const auto op_end = what.find(": " + reason);
+      const std::string op = what.rfind(head, 0) == 0 && op_end != std::string::npos && op_end > head.size()
+                                 ? what.substr(head.size(), op_end - head.size())
+                                 : "";
+      std::cerr << where << ": error: " << e.path1().string() << ": " << reason;
+      if (!op.empty()) std::cerr << " (" << op << (e.path2().empty() ? "" : " to " + e.path2().string()) << ")";
+      std::cerr << "\n";
       return 1;
     } catch (const std::exception& e) {
       std::cerr << where << ": error: " << e.what() << "\n";
