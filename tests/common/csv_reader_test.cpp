@@ -2,9 +2,13 @@
 #include "hil/csv_reader.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <thread>
 
 #include "temp_file.hpp"
 
@@ -83,6 +87,63 @@ TEST(CsvReader, StreamsInChunks) {
   EXPECT_EQ(rows, 10000u);
   EXPECT_EQ(chunks, 4u);
   EXPECT_EQ(reader.bytes_read(), reader.file_bytes());
+}
+
+// Every row comes back whatever the file's size against the reader's pieces (a small file is read
+// in one piece of its own size, a large one in 1 MiB pieces, lines crossing them), with or
+// without a newline at the end, and from a pipe, whose size is not known.
+TEST(CsvReader, EveryRowAtAnySizeAndFromAPipe) {
+  hil::test::TempDir dir;
+  auto file_of = [](std::size_t target_bytes, bool last_newline, std::size_t& rows) {
+    std::string text = "t_s,theta_cmd_deg,p_meas_mpa\n";
+    rows = 0;
+    for (;;) {
+      const std::string row = std::to_string(rows) + ",1,2.5";
+      if (text.size() + row.size() + 1 > target_bytes) break;
+      text += row + "\n";
+      ++rows;
+    }
+    text += std::string(target_bytes - text.size() - 1, '#');  // a comment line pads to the size
+    if (last_newline) text += "\n";
+    return text;
+  };
+  for (const std::size_t bytes :
+       {std::size_t{100}, std::size_t{4095}, std::size_t{4096}, std::size_t{4097}, std::size_t{(1 << 20) - 1},
+        std::size_t{1 << 20}, std::size_t{(1 << 20) + 1}, std::size_t{(3 << 20) + 7}}) {
+    for (const bool newline : {true, false}) {
+      std::size_t rows = 0;
+      const std::string text = file_of(bytes, newline, rows);
+      const auto file = dir.write("sized.csv", text);
+      hil::CsvReader reader(file, kMeasurement);
+      hil::CsvChunk chunk;
+      std::size_t got = 0;
+      double last_t = -1;
+      while (reader.next(chunk, 4000)) {
+        got += chunk.rows();
+        last_t = chunk.values[0].back();
+      }
+      EXPECT_EQ(got, rows) << bytes << " bytes";
+      EXPECT_EQ(last_t, static_cast<double>(rows - 1)) << bytes << " bytes";
+      EXPECT_EQ(reader.bytes_read(), text.size()) << bytes << " bytes";
+    }
+  }
+  // A pipe: no size to go by.
+  std::size_t rows = 0;
+  const std::string text = file_of((1 << 20) + 4321, true, rows);
+  const auto source = dir.write("piped.csv", text);
+  const auto fifo = dir.path() / "fifo.csv";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::signal(SIGPIPE, SIG_IGN);  // a reader that stops early fails the test, not kills it
+  std::thread writer([&] { std::ofstream(fifo, std::ios::binary) << text; });
+  std::size_t got = 0;
+  {
+    hil::CsvReader reader(fifo, kMeasurement);
+    hil::CsvChunk chunk;
+    while (reader.next(chunk, 4000)) got += chunk.rows();
+    EXPECT_EQ(reader.file_bytes(), 0u) << "a pipe's size is not known";
+  }
+  writer.join();
+  EXPECT_EQ(got, rows);
 }
 
 // A file refused while its header is read (no header, duplicate or missing column) must not keep
