@@ -51,16 +51,13 @@ struct RowsFolder {
 };
 const RowsFolder& rows_folder() {
   static const RowsFolder folder = [] {
-    const auto base = sweep_file().parent_path();
-    const auto plan_file = base / "rows_plan.yaml";
-    {
-      std::FILE* f = std::fopen(plan_file.c_str(), "wb");
-      const std::string text =
-          "name: rows\ncampaign: campaigns/paper_adaptive.yaml\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [1, 2, "
-          "3]\n";
-      if (f == nullptr || std::fwrite(text.data(), 1, text.size(), f) != text.size() || std::fclose(f) != 0) std::abort();
-    }
-    RowsFolder r{hil::bench::plan_sweep(plan_file, kFuzzMaxPoints), base / "rows_sweep"};
+    (void)sweep_file();  // campaigns/ and plant/ linked beside it, where the plan file goes too
+    static hil::fuzz::InputFile plan_file("rows_plan.yaml");
+    const std::string text =
+        "name: rows\ncampaign: campaigns/paper_adaptive.yaml\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [1, 2, "
+        "3]\n";
+    plan_file.write(reinterpret_cast<const std::uint8_t*>(text.data()), text.size());
+    RowsFolder r{hil::bench::plan_sweep(plan_file.path(), kFuzzMaxPoints), plan_file.dir() / "rows_sweep"};
     std::filesystem::create_directories(r.dir / "rows");
     return r;
   }();
@@ -88,9 +85,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // As a rows file: whatever the bytes, only rows of the plan come back, each of the plan's width.
   {
     const RowsFolder& folder = rows_folder();
-    const auto rows_file = folder.dir / "rows" / "local.jsonl";
-    std::FILE* f = std::fopen(rows_file.c_str(), "wb");
-    if (f == nullptr || std::fwrite(data, 1, size, f) != size || std::fclose(f) != 0) std::abort();
+    static hil::fuzz::InputFile rows_file("rows_sweep/rows/local.jsonl");
+    rows_file.write(data, size);
     long damaged = -1;
     const auto rows = hil::bench::read_rows(folder.dir, folder.plan, &damaged);
     const std::size_t width = folder.plan.metric_names().size();

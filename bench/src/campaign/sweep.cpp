@@ -469,10 +469,8 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   std::snprintf(count, sizeof count, "%.4g", points);
   if (points > static_cast<double>(max_points))
     axes.fail(product + " = " + count + " points; a sweep has at most " + std::to_string(max_points));
-  long cells = 1;
-  for (const auto& a : plan.axes) cells *= a.random() ? 1 : static_cast<long>(a.values.size());
   // Point p = cell * samples + sample; the cell's grid values with the last axis fastest.
-  const long total = cells * plan.samples;
+  const long total = static_cast<long>(points);  // exact: a whole number of at most max_points
   plan.points.reserve(static_cast<std::size_t>(total));
   for (long p = 0; p < total; ++p) {
     std::vector<std::string> values(plan.axes.size());

@@ -104,6 +104,16 @@ int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
   return StopSignal::exit_code();
 }
 
+// Lines of DIR/rows/*.jsonl that read_rows skipped: part of --status's report (stdout), a
+// warning of a run (stderr).
+void say_damaged_rows(std::FILE* to, const std::filesystem::path& dir, long damaged) {
+  if (damaged <= 0) return;
+  std::fprintf(to,
+               "  %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good row "
+               "counts as missing and is run again\n",
+               damaged, (dir / "rows").c_str());
+}
+
 int jobs_of(const SweepArgs& args) {
   if (args.jobs > 0) return args.jobs;
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -270,12 +280,7 @@ int run_status(const SweepArgs& args) {
               !outputs              ? ""
               : done == plan.size() ? "; outputs written"
                                     : "; the outputs there are out of date (written before points went missing)");
-  if (damaged > 0) {
-    std::printf(
-        "  %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good row counts as "
-        "missing\n",
-        damaged, (dir / "rows").c_str());
-  }
+  say_damaged_rows(stdout, dir, damaged);
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) return 0;
   const json jobs = json::parse(read_file(jobs_file), nullptr, false);
@@ -343,12 +348,7 @@ int run_sweep_command(const SweepArgs& args) {
   }
   try {
     const SweepRunResult r = run_sweep(dir, plan, options);
-    if (r.damaged_lines > 0) {
-      std::fprintf(stderr,
-                   "sweep %s: %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good "
-                   "row is run again\n",
-                   plan.name.c_str(), r.damaged_lines, (dir / "rows").c_str());
-    }
+    say_damaged_rows(stderr, dir, r.damaged_lines);
     if (r.cancelled) return exit_after_signal(plan, r);
     if (!args.shard.empty()) {
       if (!args.quiet)
@@ -360,16 +360,17 @@ int run_sweep_command(const SweepArgs& args) {
                   r.wall_s > 0 ? r.ran / r.wall_s : 0.0, options.jobs);
     }
     return aggregate(dir, plan, args.quiet);
-  } catch (const std::exception& e) {
-    // A full disk, say, part way: say what is kept, so nobody starts afresh and loses the rest.
-    std::string kept;
+  } catch (const std::exception&) {
+    // A full disk, say, part way: say what is kept, so nobody starts afresh and loses the rest;
+    // the error itself goes on to main, which shows each kind its own way.
     try {
-      kept = "; " + std::to_string(read_rows(dir, plan).size()) + " of " + std::to_string(plan.size()) + " points are kept in " +
-             dir.string() + ", and the same command goes on from there once the cause is fixed";
+      std::fprintf(
+          stderr, "sweep %s: %ld of %ld points are kept in %s, and the same command goes on from there once the cause is fixed\n",
+          plan.name.c_str(), static_cast<long>(read_rows(dir, plan).size()), plan.size(), dir.c_str());
     } catch (const std::exception&) {
-      // The rows cannot be read either: the first error is the one to show.
+      // The rows cannot be read either: the error below is the one to show.
     }
-    throw std::runtime_error(e.what() + kept);
+    throw;
   }
 }
 
