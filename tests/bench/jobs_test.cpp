@@ -1,8 +1,8 @@
 // The server's job worker (bench/src/server/jobs.hpp) on its own: one job at a time in submission
 // order, a bounded queue, a throwing job failed with its message, waiters told once, stop()
 // failing what waits and raising the running job's cancel flag (a job that ignores it ends whole,
-// one that looks at it gives up), failed analyses recorded in their folder. Every wait is for a
-// state, none for a time.
+// one that looks at it gives up), failed analyses recorded in their folder, a report read in
+// chunks and stopped between them. Every wait is for a state, none for a time.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,6 +11,9 @@
 #include <future>
 #include <map>
 
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/run_report.hpp"
+#include "hil/bench/rt/run_record.hpp"
 #include "server/analyses.hpp"
 #include "server/jobs.hpp"
 #include "temp_file.hpp"
@@ -238,4 +241,120 @@ TEST(AnalysisJob, AFailureIsRecordedInItsFolderAndListedAfterARestart) {
   EXPECT_EQ(by_id["compare_nominal_1"]["error"], reason);
   // The failed ids stay taken: the next analysis is a new one.
   EXPECT_EQ(hil::bench::next_analysis_id(run, "diagnose", "nominal", {}), "diagnose_nominal_2");
+}
+
+namespace {
+
+// A run folder as `hilbench serve` leaves it, for a 70 s campaign (70 000 rows: more than one of
+// the reader's 65 536-row chunks): run.json with the campaign's snapshot, and the telemetry the
+// simulation of the same campaign writes (the recorder's schema). Returns the simulation's summary.
+hil::bench::RunSummary record_long_run(const std::filesystem::path& out, const std::filesystem::path& run_dir) {
+  const std::string yaml =
+      "name: long_review\n"
+      "plant: ../plant/nominal.yaml\n"
+      "duration_s: 70\n"
+      "period_ms: 1\n"
+      "seed: 3\n"
+      "sensor_noise_kpa: 2.0\n"
+      "reference:\n"
+      "  initial_mpa: 1.0\n"
+      "  profile:\n"
+      "    - square: {from_s: 0.5, half_period_s: 2.0, low_mpa: 1.0, high_mpa: 1.5}\n"
+      "gap:\n"
+      "  initial_deg: 1.0\n"
+      "runs:\n"
+      "  - name: adaptive\n"
+      "    compensation: adaptive\n"
+      "    initial_gap_deg: 0\n";
+  const auto campaigns = hil::test::source_path("configs/campaigns");
+  const hil::bench::Campaign c = hil::bench::load_campaign_text(yaml, "long_review.yaml", campaigns);
+  hil::bench::SimOptions sim;
+  sim.out_dir = out;
+  sim.progress = false;
+  const auto outcome = hil::bench::run_campaign(c, sim);
+  std::filesystem::create_directories(run_dir);
+  std::filesystem::copy_file(outcome.dir / "adaptive" / "telemetry.csv", run_dir / "telemetry.csv");
+  hil::bench::RunRecord r;
+  r.version = "0.1.0";
+  r.campaign = c.name;
+  r.run = "adaptive";
+  r.runs_in_campaign = 1;
+  r.rig_name = r.rig_kind = "sim";
+  r.start_utc = "2026-11-27T05:00:00.000Z";
+  r.stop_utc = "2026-11-27T05:01:10.000Z";
+  r.outcome = hil::bench::Outcome::completed;
+  r.period_s = 1e-3;
+  r.duration_s = 70;
+  r.config = {"long_review.yaml", (campaigns / "long_review.yaml").string(), yaml, "", ""};
+  r.ended = true;
+  hil::bench::write_run_record(run_dir, r);
+  return outcome.runs.front().summary;
+}
+
+}  // namespace
+
+// A report reads the run's telemetry one chunk of rows at a time (its memory does not grow with
+// the run): the metrics across the chunks' seams are the simulation's, and it says how far it is.
+TEST(ReportJob, ReadsTheTelemetryInChunksAndSaysHowFarItIs) {
+  hil::test::TempDir dir;
+  const auto run = dir.path() / "20261127T050000Z_long_review_adaptive";
+  const hil::bench::RunSummary sim = record_long_run(dir.path() / "sim", run);
+
+  std::vector<double> progress;
+  hil::bench::RunReportOptions options;
+  options.progress = [&](double f) { progress.push_back(f); };
+  const auto runs = hil::bench::write_run_report({run}, dir.path() / "review.html", options);
+  ASSERT_EQ(runs.size(), 1u);
+  const auto& got = runs.front().digest.summary;
+  EXPECT_NEAR(got.iae_mpa_s, sim.iae_mpa_s, 1e-3 * sim.iae_mpa_s);
+  EXPECT_EQ(got.touch_state_changes, sim.touch_state_changes);
+  ASSERT_EQ(got.reversals.size(), sim.reversals.size());
+  ASSERT_GE(sim.reversals.size(), 30u);
+  for (std::size_t i = 0; i < sim.reversals.size(); ++i) {
+    EXPECT_NEAR(got.reversals[i].stall_s, sim.reversals[i].stall_s, 0.005) << "reversal " << i;
+    EXPECT_NEAR(got.reversals[i].gap_est_deg, sim.reversals[i].gap_est_deg, 1e-4) << "reversal " << i;
+  }
+  ASSERT_EQ(progress.size(), 2u) << "one call a chunk: 65 536 rows, then 4 464";
+  EXPECT_GT(progress[0], 0.9);
+  EXPECT_LT(progress[0], 1.0);
+  EXPECT_EQ(progress[1], 1.0);
+  EXPECT_GT(std::filesystem::file_size(dir.path() / "review.html"), 10000u);
+}
+
+// Stopped between chunks (a server shutting down): nothing is written; the server's job says
+// "server stopped" and leaves no report.html.tmp.
+TEST(ReportJob, ACancelStopsBetweenChunksAndWritesNothing) {
+  hil::test::TempDir dir;
+  const auto run = dir.path() / "20261127T050000Z_long_review_adaptive";
+  record_long_run(dir.path() / "sim", run);
+
+  std::atomic<bool> cancel{false};
+  int chunks = 0;
+  hil::bench::RunReportOptions options;
+  options.cancel = &cancel;
+  options.progress = [&](double) {
+    ++chunks;
+    cancel = true;  // raised while the first chunk is being read
+  };
+  EXPECT_THROW(hil::bench::write_run_report({run}, dir.path() / "review.html", options), hil::bench::Cancelled);
+  EXPECT_EQ(chunks, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "review.html"));
+
+  try {
+    hil::bench::make_run_report(
+        run, [](double) {}, &cancel);
+    ADD_FAILURE() << "a cancelled report returned";
+  } catch (const std::exception& e) {
+    EXPECT_STREQ(e.what(), hil::bench::kServerStopped);
+  }
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(run)) files.push_back(e.path().filename().string());
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(files, (std::vector<std::string>{"run.json", "telemetry.csv"}));
+
+  cancel = false;  // the next request after a restart makes it
+  const json made = hil::bench::make_run_report(
+      run, [](double) {}, &cancel);
+  EXPECT_EQ(made["outcome"], "completed");
+  EXPECT_TRUE(hil::bench::run_report_current(run));
 }

@@ -1,6 +1,6 @@
 #include "hil/bench/campaign/run_report.hpp"
 
-#include <fstream>
+#include <algorithm>
 #include <optional>
 #include <stdexcept>
 
@@ -26,58 +26,90 @@ Campaign campaign_of(const RunRecord& run, const std::filesystem::path& dir) {
   return load_campaign_text(yaml, file.filename().string(), file.parent_path());
 }
 
-RunOutcome digest_of(const Campaign& c, const std::filesystem::path& csv, const std::string& name) {
-  using telemetry::Col;
-  using units::deg_to_rad;
-  using units::mpa_to_pa;
-  // The schema's columns up to theta_target_deg, requested in its order so that values[index(c)]
-  // is column c: the measurement columns are required, the rest optional (a rig without the
-  // truth leaves those out).
-  CsvRequest request;
-  request.increasing = std::string(telemetry::name(Col::t_s));
-  for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k)
-    (k <= telemetry::index(Col::p_ref_mpa) ? request.required : request.optional).emplace_back(telemetry::kColumns[k].name);
-  const CsvChunk t = read_csv(csv, request);
-  const auto col = [&](Col c, std::size_t i, double fallback) {
-    const auto& v = t.values[telemetry::index(c)];
-    return v.empty() ? fallback : v[i];
-  };
-  RunDigest digest(c);
-  for (std::size_t i = 0; i < t.rows(); ++i) {
-    TelemetryRecord rec;
-    StepRecord& r = rec.step;
-    r.t_s = col(Col::t_s, i, kNaN);
-    r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
-    r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
-    r.theta_motor_rad = deg_to_rad(col(Col::theta_motor_deg, i, kNaN));
-    r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
-    r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
-    r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
-    r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
-    r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
-    r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
-    r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
-    // A rig without the chamber's truth: the error is the measured one (IAE then holds the
-    // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
-    const double chamber_mpa = col(Col::p_chamber_mpa, i, kNaN);
-    r.p_chamber_pa = t.values[telemetry::index(Col::p_chamber_mpa)].empty() ? r.p_meas_pa : mpa_to_pa(chamber_mpa);
-    rec.theta_target_rad = deg_to_rad(col(Col::theta_target_deg, i, kNaN));
-    digest.add(rec);
+// Reads the runs' telemetry chunk by chunk into their digests, reporting the fraction of all
+// the files' bytes read; the cancel flag is looked at between chunks.
+class TelemetryStream {
+ public:
+  TelemetryStream(const std::vector<std::filesystem::path>& files, const RunReportOptions& options) : options_(options) {
+    for (const auto& f : files) {
+      std::error_code ec;
+      const auto size = std::filesystem::file_size(f, ec);
+      total_bytes_ += ec ? 0 : size;  // unreadable: the reader names the file when it opens it
+    }
   }
-  RunOutcome out = digest.finish(name);
-  if (t.values[telemetry::index(Col::theta_valve_deg)].empty()) {
-    out.summary.stall_s_total = kNaN;
-    out.summary.stall_fraction = kNaN;
-    for (auto& rev : out.summary.reversals) rev.stall_s = kNaN;
+
+  RunOutcome digest(const Campaign& c, const std::filesystem::path& csv, const std::string& name) {
+    using telemetry::Col;
+    using units::deg_to_rad;
+    using units::mpa_to_pa;
+    // The schema's columns up to theta_target_deg, requested in its order so that values[index(c)]
+    // is column c: the measurement columns are required, the rest optional (a rig without the
+    // truth leaves those out).
+    CsvRequest request;
+    request.increasing = std::string(telemetry::name(Col::t_s));
+    for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k)
+      (k <= telemetry::index(Col::p_ref_mpa) ? request.required : request.optional).emplace_back(telemetry::kColumns[k].name);
+    CsvReader reader(csv, request);
+    const auto present = [&](Col c) { return static_cast<bool>(reader.header().present[telemetry::index(c)]); };
+    const bool chamber_known = present(Col::p_chamber_mpa), valve_known = present(Col::theta_valve_deg);
+    RunDigest digest(c);
+    CsvChunk t;
+    std::size_t rows = 0;
+    while (!cancelled() && reader.next(t)) {
+      const auto col = [&](Col c, std::size_t i, double fallback) {
+        const auto& v = t.values[telemetry::index(c)];
+        return v.empty() ? fallback : v[i];
+      };
+      for (std::size_t i = 0; i < t.rows(); ++i) {
+        TelemetryRecord rec;
+        StepRecord& r = rec.step;
+        r.t_s = col(Col::t_s, i, kNaN);
+        r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
+        r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
+        r.theta_motor_rad = deg_to_rad(col(Col::theta_motor_deg, i, kNaN));
+        r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
+        r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
+        r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
+        r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
+        r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
+        r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
+        r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
+        // A rig without the chamber's truth: the error is the measured one (IAE then holds the
+        // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
+        r.p_chamber_pa = chamber_known ? mpa_to_pa(col(Col::p_chamber_mpa, i, kNaN)) : r.p_meas_pa;
+        rec.theta_target_rad = deg_to_rad(col(Col::theta_target_deg, i, kNaN));
+        digest.add(rec);
+      }
+      rows += t.rows();
+      if (options_.progress && total_bytes_ > 0)
+        options_.progress(std::min(1.0, static_cast<double>(done_bytes_ + reader.bytes_read()) / total_bytes_));
+    }
+    if (cancelled()) throw Cancelled("the report was cancelled");
+    done_bytes_ += reader.bytes_read();
+    RunOutcome out = digest.finish(name);
+    if (!valve_known || rows == 0) {
+      out.summary.stall_s_total = kNaN;
+      out.summary.stall_fraction = kNaN;
+      for (auto& rev : out.summary.reversals) rev.stall_s = kNaN;
+    }
+    return out;
   }
-  return out;
-}
+
+ private:
+  bool cancelled() const { return options_.cancel != nullptr && options_.cancel->load(std::memory_order_relaxed); }
+
+  const RunReportOptions& options_;
+  std::uint64_t total_bytes_ = 0, done_bytes_ = 0;
+};
 
 }  // namespace
 
 std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::path>& run_dirs,
-                                          const std::filesystem::path& out_file) {
+                                          const std::filesystem::path& out_file, const RunReportOptions& options) {
   if (run_dirs.empty()) throw std::invalid_argument("no run folder given");
+  std::vector<std::filesystem::path> files;
+  for (const auto& dir : run_dirs) files.push_back(dir / "telemetry.csv");
+  TelemetryStream telemetry(files, options);
   std::vector<RecordedRun> runs;
   std::optional<Campaign> campaign;
   for (const auto& dir : run_dirs) {
@@ -96,7 +128,7 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     for (const auto& other : runs) {
       if (other.digest.name == name) name += " (" + dir.filename().string() + ")";
     }
-    r.digest = digest_of(c, dir / "telemetry.csv", name);
+    r.digest = telemetry.digest(c, dir / "telemetry.csv", name);
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;

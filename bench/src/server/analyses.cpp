@@ -203,15 +203,21 @@ bool run_report_current(const fs::path& run_dir) {
   return !ec && !ec2 && made >= recorded;
 }
 
-json make_run_report(const fs::path& run_dir) {
+json make_run_report(const fs::path& run_dir, const JobQueue::Progress& progress, const std::atomic<bool>* cancel) {
   const auto part = run_dir / "report.html.tmp";  // a half-written report is never served or listed
   std::error_code ec;
   try {
-    const auto runs = write_run_report({run_dir}, part);
+    RunReportOptions options;
+    options.progress = progress;
+    options.cancel = cancel;
+    const auto runs = write_run_report({run_dir}, part, options);
     fs::rename(part, run_dir / "report.html");
     json j = json::object();
     if (!runs.empty()) j["outcome"] = runs.front().outcome;
     return j;
+  } catch (const Cancelled&) {
+    fs::remove(part, ec);
+    throw std::runtime_error(kServerStopped);
   } catch (...) {
     fs::remove(part, ec);
     throw;

@@ -59,8 +59,10 @@ nlohmann::json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& 
 std::vector<nlohmann::json> finished_analyses(const std::filesystem::path& run_dir);
 
 // The job's work for GET /api/runs/ID/report.html: write_run_report into RUN_DIR/report.html.tmp,
-// renamed to report.html (removed on failure).
-nlohmann::json make_run_report(const std::filesystem::path& run_dir);
+// renamed to report.html (removed on failure). `cancel` raised: stops before the next chunk of
+// the telemetry's rows and throws kServerStopped, having written nothing.
+nlohmann::json make_run_report(const std::filesystem::path& run_dir, const JobQueue::Progress& progress = {},
+                               const std::atomic<bool>* cancel = nullptr);
 // Whether RUN_DIR/report.html is that run's report: made after run.json was last written (run.json
 // is rewritten only by the run's end or by a server finding the run interrupted).
 bool run_report_current(const std::filesystem::path& run_dir);

@@ -866,8 +866,10 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
     s.id = "report";
     s.kind = "report";
     try {
-      // A report has no cancel point: it takes a fraction of a second to seconds.
-      job = jobs.submit(s, [dir](const JobQueue::Progress&, const std::atomic<bool>&) { return make_run_report(dir); });
+      // Stops between chunks of rows when the server stops (an hour's run takes seconds to read).
+      job = jobs.submit(s, [dir](const JobQueue::Progress& progress, const std::atomic<bool>& cancel) {
+        return make_run_report(dir, progress, &cancel);
+      });
     } catch (const JobRefused& e) {
       throw ApiError{http::status::service_unavailable, "cannot queue the job", e.what()};
     }

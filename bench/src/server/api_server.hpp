@@ -74,9 +74,9 @@ class ApiServer {
   bool loopback() const { return loopback_; }
   void refuse_starts(const std::string& why);  // shutting down: new campaigns get 503
 
-  // Ends the report and analysis jobs: the queued ones fail, the running one is waited for (an
-  // analysis stops at its next cancel point, failed "server stopped"; a report ends whole). The
-  // destructor does it too.
+  // Ends the report and analysis jobs: the queued ones fail, the running one is waited for (it
+  // stops at its next cancel point, failed "server stopped": an analysis at its next chunk or fit,
+  // a report at its next chunk of rows). The destructor does it too.
   void stop_jobs();
   // The same without waiting (a signal, on the io thread): the queued jobs fail, later ones are
   // refused, and the running one is asked to stop.
