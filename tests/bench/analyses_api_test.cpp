@@ -13,6 +13,7 @@
 #include <fstream>
 #include <map>
 
+#include "run_folder.hpp"
 #include "server_process.hpp"
 
 using namespace std::chrono_literals;
@@ -403,4 +404,36 @@ TEST(AnalysesApi, CtlAnalysesARunListsItsAnalysesAndFetchesTheirFiles) {
   EXPECT_EQ(bad_list.rc, 0) << bad_list.out;
   EXPECT_TRUE(has(bad_list.out, "failed")) << bad_list.out;
   EXPECT_TRUE(has(bad_list.out, "telemetry.csv:2:")) << bad_list.out;
+}
+
+// A diagnosis holds about twice its telemetry.csv in the server's locked memory: one that would
+// hold more than --max-diagnose-mb is refused at once with the sizes and what to do instead; a
+// smaller one, and a compare of the larger (it streams), are queued. 17 MB allows a file of up to
+// 0.5 MB (2 x file + 16 MB).
+TEST(AnalysesApi, ADiagnosisTooLargeForTheServersMemoryIsRefusedWithTheSizes) {
+  ServerProcess server({"--max-diagnose-mb", "17"});
+  const auto api = server.client();
+  const auto campaign_file = hil::test::source_path("configs/campaigns/gap_step.yaml");
+  std::string rows = "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg,p_ref_mpa\n";
+  for (int k = 0; rows.size() < (std::size_t{1} << 20); ++k) rows += std::to_string(k * 1e-3) + ",10.0,1.0,10.0,1.0\n";
+  const std::map<std::string, std::size_t> sizes = {{"small", 100 * 1024}, {"large", rows.size()}};
+  for (const auto& [name, bytes] : sizes) {
+    const auto dir = server.runs_dir() / name;
+    hil::test::write_ended_run(dir, "gap_step", "adaptive", kGapStepYaml, campaign_file, 8);
+    const std::string text = rows.substr(0, rows.rfind('\n', bytes) + 1);  // whole lines
+    std::ofstream(dir / "telemetry.csv") << text;
+  }
+
+  const auto refused = api.post("/api/runs/large/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
+  EXPECT_EQ(refused.status, 422) << refused.body;
+  const std::string detail = refused.json().value("detail", "");
+  EXPECT_TRUE(has(detail, "telemetry.csv (1 MB)")) << detail;
+  EXPECT_TRUE(has(detail, "about 18 MB")) << detail;
+  EXPECT_TRUE(has(detail, "allows 17 MB (hilbench serve --max-diagnose-mb)")) << detail;
+  EXPECT_FALSE(std::filesystem::exists(server.runs_dir() / "large" / "analyses")) << "nothing was queued or written";
+
+  const auto compare = api.post("/api/runs/large/analyses", {{"kind", "compare"}, {"model", "nominal"}});
+  EXPECT_EQ(compare.status, 202) << compare.body;
+  const auto small = api.post("/api/runs/small/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
+  EXPECT_EQ(small.status, 202) << small.body;
 }

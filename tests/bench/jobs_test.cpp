@@ -13,9 +13,9 @@
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/run_report.hpp"
-#include "hil/bench/rt/run_record.hpp"
 #include "server/analyses.hpp"
 #include "server/jobs.hpp"
+#include "run_folder.hpp"
 #include "temp_file.hpp"
 
 using hil::bench::JobQueue;
@@ -272,22 +272,8 @@ hil::bench::RunSummary record_long_run(const std::filesystem::path& out, const s
   sim.out_dir = out;
   sim.progress = false;
   const auto outcome = hil::bench::run_campaign(c, sim);
-  std::filesystem::create_directories(run_dir);
+  hil::test::write_ended_run(run_dir, c.name, "adaptive", yaml, campaigns / "long_review.yaml", 70);
   std::filesystem::copy_file(outcome.dir / "adaptive" / "telemetry.csv", run_dir / "telemetry.csv");
-  hil::bench::RunRecord r;
-  r.version = "0.1.0";
-  r.campaign = c.name;
-  r.run = "adaptive";
-  r.runs_in_campaign = 1;
-  r.rig_name = r.rig_kind = "sim";
-  r.start_utc = "2026-11-27T05:00:00.000Z";
-  r.stop_utc = "2026-11-27T05:01:10.000Z";
-  r.outcome = hil::bench::Outcome::completed;
-  r.period_s = 1e-3;
-  r.duration_s = 70;
-  r.config = {"long_review.yaml", (campaigns / "long_review.yaml").string(), yaml, "", ""};
-  r.ended = true;
-  hil::bench::write_run_record(run_dir, r);
   return outcome.runs.front().summary;
 }
 

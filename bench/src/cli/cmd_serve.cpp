@@ -1,5 +1,8 @@
 // hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
 //                [--max-body-kb N] [--max-waiting-jobs N] [--no-mlock]
+#include <unistd.h>
+
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <memory>
@@ -48,6 +51,7 @@ struct ServeArgs {
   std::string port_file;  // empty: none
   std::size_t max_body_kb = 1024;
   std::size_t max_waiting_jobs = 8;
+  std::int64_t max_diagnose_mb = 0;  // 0: a quarter of the machine's memory
   bool no_mlock = false;
 };
 
@@ -63,6 +67,12 @@ int run_serve(const ServeArgs& args) {
   api.version = HIL_VERSION;
   api.max_body_bytes = args.max_body_kb * 1024;
   api.max_waiting_jobs = args.max_waiting_jobs;
+  if (args.max_diagnose_mb > 0) {
+    api.max_diagnose_bytes = static_cast<std::uint64_t>(args.max_diagnose_mb) << 20;
+  } else {
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page_bytes = ::sysconf(_SC_PAGESIZE);
+    if (pages > 0 && page_bytes > 0) api.max_diagnose_bytes = static_cast<std::uint64_t>(pages) * page_bytes / 4;
+  }
   for (const auto& dir : {api.campaigns_dir, api.rigs_dir}) {
     if (!std::filesystem::is_directory(dir)) {
       throw std::runtime_error("no folder " + dir.string() + " (give --configs DIR, the folder holding campaigns/ and rigs/)");
@@ -169,6 +179,11 @@ CommandRun define_serve(CLI::App& cmd) {
       ->type_name("N")
       ->check(whole_number(1, 1000))
       ->capture_default_str();
+  cmd.add_option("--max-diagnose-mb", args->max_diagnose_mb,
+                 "the most memory a diagnosis may hold (about twice its telemetry.csv); larger ones are refused "
+                 "(422). Default: a quarter of this machine's memory")
+      ->type_name("N")
+      ->check(whole_number(1, std::int64_t{1} << 40));
   cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
   return [args] { return run_serve(*args); };
 }

@@ -973,6 +973,19 @@ Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req)
   if (!std::filesystem::is_regular_file(dir / "telemetry.csv")) {
     throw ApiError{http::status::unprocessable_entity, "no measurement", "run '" + id + "' has no telemetry.csv"};
   }
+  if (kind == "diagnose") {
+    std::error_code ec;
+    const std::uint64_t csv_bytes = std::filesystem::file_size(dir / "telemetry.csv", ec);
+    const std::uint64_t need = ec ? 0 : diagnose_memory_bytes(csv_bytes);
+    if (need > options.max_diagnose_bytes) {
+      const auto mb = [](std::uint64_t bytes) { return std::to_string(std::llround(bytes / 1048576.0)) + " MB"; };
+      throw ApiError{http::status::unprocessable_entity, "too large for this server",
+                     "run '" + id + "': a diagnosis of its telemetry.csv (" + mb(csv_bytes) + ") holds about " + mb(need) +
+                         " in memory, locked while it runs; this server allows " + mb(options.max_diagnose_bytes) +
+                         " (hilbench serve --max-diagnose-mb). A compare reads it in chunks and has no such limit; "
+                         "or run hilbench diagnose --data on a copy of the run's folder elsewhere"};
+    }
+  }
   // The same analysis already waiting or running: that one is the answer, not a second copy.
   std::vector<std::string> live;
   for (const auto& job : jobs.of_run(id)) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <mutex>
@@ -30,6 +31,9 @@ struct ApiOptions {
   std::filesystem::path plant_dir = "configs/plant";  // the models analyses may name
   std::size_t max_body_bytes = 1 << 20;
   std::size_t max_waiting_jobs = 8;  // reports and analyses queued behind the running one
+  // A diagnosis that would hold more (analyses.hpp diagnose_memory_bytes) is refused (422): the
+  // server's memory is locked, and a bench machine out of memory kills the server mid-run.
+  std::uint64_t max_diagnose_bytes = UINT64_MAX;
   std::string version;
 };
 
