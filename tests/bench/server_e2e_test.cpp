@@ -367,6 +367,28 @@ TEST(ServerEndToEnd, CtlStartsAndFollowsWithAProgressBar) {
   EXPECT_NE(runs.find("_two_seconds_adaptive"), std::string::npos) << runs;
 }
 
+// The status's progress only goes forward: between two runs, and while a run's record is being
+// written after its loop ended, it stays where the run ended (it once fell back to the run's
+// start there, and `ctl`'s bar read 0 % at the end). Status polled as fast as it answers.
+TEST(ServerEndToEnd, ProgressNeverGoesBack) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(2, "forward")}, {"speed", 4}}).status, 202);
+  double last = 0;
+  int polls = 0, between = 0;
+  for (const auto end = std::chrono::steady_clock::now() + 60s; std::chrono::steady_clock::now() < end; ++polls) {
+    const json s = api.get("/api/status").json();
+    if (s["state"] == "idle") break;
+    if (s["state"] == "starting") ++between;
+    const double f = s["progress"]["fraction"].get<double>();
+    ASSERT_GE(f, last) << "poll " << polls << ": " << s.dump(2);
+    last = f;
+  }
+  EXPECT_GT(last, 0.9) << polls << " polls";
+  EXPECT_GT(polls, 50);
+  std::printf("%d polls, %d between runs\n", polls, between);
+}
+
 // A run recorded by the server is reviewed as a simulation is: `hilbench report` gives the same
 // metrics as `hilbench sim` for the same campaign (both run the loop's period on the simulated
 // rig; only the CSV's rounding differs) and writes the same report.

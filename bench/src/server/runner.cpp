@@ -27,6 +27,11 @@ namespace {
 using nlohmann::json;
 using SysClock = std::chrono::system_clock;
 
+// How far a run is, by its loop's last period: the end of that period (none yet: 0).
+double run_time_s(const LoopSnapshot& snap, const Campaign& c) {
+  return snap.periods == 0 ? 0 : std::min(snap.t_s + c.period_s, c.duration_s);
+}
+
 std::string utc(SysClock::time_point t, const char* format) {
   const std::time_t s = SysClock::to_time_t(t);
   std::tm tm{};
@@ -186,6 +191,9 @@ struct CampaignRunner::Active {
   Recorder* recorder = nullptr;
   RtSetup rt;
   std::int64_t periods_done = 0;  // in finished runs
+  // The current run's time while no loop runs: 0 before it starts, where it ended after (its
+  // record is still being written), so progress never goes back.
+  double run_t_s = 0;
   json finished = json::array();
 };
 
@@ -319,6 +327,7 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
       std::lock_guard lock(mutex_);
       if (a->stop || a->abort) break;
       a->index = i;
+      a->run_t_s = 0;
     }
     try {
       run_one(*a, i);
@@ -505,6 +514,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const std::string write_error = rec.finish();
   {
     std::lock_guard lock(mutex_);
+    if (loop) a.run_t_s = run_time_s(loop->snapshot(), c);
     a.loop = nullptr;
     a.requests = nullptr;
     a.recorder = nullptr;
@@ -592,11 +602,10 @@ json CampaignRunner::status() const {
   s["runs_total"] = a.runs.size();
   s["run_dir"] = a.dir.filename().string();
   const double per_run = c.duration_s;
-  double t = 0;
+  double t = a.run_t_s;
   if (a.loop) {
     const LoopSnapshot snap = a.loop->snapshot();
-    t = std::min(snap.t_s + c.period_s, per_run);
-    if (snap.periods == 0) t = 0;
+    t = run_time_s(snap, c);
     s["state"] = (snap.flags & kFlagSafeState) ? "safe" : "running";
     json loop = loop_stats_json(*a.loop);
     loop["sched"] = a.rt.describe();
