@@ -92,7 +92,7 @@ YAML::Node checked(YAML::Node node, const std::string& origin) {
 
 }  // namespace
 
-Node Node::load_file(const std::filesystem::path& file) {
+Node Node::load_file(const std::filesystem::path& file, std::string* text) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
   // A folder opens as a stream on Linux and only fails at the first read, inside yaml-cpp (which
   // then leaks its half-built document): refuse anything that is not a regular file up front.
@@ -102,10 +102,15 @@ Node Node::load_file(const std::filesystem::path& file) {
   if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
     throw Error(file.string() + ": is not a regular file");
   }
-  std::ifstream in(file);
+  std::ifstream in(file, std::ios::binary);
   if (!in) throw Error(file.string() + ": cannot open the file");
+  std::ostringstream read;
+  read << in.rdbuf();
+  if (in.bad()) throw Error(file.string() + ": cannot read the file");
   try {
-    return Node(checked(YAML::Load(in), file.string()), shared, "", YAML::Mark());
+    Node root(checked(YAML::Load(read.str()), file.string()), shared, "", YAML::Mark());
+    if (text != nullptr) *text = read.str();
+    return root;
   } catch (const YAML::Exception& e) {
     throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +
                 ": YAML syntax: " + e.msg);

@@ -12,6 +12,7 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/bench/campaign/sim.hpp"
+#include "hil/bench/rt/run_record.hpp"
 #include "hil/csv_reader.hpp"
 #include "loop_fixture.hpp"
 #include "server_process.hpp"
@@ -427,5 +428,24 @@ TEST(ServerEndToEnd, ReportOfRecordedRunsMatchesTheSimulation) {
       EXPECT_NEAR(got.reversals[i].gap_est_deg, sim.reversals[i].gap_est_deg, 1e-4) << r.digest.name << " reversal " << i;
     }
     EXPECT_EQ(got.touch_state_changes, sim.touch_state_changes) << r.digest.name;
+  }
+
+  // run.json keeps the plant the run had (its absolute path and text): the report is still made,
+  // the same, when the bench's configs have moved away (a review on another machine).
+  const std::string nominal = hil::test::slurp(hil::test::source_path("configs/plant/nominal.yaml"));
+  for (const auto& dir : dirs) {
+    hil::bench::RunRecord record = hil::bench::read_run_record(dir);
+    EXPECT_EQ(record.config.plant_yaml, nominal);
+    EXPECT_TRUE(std::filesystem::path(record.config.plant_file).is_absolute()) << record.config.plant_file;
+    EXPECT_TRUE(std::filesystem::path(record.config.campaign_file).is_absolute()) << record.config.campaign_file;
+    record.config.campaign_file = "/nonexistent/configs/campaigns/review.yaml";
+    record.config.plant_file = "/nonexistent/configs/plant/nominal.yaml";
+    hil::bench::write_run_record(dir, record);
+  }
+  const auto moved = hil::bench::write_run_report(dirs, server.dir() / "moved.html");
+  ASSERT_EQ(moved.size(), runs.size());
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    EXPECT_EQ(moved[i].digest.summary.iae_mpa_s, runs[i].digest.summary.iae_mpa_s) << runs[i].digest.name;
+    EXPECT_EQ(moved[i].digest.summary.touch_state_changes, runs[i].digest.summary.touch_state_changes);
   }
 }

@@ -2,9 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 
 #include "hil/config.hpp"
@@ -336,7 +334,7 @@ void require_plain_name(const Node& where, const std::string& name) {
 }
 
 Campaign load(const Node& root, const std::filesystem::path& file, const std::string& text,
-              const std::filesystem::path& plants_root, const Node* plant_root = nullptr) {
+              const std::filesystem::path& plants_root, const Node* plant_root = nullptr, const std::string& plant_text = {}) {
   root.allow_keys({"name", "description", "plant", "duration_s", "period_ms", "seed", "sensor_noise_kpa", "reference", "gap",
                    "controller", "runs"});
   Campaign c;
@@ -364,7 +362,11 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   }
   plant::Plant truth = [&] {
     try {
-      return plant_root != nullptr ? plant::Plant::from_yaml(*plant_root) : plant::Plant::load(c.plant_file);
+      if (plant_root != nullptr) {
+        c.plant_yaml_text = plant_text;
+        return plant::Plant::from_yaml(*plant_root);
+      }
+      return plant::Plant::from_yaml(Node::load_file(c.plant_file, &c.plant_yaml_text));
     } catch (const cfg::Error& e) {
       root.at("plant").fail(std::string("in the plant file: ") + e.what());
     }
@@ -527,11 +529,9 @@ Campaign with_sensor_noise(Campaign c, double noise_rms_kpa) {
 }
 
 Campaign load_campaign(const std::filesystem::path& file) {
-  const Node root = Node::load_file(file);
-  std::ifstream in(file);
-  std::stringstream text;
-  text << in.rdbuf();
-  return load(root, file, text.str(), {});
+  std::string text;
+  const Node root = Node::load_file(file, &text);
+  return load(root, file, text, {});
 }
 
 Campaign load_campaign_text(const std::string& yaml, const std::string& origin, const std::filesystem::path& base_dir,
@@ -546,7 +546,7 @@ Campaign load_campaign_text(const std::string& yaml, const std::string& origin, 
   const std::filesystem::path pseudo = base_dir / origin;
   const Node root = Node::load_string(yaml, pseudo.string());
   const Node plant_root = Node::load_string(plant_yaml, plant_origin.string());
-  return load(root, pseudo, yaml, {}, &plant_root);
+  return load(root, pseudo, yaml, {}, &plant_root, plant_yaml);
 }
 
 }  // namespace hil::bench

@@ -22,7 +22,10 @@ Campaign campaign_of(const RunRecord& run, const std::filesystem::path& dir) {
   const std::string& yaml = run.config.campaign_yaml;
   const std::filesystem::path file = run.config.campaign_file;
   if (yaml.empty() || file.empty()) throw std::runtime_error(dir.string() + "/run.json: the config snapshot has no campaign");
-  // Relative paths in the campaign (its plant) resolve from where the campaign file was.
+  // The plant as the run had it; a run.json from before the plant's snapshot names only the
+  // campaign, whose plant path resolves from where the campaign file was.
+  if (!run.config.plant_yaml.empty())
+    return load_campaign_text(yaml, file.filename().string(), file.parent_path(), run.config.plant_yaml, run.config.plant_file);
   return load_campaign_text(yaml, file.filename().string(), file.parent_path());
 }
 

@@ -407,7 +407,7 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
     }
   }();
   plan.campaign_yaml = base.yaml_text;
-  plan.plant_yaml = read_text(base.plant_file);
+  plan.plant_yaml = base.plant_yaml_text;
   plan.campaign_dir = std::filesystem::absolute(campaign_file).parent_path();
   const YAML::Node campaign_tree = load_yaml(plan.campaign_yaml, campaign_file.string());
   const YAML::Node plant_tree = load_yaml(plan.plant_yaml, base.plant_file.string());

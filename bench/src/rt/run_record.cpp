@@ -110,7 +110,9 @@ json RunRecord::to_json() const {
               {"campaign_file", config.campaign_file},
               {"campaign_yaml", config.campaign_yaml},
               {"rig_file", config.rig_file},
-              {"rig_yaml", config.rig_yaml}}}};
+              {"rig_yaml", config.rig_yaml},
+              {"plant_file", config.plant_file},
+              {"plant_yaml", config.plant_yaml}}}};
   if (ended) {
     j["trip"] =
         trip
@@ -164,8 +166,9 @@ RunRecord RunRecord::from_json(const json& j, const std::string& origin) {
   rec.speed = r.number_or_null("speed").value_or(1.0);
   const Reader cfg{r.object("config"), origin};
   rec.config = {cfg.text_or_null("campaign_source").value_or(""), cfg.text_or_null("campaign_file").value_or(""),
-                cfg.text_or_null("campaign_yaml").value_or(""), cfg.text_or_null("rig_file").value_or(""),
-                cfg.text_or_null("rig_yaml").value_or("")};
+                cfg.text_or_null("campaign_yaml").value_or(""),   cfg.text_or_null("rig_file").value_or(""),
+                cfg.text_or_null("rig_yaml").value_or(""),        cfg.text_or_null("plant_file").value_or(""),
+                cfg.text_or_null("plant_yaml").value_or("")};
   if (const json* trip = r.find("trip")) {
     rec.ended = true;
     if (!trip->is_null()) {

@@ -393,7 +393,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   info.period_s = c.period_s;
   info.duration_s = c.duration_s;
   info.speed = a.req.speed;
-  info.config = {a.req.source, c.file.string(), c.yaml_text, rc.file.string(), rc.yaml_text};
+  const auto absolute = [](const std::filesystem::path& p) {
+    std::error_code ec;
+    const auto abs = p.empty() ? p : std::filesystem::absolute(p, ec);
+    return (ec ? p : abs).string();
+  };
+  // Absolute paths: a report or analysis of the run may be made from another folder.
+  info.config = {a.req.source, absolute(c.file),       c.yaml_text,      absolute(rc.file),
+                 rc.yaml_text, absolute(c.plant_file), c.plant_yaml_text};
   try {
     write_run_record(dir, info);
   } catch (...) {

@@ -25,8 +25,9 @@ class Error : public std::runtime_error {
 
 class Node {
  public:
-  // Throws Error for a missing file or a YAML syntax error (with its line and column).
-  static Node load_file(const std::filesystem::path& file);
+  // Throws Error for a missing file or a YAML syntax error (with its line and column). `text`:
+  // the file as read and parsed, for a snapshot of exactly what was loaded.
+  static Node load_file(const std::filesystem::path& file, std::string* text = nullptr);
   // For configs posted over an API or built in tests; `origin` stands in for the file name.
   static Node load_string(std::string_view text, const std::string& origin);
 

@@ -42,7 +42,8 @@ struct Campaign {
   std::vector<double> reversals_s;  // reference reversals (the first movement is reversal 1)
   long reference_moves = 0;         // steps and ramps of the reference, either direction
   std::vector<RunSpec> runs;
-  std::string yaml_text;  // the file as loaded, for the run's snapshot
+  std::string yaml_text;        // the file as loaded, for the run's snapshot
+  std::string plant_yaml_text;  // the plant file as loaded, for the run's snapshot
 };
 
 Campaign load_campaign(const std::filesystem::path& file);

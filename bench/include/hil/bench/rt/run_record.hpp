@@ -33,8 +33,11 @@ struct RunRecord {
   Outcome outcome = Outcome::running;
   std::optional<std::string> reason;  // null: nothing to say (completed)
   double period_s = 0, duration_s = 0, speed = 1;
-  struct Config {  // what the run was made of, as loaded
+  struct Config {  // what the run was made of, as loaded (files as absolute paths)
     std::string campaign_source, campaign_file, campaign_yaml, rig_file, rig_yaml;
+    // The campaign's plant file and its text: the run's report is made from the plant the run
+    // had, even once the file is edited or gone (empty in run.json written before 2026-11-27).
+    std::string plant_file, plant_yaml;
   } config;
 
   // Written at the end (absent before).
