@@ -260,3 +260,27 @@ TEST(ServerHardening, ASlowWebSocketReaderIsToldInBandWhatItMissed) {
 }
 
 }  // namespace
+
+// A run.json cut short (a disk that failed under it, a hand edit) is an answer naming the file,
+// line and column, never a 500: the run's own page says 422, the list shows the run with the
+// error, and a report or analysis of it is refused the same way.
+TEST(ServerHardening, ACutRunJsonIsNamedWithItsLineAndColumnNeverA500) {
+  ServerProcess server;
+  const auto api = server.client();
+  const auto dir = server.runs_dir() / "20261127T050000Z_cut_adaptive";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "run.json") << "{\n  \"campaign\": \"cut\",\n  \"run\": \"adaptive\",\n  \"outcome\": ";
+  std::ofstream(dir / "telemetry.csv") << "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg,p_ref_mpa\n0,1,1,1,1\n";
+
+  const auto page = api.get("/api/runs/20261127T050000Z_cut_adaptive");
+  EXPECT_EQ(page.status, 422) << page.body;
+  EXPECT_NE(page.json().value("detail", "").find("run.json:4:14: not JSON: "), std::string::npos) << page.body;
+  const json list = api.get("/api/runs").json();
+  ASSERT_EQ(list["runs"].size(), 1u) << list.dump();
+  EXPECT_NE(list["runs"][0].value("error", "").find("run.json:4:14: not JSON: "), std::string::npos) << list.dump();
+  const auto report = api.get("/api/runs/20261127T050000Z_cut_adaptive/report.html");
+  EXPECT_EQ(report.status, 422) << report.body;
+  const auto analysis = api.post("/api/runs/20261127T050000Z_cut_adaptive/analyses", {{"kind", "compare"}, {"model", "nominal"}});
+  EXPECT_EQ(analysis.status, 422) << analysis.body;
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}

@@ -14,6 +14,7 @@
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
+#include "hil/json_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -55,12 +56,10 @@ void write_plan(const std::filesystem::path& dir, const SweepPlan& plan) {
 
 SweepPlan read_plan(const std::filesystem::path& dir) {
   const auto file = dir / "plan.json";
-  std::ifstream in(file);
-  if (!in)
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec))
     throw std::runtime_error(file.string() + ": no sweep plan here (plan a sweep with hilbench sweep SWEEP.yaml --out DIR)");
-  const json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) throw std::runtime_error(file.string() + ": not JSON");
-  return SweepPlan::from_json(j, file.string());
+  return SweepPlan::from_json(read_json_file(file), file.string());
 }
 
 std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, const SweepPlan& plan, long* damaged_lines) {

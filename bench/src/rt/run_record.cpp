@@ -1,10 +1,10 @@
 #include "hil/bench/rt/run_record.hpp"
 
-#include <fstream>
 #include <stdexcept>
 #include <type_traits>
 
 #include "hil/line_file.hpp"
+#include "hil/json_file.hpp"
 
 namespace hil::bench {
 
@@ -200,11 +200,10 @@ RunRecord RunRecord::from_json(const json& j, const std::string& origin) {
 
 RunRecord read_run_record(const std::filesystem::path& dir) {
   const auto file = dir / "run.json";
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(dir.string() + ": no run.json (not a run folder of hilbench serve)");
-  const json j = json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) throw std::runtime_error(file.string() + ": not JSON");
-  return RunRecord::from_json(j, file.string());
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec))
+    throw std::runtime_error(dir.string() + ": no run.json (not a run folder of hilbench serve)");
+  return RunRecord::from_json(read_json_file(file), file.string());
 }
 
 void write_run_record(const std::filesystem::path& dir, const RunRecord& record) {

@@ -13,6 +13,7 @@
 #include "hil/bench/server/runner.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
+#include "hil/json_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -176,9 +177,8 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
     const bool failed = !fs::exists(d / "analysis.json", ec) && fs::exists(d / "failed.json", ec);
     const std::string file = failed ? "failed.json" : "analysis.json";
     try {
-      std::ifstream in(d / file);
-      json j = json::parse(in);
-      if (!j.is_object()) throw std::runtime_error("not a JSON object");
+      json j = read_json_file(d / file);
+      if (!j.is_object()) throw std::runtime_error((d / file).string() + ": not a JSON object");
       j["id"] = id;
       if (failed) {
         j["state"] = "failed";
@@ -187,7 +187,7 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
       }
       out.emplace_back(j.value("finished_utc", ""), std::move(j));
     } catch (const std::exception& e) {
-      out.emplace_back("", json{{"id", id}, {"state", "failed"}, {"error", file + ": " + e.what()}});
+      out.emplace_back("", json{{"id", id}, {"state", "failed"}, {"error", e.what()}});  // names the file
     }
   }
   std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });

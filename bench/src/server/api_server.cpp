@@ -25,6 +25,7 @@
 #include "hil/config.hpp"
 #include "hil/plant/plant.hpp"
 #include "hil/units.hpp"
+#include "hil/json_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -775,7 +776,7 @@ Reply ApiServer::Impl::runs() {
       const json r = read_run_record(d).to_json();
       for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r[k];
     } catch (const std::exception& e) {
-      j["error"] = std::string("run.json: ") + e.what();
+      j["error"] = e.what();  // names the file, and the line and column
     }
     list.push_back(j);
   }
@@ -793,12 +794,11 @@ Reply ApiServer::Impl::run(const std::string& id) {
       files.push_back({{"name", e.path().filename().string()}, {"bytes", e.file_size()}});
     }
   }
-  std::ifstream in(dir / "run.json");
   json r;
   try {
-    r = json::parse(in);
+    r = read_json_file(dir / "run.json");
   } catch (const std::exception& e) {
-    throw ApiError{http::status::internal_server_error, "unreadable run.json", e.what()};
+    throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
   }
   return json_reply(http::status::ok, {{"id", id}, {"files", files}, {"run", r}});
 }
