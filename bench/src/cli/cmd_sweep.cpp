@@ -20,6 +20,7 @@
 
 #include "commands.hpp"
 #include "hil/bench/campaign/sweep.hpp"
+#include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
 
 namespace hil::bench {
@@ -247,8 +248,12 @@ int run_slurm(const SweepArgs& args) {
 
   json jobs = json::object();
   if (std::filesystem::exists(slurm_dir / "jobs.json")) {
-    jobs = json::parse(read_file(slurm_dir / "jobs.json"), nullptr, false);
-    if (jobs.is_discarded() || !jobs.is_object()) jobs = json::object();
+    try {
+      jobs = read_json_file(slurm_dir / "jobs.json");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sweep: %s; its earlier submissions are forgotten, this one is kept\n", e.what());
+    }
+    if (!jobs.is_object()) jobs = json::object();
   }
   if (!jobs.contains("submissions") || !jobs["submissions"].is_array()) jobs["submissions"] = json::array();
   jobs["submissions"].push_back({{"array", array_id},
@@ -283,9 +288,15 @@ int run_status(const SweepArgs& args) {
   say_damaged_rows(stdout, dir, damaged);
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) return 0;
-  const json jobs = json::parse(read_file(jobs_file), nullptr, false);
-  if (jobs.is_discarded() || !jobs.contains("submissions") || !jobs["submissions"].is_array()) {
-    std::printf("  %s: not readable\n", jobs_file.c_str());
+  json jobs;
+  try {
+    jobs = read_json_file(jobs_file);
+  } catch (const std::exception& e) {
+    std::printf("  %s\n", e.what());
+    return 0;
+  }
+  if (!jobs.is_object() || !jobs.contains("submissions") || !jobs["submissions"].is_array()) {
+    std::printf("  %s: no list of submissions\n", jobs_file.c_str());
     return 0;
   }
   const bool squeue = on_path("squeue");
