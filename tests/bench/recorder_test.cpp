@@ -126,8 +126,13 @@ RunRecord ended_record() {
   r.period_s = 1e-3;
   r.duration_s = 18;
   r.speed = 2;
-  r.config = {"configs/campaigns/paper_adaptive.yaml", "/x/paper_adaptive.yaml", "name: paper_adaptive\n", "/x/sim.yaml",
-              "kind: sim\n"};
+  r.config = {"configs/campaigns/paper_adaptive.yaml",
+              "/x/paper_adaptive.yaml",
+              "name: paper_adaptive\n",
+              "/x/sim.yaml",
+              "kind: sim\n",
+              "/x/nominal.yaml",
+              "effects: []\n"};
   r.ended = true;
   r.trip = RunRecord::Trip{"overpressure", 12.5, 2.61e6, 2.5e6};
   r.rig_health = {{"connected", true}};

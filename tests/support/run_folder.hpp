@@ -1,6 +1,7 @@
 // A run folder as `hilbench serve` leaves it once a run has ended, made without a server: its
-// run.json (a completed run of `campaign_yaml` on the simulated rig). The caller puts the
-// telemetry.csv beside it.
+// run.json (a completed run of `campaign_yaml` on the simulated rig), as written before run.json
+// kept the plant's text, so a report finds the plant by the campaign file's path. The caller puts
+// the telemetry.csv beside it.
 #pragma once
 
 #include <filesystem>
@@ -23,7 +24,7 @@ inline void write_ended_run(const std::filesystem::path& run_dir, const std::str
   r.outcome = bench::Outcome::completed;
   r.period_s = 1e-3;
   r.duration_s = duration_s;
-  r.config = {campaign_file.filename().string(), campaign_file.string(), campaign_yaml, "", ""};
+  r.config = {campaign_file.filename().string(), campaign_file.string(), campaign_yaml, "", "", "", ""};  // no plant snapshot
   r.ended = true;
   std::filesystem::create_directories(run_dir);
   bench::write_run_record(run_dir, r);
