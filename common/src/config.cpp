@@ -107,9 +107,10 @@ Node Node::load_file(const std::filesystem::path& file, std::string* text) {
   std::ostringstream read;
   read << in.rdbuf();
   if (in.bad()) throw Error(file.string() + ": cannot read the file");
+  std::string content = read.str();
   try {
-    Node root(checked(YAML::Load(read.str()), file.string()), shared, "", YAML::Mark());
-    if (text != nullptr) *text = read.str();
+    Node root(checked(YAML::Load(content), file.string()), shared, "", YAML::Mark());
+    if (text != nullptr) *text = std::move(content);
     return root;
   } catch (const YAML::Exception& e) {
     throw Error(file.string() + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) +

@@ -6,11 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <set>
-#include <sstream>
 #include <stdexcept>
 #include <thread>
 
@@ -35,14 +33,6 @@ std::string shortest(double v) {
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
   return std::string(buf, r.ptr);
-}
-
-std::string read_text(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + file.string());
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // FNV-1a, 64 bit: enough to tell that a sweep file changed since its folder was planned.
@@ -387,7 +377,8 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
 
 SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
                      const std::function<std::string(const std::string& name)>& checked_hash) {
-  const Node root = Node::load_file(sweep_file);
+  std::string sweep_text;  // the file as parsed, for the plan's hash
+  const Node root = Node::load_file(sweep_file, &sweep_text);
   root.allow_keys({"name", "description", "campaign", "runs", "seed", "samples", "axes", "thresholds", "maps", "worst_by"});
   SweepPlan plan;
   plan.name = root.text("name", sweep_file.stem().string());
@@ -545,7 +536,7 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
                                                : metrics.front();
   }
 
-  std::uint64_t h = fnv1a(read_text(sweep_file));
+  std::uint64_t h = fnv1a(sweep_text);
   h = fnv1a(plan.campaign_yaml, h);
   h = fnv1a(plan.plant_yaml, h);
   char hex[17];

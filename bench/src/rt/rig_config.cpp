@@ -1,8 +1,5 @@
 #include "hil/bench/rt/rig_config.hpp"
 
-#include <fstream>
-#include <sstream>
-
 #include "hil/bench/rt/rig_registry.hpp"
 #include "hil/config.hpp"
 
@@ -90,11 +87,9 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
 }  // namespace
 
 RigConfig load_rig_config(const std::filesystem::path& file) {
-  const cfg::Node root = cfg::Node::load_file(file);
-  std::ifstream in(file, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return from_node(root, file.stem().string(), text.str());
+  std::string text;
+  const cfg::Node root = cfg::Node::load_file(file, &text);
+  return from_node(root, file.stem().string(), text);
 }
 
 RigConfig load_rig_config_text(const std::string& yaml, const std::string& origin) {
