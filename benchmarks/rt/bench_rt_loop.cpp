@@ -14,7 +14,6 @@
 #include <fstream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <thread>
 
@@ -26,6 +25,8 @@
 #include "hil/bench/rt/rig_config.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/json_file.hpp"
+#include "hil/text_file.hpp"
 
 using namespace hil::bench;
 
@@ -122,13 +123,11 @@ int run(int argc, char** argv) {
     }
   }
   // paper_adaptive, stretched to the benchmark's length and rate.
-  std::ifstream in(HIL_SOURCE_DIR "/configs/campaigns/paper_adaptive.yaml");
-  std::stringstream text;
-  text << in.rdbuf();
+  const std::string text = hil::read_text_file(HIL_SOURCE_DIR "/configs/campaigns/paper_adaptive.yaml");
   char period[32], duration[32];
   std::snprintf(period, sizeof period, "period_ms: %g", 1000.0 / hz);
   std::snprintf(duration, sizeof duration, "duration_s: %g", seconds);
-  const std::string yaml = replace(replace(text.str(), "period_ms: 1", period), "duration_s: 18", duration);
+  const std::string yaml = replace(replace(text, "period_ms: 1", period), "duration_s: 18", duration);
 
   StartRequest req;
   req.campaign = load_campaign_text(yaml, "paper_adaptive (benchmark)", HIL_SOURCE_DIR "/configs/campaigns");
@@ -163,8 +162,7 @@ int run(int argc, char** argv) {
   }
   std::filesystem::path dir;
   for (const auto& e : std::filesystem::directory_iterator(runs_dir)) dir = e.path();
-  std::ifstream run_file(dir / "run.json");
-  const nlohmann::json run = nlohmann::json::parse(run_file);
+  const nlohmann::json run = hil::read_json_file(dir / "run.json");
   const auto& loop = run["loop"];
   const auto& w = loop["wake_latency_us"];
   const auto& c = loop["compute_us"];

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <fstream>
-#include <sstream>
+
+#include "hil/text_file.hpp"
 
 namespace hil::cfg {
 namespace {
@@ -94,20 +94,12 @@ YAML::Node checked(YAML::Node node, const std::string& origin) {
 
 Node Node::load_file(const std::filesystem::path& file, std::string* text) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
-  // A folder opens as a stream on Linux and only fails at the first read, inside yaml-cpp (which
-  // then leaks its half-built document): refuse anything that is not a regular file up front.
-  std::error_code ec;
-  const auto status = std::filesystem::status(file, ec);
-  if (std::filesystem::is_directory(status)) throw Error(file.string() + ": is a folder, not a YAML file");
-  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
-    throw Error(file.string() + ": is not a regular file");
+  std::string content;
+  try {
+    content = read_text_file(file, "a YAML file");
+  } catch (const std::runtime_error& e) {
+    throw Error(e.what());
   }
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw Error(file.string() + ": cannot open the file");
-  std::ostringstream read;
-  read << in.rdbuf();
-  if (in.bad()) throw Error(file.string() + ": cannot read the file");
-  std::string content = read.str();
   try {
     Node root(checked(YAML::Load(content), file.string()), shared, "", YAML::Mark());
     if (text != nullptr) *text = std::move(content);

@@ -1,10 +1,10 @@
 #include "hil/json_file.hpp"
 
 #include <algorithm>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <string>
+
+#include "hil/text_file.hpp"
 
 namespace hil {
 
@@ -35,12 +35,7 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& origin)
 }
 
 nlohmann::json read_json_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open the file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw std::runtime_error(file.string() + ": cannot read the file");
-  return parse_json_text(text.str(), file.string());
+  return parse_json_text(read_text_file(file, "a JSON file"), file.string());
 }
 
 }  // namespace hil

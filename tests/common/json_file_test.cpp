@@ -49,6 +49,6 @@ TEST(JsonFile, AFileNamesItselfAndAMissingOneIsSaid) {
     hil::read_json_file(dir.path() / "none.json");
     ADD_FAILURE() << "a missing file was read";
   } catch (const std::runtime_error& e) {
-    EXPECT_EQ(std::string(e.what()), (dir.path() / "none.json").string() + ": cannot open the file");
+    EXPECT_EQ(std::string(e.what()), (dir.path() / "none.json").string() + ": cannot open the file: No such file or directory");
   }
 }

@@ -5,16 +5,15 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
-#include <fstream>
 #include <limits>
 #include <mutex>
-#include <sstream>
 #include <thread>
 
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
 #include "hil/json_file.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -74,10 +73,7 @@ std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, 
   }
   std::sort(files.begin(), files.end());  // the same first row of a point, whatever the directory order
   for (const auto& file : files) {
-    std::ifstream in(file, std::ios::binary);
-    std::stringstream text;
-    text << in.rdbuf();
-    const std::string all = text.str();
+    const std::string all = hil::read_text_file(file);
     // Only whole lines: a writer that is still at it (or died in a write) may have a partial last one.
     std::size_t start = 0;
     for (std::size_t end = all.find('\n'); end != std::string::npos; start = end + 1, end = all.find('\n', start)) {

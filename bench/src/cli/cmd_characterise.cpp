@@ -2,13 +2,14 @@
 // noise-free and with the nominal transducer, as one markdown table. With --readme, the table
 // replaces the block between the characterise markers in FILE (the README's table is made so).
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <sstream>
 
 #include "commands.hpp"
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
+#include "hil/line_file.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -83,17 +84,13 @@ int run_characterise(const CharacteriseArgs& args) {
     return 0;
   }
   const std::filesystem::path readme = args.readme;
-  std::ifstream in(readme);
-  if (!in) throw std::runtime_error("cannot read " + readme.string());
-  std::stringstream ss;
-  ss << in.rdbuf();
-  std::string text = ss.str();
+  std::string text = hil::read_text_file(readme, "a README");
   const auto b = text.find(kBegin), e = text.find(kEnd);
   if (b == std::string::npos || e == std::string::npos || e < b) {
     throw std::runtime_error(readme.string() + ": no '" + kBegin + "' ... '" + kEnd + "' block to replace");
   }
   text.replace(b, e - b, std::string(kBegin) + "\n" + table);
-  std::ofstream(readme) << text;
+  hil::replace_file(readme, text);  // whole or not at all: a full disk never leaves a cut README
   std::printf("updated the table in %s\n", readme.c_str());
   return 0;
 }

@@ -3,7 +3,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <sstream>
 #include <thread>
@@ -11,6 +10,7 @@
 #include "commands.hpp"
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -182,14 +182,6 @@ std::string analysis_headline(const json& a) {
          number(member(r, "max_error_kpa"), "%.3g") + " kPa at " + number(member(r, "max_error_t_s"), "%.4g") + " s";
 }
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // ctl's command line: the server every command talks to, and each command's arguments (one
 // command runs, so commands that share an option share its field).
 struct CtlArgs {
@@ -225,7 +217,7 @@ int start(const CtlArgs& a, const ApiClient& api) {
   json body = {{"rig", a.rig}};
   const bool file = a.campaign.find('/') != std::string::npos || a.campaign.ends_with(".yaml") || a.campaign.ends_with(".yml");
   if (file) {
-    body["campaign_yaml"] = read_file(a.campaign);
+    body["campaign_yaml"] = hil::read_text_file(a.campaign, "a campaign file");
   } else {
     body["campaign"] = a.campaign;
   }

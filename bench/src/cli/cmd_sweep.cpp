@@ -11,7 +11,6 @@
 #include <csignal>
 #include <cstdio>
 #include <ctime>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <set>
@@ -22,6 +21,7 @@
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -47,13 +47,6 @@ std::string quoted(const std::string& s) {
   std::string q = "'";
   for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
   return q + "'";
-}
-
-std::string read_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // The plan in DIR, made from SWEEP.yaml when given: a folder planned from another sweep file (or
@@ -147,8 +140,8 @@ int run_program(const std::vector<std::string>& argv, std::string& out, std::str
   for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + quoted(a);
   cmd += " >" + quoted(out_file.string()) + " 2>" + quoted(err_file.string()) + " </dev/null";
   const int raw = std::system(cmd.c_str());
-  out = read_file(out_file);
-  err = read_file(err_file);
+  out = hil::read_text_file(out_file);
+  err = hil::read_text_file(err_file);
   std::error_code ec;
   std::filesystem::remove(out_file, ec);
   std::filesystem::remove(err_file, ec);

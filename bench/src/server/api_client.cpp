@@ -1,12 +1,12 @@
 #include "hil/bench/server/api_client.hpp"
 
-#include <fstream>
-
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -143,8 +143,7 @@ ApiReply ApiClient::download(const std::string& target, const std::filesystem::p
     if (reply.status == 200) {
       std::filesystem::rename(tmp, to);
     } else {
-      std::ifstream in(tmp);
-      reply.body.assign(std::istreambuf_iterator<char>(in), {});
+      reply.body = hil::read_text_file(tmp);
       std::filesystem::remove(tmp);
     }
   } catch (const boost::system::system_error& e) {
