@@ -4,6 +4,7 @@
 // Every case ends in a clear answer, the safe state where a run was under way, and records that
 // say what happened.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <fstream>
 #include <thread>
@@ -282,5 +283,23 @@ TEST(ServerHardening, ACutRunJsonIsNamedWithItsLineAndColumnNeverA500) {
   EXPECT_EQ(report.status, 422) << report.body;
   const auto analysis = api.post("/api/runs/20261127T050000Z_cut_adaptive/analyses", {{"kind", "compare"}, {"model", "nominal"}});
   EXPECT_EQ(analysis.status, 422) << analysis.body;
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// A run.json that is a FIFO (or a device) is refused at once: read as a file it blocked the
+// server's I/O thread in open(), so every later request, health included, hung until SIGTERM.
+TEST(ServerHardening, ARunJsonThatIsAFifoIsRefusedAndTheServerKeepsAnswering) {
+  ServerProcess server;
+  const auto api = server.client();
+  const auto dir = server.runs_dir() / "20261127T050000Z_fifo_adaptive";
+  std::filesystem::create_directories(dir);
+  ASSERT_EQ(::mkfifo((dir / "run.json").c_str(), 0600), 0);
+
+  const auto page = api.get("/api/runs/20261127T050000Z_fifo_adaptive");
+  EXPECT_EQ(page.status, 422) << page.body;
+  EXPECT_NE(page.json().value("detail", "").find("run.json: is not a regular file"), std::string::npos) << page.body;
+  const auto report = api.get("/api/runs/20261127T050000Z_fifo_adaptive/report.html");
+  EXPECT_EQ(report.status, 422) << report.body;
+  EXPECT_EQ(api.get("/api/runs").status, 200);
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
