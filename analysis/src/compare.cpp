@@ -1,13 +1,13 @@
 #include "hil/analysis/compare.hpp"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 
+#include "hil/progress_line.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "json_out.hpp"
@@ -317,20 +317,23 @@ std::string residual_json(const ResidualReport& r, int indent) { return detail::
 
 ResidualReport run_compare(const CompareOptions& o) {
   const plant::Plant model = plant::Plant::load(o.model_file);
-  const bool tty = ::isatty(STDERR_FILENO);
-  int last_decile = -1;
   Progress progress = o.on_progress;
+  std::optional<ProgressLine> line;
   if (!progress && o.progress && !o.quiet) {
+    ProgressLine::Options po;
+    po.delay_s = 1;  // a short file stays silent
+    line.emplace("compare", po);
     progress = [&](double f, std::size_t rows) {
-      const int decile = static_cast<int>(f * 10);
-      if (!tty && decile == last_decile) return;
-      last_decile = decile;
-      std::fprintf(stderr, "%scompare: %3.0f%% (%zu rows)%s", tty ? "\r" : "", 100 * f, rows, tty ? "" : "\n");
-      if (tty && f >= 1) std::fprintf(stderr, "\n");
+      line->update(f, [&] {
+        char detail[48];
+        std::snprintf(detail, sizeof detail, "(%zu rows)", rows);
+        return std::string(detail);
+      });
     };
   }
   ReplayInfo info;
   const ResidualReport r = compare_file(model, o.data_file, &info, progress, o.cancel);
+  if (line) line->end();
   throw_if_cancelled(o.cancel);
 
   std::filesystem::create_directories(o.out_dir);

@@ -17,6 +17,7 @@
 #include "sim_report.hpp"
 #include "hil/config.hpp"
 #include "hil/minmax_decimator.hpp"
+#include "hil/progress_line.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -216,27 +217,29 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
   if (options.progress && c.duration_s * runs.size() >= 120) {
     // Long campaign: a progress line while the workers run.
+    std::atomic<bool> runs_over{false};
     std::thread progress([&] {
-      const bool tty = ::isatty(STDERR_FILENO);
-      int last_decile = -1;
-      while (next.load() <= runs.size() && steps_done.load() < steps_total) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      const double simulated_s = c.duration_s * static_cast<double>(runs.size());
+      ProgressLine line("sim " + c.name);
+      auto show = [&] {
         const double f = static_cast<double>(steps_done.load()) / steps_total;
-        const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-        const int decile = static_cast<int>(f * 10);
-        if (tty || decile != last_decile) {
-          std::fprintf(stderr, "%ssim %s: %3.0f%% (%.0f of %.0f s simulated, %.0fx real time)%s", tty ? "\r" : "", c.name.c_str(),
-                       100 * f, f * c.duration_s * runs.size(), c.duration_s * runs.size(),
-                       f * c.duration_s * runs.size() / std::max(wall, 1e-9), tty ? "" : "\n");
-          last_decile = decile;
-        }
-        if (f >= 1) break;
+        line.update(f, [&] {
+          const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+          char detail[96];
+          std::snprintf(detail, sizeof detail, "(%.0f of %.0f s simulated, %.0fx real time)", f * simulated_s, simulated_s,
+                        f * simulated_s / std::max(wall_s, 1e-9));
+          return std::string(detail);
+        });
+      };
+      while (!runs_over.load()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        show();
       }
-      if (tty) std::fprintf(stderr, "\n");
+      show();  // where it ended: 100 % once every run is through, less when one failed
     });
     worker();
     for (auto& t : pool) t.join();
-    steps_done.store(steps_total);
+    runs_over.store(true);
     progress.join();
   } else {
     worker();

@@ -1,5 +1,4 @@
 // The sweep's folder and its points on threads: plan.json, the rows files, the resumable run.
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -7,11 +6,13 @@
 #include <exception>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
+#include "hil/progress_line.hpp"
 #include "hil/json_file.hpp"
 #include "hil/text_file.hpp"
 
@@ -31,19 +32,6 @@ std::string row_line(long p, const std::vector<double>& metrics) {
     }
   }
   return json{{"point", p}, {"metrics", m}}.dump() + "\n";
-}
-
-std::string eta_text(double s) {
-  char buf[32];
-  if (!std::isfinite(s)) return "?";
-  if (s < 100) {
-    std::snprintf(buf, sizeof buf, "%.0f s", s);
-  } else if (s < 6000) {
-    std::snprintf(buf, sizeof buf, "%.0f min", s / 60);
-  } else {
-    std::snprintf(buf, sizeof buf, "%.1f h", s / 3600);
-  }
-  return buf;
 }
 
 }  // namespace
@@ -102,8 +90,12 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   result.total = plan.size();
   const auto done = read_rows(dir, plan, &result.damaged_lines);
   std::vector<long> todo;
+  long shard_done = 0;  // this shard's points done before: where its progress starts
   for (long p = options.shard; p < plan.size(); p += options.shards) {
-    if (!done.count(p)) todo.push_back(p);
+    if (!done.count(p))
+      todo.push_back(p);
+    else
+      ++shard_done;
   }
   result.done = static_cast<long>(done.size());
   result.missing = static_cast<long>(todo.size());
@@ -119,20 +111,26 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   std::atomic<bool> failed{false};
   std::exception_ptr error;
   long ran = 0;
-  auto last_progress = Clock::now();
-  const bool tty = ::isatty(STDERR_FILENO) == 1;
-  auto progress = [&](bool final) {
-    if (!options.progress) return;
-    const auto now = Clock::now();
-    if (!final && now - last_progress < std::chrono::milliseconds(tty ? 250 : 5000)) return;
-    last_progress = now;
-    const double elapsed_s = std::chrono::duration<double>(now - t0).count();
-    const double rate = elapsed_s > 0 ? ran / elapsed_s : 0;
-    const long left = static_cast<long>(todo.size()) - ran;
-    std::fprintf(stderr, "%ssweep %s: %ld/%ld points, %.1f points/s, ETA %s%s", tty ? "\r" : "", plan.name.c_str(),
-                 result.done + ran, result.total, rate, eta_text(rate > 0 ? left / rate : NAN).c_str(),
-                 tty && !final ? "   " : "\n");
-    std::fflush(stderr);
+  const long shard_total = shard_done + static_cast<long>(todo.size());
+  std::optional<ProgressLine> line;
+  if (options.progress) {
+    ProgressLine::Options po;
+    po.start_fraction = static_cast<double>(shard_done) / static_cast<double>(shard_total);
+    line.emplace(options.shards > 1 ? "sweep " + plan.name + " shard " + std::to_string(options.shard + 1) + " of " +
+                                          std::to_string(options.shards)
+                                    : "sweep " + plan.name,
+                 po);
+  }
+  const auto t_run = Clock::now();
+  auto progress = [&] {
+    if (!line) return;
+    line->update(static_cast<double>(shard_done + ran) / static_cast<double>(shard_total), [&] {
+      const double elapsed_s = std::chrono::duration<double>(Clock::now() - t_run).count();
+      char detail[96];
+      std::snprintf(detail, sizeof detail, "(%ld/%ld points, %.1f points/s)", shard_done + ran, shard_total,
+                    elapsed_s > 0 ? ran / elapsed_s : 0.0);
+      return std::string(detail);
+    });
   };
   auto worker = [&] {
     while (!failed.load() && !(options.cancel != nullptr && options.cancel->load())) {
@@ -143,7 +141,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
         std::lock_guard lock(mutex);
         rows.append(line);
         ++ran;
-        progress(false);
+        progress();
       } catch (const Cancelled&) {
         return;  // stopped: the point in flight is abandoned, its row never written
       } catch (...) {
@@ -159,8 +157,8 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   for (int j = 1; j < jobs; ++j) threads.emplace_back(worker);
   worker();
   for (auto& t : threads) t.join();
+  if (line) line->end();
   if (error) std::rethrow_exception(error);
-  progress(true);
   result.ran = ran;
   result.done += ran;
   result.missing -= ran;

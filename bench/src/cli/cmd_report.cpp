@@ -1,13 +1,12 @@
 // hilbench report RUN_DIR... [--out FILE] [--quiet]
-#include <unistd.h>
-
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include "commands.hpp"
 #include "hil/bench/campaign/run_report.hpp"
+#include "hil/progress_line.hpp"
 
 namespace hil::bench {
 namespace {
@@ -25,32 +24,22 @@ int run_report(const ReportArgs& args) {
   // SIGINT/SIGTERM: the reading stops at its next chunk of rows and nothing is written.
   options.cancel = &StopSignal::install();
   // Progress on stderr once the reading takes a while (an hour's run at 1 kHz: a few seconds).
-  const bool tty = ::isatty(STDERR_FILENO);
-  const auto t0 = std::chrono::steady_clock::now();
-  auto last = t0;
-  bool shown = false;
-  int last_decile = -1;
+  std::optional<ProgressLine> line;
   if (!args.quiet) {
-    options.progress = [&](double f) {
-      const auto now = std::chrono::steady_clock::now();
-      const int decile = static_cast<int>(f * 10);
-      if (now - t0 < std::chrono::seconds(1) || now - last < std::chrono::milliseconds(500) || (!tty && decile == last_decile))
-        return;
-      last = now;
-      last_decile = decile;
-      shown = true;
-      std::fprintf(stderr, "%sreport: %3.0f%% of the telemetry read%s", tty ? "\r" : "", 100 * f, tty ? "" : "\n");
-    };
+    ProgressLine::Options po;
+    po.delay_s = 1;
+    line.emplace("report", po);
+    options.progress = [&](double f) { line->update(f, [] { return std::string("of the telemetry read"); }); };
   }
   std::vector<RecordedRun> runs;
   try {
     runs = write_run_report(dirs, out, options);
   } catch (const Cancelled&) {
-    if (shown && tty) std::fprintf(stderr, "\n");
+    if (line) line->end();
     std::fprintf(stderr, "report: cancelled by %s; nothing was written to %s\n", StopSignal::name(), out.c_str());
     return StopSignal::exit_code();
   }
-  if (shown && tty) std::fprintf(stderr, "\n");
+  if (line) line->end();
   if (!args.quiet) {
     std::printf("  %-28s %-11s %10s %12s %12s %10s\n", "run", "outcome", "IAE MPa.s", "stall s", "gap est deg", "touch chg");
     for (const auto& r : runs) {

@@ -57,9 +57,12 @@ class SimulatedRun {
 template <class OnStep>
 void simulate_run(const Campaign& c, const RunSpec& run, OnStep&& on_step, std::atomic<long>* steps_done = nullptr) {
   SimulatedRun sim(c, run);
-  for (long k = 1; sim.next(on_step); ++k) {
-    if (steps_done != nullptr && (k & 1023) == 0) steps_done->fetch_add(1024, std::memory_order_relaxed);
+  long k = 0;
+  while (sim.next(on_step)) {
+    if (steps_done != nullptr && (++k & 1023) == 0) steps_done->fetch_add(1024, std::memory_order_relaxed);
   }
+  // The last, partial block too: a finished run has counted all its steps (a progress line's 100 %).
+  if (steps_done != nullptr) steps_done->fetch_add(k & 1023, std::memory_order_relaxed);
 }
 
 // The motor "moves" above this speed in the run metrics: noise makes it creep slower.
