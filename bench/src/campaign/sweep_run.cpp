@@ -116,9 +116,10 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   if (options.progress) {
     ProgressLine::Options po;
     po.start_fraction = static_cast<double>(shard_done) / static_cast<double>(shard_total);
-    line.emplace(options.shards > 1 ? "sweep " + plan.name + " shard " + std::to_string(options.shard + 1) + " of " +
-                                          std::to_string(options.shards)
-                                    : "sweep " + plan.name,
+    // A shard as --shard names it (and its log file and rows): 0-based.
+    line.emplace(options.shards > 1
+                     ? "sweep " + plan.name + " shard " + std::to_string(options.shard) + "/" + std::to_string(options.shards)
+                     : "sweep " + plan.name,
                  po);
   }
   const auto t_run = Clock::now();

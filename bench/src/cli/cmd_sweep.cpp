@@ -215,7 +215,7 @@ int run_slurm(const SweepArgs& args) {
                                            "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%a.err").string() + "\nexec " +
                                            quoted(exe) + " sweep --out " + quoted(dir.string()) +
                                            " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
-                                           "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\" --quiet\n");
+                                           "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\"\n");
   replace_file(slurm_dir / "aggregate.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
                                                "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate.out").string() +
                                                "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate.err").string() +
