@@ -12,6 +12,9 @@ namespace {
 
 double steady_now_s() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
+// 0..1; an unknown fraction (0/0 of a pipe's size, say) counts as nothing done.
+double bounded(double fraction) { return std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0; }
+
 constexpr double kTerminalEveryS = 0.25;  // a redraw in place: often enough to look alive
 constexpr double kLogEveryS = 30;         // a log line between tenths of a slow job
 
@@ -28,14 +31,15 @@ ProgressLine::ProgressLine(std::string label, Options options)
 bool ProgressLine::due(double fraction) {
   const double now = o_.now_s();
   if (now - t0_s_ < o_.delay_s) return false;
-  const int tenth = static_cast<int>(std::floor(std::clamp(fraction, 0.0, 1.0) * 10));
-  if (tty_) return fraction >= 1 || now - last_s_ >= kTerminalEveryS;
+  const double f = bounded(fraction);
+  const int tenth = static_cast<int>(std::floor(f * 10));
+  if (tty_) return f >= 1 || now - last_s_ >= kTerminalEveryS;
   return tenth > last_tenth_ || now - last_s_ >= kLogEveryS;
 }
 
 void ProgressLine::print(double fraction, const std::string& detail) {
   const double now = o_.now_s();
-  const double f = std::clamp(fraction, 0.0, 1.0);
+  const double f = bounded(fraction);
   const double elapsed_s = now - t0_s_;
   std::string line = label_ + ": ";
   char pct[16];

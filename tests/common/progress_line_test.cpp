@@ -127,6 +127,19 @@ TEST(ProgressLine, AResumedJobsTimeLeftComesFromTheWorkDoneSinceItResumed) {
   EXPECT_EQ(sink.lines().at(0), "sweep r:  75%, ETA 10 s");
 }
 
+TEST(ProgressLine, AnUnknownFractionCountsAsNothingDoneNeverAsGarbage) {
+  Sink sink;
+  hil::ProgressLine line("compare", sink.options(0));
+  line.update(0.0 / 0.0);  // a pipe's progress: rows read of an unknown size
+  line.update(-0.5);
+  sink.now_s += 2;
+  line.update(7.0);  // past the end: shown as the end
+  const auto lines = sink.lines();
+  ASSERT_EQ(lines.size(), 2u) << sink.text();
+  EXPECT_EQ(lines[0], "compare:   0%");
+  EXPECT_EQ(lines[1], "compare: 100%, took 2 s");
+}
+
 TEST(ProgressLine, DurationsReadAsPeopleSayThem) {
   EXPECT_EQ(hil::duration_text(42.4), "42 s");
   EXPECT_EQ(hil::duration_text(720), "12 min");
