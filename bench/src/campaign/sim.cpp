@@ -11,11 +11,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <thread>
 
 #include "sim_report.hpp"
 #include "hil/config.hpp"
+#include "hil/line_file.hpp"
 #include "hil/minmax_decimator.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/units.hpp"
@@ -63,13 +63,6 @@ class ReportDecimator {
   std::array<double, std::size(kReportColumns)> values_{};
 };
 
-void write_text(const std::filesystem::path& file, const std::string& text) {
-  std::ofstream out(file, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw std::runtime_error("cannot write " + file.string());
-}
-
 RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
                    std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
@@ -101,7 +94,7 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
   summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
   summary["wall_s"] = out.wall_s;
-  write_text(dir / "summary.json", summary.dump(2) + "\n");
+  replace_file(dir / "summary.json", summary.dump(2) + "\n");
   return out;
 }
 
@@ -195,7 +188,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   } tmp_guard{tmp_dir};
   std::filesystem::remove_all(tmp_dir);
   for (const auto* r : runs) std::filesystem::create_directories(tmp_dir / r->name);
-  write_text(tmp_dir / "campaign.yaml", c.yaml_text);
+  replace_file(tmp_dir / "campaign.yaml", c.yaml_text);
 
   CampaignOutcome outcome;
   outcome.runs.resize(runs.size());
