@@ -19,20 +19,17 @@ Fft::Fft(std::size_t n) : n_(n) {
     const double a = -2 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(n);
     twiddle_[k] = {std::cos(a), std::sin(a)};
   }
-  bitrev_.resize(n);
-  int bits = 0;
-  while ((std::size_t{1} << bits) < n) ++bits;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t r = 0;
-    for (int b = 0; b < bits; ++b) r |= ((i >> b) & 1) << (bits - 1 - b);
-    bitrev_[i] = r;
-  }
 }
 
 void Fft::run(std::vector<std::complex<double>>& a, bool inverse) const {
   if (a.size() != n_) throw std::invalid_argument("Fft: wrong input size");
-  for (std::size_t i = 0; i < n_; ++i) {
-    if (i < bitrev_[i]) std::swap(a[i], a[bitrev_[i]]);
+  // The bit-reversal permutation, j = reverse(i) counted along with i (a table of n indices
+  // would cost as much memory as half the data).
+  for (std::size_t i = 1, j = 0; i < n_; ++i) {
+    std::size_t bit = n_ >> 1;
+    for (; (j & bit) != 0; bit >>= 1) j ^= bit;
+    j ^= bit;
+    if (i < j) std::swap(a[i], a[j]);
   }
   for (std::size_t len = 2; len <= n_; len <<= 1) {
     const std::size_t half = len / 2, step = n_ / len;

@@ -19,7 +19,6 @@ class Fft {
   void run(std::vector<std::complex<double>>& a, bool inverse) const;
   std::size_t n_;
   std::vector<std::complex<double>> twiddle_;
-  std::vector<std::size_t> bitrev_;
 };
 
 std::size_t next_pow2(std::size_t n);

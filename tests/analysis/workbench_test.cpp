@@ -316,6 +316,46 @@ TEST(Statistics, WhiteResidualIsWhiteAndAtTheFloor) {
   EXPECT_TRUE(r.diagnostics.peaks.empty());
 }
 
+// An AR(1) series e[k] = phi e[k-1] + w[k].
+std::vector<double> ar1(double phi, std::size_t n, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> w(0, 1);
+  std::vector<double> e(n);
+  double x = 0;
+  for (auto& v : e) v = x = phi * x + w(rng);
+  return e;
+}
+
+TEST(Statistics, AutocorrelationTimeOfAnAr1IsItsClosedForm) {
+  // tau_int = 1 + 2 sum phi^l = (1 + phi) / (1 - phi): 9 for phi = 0.8, 1 for white noise.
+  EXPECT_NEAR(hil::analysis::integrated_autocorrelation_time(ar1(0.8, 300000, 5)), 9.0, 0.45);
+  EXPECT_NEAR(hil::analysis::integrated_autocorrelation_time(ar1(0.0, 300000, 6)), 1.0, 0.1);
+}
+
+TEST(Statistics, AutocorrelationTimeIsTheDirectSumOfTheLaggedProducts) {
+  // The FFT's result against the definition, lag by lag: rho(l) = sum (e_i - m)(e_{i+l} - m) /
+  // sum (e_i - m)^2 for l <= 2000, summed in pairs until a pair is not positive (Geyer). Series
+  // just below a power of two (an FFT padded too little wraps their lags around) and just above.
+  for (const std::size_t n : {std::size_t{2100}, std::size_t{4000}, std::size_t{4097}, std::size_t{65000}}) {
+    const std::vector<double> e = ar1(0.999, n, static_cast<unsigned>(n));  // correlated for long: Geyer runs far
+    double m = 0;
+    for (double v : e) m += v;
+    m /= static_cast<double>(n);
+    const std::size_t lags = std::min<std::size_t>(2000, n - 1);
+    std::vector<double> rho(lags + 1);
+    for (std::size_t l = 0; l <= lags; ++l) {
+      double sum = 0;
+      for (std::size_t i = 0; i + l < n; ++i) sum += (e[i] - m) * (e[i + l] - m);
+      rho[l] = sum;
+    }
+    for (std::size_t l = lags + 1; l-- > 0;) rho[l] /= rho[0];
+    double pairs = 0;
+    for (std::size_t k = 0; 2 * k + 1 < rho.size() && rho[2 * k] + rho[2 * k + 1] > 0; ++k) pairs += rho[2 * k] + rho[2 * k + 1];
+    const double direct = std::max(1.0, 2 * pairs - 1);
+    EXPECT_NEAR(hil::analysis::integrated_autocorrelation_time(e), direct, 1e-9 * direct) << n << " samples";
+  }
+}
+
 TEST(Statistics, FitPercentIsTheDefinition) {
   // fit = 100 (1 - |e| / |y - mean y|): a constant residual of half the spread gives 50 %.
   const auto r0 = analyze([](double, double) { return 0.0; }, 0.0);
