@@ -203,7 +203,7 @@ bool run_report_current(const fs::path& run_dir) {
   return !ec && !ec2 && made >= recorded;
 }
 
-std::uint64_t diagnose_memory_bytes(std::uint64_t csv_bytes) { return 2 * csv_bytes + (std::uint64_t{16} << 20); }
+std::uint64_t diagnose_memory_bytes(std::uint64_t csv_bytes) { return csv_bytes * 5 / 2 + (std::uint64_t{16} << 20); }
 
 json make_run_report(const fs::path& run_dir, const JobQueue::Progress& progress, const std::atomic<bool>* cancel) {
   const auto part = run_dir / "report.html.tmp";  // a half-written report is never served or listed

@@ -42,9 +42,10 @@ std::string next_analysis_id(const std::filesystem::path& run_dir, const std::st
                              const std::vector<std::string>& taken);
 
 // What a diagnosis of a telemetry.csv of `csv_bytes` holds in memory at its peak (its rows as
-// numbers, their replays): 2 x the file plus 16 MiB, measured with `hilbench diagnose` on 81 and
-// 325 MB of 1 kHz telemetry (178 and 669 MB resident, docs/benchmarks.md). The server checks it
-// against ApiOptions::max_diagnose_bytes before it queues a diagnosis: its memory is locked.
+// numbers, their replays and fits): at most 2.5 x the file plus 16 MiB. Measured with `hilbench
+// diagnose` on 23 to 325 MB of 1 kHz telemetry: 1.6 to 2.5 x plus 16 MiB, the most where more
+// parameters are fitted (docs/benchmarks.md). The server checks it against
+// ApiOptions::max_diagnose_bytes before it queues a diagnosis: its memory is locked.
 std::uint64_t diagnose_memory_bytes(std::uint64_t csv_bytes);
 
 // The reason a job gives when the server stopped it at a cancel point.
