@@ -4,7 +4,7 @@
 # sweep of this folder as a job array of 3 shards plus the aggregation job, waits for both (Slurm
 # must report every task and the aggregation COMPLETED), and checks that
 #   - sweep.csv is byte for byte the one a local sweep of the same file writes,
-#   - `hilbench sweep --status` reports every point done,
+#   - `hilbench sweep --status` reports every point done and each task's last progress line,
 #   - after one shard's rows are deleted, resubmitting the same command runs that shard only
 #     (the other shards' rows files are not touched) and gives the same sweep.csv again,
 #   - resubmitting a complete sweep submits nothing.
@@ -134,6 +134,12 @@ done
 status=$("$hilbench" sweep --status "$slurm_out" 2>&1) || fail "hilbench sweep --status failed: $status"
 echo "$status"
 grep -q "8 of 8 points done" <<<"$status" || fail "--status does not report 8/8 points done"
+# Each task's own progress line, from its log: 8 points in 3 shards are 3, 3 and 2.
+for task in "0 3" "1 3" "2 2"; do
+  read -r i n <<<"$task"
+  grep -Eq "^  task $i: sweep slurm_small shard $i/3: 100% \($n/$n points, [0-9.]+ points/s\), took [0-9]+ s$" <<<"$status" ||
+    fail "--status does not show task $i's last progress line (100 %, $n/$n points)"
+done
 
 echo "== resubmit after losing shard 1's rows"
 rows=$slurm_out/rows

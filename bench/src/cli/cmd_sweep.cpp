@@ -6,9 +6,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <ctime>
 #include <memory>
@@ -266,6 +268,32 @@ int run_slurm(const SweepArgs& args) {
   return 0;
 }
 
+// Each array task's own last progress line (the end of its shard-I.err): how far each shard is,
+// with its ETA, or what it took. A task not started yet has no log; one that failed shows its error.
+void say_task_progress(const std::filesystem::path& logs) {
+  std::error_code ec;
+  std::vector<std::pair<long, std::filesystem::path>> files;
+  for (const auto& e : std::filesystem::directory_iterator(logs, ec)) {
+    const std::string name = e.path().filename().string();
+    if (!name.starts_with("shard-") || e.path().extension() != ".err") continue;
+    char* end = nullptr;
+    const long i = std::strtol(name.c_str() + 6, &end, 10);
+    if (end != name.c_str() + 6 && std::string_view(end) == ".err") files.emplace_back(i, e.path());
+  }
+  std::sort(files.begin(), files.end());  // by task number: shard-10 after shard-9
+  for (const auto& [i, file] : files) {
+    std::string text;
+    try {
+      text = hil::read_text_file(file);
+    } catch (const std::exception& e) {
+      std::printf("  task %ld: %s\n", i, e.what());
+      continue;
+    }
+    const std::string last = trimmed(text.substr(text.find_last_of('\n', text.find_last_not_of(" \r\n")) + 1));
+    std::printf("  task %ld: %s\n", i, last.empty() ? "(no output yet)" : last.c_str());
+  }
+}
+
 int run_status(const SweepArgs& args) {
   const std::filesystem::path dir = args.status_dir;
   const SweepPlan plan = read_plan(dir);
@@ -315,6 +343,7 @@ int run_status(const SweepArgs& args) {
       std::printf("  %s job %s (submitted %s): %s\n", kind, id.c_str(), s.value("submitted_utc", "?").c_str(), state.c_str());
     }
   }
+  say_task_progress(dir / "slurm" / "logs");
   return 0;
 }
 
