@@ -15,26 +15,26 @@ double steady_now_s() { return std::chrono::duration<double>(std::chrono::steady
 // 0..1; an unknown fraction (0/0 of a pipe's size, say) counts as nothing done.
 double bounded(double fraction) { return std::isfinite(fraction) ? std::clamp(fraction, 0.0, 1.0) : 0.0; }
 
+// Which tenth of the work `f` (bounded) is in: a log gets a line when it changes.
+int tenth_of(double f) { return static_cast<int>(std::floor(f * 10)); }
+
 constexpr double kTerminalEveryS = 0.25;  // a redraw in place: often enough to look alive
 constexpr double kLogEveryS = 30;         // a log line between tenths of a slow job
 
 }  // namespace
 
 ProgressLine::ProgressLine(std::string label, Options options)
-    : label_(std::move(label)),
-      o_(std::move(options)),
-      tty_(o_.tty >= 0 ? o_.tty == 1 : ::isatty(::fileno(o_.out)) == 1),
-      t0_s_(o_.now_s ? o_.now_s() : steady_now_s()) {
+    : label_(std::move(label)), o_(std::move(options)), tty_(o_.tty >= 0 ? o_.tty == 1 : ::isatty(::fileno(o_.out)) == 1) {
   if (!o_.now_s) o_.now_s = steady_now_s;
+  t0_s_ = o_.now_s();
 }
 
 bool ProgressLine::due(double fraction) {
   const double now = o_.now_s();
   if (now - t0_s_ < o_.delay_s) return false;
   const double f = bounded(fraction);
-  const int tenth = static_cast<int>(std::floor(f * 10));
   if (tty_) return f >= 1 || now - last_s_ >= kTerminalEveryS;
-  return tenth > last_tenth_ || now - last_s_ >= kLogEveryS;
+  return tenth_of(f) > last_tenth_ || now - last_s_ >= kLogEveryS;
 }
 
 void ProgressLine::print(double fraction, const std::string& detail) {
@@ -65,7 +65,7 @@ void ProgressLine::print(double fraction, const std::string& detail) {
   }
   std::fflush(o_.out);
   last_s_ = now;
-  last_tenth_ = static_cast<int>(std::floor(f * 10));
+  last_tenth_ = tenth_of(f);
   shown_ = true;
 }
 

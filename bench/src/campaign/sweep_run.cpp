@@ -112,20 +112,20 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   std::exception_ptr error;
   long ran = 0;
   const long shard_total = shard_done + static_cast<long>(todo.size());
-  std::optional<ProgressLine> line;
+  std::optional<ProgressLine> progress_line;  // not `line`: the workers' row lines are named so
   if (options.progress) {
     ProgressLine::Options po;
     po.start_fraction = static_cast<double>(shard_done) / static_cast<double>(shard_total);
     // A shard as --shard names it (and its log file and rows): 0-based.
-    line.emplace(options.shards > 1
-                     ? "sweep " + plan.name + " shard " + std::to_string(options.shard) + "/" + std::to_string(options.shards)
-                     : "sweep " + plan.name,
-                 po);
+    progress_line.emplace(options.shards > 1 ? "sweep " + plan.name + " shard " + std::to_string(options.shard) + "/" +
+                                                   std::to_string(options.shards)
+                                             : "sweep " + plan.name,
+                          po);
   }
   const auto t_run = Clock::now();
   auto progress = [&] {
-    if (!line) return;
-    line->update(static_cast<double>(shard_done + ran) / static_cast<double>(shard_total), [&] {
+    if (!progress_line) return;
+    progress_line->update(static_cast<double>(shard_done + ran) / static_cast<double>(shard_total), [&] {
       const double elapsed_s = std::chrono::duration<double>(Clock::now() - t_run).count();
       char detail[96];
       std::snprintf(detail, sizeof detail, "(%ld/%ld points, %.1f points/s)", shard_done + ran, shard_total,
@@ -158,7 +158,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   for (int j = 1; j < jobs; ++j) threads.emplace_back(worker);
   worker();
   for (auto& t : threads) t.join();
-  if (line) line->end();
+  if (progress_line) progress_line->end();
   if (error) std::rethrow_exception(error);
   result.ran = ran;
   result.done += ran;

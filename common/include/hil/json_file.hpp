@@ -9,8 +9,9 @@
 
 namespace hil {
 
-// The file's JSON. Throws std::runtime_error naming where: "FILE: cannot open the file", or
-// "FILE:LINE:COLUMN: not JSON: REASON" (the parser's reason, e.g. an unexpected end of input).
+// The file's JSON. Throws std::runtime_error naming where: read_text_file's errors ("FILE: cannot
+// open the file: REASON", "FILE: is not a regular file", ...), or "FILE:LINE:COLUMN: not JSON:
+// REASON" (the parser's reason, e.g. an unexpected end of input).
 nlohmann::json read_json_file(const std::filesystem::path& file);
 
 // The same for text already read; `origin` names it in errors.

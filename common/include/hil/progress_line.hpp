@@ -50,7 +50,7 @@ class ProgressLine {
   std::string label_;
   Options o_;
   bool tty_;
-  double t0_s_;
+  double t0_s_ = 0;  // when the line was made, on o_.now_s
   double last_s_ = -1e300;
   int last_tenth_ = -1;
   std::size_t last_width_ = 0;
