@@ -7,6 +7,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "hil/line_file.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
@@ -348,7 +349,7 @@ ResidualReport run_compare(const CompareOptions& o) {
                 {"motor0_deg", units::rad_to_deg(info.start.motor0_rad)},
                 {"rows_averaged", info.start.rows_averaged}};
   j["wall_s"] = info.wall_s;
-  detail::write_text(o.out_dir / "compare.json", j.dump(2) + "\n");
+  const std::string json_text = j.dump(2) + "\n";
 
   report::Document doc("Model validation: " + o.data_file.filename().string());
   doc.paragraph("Model " + o.model_file.string() + " replayed open loop on " + o.data_file.string() + " (" +
@@ -357,7 +358,9 @@ ResidualReport run_compare(const CompareOptions& o) {
   detail::add_summary_table(doc, r);
   doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
   add_residual_sections(doc, r, "time", "model");
-  doc.write(o.out_dir / "report.html");
+  // Both or neither: a full disk never leaves this JSON beside an older report.
+  const std::string html = doc.html();
+  hil::replace_files(std::vector<hil::FileText>{{o.out_dir / "compare.json", {json_text}}, {o.out_dir / "report.html", {html}}});
 
   if (!o.quiet) {
     std::printf("%s", detail::summary_text(r, o.model_file.filename().string()).c_str());

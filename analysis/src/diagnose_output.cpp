@@ -6,6 +6,7 @@
 
 #include "hil/analysis/compare.hpp"
 #include "hil/analysis/diagnose.hpp"
+#include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "json_out.hpp"
@@ -255,8 +256,7 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
 
 }  // namespace
 
-void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files,
-                            const std::filesystem::path& html) {
+std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files) {
   const bool several = d.files.size() > 1;
   const std::string first = data_files.empty() ? std::string("data") : data_files.front().filename().string();
   report::Document doc("Diagnosis: " + first + (several ? " and " + std::to_string(d.files.size() - 1) + " more" : ""));
@@ -349,11 +349,33 @@ void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& mod
     doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
     add_residual_sections(doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model");
   }
-  doc.write(html);
+  return doc.html();
 }
+
+namespace {
+
+// --write-model must not overwrite an input nor be a folder; said before the fit.
+void check_model_output(const DiagnoseOptions& o) {
+  if (o.write_model.empty()) return;
+  std::error_code ec;
+  if (std::filesystem::is_directory(o.write_model, ec)) {
+    throw std::invalid_argument("--write-model " + o.write_model.string() + ": is a folder; give the fitted model's file name");
+  }
+  std::vector<std::filesystem::path> inputs = o.data_files;
+  inputs.push_back(o.model_file);
+  for (const auto& input : inputs) {
+    if (std::filesystem::equivalent(o.write_model, input, ec)) {
+      throw std::invalid_argument("--write-model " + o.write_model.string() + ": is the input " + input.string() +
+                                  ", which it would overwrite; give another file name");
+    }
+  }
+}
+
+}  // namespace
 
 Diagnosis run_diagnose(const DiagnoseOptions& o) {
   if (o.data_files.empty()) throw std::invalid_argument("diagnose: no measurement file given");
+  check_model_output(o);  // before minutes of fitting, not after
   const plant::Plant model = plant::Plant::load(o.model_file);
   std::vector<Measurement> data;
   data.reserve(o.data_files.size());
@@ -374,12 +396,16 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
   const Diagnosis d = diagnose(model, files, s);
   throw_if_cancelled(s.cancel);
   std::filesystem::create_directories(o.out_dir);
-  detail::write_text(o.out_dir / "diagnosis.json", diagnosis_json(d, o.model_file, o.data_files));
-  write_diagnosis_report(d, o.model_file, o.data_files, o.out_dir / "report.html");
+  const std::string json_text = diagnosis_json(d, o.model_file, o.data_files);
+  const std::string html = diagnosis_report_html(d, o.model_file, o.data_files);
+  std::vector<hil::FileText> outputs{{o.out_dir / "diagnosis.json", {json_text}}, {o.out_dir / "report.html", {html}}};
+  std::string model_text;
   if (!o.write_model.empty()) {
     if (o.write_model.has_parent_path()) std::filesystem::create_directories(o.write_model.parent_path());
-    detail::write_text(o.write_model, fitted_model_yaml(d, o.model_file, o.data_files));
+    model_text = fitted_model_yaml(d, o.model_file, o.data_files);
+    outputs.push_back({o.write_model, {model_text}});
   }
+  hil::replace_files(outputs);  // all or none: never a new diagnosis beside an older report
   if (!o.quiet) {
     for (const auto& line : d.summary) std::printf("%s\n", line.c_str());
     if (!d.rounds.empty()) {

@@ -4,7 +4,6 @@
 #include <stdexcept>
 
 #include "hil/analysis/compare.hpp"
-#include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "text.hpp"
@@ -166,8 +165,6 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
   for (const auto& line : r.signature) s += "  - " + line + "\n";
   return s;
 }
-
-void write_text(const std::filesystem::path& file, const std::string& text) { hil::replace_file(file, text); }
 
 }  // namespace hil::analysis::detail
 

@@ -17,7 +17,5 @@ namespace hil::analysis::detail {
 nlohmann::json residual_to_json(const ResidualReport& r);
 void add_summary_table(report::Document& doc, const ResidualReport& r);
 std::string summary_text(const ResidualReport& r, const std::string& model_name);
-// Writes atomically (temp file + rename); throws std::runtime_error naming the file.
-void write_text(const std::filesystem::path& file, const std::string& text);
 
 }  // namespace hil::analysis::detail

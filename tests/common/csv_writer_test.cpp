@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <system_error>
+#include <thread>
 
 #include "hil/line_file.hpp"
 #include "small_disk.hpp"
@@ -108,4 +110,113 @@ TEST(LineFile, TrimsAHalfWrittenLastLine) {
   hil::LineFile f(file, /*append=*/true);
   f.append("{\"d\":4}\n");
   EXPECT_EQ(f.bytes(), 24u);
+}
+
+namespace {
+std::string slurp(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+std::size_t entries(const std::filesystem::path& dir) {
+  return static_cast<std::size_t>(std::distance(std::filesystem::directory_iterator(dir), {}));
+}
+}  // namespace
+
+TEST(ReplaceFile, WritesThePartsInOrderAndLeavesNoTemporary) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("r.json", "old\n");
+  const std::string_view parts[] = {"{\"a\":", "", "1}\n"};
+  hil::replace_file(file, parts);
+  EXPECT_EQ(slurp(file), "{\"a\":1}\n");
+  EXPECT_EQ(entries(dir.path()), 1u);
+}
+
+// Two writers of one file (two `sim --out` of one folder, two threads of a server) each get
+// their own temporary, so the file is always one writer's whole text; with one shared
+// temporary name they wrote into each other's file and one rename found it gone.
+TEST(ReplaceFile, TwoWritersOfOneFileLeaveOneWholeText) {
+  hil::test::TempDir dir;
+  const auto file = dir.path() / "summary.json";
+  const std::string long_text(200000, 'a'), short_text = "short\n";
+  std::atomic<int> failures{0};
+  auto writer = [&](const std::string& text) {
+    for (int i = 0; i < 200; ++i) {
+      try {
+        hil::replace_file(file, text);
+      } catch (const std::system_error&) {
+        ++failures;
+      }
+    }
+  };
+  std::thread a(writer, std::cref(long_text)), b(writer, std::cref(short_text));
+  int torn = 0;
+  for (int i = 0; i < 200; ++i) {
+    const std::string seen = slurp(file);
+    if (!seen.empty() && seen != long_text && seen != short_text) ++torn;
+  }
+  a.join();
+  b.join();
+  EXPECT_EQ(failures.load(), 0);
+  EXPECT_EQ(torn, 0);
+  const std::string last = slurp(file);
+  EXPECT_TRUE(last == long_text || last == short_text) << last.size() << " bytes";
+  EXPECT_EQ(entries(dir.path()), 1u);
+}
+
+TEST(ReplaceFile, AFullDiskKeepsTheOldFileAndNamesTheReason) {
+  hil::test::TempDir dir;
+  hil::test::SmallDisk disk(dir.path() / "disk", "64k");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?)";
+  const auto file = dir.path() / "disk" / "run.json";
+  hil::replace_file(file, "{\"state\":\"running\"}\n");
+  try {
+    hil::replace_file(file, std::string(128 * 1024, 'x'));
+    FAIL() << "128 KiB should not fit on a 64 KiB disk";
+  } catch (const std::system_error& e) {
+    EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(slurp(file), "{\"state\":\"running\"}\n");
+  EXPECT_EQ(entries(dir.path() / "disk"), 1u);
+}
+
+TEST(ReplaceFile, AMissingFolderIsNamed) {
+  try {
+    hil::replace_file("/nonexistent-hil-folder/run.json", "x\n");
+    FAIL() << "should throw";
+  } catch (const std::system_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-hil-folder/run.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("No such file or directory"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ReplaceFile, KeepsThePermissionsOfTheFileItReplaces) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("README.md", "old\n");
+  std::filesystem::permissions(file, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  hil::replace_file(file, "new\n");
+  EXPECT_EQ(slurp(file), "new\n");
+  EXPECT_EQ(std::filesystem::status(file).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+}
+
+// A result of several files (compare.json and report.html) is replaced together: when the disk
+// takes the first and not the second, both stay as they were (never a new JSON beside an old
+// report, which is what compare left on a full disk).
+TEST(ReplaceFile, SeveralFilesAreReplacedAllOrNone) {
+  hil::test::TempDir dir;
+  hil::test::SmallDisk disk(dir.path() / "disk", "64k");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?)";
+  const auto json = dir.path() / "disk" / "compare.json", html = dir.path() / "disk" / "report.html";
+  hil::replace_files(std::vector<hil::FileText>{{json, {"old json\n"}}, {html, {"old report\n"}}});
+  const std::string new_json = "new json\n", big_report(128 * 1024, 'r');
+  EXPECT_THROW(hil::replace_files(std::vector<hil::FileText>{{json, {new_json}}, {html, {big_report}}}), std::system_error);
+  EXPECT_EQ(slurp(json), "old json\n");
+  EXPECT_EQ(slurp(html), "old report\n");
+  EXPECT_EQ(entries(dir.path() / "disk"), 2u);
+  hil::replace_files(std::vector<hil::FileText>{{json, {new_json}}, {html, {"new ", "report\n"}}});
+  EXPECT_EQ(slurp(json), "new json\n");
+  EXPECT_EQ(slurp(html), "new report\n");
 }

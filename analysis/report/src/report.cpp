@@ -1,21 +1,16 @@
 #include "hil/report/report.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <atomic>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <span>
 #include <stdexcept>
-#include <system_error>
 
 #include "assets.hpp"
 #include "encode.hpp"
+#include "hil/line_file.hpp"
 
 namespace hil::report {
 namespace {
@@ -377,45 +372,8 @@ std::string Document::html() const { return page_head() + body_ + page_tail(); }
 
 void Document::write(const std::filesystem::path& file) const {
   const std::string head = page_head(), tail = page_tail();
-  // A per-process counter keeps two writers in one process apart; O_EXCL keeps processes apart.
-  static std::atomic<unsigned> counter{0};
-  const auto dir = file.has_parent_path() ? file.parent_path() : std::filesystem::path(".");
-  std::filesystem::path tmp;
-  int fd = -1;
-  for (int attempt = 0; attempt < 100 && fd < 0; ++attempt) {
-    std::string name = ".";  // hidden, and named after the target so a leftover explains itself
-    name += file.filename().string();
-    name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-    tmp = dir / name;
-    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);  // umask applies
-    if (fd < 0 && errno != EEXIST) break;
-  }
-  if (fd < 0) {
-    throw std::system_error(errno, std::generic_category(), "report: cannot create a temporary file next to " + file.string());
-  }
-  int err = 0;
-  for (const std::string* part : {&head, &body_, &tail}) {
-    const char* p = part->data();
-    std::size_t left = part->size();
-    while (left > 0 && err == 0) {
-      const ssize_t n = ::write(fd, p, left);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) {
-        err = n < 0 ? errno : EIO;
-        break;
-      }
-      p += n;
-      left -= static_cast<std::size_t>(n);
-    }
-  }
-  // No fsync: the rename makes the file appear whole to readers, which is what a report needs;
-  // surviving a power cut is not worth milliseconds of a command budgeted at ~20 ms.
-  if (::close(fd) != 0 && err == 0) err = errno;
-  if (err == 0 && ::rename(tmp.c_str(), file.c_str()) != 0) err = errno;
-  if (err != 0) {
-    ::unlink(tmp.c_str());
-    throw std::system_error(err, std::generic_category(), "report: cannot write " + file.string());
-  }
+  const std::string_view parts[] = {head, body_, tail};  // the body is not copied into one page
+  hil::replace_file(file, parts);
 }
 
 }  // namespace hil::report

@@ -5,7 +5,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string_view>
+#include <vector>
 
 namespace hil {
 
@@ -34,9 +36,26 @@ class LineFile {
 // middle of a write). Returns how many bytes were removed; 0 when it already ended whole.
 std::uint64_t trim_to_whole_lines(const std::filesystem::path& file);
 
-// Replaces `file` with `text` all at once: written through a LineFile to ".<name>.tmp" beside it,
-// then renamed over it, so a reader sees the old file or the whole new one. On failure the
-// temporary is removed and the error thrown; the old file stays.
-void replace_file(const std::filesystem::path& file, std::string_view text);
+// Replaces `file` with `parts` written one after the other, all at once: written to a temporary
+// beside it (".<name>.tmp<pid>-<n>", created exclusively, so two writers of the same file, in one
+// process or two, never share one), then renamed over it. A reader sees the old file or a whole
+// new one; of two concurrent writers the last rename wins, whole. On failure (full disk, no
+// folder, a folder in the way) the temporary is removed and std::system_error thrown, naming
+// `file` and the OS's reason; the old file stays. A file replaced keeps its permission bits; a
+// link at `file` is replaced by the file, never followed (an output folder's link cannot send a
+// write elsewhere).
+void replace_file(const std::filesystem::path& file, std::span<const std::string_view> parts);
+inline void replace_file(const std::filesystem::path& file, std::string_view text) {
+  replace_file(file, std::span<const std::string_view>(&text, 1));
+}
+
+// Several files of one result (a report and its JSON) replaced together: every text is written
+// to its temporary first, then all are renamed. A failure while writing (a full disk) leaves
+// every old file as it was, never a new JSON beside an old report.
+struct FileText {
+  std::filesystem::path file;
+  std::vector<std::string_view> parts;  // written one after the other; they must outlive the call
+};
+void replace_files(std::span<const FileText> files);
 
 }  // namespace hil

@@ -149,8 +149,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
 
 using DataFiles = std::vector<std::filesystem::path>;
 std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files);
-void write_diagnosis_report(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files,
-                            const std::filesystem::path& html);
+// The diagnosis as a report page (report.html).
+std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files);
 // The fitted model as YAML, with a header naming what was added.
 std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files);
 

@@ -95,8 +95,8 @@ class Document {
 
   // The whole page as a string (what write() puts in the file).
   std::string html() const;
-  // Atomic: writes a temporary file in the same folder, then renames it over `file`. On failure
-  // the temporary is removed, an existing `file` is untouched, and std::system_error names it.
+  // Atomic (hil::replace_file): a reader sees the old file or the whole new page. On failure the
+  // temporary is removed, an existing `file` is untouched, and std::system_error names it.
   void write(const std::filesystem::path& file) const;
 
  private:
