@@ -10,6 +10,27 @@ namespace hil {
 namespace {
 
 constexpr std::size_t kReadBytes = 1 << 20, kMinReadBytes = 1 << 12;
+// No measurement row comes near this; a file without line ends (a binary, /dev/zero) stops here
+// instead of growing one line until memory runs out.
+constexpr std::size_t kMaxLineBytes = std::size_t{16} << 20;
+
+// Text from the file as an error quotes it: control bytes (a NUL would cut the message, an
+// escape sequence would drive the user's terminal) as \xNN, and at most 60 bytes of it.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size() && i < 60; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x20 || c == 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", c);
+      out += hex;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  if (text.size() > 60) out += "...";
+  return out;
+}
 
 std::string trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -56,7 +77,13 @@ CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request) : pa
     if (!read_line(line)) {
       throw CsvError(file.string() + ":" + std::to_string(line_no_ + 1) + ":1: no header row (the file is empty)");
     }
+    if (line_no_ == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte order mark
     const std::string t = trim(line);
+    if (const auto cr = t.find('\r'); cr != std::string::npos) {
+      fail(
+          line_no_, cr + 1,
+          "a carriage return inside a line: the file's lines end in CR alone (old Mac style); save it with LF or CRLF line ends");
+    }
     if (t.empty()) continue;
     if (t[0] == '#') {
       const auto colon = t.find(':');
@@ -71,7 +98,7 @@ CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request) : pa
   for (std::size_t i = 0; i < header_.names.size(); ++i) {
     for (std::size_t j = 0; j < i; ++j) {
       if (header_.names[i] == header_.names[j] && !header_.names[i].empty()) {
-        fail(line_no_, i + 1, "column '" + header_.names[i] + "' appears twice");
+        fail(line_no_, i + 1, "column '" + printable(header_.names[i]) + "' appears twice");
       }
     }
   }
@@ -83,7 +110,7 @@ CsvReader::CsvReader(const std::filesystem::path& file, CsvRequest request) : pa
     const int idx = find(name);
     if (idx < 0) {
       std::string have;
-      for (const auto& n : header_.names) have += (have.empty() ? "" : ", ") + n;
+      for (const auto& n : header_.names) have += (have.empty() ? "" : ", ") + printable(n);
       fail(line_no_, 1, "missing required column '" + name + "' (the header has: " + have + ")");
     }
     field_of_.push_back(idx);
@@ -117,6 +144,9 @@ bool CsvReader::read_line(std::string& line) {
     }
     line.append(buffer_, buffer_pos_, std::string::npos);
     consumed_ += buffer_.size() - buffer_pos_;
+    if (line.size() > kMaxLineBytes) {
+      fail(line_no_ + 1, 1, "a line longer than " + std::to_string(kMaxLineBytes >> 20) + " MiB: not a measurement CSV");
+    }
     buffer_.clear();
     buffer_pos_ = 0;
     if (eof_) {
@@ -175,7 +205,7 @@ bool CsvReader::next(CsvChunk& chunk, std::size_t max_rows) {
           c < request_.required.size() ? request_.required[c] : request_.optional[c - request_.required.size()];
       if (cell.empty() || ec != std::errc() || ptr != cell.data() + cell.size() || !std::isfinite(v)) {
         fail(line_no_, static_cast<std::size_t>(field_of_[c]) + 1,
-             "column '" + name + "': not a number: '" + std::string(cell) + "'");
+             "column '" + name + "': not a number: '" + printable(cell) + "'");
       }
       if (static_cast<int>(c) == inc_index) {
         if (have_last_ && !(v > last_increasing_)) {

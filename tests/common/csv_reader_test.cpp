@@ -75,6 +75,46 @@ TEST(CsvReader, RaggedRowAndEmptyFile) {
   EXPECT_EQ(error_of("# only: metadata\n").rfind("m.csv:2:1: no header row", 0), 0u);
 }
 
+// What spreadsheet programs and old loggers write: a UTF-8 byte order mark is read past; lines
+// ended by CR alone are refused by name (they read as one long line with a nonsense header).
+TEST(CsvReader, AByteOrderMarkIsReadPastAndCrOnlyLineEndsAreNamed) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("m.csv", "\xEF\xBB\xBFt_s,theta_cmd_deg,p_meas_mpa\n0,1,1\n0.001,1,1.5\n");
+  const auto data = hil::read_csv(file, kMeasurement);
+  ASSERT_EQ(data.rows(), 2u);
+  EXPECT_DOUBLE_EQ(data.values[2][1], 1.5);
+  EXPECT_EQ(error_of("t_s,theta_cmd_deg,p_meas_mpa\r0,1,1\r0.001,1,1.5\r"),
+            "m.csv:1:29: a carriage return inside a line: the file's lines end in CR alone (old Mac style); save it with LF "
+            "or CRLF line ends");
+}
+
+// Bytes from the file quoted in an error cannot cut the message (NUL) or drive the terminal (ESC).
+TEST(CsvReader, ControlBytesInAQuotedCellAreShownEscaped) {
+  const std::string nul_cell("t_s,theta_cmd_deg,p_meas_mpa\n0,1,1\n0.001,1,1\0x\x1b[2J\n", 51);
+  EXPECT_EQ(error_of(nul_cell), "m.csv:3:3: column 'p_meas_mpa': not a number: '1\\x00x\\x1b[2J'");
+  EXPECT_EQ(error_of("t_s,theta_cmd_deg,p_meas_mpa\n0,1," + std::string(100, '7') + "x\n"),
+            "m.csv:2:3: column 'p_meas_mpa': not a number: '" + std::string(60, '7') + "...'");
+}
+
+// A file with no line ends (a binary, /dev/zero) is refused at 16 MiB, not read until memory ends.
+TEST(CsvReader, ALineWithoutEndIsRefusedAt16MiB) {
+  hil::test::TempDir dir;
+  const auto file = dir.write("m.csv", "t_s,theta_cmd_deg,p_meas_mpa\n0,1,1\n" + std::string(17u << 20, '0'));
+  try {
+    (void)hil::read_csv(file, kMeasurement);
+    FAIL() << "a 17 MiB line was read";
+  } catch (const CsvError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("m.csv:3:1: a line longer than 16 MiB"), std::string::npos) << msg;
+  }
+  try {
+    (void)hil::read_csv("/dev/zero", kMeasurement);
+    FAIL() << "/dev/zero was read";
+  } catch (const CsvError& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/zero:1:1: a line longer than 16 MiB"), std::string::npos) << e.what();
+  }
+}
+
 TEST(CsvReader, StreamsInChunks) {
   hil::test::TempDir dir;
   std::string text = "t_s,theta_cmd_deg,p_meas_mpa\n";
