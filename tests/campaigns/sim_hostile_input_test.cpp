@@ -154,4 +154,34 @@ TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
   EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
 }
 
+// The campaign's name picks the folder under --out that a sim replaces: a former sim's output
+// goes, anything else stays and the sim says so before it runs (a campaign named `src` with
+// --out . wiped ./src).
+TEST(SimHostileInput, AFolderOrFileTheSimDidNotWriteIsNotReplaced) {
+  Sandbox s;
+  auto r = s.sim(campaign_yaml("name: old"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("keep.txt, which hilbench sim does not write"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("choose another --out"), std::string::npos) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(s.out / "old" / "keep.txt"));
+
+  s.root.write("out/afile", "a file, not a folder\n");
+  r = s.sim(campaign_yaml("name: afile"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("afile exists and is not a folder"), std::string::npos) << r.output;
+  EXPECT_TRUE(std::filesystem::is_regular_file(s.out / "afile"));
+
+  // A former sim's output is replaced, the second time too; a note put in it stops the third.
+  ASSERT_EQ(s.sim(campaign_yaml("name: x")).status, 0);
+  r = s.sim(campaign_yaml("name: x"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "none" / "summary.json"));
+  s.root.write("out/x/none/notes.md", "what I saw\n");
+  r = s.sim(campaign_yaml("name: x"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("notes.md"), std::string::npos) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "none" / "notes.md"));
+  EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
+}
+
 }  // namespace

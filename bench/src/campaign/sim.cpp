@@ -114,6 +114,35 @@ void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::strin
   }
 }
 
+// `dir` is what a former `hilbench sim` of this campaign left (campaign.yaml, report.html, run
+// folders of summary.json and telemetry.csv) or nothing: only then may a new run replace it.
+// A campaign's name picks the folder, so `name: src` with `--out .` must not wipe ./src.
+void require_replaceable_output(const std::filesystem::path& dir) {
+  std::error_code ec;
+  const auto st = std::filesystem::symlink_status(dir, ec);
+  if (!std::filesystem::exists(st)) return;
+  const auto refuse = [&](const std::string& why) {
+    throw std::runtime_error(dir.string() + " exists and " + why +
+                             ", so it is not replaced: move it away, or choose another --out");
+  };
+  if (!std::filesystem::is_directory(st)) refuse("is not a folder");
+  const auto ours = [](const std::filesystem::path& name, std::initializer_list<const char*> files) {
+    const std::string f = name.filename().string();
+    if (f.rfind('.', 0) == 0 && f.find(".tmp") != std::string::npos) return true;  // a writer's temporary
+    return std::find(files.begin(), files.end(), f) != files.end();
+  };
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.is_directory(ec) && !e.is_symlink(ec)) {
+      for (const auto& f : std::filesystem::directory_iterator(e.path())) {
+        if (!f.is_regular_file(ec) || !ours(f.path(), {"summary.json", "telemetry.csv"}))
+          refuse("holds " + f.path().string() + ", which hilbench sim does not write");
+      }
+    } else if (!e.is_regular_file(ec) || e.is_symlink(ec) || !ours(e.path(), {"campaign.yaml", "report.html"})) {
+      refuse("holds " + e.path().string() + ", which hilbench sim does not write");
+    }
+  }
+}
+
 }  // namespace
 
 struct RunDigest::Impl {
@@ -177,6 +206,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   std::filesystem::create_directories(options.out_dir);
   remove_dead_tmp_dirs(options.out_dir, c.name);
   const auto final_dir = options.out_dir / c.name;
+  require_replaceable_output(final_dir);  // before the runs: say it now, not after minutes of work
   const auto tmp_dir = options.out_dir / ("." + c.name + ".tmp-" + std::to_string(::getpid()));
   struct RemoveUnlessKept {
     std::filesystem::path dir;
@@ -243,6 +273,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   }
   for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
   write_sim_report(c, outcome.runs, tmp_dir / "report.html");
+  require_replaceable_output(final_dir);  // again: something may have come in the meantime
   std::filesystem::remove_all(final_dir);
   std::filesystem::rename(tmp_dir, final_dir);
   tmp_guard.keep = true;
