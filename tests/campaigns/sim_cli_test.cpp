@@ -103,6 +103,19 @@ TEST(SimCli, UsageErrorsSuggest) {
       << r.output;
 }
 
+// What a command prints is its result: a full disk (or a closed pipe) that took none of it is a
+// failure with the reason, not rc 0 and an empty file. An empty or option-like --out is refused.
+TEST(Cli, AnOutputThatCannotBeWrittenFailsTheCommand) {
+  auto r = run_command("sh -c '" + hilbench() + " effects > /dev/full'");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("hilbench effects: error: cannot write the standard output: No space left on device"),
+            std::string::npos)
+      << r.output;
+  r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_constant.yaml").string() + " --out= --quiet");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_NE(r.output.find("--out: needs a path, got the option '--quiet'"), std::string::npos) << r.output;
+}
+
 TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
   hil::test::TempDir out;
   const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_constant.yaml").string() +

@@ -37,6 +37,16 @@ CLI::Validator non_negative_number() {
       ">= 0");
 }
 
+CLI::Validator path_value() {
+  return CLI::Validator(
+      [](std::string& text) {
+        if (text.empty()) return std::string("needs a path, got an empty one");
+        if (text.rfind("--", 0) == 0) return "needs a path, got the option '" + text + "' (is the path missing?)";
+        return std::string();
+      },
+      "");
+}
+
 CLI::Validator whole_number(std::int64_t min, std::int64_t max) {
   const bool bounded = max < INT64_MAX;
   const std::string range = bounded ? std::to_string(min) + ".." + std::to_string(max) : ">= " + std::to_string(min);

@@ -28,6 +28,10 @@ using CommandRun = std::function<int()>;
 CLI::Validator finite_number();
 CLI::Validator non_negative_number();
 CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_MAX: no upper bound
+// For a path option: refuses "" (`--out=`: the files would land in the current folder or fail
+// with a bare "Invalid argument") and a value that is an option (`--out= --quiet` took --quiet
+// as the folder).
+CLI::Validator path_value();
 
 // Ctrl-C and SIGTERM as a request to stop long offline work (`sim`, `sweep`): from install() on,
 // either signal sets the flag the work polls, so it ends cleanly instead of dying mid-write.

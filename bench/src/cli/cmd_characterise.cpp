@@ -83,7 +83,9 @@ int run_characterise(const CharacteriseArgs& args) {
     std::fputs(table.c_str(), stdout);
     return 0;
   }
-  const std::filesystem::path readme = args.readme;
+  // A README that is a link is updated where it lives (the link stays a link).
+  std::filesystem::path readme = args.readme;
+  if (std::filesystem::is_symlink(readme)) readme = std::filesystem::canonical(readme);
   std::string text = hil::read_text_file(readme, "a README");
   const auto b = text.find(kBegin), e = text.find(kEnd);
   if (b == std::string::npos || e == std::string::npos || e < b) {
@@ -99,7 +101,9 @@ int run_characterise(const CharacteriseArgs& args) {
 
 CommandRun define_characterise(CLI::App& cmd) {
   auto args = std::make_shared<CharacteriseArgs>();
-  cmd.add_option("--readme", args->readme, "replace the table between the characterise markers in FILE")->type_name("FILE");
+  cmd.add_option("--readme", args->readme, "replace the table between the characterise markers in FILE")
+      ->type_name("FILE")
+      ->check(path_value());
   cmd.add_option("--campaigns", args->campaigns_dir, "the folder of the paper's campaigns")
       ->type_name("DIR")
       ->capture_default_str();

@@ -14,7 +14,9 @@ CommandRun define_compare(CLI::App& cmd) {
   auto args = std::make_shared<CompareArgs>();
   cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
   cmd.add_option("--data", args->data_file, "the measurement (docs/physics.md section 4)")->required()->type_name("FILE.csv");
-  cmd.add_option("--out", args->out_dir, "where the report goes (default out/compare-<FILE>)")->type_name("DIR");
+  cmd.add_option("--out", args->out_dir, "where the report goes (default out/compare-<FILE>)")
+      ->type_name("DIR")
+      ->check(path_value());
   cmd.add_flag("--quiet", args->quiet, "no summary on stdout");
   return [args] {
     analysis::CompareOptions o;

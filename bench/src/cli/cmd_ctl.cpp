@@ -455,7 +455,9 @@ void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const C
   get->add_option("file", args.file, "the file's name in the run, or analyses/AID/FILE of an analysis")
       ->required()
       ->type_name("FILE");
-  get->add_option("--out", args.out, "where it goes (default: FILE's name, in the current folder)")->type_name("PATH");
+  get->add_option("--out", args.out, "where it goes (default: FILE's name, in the current folder)")
+      ->type_name("PATH")
+      ->check(path_value());
 
   // The kind is checked by the server (GET /api/models lists the kinds it has).
   CLI::App* an = command(ctl, "analyse", "compare or diagnose an ended run against a plant model of the server", analyse);

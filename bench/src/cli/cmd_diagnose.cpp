@@ -23,8 +23,12 @@ CommandRun define_diagnose(CLI::App& cmd) {
       ->type_name("FILE.csv")
       ->allow_extra_args(false)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  cmd.add_option("--out", args->out_dir, "where the report goes (default out/diagnose-<first FILE>)")->type_name("DIR");
-  cmd.add_option("--write-model", args->write_model, "write the model with the effects found")->type_name("FITTED.yaml");
+  cmd.add_option("--out", args->out_dir, "where the report goes (default out/diagnose-<first FILE>)")
+      ->type_name("DIR")
+      ->check(path_value());
+  cmd.add_option("--write-model", args->write_model, "write the model with the effects found")
+      ->type_name("FITTED.yaml")
+      ->check(path_value());
   cmd.add_option("--candidates", args->candidates, "fit only these candidate effects")->type_name("a,b");
   cmd.add_option("--threads", args->threads, "worker threads of the fitter")->type_name("N")->check(whole_number(1, 64));
   cmd.add_flag("--quiet", args->quiet, "no summary on stdout");

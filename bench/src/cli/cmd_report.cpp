@@ -62,7 +62,9 @@ CommandRun define_report(CLI::App& cmd) {
       ->required()
       ->type_name("RUN_DIR")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  cmd.add_option("--out", args->out_file, "the report (default: the first RUN_DIR/report.html)")->type_name("FILE");
+  cmd.add_option("--out", args->out_file, "the report (default: the first RUN_DIR/report.html)")
+      ->type_name("FILE")
+      ->check(path_value());
   cmd.add_flag("--quiet", args->quiet, "no table of the runs on stdout");
   return [args] { return run_report(*args); };
 }

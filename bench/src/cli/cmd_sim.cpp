@@ -66,7 +66,10 @@ int run_sim(const SimArgs& args) {
 CommandRun define_sim(CLI::App& cmd) {
   auto args = std::make_shared<SimArgs>();
   cmd.add_option("campaign", args->campaign_file, "the campaign file")->required()->type_name("CAMPAIGN.yaml");
-  cmd.add_option("--out", args->out_dir, "where OUT/<campaign>/ is written")->type_name("DIR")->capture_default_str();
+  cmd.add_option("--out", args->out_dir, "where OUT/<campaign>/ is written")
+      ->type_name("DIR")
+      ->check(path_value())
+      ->capture_default_str();
   cmd.add_option("--runs", args->runs, "only these runs of the campaign")->type_name("a,b");
   args->sensor_noise =
       cmd.add_option("--sensor-noise-kpa", args->sensor_noise_kpa, "the transducer's noise RMS instead of the campaign's")

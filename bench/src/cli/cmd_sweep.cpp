@@ -86,8 +86,10 @@ SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
 std::pair<long, long> parse_shard(const std::string& text) {
   long i = -1, n = 0;
   char tail = 0;
-  if (std::sscanf(text.c_str(), "%ld/%ld%c", &i, &n, &tail) != 2 || n < 1 || i < 0 || i >= n) {
-    throw UsageError("--shard " + text + ": needs I/N with 0 <= I < N, e.g. 0/4");
+  // N is bounded (a shard is at least one point of a sweep of at most ~1e6), which also keeps the
+  // shard's stride I + kN from overflowing.
+  if (std::sscanf(text.c_str(), "%ld/%ld%c", &i, &n, &tail) != 2 || n < 1 || n > 1000000 || i < 0 || i >= n) {
+    throw UsageError("--shard " + text + ": needs I/N with 0 <= I < N <= 1000000, e.g. 0/4");
   }
   return {i, n};
 }
@@ -413,7 +415,7 @@ CommandRun define_sweep(CLI::App& cmd) {
   auto args = std::make_shared<SweepArgs>();
   cmd.add_option("sweep", args->sweep_file, "the sweep file (optional with --out DIR of a planned sweep)")
       ->type_name("SWEEP.yaml");
-  cmd.add_option("--out", args->out_dir, "the sweep's folder (default out/sweeps/<name>)")->type_name("DIR");
+  cmd.add_option("--out", args->out_dir, "the sweep's folder (default out/sweeps/<name>)")->type_name("DIR")->check(path_value());
   cmd.add_option("--jobs", args->jobs, "points run at once (default: every hardware thread)")
       ->type_name("N")
       ->check(whole_number(1, 4096));

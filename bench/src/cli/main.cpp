@@ -2,6 +2,9 @@
 // CLI11, and every error becomes its exit code here: 2 for a bad invocation, 1 for a bad
 // configuration or measurement file or a failed job.
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <iostream>
@@ -193,7 +196,18 @@ int main(int argc, char** argv) {
   for (const auto& [app_of, run] : runs) {
     if (app_of != cmd) continue;
     try {
-      return run();
+      const int rc = run();
+      // What a command printed is its result (a table, a summary, JSON): a full disk or a closed
+      // pipe that took none of it is a failure, not rc 0 with an empty file.
+      errno = 0;
+      std::cout.flush();
+      if (std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout) {
+        const int e = errno;  // 0 when the failed write was earlier and its reason is gone
+        std::cerr << where << ": error: cannot write the standard output" << (e != 0 ? std::string(": ") + std::strerror(e) : "")
+                  << "\n";
+        return rc != 0 ? rc : 1;
+      }
+      return rc;
     } catch (const hil::bench::UsageError& e) {
       return usage_error(*formatter, app, e.what());
     } catch (const hil::cfg::Error& e) {
