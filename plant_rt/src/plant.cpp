@@ -72,7 +72,17 @@ Plant Plant::from_yaml(const cfg::Node& root) {
     effects.push_back(info->from_yaml(node));
   }
   try {
-    return Plant(std::move(effects));
+    Plant plant(std::move(effects));
+    // Parameters each in range can still give a chamber with no steady state (a burning area of
+    // 1 m^2 or a c* of 1e5 m/s: the equilibrium overflows); said here, with the file, rather than
+    // as "-nan to -nan MPa" when a run or a replay settles it.
+    const auto [p_low_pa, p_high_pa] = plant.pressure_range_pa();
+    if (!std::isfinite(p_low_pa) || !std::isfinite(p_high_pa)) {
+      block.fail("these effects give the chamber no finite steady pressure with the valve fully open or closed (" +
+                 std::to_string(units::pa_to_mpa(p_low_pa)) + " to " + std::to_string(units::pa_to_mpa(p_high_pa)) +
+                 " MPa); check the gas generator's parameters against each other");
+    }
+    return plant;
   } catch (const std::invalid_argument& e) {
     block.fail(e.what());
   }

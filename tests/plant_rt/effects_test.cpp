@@ -160,4 +160,53 @@ TEST(Effects, PressureRangeSpansTheValveTravel) {
   EXPECT_THROW(plant.settle(st, 0.2e6), std::out_of_range);
 }
 
+// A small chamber is a fast one: 3 mL has a time constant of about 80 us, a tenth of the 1 ms
+// step. The step is split where it spans more than a time constant, so the pressure follows the
+// valve as the equilibrium it settles to (the same end value as the 2 L chamber), never outside
+// the valve's pressure range; unsplit it flipped between 1 Pa and 0.37 MPa every step.
+TEST(Effects, ASmallFastChamberFollowsTheValveWithoutRinging) {
+  auto with_volume = [](double litres) {
+    const Plant base = quiet(nominal());
+    std::vector<double> v;
+    for (const auto& prm : base.find("gas_generator")->params()) v.push_back(prm.value);
+    v.at(6) = litres;  // free_volume_l
+    v.at(7) = 0;       // volume_growth: the same volume for the whole test
+    return base.with(base.find("gas_generator")->with_params(v));
+  };
+  const Plant small = with_volume(0.003), large = with_volume(2.0);
+  const auto [lo, hi] = small.pressure_range_pa();
+  PlantState s_small = small.make_state(1), s_large = large.make_state(1);
+  small.settle(s_small, 1.0e6);
+  large.settle(s_large, 1.0e6);
+  const double cmd = s_small.s.theta_cmd_rad + hil::units::deg_to_rad(4.0);  // open by 4 deg
+  for (int k = 0; k < 2000; ++k) {
+    small.step(s_small, {cmd, kNaN, kNaN}, 1e-3);
+    large.step(s_large, {cmd, kNaN, kNaN}, 1e-3);
+    ASSERT_GE(s_small.s.p_chamber_pa, 0.999 * lo) << "step " << k;
+    ASSERT_LE(s_small.s.p_chamber_pa, 1.001 * hi) << "step " << k;
+  }
+  EXPECT_LT(s_small.s.p_chamber_pa, 0.95e6);  // the valve opened: the pressure fell
+  EXPECT_NEAR(s_small.s.p_chamber_pa / s_large.s.p_chamber_pa, 1.0, 1e-3);
+  // Its mass balance holds across the split steps as across whole ones.
+  EXPECT_GT(s_small.s.mdot_out_kg_s, 0.0);
+  EXPECT_NEAR(s_small.s.mdot_gen_kg_s / s_small.s.mdot_out_kg_s, 1.0, 1e-3);  // settled: what burns, flows out
+}
+
+// Parameters each within range can together give no steady state (the equilibrium overflows):
+// refused when the plant file loads, naming it, not as "-nan to -nan MPa" when a run settles it.
+TEST(Effects, AChamberWithNoSteadyStateIsRefusedWhenTheFileLoads) {
+  std::string text = hil::test::slurp(hil::test::source_path("configs/plant/nominal.yaml"));
+  const auto at = text.find("burning_area_m2: 0.01 ");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 22, "burning_area_m2: 1    ");
+  try {
+    (void)Plant::from_yaml(hil::cfg::Node::load_string(text, "big.yaml"));
+    FAIL() << "a 1 m^2 grain in a 2 L chamber loaded";
+  } catch (const hil::cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("big.yaml:6:1: effects: these effects give the chamber no finite steady pressure"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace

@@ -60,7 +60,7 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     write(x, s, r.mdot_gen_kg_s, r.mdot_out_kg_s);
   }
 
-  void step(std::span<double> x, Signals& s, double dt_s, Rng&) const noexcept override {
+  void step(std::span<double> x, Signals& s, double dt_s, Rng& rng) const noexcept override {
     const double at = s.throat_area_m2;
     const double p0 = std::max(x[0], kMinPressurePa), v = x[1];
     // P^n at p0 and its Taylor coefficients there, from the expansion about the anchor.
@@ -85,6 +85,12 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
     const double r = q * (f.c1 - 2 * g0) + f.c0 * q_e;
     const double r_e = q_e * (f.c1 - 2 * g0) + q * (2 * f.c2 - 2 * g1) + f.c1 * q_e + f.c0 * q_ee;
     const double s4 = r * (f.c1 - 3 * g0) + f.c0 * r_e;
+    // |q y| is the step in the chamber's own time constants (q / V is the local rate, -1/tau). An
+    // explicit step of many time constants amplifies rather than damps (a 3 mL chamber at 1 ms
+    // flipped between 1 Pa and 0.37 MPa every period): such a step is split. The nominal chamber
+    // (tau ~ 56 ms) at 1 ms is at 0.02, never split, so its numbers do not change.
+    if (!(std::abs(q * y) <= kMaxStepTaus)) [[unlikely]]
+      return step_split(x, s, dt_s, std::abs(q * y), rng);
     const double c0y = f.c0 * y, y2 = y * y;
     const double e = c0y * ((1 + (0.5 * y) * q) + y2 * (r * (1.0 / 6) + (y * (1.0 / 24)) * s4));
     if (!(std::abs(e) <= 0.01 * p0) || p0 + e < kMinPressurePa) return step_rk4(x, s, dt_s, p0, v, at, f, pn);
@@ -121,6 +127,23 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
             gen_per_pn,
             dv_per_pn,
             out_per_p};
+  }
+
+  // A stiff step (a small or fast chamber, or a long step: a measurement's gap) as n equal steps
+  // of at most kMaxStepTaus/2 time constants; the step's flows are the means over them. Beyond
+  // kMaxSubsteps the chamber is too fast to follow at any sensible cost: its pressure becomes NaN,
+  // which compare reports as a diverging model with its time, instead of a plausible wrong number.
+  void step_split(std::span<double> x, Signals& s, double dt_s, double step_taus, Rng& rng) const noexcept {
+    const double parts = std::ceil(2 * step_taus / kMaxStepTaus);
+    if (!(parts <= kMaxSubsteps)) {
+      x[0] = kNaN;
+      write(x, s, kNaN, kNaN);
+      return;
+    }
+    const int n = static_cast<int>(parts);
+    const double gen0 = x[2], out0 = x[3], h = dt_s / n;
+    for (int i = 0; i < n; ++i) step(x, s, h, rng);
+    write(x, s, (x[2] - gen0) / dt_s, (x[3] - out0) / dt_s);
   }
 
   // Classical RK4 for the steps the series does not cover (P moving more than 1 % in one step:
@@ -162,6 +185,9 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
   }
 
   static constexpr double kMinPressurePa = 1.0;  // keeps P^n defined; far below any operating point
+  // RK4's stability bound on a decay is 2.79 time constants a step; 1 keeps it accurate as well.
+  static constexpr double kMaxStepTaus = 1.0;
+  static constexpr double kMaxSubsteps = 100000;
   using Rates = physics::GasGenerator::Rates;
   Rates rates(double p, double pn, double v, double at) const noexcept { return gas_.rates(p, pn, v, at); }
   static void write(std::span<const double> x, Signals& s, double mdot_gen, double mdot_out) noexcept {
