@@ -74,8 +74,24 @@ TEST(CampaignConfig, MissingField) {
   expect_error(l, "runs[0]", "missing required key 'compensation'");
 }
 
-TEST(CampaignConfig, PeriodMustBePositive) {
-  expect_error(load_with("period_ms: 1 ", "period_ms: 0 "), "period_ms", "dT must be > 0");
+TEST(CampaignConfig, PeriodMustBePositiveAndNotTooShortForTheDuration) {
+  expect_error(load_with("period_ms: 1 ", "period_ms: 0 "), "period_ms", "dT must be 0.01..1000 ms");
+  expect_error(load_with("period_ms: 1 ", "period_ms: 0.001 "), "period_ms", "dT must be 0.01..1000 ms");
+  // 18 s at 10 us is 1.8 M periods: fine; a week at 0.5 ms is 1.2 G periods: refused by count.
+  EXPECT_EQ(load_with("period_ms: 1 ", "period_ms: 0.01 ").error, "no error");
+  std::string week = paper_adaptive_text();
+  week.replace(week.find("period_ms: 1 "), 13, "period_ms: 0.5 ");
+  week.replace(week.find("duration_s: "), week.find('\n', week.find("duration_s: ")) - week.find("duration_s: "),
+               "duration_s: 604800");
+  hil::test::TempDir dir;
+  try {
+    (void)hil::bench::load_campaign(dir.write("week.yaml", week));
+    FAIL() << "a week at 0.5 ms loaded";
+  } catch (const hil::cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("period_ms: duration_s / dT is 1209600000 periods; at most 604800000"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(CampaignConfig, GapCannotBeNegative) {

@@ -325,6 +325,8 @@ void read_controller(const Node& n, ctl::ControllerParams& p) {
 // The longest campaign a run may last: a week at the bench, also what bounds the memory of a
 // random profile's items and of a simulation's report.
 constexpr double kMaxDurationS = 7 * 86400.0;
+constexpr double kMinPeriodMs = 0.01;
+constexpr double kMaxPeriods = kMaxDurationS * 1000;  // 7 days at 1 kHz
 
 // A name that becomes a folder: plain, and never "." or ".." (they would name the parent).
 void require_plain_name(const Node& where, const std::string& name) {
@@ -376,8 +378,15 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   root.at("duration_s").require(c.duration_s > 0 && c.duration_s <= kMaxDurationS, "must be > 0 and at most 604800 s (7 days)");
   const double period_ms = root.number("period_ms", 1.0);
   if (auto p = root.find("period_ms"))
-    p->require(period_ms > 0 && period_ms <= 1000, "the control period dT must be > 0 (and <= 1000 ms)");
+    p->require(period_ms >= kMinPeriodMs && period_ms <= 1000, "the control period dT must be 0.01..1000 ms (100 kHz to 1 Hz)");
   c.period_s = period_ms * 1e-3;
+  // Loading walks the reference once a period (its reversals): a week at 1 ns a period would
+  // hold a server's request thread for hours, so the count is bounded as well as each number.
+  if (c.duration_s / c.period_s > kMaxPeriods) {
+    (root.has("period_ms") ? root.at("period_ms") : root.at("duration_s"))
+        .fail("duration_s / dT is " + std::to_string(std::llround(c.duration_s / c.period_s)) +
+              " periods; at most 604800000 (7 days at 1 kHz): a longer period or a shorter campaign");
+  }
   const long long seed = root.integer("seed", 1);
   if (root.has("seed")) root.at("seed").require(seed >= 0, "must be >= 0");
   c.seed = static_cast<std::uint64_t>(seed);
