@@ -256,6 +256,17 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   expect_error(api.post("/api/start", {{"campaign_yaml", hil::test::short_campaign_yaml(2) + "bogus_key: 1\n"}}), 400,
                "bogus_key");
   expect_error(api.request("POST", "/api/start", "name: x\n", "application/yaml"), 400, "posted campaign");
+  // A raw YAML body takes its options in the query; a misspelt one is refused, not ignored.
+  expect_error(api.request("POST", "/api/start?run=adaptive", hil::test::short_campaign_yaml(2), "application/yaml"), 400,
+               "'run' (did you mean 'runs'?)");
+  // A period too short for its duration would hold the request thread for hours while it loads.
+  {
+    std::string yaml = hil::test::short_campaign_yaml(604800);
+    yaml.replace(yaml.find("period_ms: 1\n"), 13, "period_ms: 0.01\n");
+    expect_error(api.post("/api/start", {{"campaign_yaml", yaml}}), 400, "periods; at most 604800000 (7 days at 1 kHz)");
+    yaml.replace(yaml.find("period_ms: 0.01\n"), 16, "period_ms: 0.000001\n");
+    expect_error(api.post("/api/start", {{"campaign_yaml", yaml}}), 400, "must be 0.01..1000 ms");
+  }
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rigg", "sim"}}), 400, "did you mean 'rig'");
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "can0"}}), 404, "not a rig");
   expect_error(api.post("/api/start", {{"campaign", "paper_adaptive"}, {"runs", {"adaptiv"}}}), 400, "did you mean 'adaptive'");

@@ -208,7 +208,14 @@ TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {
   EXPECT_EQ(anonymous.get("/api/status?token=%20").status, 401);
   EXPECT_EQ(anonymous.get("/api/status?token=wrong-token-456").status, 401);
   EXPECT_EQ(anonymous.get("/api/status?token=right-token-123").status, 200);
-  EXPECT_EQ(anonymous.get("/api/nothing?a=1&token=right-token-123").status, 404);  // logged: an error
+  const auto not_found = anonymous.get("/api/nothing?a=1&token=right-token-123");  // logged: an error
+  EXPECT_EQ(not_found.status, 404);
+  const auto wrong_method = anonymous.request("DELETE", "/api/status?token=right-token-123", "", "application/json");
+  EXPECT_EQ(wrong_method.status, 405);
+  for (const auto* reply : {&not_found, &wrong_method}) {  // the error's detail names the target, not the secret
+    EXPECT_EQ(reply->body.find("right-token-123"), std::string::npos) << reply->body;
+    EXPECT_NE(reply->body.find("token=<redacted>"), std::string::npos) << reply->body;
+  }
   const std::string log = server.log();
   EXPECT_EQ(log.find("wrong-token-456"), std::string::npos) << log;
   EXPECT_EQ(log.find("right-token-123"), std::string::npos) << log;
@@ -229,6 +236,26 @@ TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 20s);
   EXPECT_EQ(s["last"]["reason"], "operator abort: first");
+}
+
+// A stop or abort sent right after the start (before the first run began, or between runs) is
+// answered 202, so the campaign must end stopped or aborted with the reason, never "completed"
+// with its runs skipped. Which window a request hits depends on timing; each try must hold.
+TEST(ServerHardening, AStopOrAbortRightAfterTheStartIsTheCampaignsOutcome) {
+  ServerProcess server;
+  const auto api = server.client();
+  for (int i = 0; i < 6; ++i) {
+    const bool abort = i % 2 == 0;
+    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
+    const auto reply = abort ? api.post("/api/abort", {{"reason", "at once"}}) : api.post("/api/stop", json::object());
+    ASSERT_EQ(reply.status, 202) << reply.body;
+    const json s = hil::test::wait_status(
+        api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+    EXPECT_EQ(s["last"]["outcome"], abort ? "aborted" : "stopped") << s.dump();
+    if (abort) {
+      EXPECT_EQ(s["last"]["reason"], "operator abort: at once") << s.dump();
+    }
+  }
 }
 
 TEST(ServerHardening, ASlowWebSocketReaderIsToldInBandWhatItMissed) {

@@ -80,6 +80,8 @@ void authorise(Request& req, const std::string& host, const std::string& token) 
 
 }  // namespace
 
+constexpr std::uint64_t kMaxReplyBytes = 64ull << 20;
+
 ApiReply ApiClient::request(const std::string& method, const std::string& target, const std::string& body,
                             const std::string& content_type) const {
   asio::io_context io;
@@ -97,7 +99,9 @@ ApiReply ApiClient::request(const std::string& method, const std::string& target
     run_op(io, [&](auto handler) { http::async_write(stream, req, handler); });
     beast::flat_buffer buffer;
     http::response_parser<http::string_body> parser;
-    parser.body_limit(1ull << 30);
+    // The server's largest JSON reply (a long run list) is a few MB; a peer that sends more, or
+    // announces more, is no hilbench server: refused at this size, not read until memory ends.
+    parser.body_limit(kMaxReplyBytes);
     stream.expires_after(timeout_);
     run_op(io, [&](auto handler) { http::async_read(stream, buffer, parser, handler); });
     const auto& res = parser.get();

@@ -139,7 +139,7 @@ Target parse_target(std::string_view target) {
   return t;
 }
 
-// A request target as it may appear in the server log: a token in the query is replaced, and
+// A request target as it may appear in the server log or an error reply: a token in the query is replaced, and
 // bytes outside printable ASCII are escaped, so the log neither leaks a secret nor holds raw
 // control characters from a client.
 std::string loggable_target(beast::string_view raw) {
@@ -613,6 +613,17 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   const bool yaml_body = content_type.find("yaml") != std::string::npos;
   json body = yaml_body ? json::object() : parse_json_body(req);
   if (!yaml_body) allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
+  if (yaml_body) {  // the query carries the options: a typo (?run=) must not start every run
+    const std::vector<std::string> names{"rig", "runs", "speed", "token"};
+    for (const auto& item : t.query) {
+      if (std::find(names.begin(), names.end(), item.first) != names.end()) continue;
+      const std::string hint = cfg::closest(item.first, names), shown = loggable_target(item.first);
+      throw ApiError{http::status::bad_request, "unknown query option",
+                     "'" + shown + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
+                         "; a YAML body takes rig, runs and speed in the query",
+                     shown};
+    }
+  }
   // Options come from the JSON body, or from the query when the body is the YAML itself.
   auto option = [&](const char* key) -> std::optional<std::string> {
     if (yaml_body) {
@@ -1189,13 +1200,13 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   }
   if (other_method != nullptr) {
     throw ApiError{http::status::method_not_allowed, "method not allowed",
-                   std::string(req.method_string()) + " " + std::string(req.target()) + ": use " +
+                   std::string(req.method_string()) + " " + loggable_target(req.target()) + ": use " +
                        std::string(http::to_string(other_method->method))};
   }
   if (t.path.empty() || t.path[0] != "api")
     throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
   throw ApiError{http::status::not_found, "not found",
-                 std::string(req.target()) + " is no endpoint; see GET /api: " + route_list()};
+                 loggable_target(req.target()) + " is no endpoint; see GET /api: " + route_list()};
 }
 
 Reply ApiServer::Impl::stop() {

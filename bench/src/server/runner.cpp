@@ -351,6 +351,16 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
     if (o > worst) worst = o, last["outcome"] = r["outcome"], last["reason"] = r["reason"];
   }
   if (a->finished.size() < a->runs.size()) last["runs_skipped"] = a->runs.size() - a->finished.size();
+  {
+    // A stop or abort that came between runs (or before the first began) ended the campaign
+    // without a run to carry it: the campaign says so, not "completed" with runs skipped.
+    std::lock_guard lock(mutex_);
+    if (worst == Outcome::completed && a->finished.size() < a->runs.size() && (a->abort || a->stop)) {
+      last["outcome"] = to_string(a->abort ? Outcome::aborted : Outcome::stopped);
+      last["reason"] = a->abort ? (a->abort_reason.empty() ? "operator abort" : a->abort_reason)
+                                : std::string("operator stop before run '") + a->runs[a->finished.size()]->name + "'";
+    }
+  }
   notice(
       {{"type", "campaign_end"}, {"campaign", a->req.campaign.name}, {"outcome", last["outcome"]}, {"reason", last["reason"]}});
   std::lock_guard lock(mutex_);
