@@ -3,7 +3,10 @@
 // metrics against the same campaign run by hilbench sim; the Slurm submission against stand-in
 // sbatch and squeue programs (tests/slurm runs it on a real cluster).
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -11,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -245,6 +249,36 @@ TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
   EXPECT_NE(r.output.find("gap.initial_deg: a gap cannot be negative"), std::string::npos) << r.output;
 }
 
+// Two sweeps on one --out (one shard) do not share its rows file: the second is refused before it
+// plans any work, while the first holds the lock; once that is gone the same command goes on.
+// A FIFO in the rows file's place is refused, not waited on.
+TEST(Sweep, ASecondSweepOnTheSameRowsIsRefusedAndAFifoIsNotWaitedOn) {
+  TempDir dir;
+  const auto sweep = dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                                             "\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [5, 6]\n");
+  const auto out = dir.path() / "out";
+  fs::create_directories(out / "rows");
+  const auto lock_file = out / "rows" / ".local.jsonl.lock";
+  const int fd = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX), 0);  // what a running sweep holds
+  auto r = run_command("timeout 60 " + hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("another hilbench sweep is writing"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out / "rows" / "local.jsonl"));  // nothing run, nothing written
+  ::close(fd);
+  r = run_command("timeout 60 " + hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(csv_rows(out / "sweep.csv").size(), 3u);
+
+  const auto out2 = dir.path() / "out2";
+  fs::create_directories(out2 / "rows");
+  ASSERT_EQ(::mkfifo((out2 / "rows" / "local.jsonl").c_str(), 0600), 0);
+  r = run_command("timeout 60 " + hilbench() + " sweep " + q(sweep) + " --out " + q(out2) + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;  // 124 would be the timeout: a hang
+  EXPECT_NE(r.output.find("local.jsonl"), std::string::npos) << r.output;
+}
+
 // The metrics of a sweep point from that point's campaign run by hilbench sim, computed here from
 // its summary.json: IAE, mean stall over the reversals, that over the none run's, touch changes
 // per reversal, mean |gap estimate - true gap| over reversals 2..n.
@@ -342,6 +376,33 @@ TEST(Sweep, APointsCampaignFindsTheBaseCampaignsReferenceFile) {
   char iae[32];
   std::snprintf(iae, sizeof iae, "%.6g", j["iae_mpa_s"].get<double>());
   EXPECT_EQ(csv_rows(out / "sweep.csv").at(2).at(2), iae);
+}
+
+// plan.json is a file anyone may edit: an aggregation of an edited one is an error naming it,
+// not a division by zero samples, an allocation from a bogus axis, or a read past a metric list.
+TEST(Sweep, AnEditedPlanIsRefusedNotCrashedOn) {
+  TempDir dir;
+  const auto out = dir.path() / "out";
+  ASSERT_EQ(
+      run_command(hilbench() + " sweep " + q(source_path("tests/sweep/small.yaml")) + " --out " + q(out) + " --quiet").status, 0);
+  const auto plan = nlohmann::json::parse(slurp(out / "plan.json"));
+  const std::vector<std::pair<std::string, std::function<void(nlohmann::json&)>>> edits = {
+      {"samples must be >= 1", [](nlohmann::json& j) { j["samples"] = 0; }},
+      {"no list or range axis 'nope'",
+       [](nlohmann::json& j) {
+         j["maps"] = {
+             {{"metric", j["worst_by"]}, {"x", "nope"}, {"y", "nope"}, {"reduce", "mean"}, {"slice", nlohmann::json::array()}}};
+       }},
+      {"no metric 'adaptive.nothing'", [](nlohmann::json& j) { j["worst_by"] = "adaptive.nothing"; }},
+  };
+  for (const auto& [why, edit] : edits) {
+    nlohmann::json j = plan;
+    edit(j);
+    std::ofstream(out / "plan.json") << j.dump(1);
+    const auto r = run_command(hilbench() + " sweep --out " + q(out) + " --aggregate");
+    EXPECT_EQ(r.status, 1) << why << "\n" << r.output;  // 136 was SIGFPE
+    EXPECT_NE(r.output.find("plan.json: " + why), std::string::npos) << r.output;
+  }
 }
 
 TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {

@@ -340,6 +340,8 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
       SweepAxis x;
       x.path = a.at("path").get<std::string>();
       const std::string kind = a.at("kind").get<std::string>();
+      if (kind != "list" && kind != "range" && kind != "uniform" && kind != "normal")
+        throw std::runtime_error("axis '" + x.path + "': no kind '" + kind + "'");
       x.kind = kind == "list"      ? AxisKind::list
                : kind == "range"   ? AxisKind::range
                : kind == "uniform" ? AxisKind::uniform
@@ -367,6 +369,29 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
     for (const auto& pt : p.points) {
       if (pt.size() != p.axes.size()) throw std::runtime_error("a point without one value per axis");
     }
+    // What the sweep file's parser checks, checked again: a plan.json is a file on disk that
+    // anyone may have edited, and the aggregation divides by samples and indexes by these names.
+    if (p.samples < 1) throw std::runtime_error("samples must be >= 1");
+    if (p.points.empty() || p.runs.empty()) throw std::runtime_error("a plan without points or runs");
+    const auto metrics = p.metric_names();
+    const auto known_metric = [&](const std::string& m) {
+      if (std::find(metrics.begin(), metrics.end(), m) == metrics.end()) throw std::runtime_error("no metric '" + m + "'");
+    };
+    const auto grid_axis_path = [&](const std::string& path) {
+      const auto a = std::find_if(p.axes.begin(), p.axes.end(), [&](const SweepAxis& x) { return x.path == path; });
+      if (a == p.axes.end() || a->random()) throw std::runtime_error("no list or range axis '" + path + "'");
+    };
+    for (const auto& a : p.axes) {
+      if (!a.random() && a.values.empty()) throw std::runtime_error("axis '" + a.path + "' has no values");
+    }
+    for (const auto& t : p.thresholds) known_metric(t.metric);
+    for (const auto& m : p.maps) {
+      known_metric(m.metric);
+      grid_axis_path(m.x);
+      grid_axis_path(m.y);
+      for (const auto& [path, value] : m.slice) grid_axis_path(path);
+    }
+    known_metric(p.worst_by);
     return p;
   } catch (const json::exception& e) {
     throw std::runtime_error(origin + ": not a sweep plan (" + e.what() + ")");

@@ -1,5 +1,10 @@
 // The sweep's folder and its points on threads: plan.json, the rows files, the resumable run.
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -7,6 +12,8 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
+#include <system_error>
 #include <thread>
 
 #include "hil/bench/campaign/sim.hpp"
@@ -84,10 +91,47 @@ std::map<long, std::vector<double>> read_rows(const std::filesystem::path& dir, 
   return rows;
 }
 
+namespace {
+
+// One writer per rows file: a second `hilbench sweep` on the same --out (or the same shard twice)
+// would run the same points and splice its lines into the first one's. The lock is taken before
+// the rows are read, so the second learns of it before it plans any work; it goes with the process.
+class RowsLock {
+ public:
+  explicit RowsLock(const std::filesystem::path& rows_file) {
+    std::filesystem::create_directories(rows_file.parent_path());
+    std::string name = ".";  // appended, not "." + ...: GCC 12 warns falsely (-Wrestrict) on that
+    name += rows_file.filename().string();
+    name += ".lock";
+    const auto lock_file = rows_file.parent_path() / name;
+    fd_ = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NONBLOCK, 0644);
+    if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "cannot open " + lock_file.string());
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int e = errno;
+      ::close(fd_);
+      if (e == EWOULDBLOCK) {
+        throw std::runtime_error("another hilbench sweep is writing " + rows_file.string() +
+                                 " (the same --out and shard): wait for it to end, or stop it; then run this again");
+      }
+      throw std::system_error(e, std::generic_category(), "cannot lock " + lock_file.string());
+    }
+  }
+  ~RowsLock() { ::close(fd_); }
+  RowsLock(const RowsLock&) = delete;
+  RowsLock& operator=(const RowsLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+}  // namespace
+
 SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan, const SweepRunOptions& options) {
   const auto t0 = Clock::now();
   SweepRunResult result;
   result.total = plan.size();
+  const auto rows_file = dir / "rows" / (options.rows_name + ".jsonl");
+  const RowsLock lock(rows_file);
   const auto done = read_rows(dir, plan, &result.damaged_lines);
   std::vector<long> todo;
   long shard_done = 0;  // this shard's points done before: where its progress starts
@@ -101,8 +145,6 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   result.missing = static_cast<long>(todo.size());
   if (todo.empty()) return result;
 
-  std::filesystem::create_directories(dir / "rows");
-  const auto rows_file = dir / "rows" / (options.rows_name + ".jsonl");
   if (std::filesystem::exists(rows_file)) trim_to_whole_lines(rows_file);
   LineFile rows(rows_file, /*append=*/true);
 
