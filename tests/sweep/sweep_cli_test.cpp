@@ -203,6 +203,32 @@ TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {
   EXPECT_EQ(csv_rows(out / "sweep.csv").size(), 5u);  // the first sweep's outputs stay
 }
 
+// Every point reads the campaign's csv reference again: a resumed sweep whose csv changed would
+// mix rows of the old reference with rows of the new one, so the plan fingerprints its content.
+TEST(Sweep, AChangedCsvReferenceIsAnotherSweep) {
+  TempDir dir;
+  std::string campaign = slurp(source_path("tests/sweep/data/tiny_campaign.yaml"));
+  const std::string plant_line = "plant: ../../../configs/plant/nominal.yaml";
+  campaign.replace(campaign.find(plant_line), plant_line.size(), "plant: " + source_path("configs/plant/nominal.yaml").string());
+  const auto square = campaign.find("    - square:");
+  campaign.replace(square, campaign.find('\n', square) - square, "    - csv: {file: ref.csv, column: p_mpa}");
+  dir.write("c.yaml", campaign);
+  const auto write_reference = [&](double high_mpa) {
+    std::string csv = "t_s,p_mpa\n";
+    for (int k = 0; k <= 5; ++k) csv += std::to_string(k) + "," + std::to_string(k % 2 == 1 ? high_mpa : 1.0) + "\n";
+    dir.write("ref.csv", csv);
+  };
+  write_reference(1.4);
+  const auto sweep = dir.write("s.yaml", "campaign: c.yaml\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [5, 6]\n");
+  const auto out = dir.path() / "out";
+  auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  write_reference(1.3);
+  r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("a file the campaign reads (a csv reference) changed"), std::string::npos) << r.output;
+}
+
 TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
   TempDir dir;
   const std::string head = "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\naxes:\n";

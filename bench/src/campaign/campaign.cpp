@@ -83,8 +83,8 @@ std::pair<double, double> range_of(const Node& n, std::string_view key) {
 double uniform(plant::Rng& rng, std::pair<double, double> r) { return r.first + (r.second - r.first) * rng.uniform(); }
 
 // Reference items: step, ramp, square, points, sine, csv, random. Values in MPa.
-void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string& type, const Node& body, double duration_s,
-                        std::uint64_t campaign_seed) {
+void add_reference_item(ScheduleBuilder& b, std::vector<std::filesystem::path>& data_files, const Node& item,
+                        const std::string& type, const Node& body, double duration_s, std::uint64_t campaign_seed) {
   const double u = b.unit();
   if (type == "step") {
     body.allow_keys({"at_s", "to_mpa"});
@@ -128,6 +128,7 @@ void add_reference_item(ScheduleBuilder& b, const Node& item, const std::string&
   } else if (type == "csv") {
     body.allow_keys({"file", "column", "time_column"});
     const auto file = body.resolve_path(body.text("file"));
+    data_files.push_back(file);
     // By default a telemetry file's reference and time columns (hil/telemetry_schema.hpp).
     const std::string col = body.text("column", telemetry::name(telemetry::Col::p_ref_mpa)),
                       tcol = body.text("time_column", telemetry::name(telemetry::Col::t_s));
@@ -411,7 +412,7 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   {
     ScheduleBuilder b(ref.number("initial_mpa") * units::kPaPerMpa, c.duration_s, ref.at("initial_mpa"), units::kPaPerMpa);
     add_items(b, ref.find("profile"), [&](ScheduleBuilder& sb, const Node& item, const std::string& type, const Node& body) {
-      add_reference_item(sb, item, type, body, c.duration_s, c.seed);
+      add_reference_item(sb, c.data_files, item, type, body, c.duration_s, c.seed);
     });
     const auto [lo, hi] = truth.pressure_range_pa();
     for (const auto& o : b.origins()) {

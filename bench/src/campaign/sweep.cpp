@@ -18,6 +18,7 @@
 #include "hil/bench/rt/safety.hpp"
 #include "hil/config.hpp"
 #include "hil/plant/rng.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -564,6 +565,9 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   std::uint64_t h = fnv1a(sweep_text);
   h = fnv1a(plan.campaign_yaml, h);
   h = fnv1a(plan.plant_yaml, h);
+  // Files the campaign reads besides its YAML (a csv reference): a resumed sweep whose reference
+  // file changed would mix rows of the old file with rows of the new one.
+  for (const auto& f : base.data_files) h = fnv1a(read_text_file(f, "a file the base campaign reads"), h);
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
   plan.hash = hex;

@@ -74,8 +74,9 @@ SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
   if (old) {
     if (old->hash != plan.hash) {
       throw std::runtime_error(dir.string() + " was planned from another sweep: " + args.sweep_file +
-                               ", its base campaign or its plant changed since. Use another --out, or remove " + dir.string() +
-                               " to start this sweep afresh");
+                               ", its base campaign, its plant or a file the campaign reads (a csv reference) changed since. Use "
+                               "another --out, or remove " +
+                               dir.string() + " to start this sweep afresh");
     }
     return *old;
   }

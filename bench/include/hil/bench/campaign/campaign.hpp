@@ -44,6 +44,9 @@ struct Campaign {
   std::vector<RunSpec> runs;
   std::string yaml_text;        // the file as loaded, for the run's snapshot
   std::string plant_yaml_text;  // the plant file as loaded, for the run's snapshot
+  // Other files the campaign read (a csv reference item's file): a sweep's plan fingerprints
+  // their contents, since every point reads them again.
+  std::vector<std::filesystem::path> data_files;
 };
 
 Campaign load_campaign(const std::filesystem::path& file);
