@@ -222,6 +222,40 @@ TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {
   EXPECT_NE(log.find("token=<redacted>"), std::string::npos) << log;
 }
 
+// A run whose final run.json cannot be written (its folder made immutable: no new file in it,
+// while the open telemetry and event files still take lines) keeps its end in events.jsonl, and
+// the next server restores that outcome instead of calling the run interrupted by a crash.
+TEST(ServerHardening, ARunWhoseFinalRecordWasNotWrittenIsRestoredNotCalledInterrupted) {
+  hil::test::TempDir base;
+  const auto runs = base.path() / "runs";
+  std::filesystem::path dir;
+  {
+    ServerProcess first({"--runs-dir", runs.string()});
+    const auto api = first.client();
+    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3, "short_adaptive", 1, "adaptive"), "application/json").status,
+              202);
+    hil::test::wait_status(
+        api, [](const json& s) { return hil::test::status_t(s) > 0.5; }, 30s);
+    dir = hil::test::only_run(runs);
+    if (std::system(("chattr +i " + dir.string() + " 2>/dev/null").c_str()) != 0) {
+      GTEST_SKIP() << "chattr +i does not work here (not root, or not ext2/3/4/xfs)";
+    }
+    const json s = hil::test::wait_status(
+        api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+    ASSERT_EQ(std::system(("chattr -i " + dir.string()).c_str()), 0);
+    EXPECT_EQ(s["last"]["outcome"], "completed");
+    EXPECT_NE(first.log().find("cannot write the final run.json"), std::string::npos);
+  }
+  EXPECT_EQ(json::parse(hil::test::slurp(dir / "run.json"))["outcome"], "running");
+  EXPECT_EQ(hil::test::read_jsonl(dir / "events.jsonl").back()["kind"], "final_record_unwritten");
+
+  ServerProcess second({"--runs-dir", runs.string()});
+  const json run = json::parse(hil::test::slurp(dir / "run.json"));
+  EXPECT_EQ(run["outcome"], "completed") << run.dump(2);
+  EXPECT_NE(run["reason"].get<std::string>().find("its final run.json could not be written"), std::string::npos);
+  EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
+}
+
 TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   ServerProcess server;
   const auto api = server.client();

@@ -19,6 +19,7 @@
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
+#include "hil/text_file.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
@@ -52,6 +53,8 @@ std::string hostname() {
 // Space kept free in each run folder while the run lasts, and given back just before the final
 // run.json is written: so a disk that the telemetry filled still takes the run's honest record.
 constexpr std::uintmax_t kReserveBytes = 1u << 20;
+// The event a run logs when its final run.json cannot be written (its outcome, reason, error).
+constexpr const char* kFinalRecordUnwritten = "final_record_unwritten";
 constexpr double kBytesPerRow = 160;  // a loop telemetry row is about 110-140 characters
 
 // Held (flock) by the process running a run, released when it ends or dies: what tells a run
@@ -585,6 +588,13 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   } catch (const std::exception& e) {
     spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome),
                   reason);
+    // run.json still says "running": the event log, where it still takes a line, keeps the end,
+    // so a later server restores it instead of calling the run interrupted by a crash.
+    rec.log({{"kind", std::string(kFinalRecordUnwritten)},
+             {"source", "bench"},
+             {"outcome", to_string(outcome)},
+             {"reason", info.reason ? json(*info.reason) : json(nullptr)},
+             {"error", e.what()}});
   }
   run_lock.reset();
   const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
@@ -662,6 +672,23 @@ json CampaignRunner::status() const {
   return s;
 }
 
+namespace {
+
+// The last line of a run's events.jsonl when it is the kFinalRecordUnwritten event, else null.
+json final_event_unrecorded(const std::filesystem::path& events) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(events, ec)) return nullptr;
+  const std::string text = read_text_file(events, "an event log");
+  if (text.empty()) return nullptr;
+  const auto from = text.rfind('\n', text.size() - 2);
+  const json last =
+      json::parse(text.begin() + static_cast<long>(from == std::string::npos ? 0 : from + 1), text.end(), nullptr, false);
+  if (last.is_discarded() || !last.is_object() || last.value("kind", "") != kFinalRecordUnwritten) return nullptr;
+  return last;
+}
+
+}  // namespace
+
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
   std::vector<std::filesystem::path> marked;
   std::error_code ec;
@@ -687,9 +714,17 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       const auto last_write = std::filesystem::is_regular_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
       const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
       const std::string found = utc_iso(SysClock::now());
-      info.outcome = Outcome::interrupted;
-      info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
-                    ") ended during the run; found by a server started at " + found;
+      const json end = final_event_unrecorded(dir / "events.jsonl");
+      if (!end.is_null()) {  // the run ended; only its final run.json was not written
+        info.outcome = outcome_from(end.value("outcome", "interrupted"));
+        info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +
+                      "its final run.json could not be written (" + end.value("error", "?") +
+                      ") and was restored from events.jsonl by a server started at " + found;
+      } else {
+        info.outcome = Outcome::interrupted;
+        info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
+                      ") ended during the run, or could not write anything at its end; found by a server started at " + found;
+      }
       info.stop_utc = utc_iso(last_utc);
       info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
       // Only what the files show: the counts the dead process kept are unknown, and left out.
