@@ -4,7 +4,11 @@
 // Every case ends in a clear answer, the safe state where a run was under way, and records that
 // say what happened.
 #include <gtest/gtest.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <thread>
@@ -254,6 +258,44 @@ TEST(ServerHardening, ARunWhoseFinalRecordWasNotWrittenIsRestoredNotCalledInterr
   EXPECT_EQ(run["outcome"], "completed") << run.dump(2);
   EXPECT_NE(run["reason"].get<std::string>().find("its final run.json could not be written"), std::string::npos);
   EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
+}
+
+// Idle connections by the hundred (a flood took 20 000 descriptors and the next run.json could
+// not be written): past 256 open ones the server closes new ones at once, keeps its descriptors,
+// and answers again once the flood is gone.
+TEST(ServerHardening, AConnectionFloodIsCappedAndTheServerAnswersAfterIt) {
+  ServerProcess server;
+  const auto open_fds = [&] {
+    return static_cast<int>(std::distance(std::filesystem::directory_iterator("/proc/" + std::to_string(server.pid()) + "/fd"),
+                                          std::filesystem::directory_iterator{}));
+  };
+  const int before = open_fds();
+  std::vector<int> sockets;
+  for (int i = 0; i < 400; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    ASSERT_GE(fd, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(server.port()));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+    sockets.push_back(fd);
+  }
+  // The server accepts and closes what is over the cap as it comes: wait until it has seen all.
+  for (int i = 0; i < 200 && server.log().find("connections are open: refusing more") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_NE(server.log().find("256 connections are open: refusing more"), std::string::npos) << server.log();
+  EXPECT_LE(open_fds() - before, 256 + 8);  // the cap, and a few of the server's own
+  for (const int fd : sockets) ::close(fd);
+  bool answered = false;
+  for (int i = 0; i < 100 && !answered; ++i) {  // the closes reach the server as it reads them
+    try {
+      answered = server.client().get("/api/health").status == 200;
+    } catch (const std::exception&) {}
+    if (!answered) std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_TRUE(answered);
 }
 
 TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {

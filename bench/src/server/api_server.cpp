@@ -255,9 +255,29 @@ bool offers_foxglove(const Request& req) {
   return false;
 }
 
+// One open client connection, HTTP or WebSocket, counted while it lives: the server takes at
+// most kMaxConnections at once. A flood of idle sockets (20 000 from one client) took every file
+// descriptor the process had, and the next run could not write its run.json.
+constexpr int kMaxConnections = 256;
+class ConnectionSlot {
+ public:
+  explicit ConnectionSlot(std::shared_ptr<std::atomic<int>> open) : open_(std::move(open)) { ++*open_; }
+  ConnectionSlot(ConnectionSlot&& other) noexcept = default;  // the moved-from slot holds nothing
+  ConnectionSlot(const ConnectionSlot&) = delete;
+  ConnectionSlot& operator=(const ConnectionSlot&) = delete;
+  ConnectionSlot& operator=(ConnectionSlot&&) = delete;
+  ~ConnectionSlot() {
+    if (open_) --*open_;
+  }
+
+ private:
+  std::shared_ptr<std::atomic<int>> open_;
+};
+
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove) : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove) {}
+  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove, ConnectionSlot slot)
+      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), slot_(std::move(slot)) {}
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
   ~WsSession() {
@@ -391,6 +411,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   websocket::stream<beast::tcp_stream> ws_;
   TelemetryHub& hub_;
   const bool foxglove_;
+  ConnectionSlot slot_;                                 // handed over from the HTTP session it was upgraded from
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
   std::deque<Outgoing> queue_;
@@ -510,7 +531,9 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   TelemetryHub& hub;
   tcp::acceptor acceptor;
   std::string refuse_starts;  // io thread only
-  JobQueue jobs;              // submitted to on the io thread only: a check and its submit never race
+  std::shared_ptr<std::atomic<int>> open_connections = std::make_shared<std::atomic<int>>(0);
+  std::chrono::steady_clock::time_point last_refusal_logged{};  // io thread only
+  JobQueue jobs;  // submitted to on the io thread only: a check and its submit never race
 
   void accept();
   bool authorised(const Request& req, const Target& t) const;
@@ -1277,7 +1300,8 @@ Reply ApiServer::Impl::parse_failure(const beast::error_code& ec) const {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket&& socket, std::shared_ptr<ApiServer::Impl> api) : stream_(std::move(socket)), api_(std::move(api)) {}
+  HttpSession(tcp::socket&& socket, std::shared_ptr<ApiServer::Impl> api)
+      : stream_(std::move(socket)), api_(std::move(api)), slot_(api_->open_connections) {}
   HttpSession(const HttpSession&) = delete;
   HttpSession& operator=(const HttpSession&) = delete;
 
@@ -1329,7 +1353,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (!(rate > 0 && rate <= 5000))
       return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
     const bool foxglove = offers_foxglove(req);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove)->run(std::move(req), rate);
+    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, std::move(slot_))->run(std::move(req), rate);
   }
 
   void send(Reply reply, bool keep_alive) {
@@ -1400,6 +1424,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   beast::tcp_stream stream_;
   std::shared_ptr<ApiServer::Impl> api_;
+  ConnectionSlot slot_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   bool draining_ = false;
@@ -1410,7 +1435,18 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 void ApiServer::Impl::accept() {
   acceptor.async_accept(asio::make_strand(io), [self = shared_from_this()](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
-    if (!ec) std::make_shared<HttpSession>(std::move(socket), self)->read();
+    if (!ec && *self->open_connections >= kMaxConnections) {
+      // Closed at once: no read, no reply to build; said in the log at most once a minute.
+      beast::error_code ignored;
+      socket.close(ignored);
+      const auto now = std::chrono::steady_clock::now();
+      if (now - self->last_refusal_logged > std::chrono::minutes(1)) {
+        spdlog::warn("{} connections are open: refusing more until some close", kMaxConnections);
+        self->last_refusal_logged = now;
+      }
+    } else if (!ec) {
+      std::make_shared<HttpSession>(std::move(socket), self)->read();
+    }
     self->accept();
   });
 }
