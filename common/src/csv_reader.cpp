@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "hil/text_file.hpp"
+
 namespace hil {
 namespace {
 
@@ -14,23 +16,8 @@ constexpr std::size_t kReadBytes = 1 << 20, kMinReadBytes = 1 << 12;
 // instead of growing one line until memory runs out.
 constexpr std::size_t kMaxLineBytes = std::size_t{16} << 20;
 
-// Text from the file as an error quotes it: control bytes (a NUL would cut the message, an
-// escape sequence would drive the user's terminal) as \xNN, and at most 60 bytes of it.
-std::string printable(std::string_view text) {
-  std::string out;
-  for (std::size_t i = 0; i < text.size() && i < 60; ++i) {
-    const auto c = static_cast<unsigned char>(text[i]);
-    if (c < 0x20 || c == 0x7f) {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", c);
-      out += hex;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  if (text.size() > 60) out += "...";
-  return out;
-}
+// Text from the file as an error quotes it (hil::printable), at most 60 bytes.
+std::string printable(std::string_view text) { return hil::printable(text, 60); }
 
 std::string trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <thread>
 
+#include "run_command.hpp"
 #include "server_process.hpp"
 #include "small_disk.hpp"
 
@@ -296,6 +297,50 @@ TEST(ServerHardening, AConnectionFloodIsCappedAndTheServerAnswersAfterIt) {
     if (!answered) std::this_thread::sleep_for(100ms);
   }
   EXPECT_TRUE(answered);
+}
+
+// ctl against something that is no hilbench server: what it sends reaches the terminal with its
+// control bytes shown, not obeyed; JSON of the wrong shape is said to be so; a reply announcing
+// more than 64 MiB is refused, not allocated.
+TEST(ServerHardening, CtlAgainstAPeerThatIsNoHilbenchServer) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"HTTP/1.1 500 Oops\r\nContent-Type: application/json\r\nContent-Length: 47\r\nConnection: close\r\n\r\n"
+       "{\"error\": \"boom\", \"detail\": \"\\u001b[2Jgone\"}   ",
+       "boom: \\x1b[2Jgone (HTTP 500)"},
+      {"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nContent-Length: 16\r\nConnection: close\r\n\r\n"
+       "{\"state\": 12345}",
+       "answered with JSON that is not a hilbench server's reply"},
+      {"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nContent-Length: 99999999999\r\nConnection: close\r\n\r\n{",
+       "body limit exceeded"},
+  };
+  for (const auto& [reply, expected] : cases) {
+    const int listener = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    ASSERT_GE(listener, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::bind(listener, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+    ASSERT_EQ(::listen(listener, 4), 0);
+    socklen_t len = sizeof addr;
+    ASSERT_EQ(::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+    std::thread peer([listener, text = reply] {
+      const int c = ::accept(listener, nullptr, nullptr);
+      if (c < 0) return;
+      char request[4096];
+      (void)::recv(c, request, sizeof request, 0);
+      (void)::send(c, text.data(), text.size(), MSG_NOSIGNAL);
+      ::shutdown(c, SHUT_WR);
+      std::this_thread::sleep_for(200ms);
+      ::close(c);
+    });
+    const auto r = hil::test::run_command("timeout 30 " + hil::test::hilbench_exe() +
+                                          " ctl --server http://127.0.0.1:" + std::to_string(ntohs(addr.sin_port)) + " status");
+    peer.join();
+    ::close(listener);
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find('\x1b'), std::string::npos) << r.output;
+  }
 }
 
 TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {

@@ -26,10 +26,11 @@ using nlohmann::json;
     detail = j.value("detail", "");
     field = j.value("field", "");
   } catch (const std::exception&) {
-    detail = r.body.substr(0, 300);
+    detail = r.body;
   }
-  throw std::runtime_error(error + (field.empty() ? "" : " (field '" + field + "')") + (detail.empty() ? "" : ": " + detail) +
-                           " (HTTP " + std::to_string(r.status) + ")");
+  // What the peer sent goes to a terminal: its control bytes shown, not obeyed.
+  throw std::runtime_error(printable(error, 200) + (field.empty() ? "" : " (field '" + printable(field, 100) + "')") +
+                           (detail.empty() ? "" : ": " + printable(detail, 300)) + " (HTTP " + std::to_string(r.status) + ")");
 }
 
 json checked(const ApiReply& r) {
@@ -501,7 +502,13 @@ CommandRun define_ctl(CLI::App& ctl) {
     const CLI::App* at = &ctl;
     while (!at->get_subcommands().empty()) at = at->get_subcommands().front();
     for (const auto& [cmd, handler] : *handlers) {
-      if (cmd == at) return handler(*args, ApiClient(args->server_url, args->token));
+      if (cmd != at) continue;
+      try {
+        return handler(*args, ApiClient(args->server_url, args->token));
+      } catch (const json::exception& e) {  // a field missing or of another type
+        throw std::runtime_error(args->server_url + " answered with JSON that is not a hilbench server's reply (" +
+                                 printable(e.what(), 200) + ")");
+      }
     }
     throw UsageError("needs a command");  // unreachable: CLI11 requires one, and every leaf has a handler
   };

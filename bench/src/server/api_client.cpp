@@ -103,6 +103,14 @@ ApiReply ApiClient::request(const std::string& method, const std::string& target
     // announces more, is no hilbench server: refused at this size, not read until memory ends.
     parser.body_limit(kMaxReplyBytes);
     stream.expires_after(timeout_);
+    // The header first: Beast 1.74's string body reserves the announced length as the body
+    // begins, before its own limit is checked (a reply announcing 100 GB was std::bad_alloc).
+    run_op(io, [&](auto handler) { http::async_read_header(stream, buffer, parser, handler); });
+    if (const auto announced = parser.content_length(); announced && *announced > kMaxReplyBytes) {
+      throw ApiUnreachable(method + " " + target + " at " + host_ + ":" + port_ + ": the reply announces " +
+                           std::to_string(*announced) + " bytes, more than a hilbench server sends (" +
+                           std::to_string(kMaxReplyBytes >> 20) + " MiB at most): body limit exceeded");
+    }
     run_op(io, [&](auto handler) { http::async_read(stream, buffer, parser, handler); });
     const auto& res = parser.get();
     reply.status = res.result_int();

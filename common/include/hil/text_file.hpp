@@ -16,4 +16,9 @@ namespace hil {
 // `kind` says what was expected, e.g. "a YAML file".
 std::string read_text_file(const std::filesystem::path& file, std::string_view kind = "a file");
 
+// Text from outside (a file's cell, a peer's error reply) as a message to a terminal quotes it:
+// control bytes as \xNN (a NUL would cut the message, an escape sequence would drive the
+// terminal), and at most `max_bytes` of it, then "...".
+std::string printable(std::string_view text, std::size_t max_bytes);
+
 }  // namespace hil
