@@ -372,7 +372,7 @@ TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
       dir.write("s.yaml", "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
                               "\nruns: [adaptive]\naxes:\n  - path: campaign.gap.initial_deg\n    values: [0.5, 2]\n"
                               "  - path: campaign.gap.changes[0].drift.to_deg\n    relative_to: campaign.gap.initial_deg\n"
-                              "    values: [0.25]\n");
+                              "    values: [+0.25]\n");  // YAML allows the sign
   const auto out = dir.path() / "out";
   const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
