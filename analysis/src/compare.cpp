@@ -83,9 +83,9 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
     if (mc.rmse_deg > kMotorChannelTolDeg) {
       std::snprintf(b, sizeof b,
                     "Drive: the encoder differs from the drive model fed with the command by %.3g deg RMS (max %.3g deg "
-                    "at %.4g s): the drive (delay, lag, rate limit) is not what motor_servo says. The pressure replay "
+                    "at %s s): the drive (delay, lag, rate limit) is not what motor_servo says. The pressure replay "
                     "uses the encoder, so this does not enter the error above.",
-                    mc.rmse_deg, mc.max_abs_deg, mc.t_at_max_s);
+                    mc.rmse_deg, mc.max_abs_deg, text::instant(mc.t_at_max_s).c_str());
     } else {
       std::snprintf(b, sizeof b, "Drive: the drive model fed with the command follows the encoder (%.3g deg RMS).", mc.rmse_deg);
     }
@@ -234,7 +234,7 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
     std::vector<std::vector<std::string>> rows;
     for (std::size_t i = 0; i < r.worst.size(); ++i) {
       const auto& w = r.windows[r.worst[i]];
-      rows.push_back({std::to_string(i + 1), text::num(w.t0_s, 4), text::num(w.t1_s, 4), text::num(w.error.rmse_pa / kpa, 3),
+      rows.push_back({std::to_string(i + 1), text::instant(w.t0_s), text::instant(w.t1_s), text::num(w.error.rmse_pa / kpa, 3),
                       text::num(w.error.bias_pa / kpa, 3), text::num(w.error.max_abs_pa / kpa, 3), w.regime});
     }
     doc.table({"rank", "from [s]", "to [s]", "RMS [kPa]", "bias [kPa]", "max [kPa]", "motion"}, rows);

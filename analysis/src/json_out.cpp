@@ -133,7 +133,7 @@ void add_summary_table(report::Document& doc, const ResidualReport& r) {
   doc.table({"fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "at [s]", "bias [kPa]", "noise sigma [kPa]", "rows",
              "duration [s]"},
             {{text::fixed(r.fit_pct, 2), text::fixed(r.noise_floor_fit_pct, 2), text::num(r.error.rmse_pa / kKpa, 4),
-              text::num(r.error.max_abs_pa / kKpa, 4), text::num(r.error.t_at_max_s, 5), text::num(r.error.bias_pa / kKpa, 3),
+              text::num(r.error.max_abs_pa / kKpa, 4), text::instant(r.error.t_at_max_s), text::num(r.error.bias_pa / kKpa, 3),
               text::num(r.noise_sigma_pa / kKpa, 3), std::to_string(r.rows), text::num(r.duration_s, 5)}});
 }
 
@@ -141,10 +141,10 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
   std::string s;
   char b[400];
   std::snprintf(b, sizeof b,
-                "%s: fit %.2f %% (noise floor %.2f %%), RMSE %.3g kPa, max %.3g kPa at %.4g s, bias %+.3g kPa, "
+                "%s: fit %.2f %% (noise floor %.2f %%), RMSE %.3g kPa, max %.3g kPa at %s s, bias %+.3g kPa, "
                 "noise %.3g kPa\n",
                 model_name.c_str(), r.fit_pct, r.noise_floor_fit_pct, r.error.rmse_pa / kKpa, r.error.max_abs_pa / kKpa,
-                r.error.t_at_max_s, r.error.bias_pa / kKpa, r.noise_sigma_pa / kKpa);
+                text::instant(r.error.t_at_max_s).c_str(), r.error.bias_pa / kKpa, r.noise_sigma_pa / kKpa);
   s += b;
   s += "  by regime              share   RMSE kPa   bias kPa\n";
   for (const auto& g : r.regimes) {
@@ -156,8 +156,8 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
     s += "  worst windows:";
     for (std::size_t i = 0; i < std::min<std::size_t>(5, r.worst.size()); ++i) {
       const auto& w = r.windows[r.worst[i]];
-      std::snprintf(b, sizeof b, " %.4g-%.4g s (%.3g kPa)%s", w.t0_s, w.t1_s, w.error.rmse_pa / kKpa,
-                    i + 1 < std::min<std::size_t>(5, r.worst.size()) ? "," : "");
+      std::snprintf(b, sizeof b, " %s-%s s (%.3g kPa)%s", text::instant(w.t0_s).c_str(), text::instant(w.t1_s).c_str(),
+                    w.error.rmse_pa / kKpa, i + 1 < std::min<std::size_t>(5, r.worst.size()) ? "," : "");
       s += b;
     }
     s += "\n";

@@ -15,6 +15,8 @@
 #include "hil/minmax_decimator.hpp"
 #include "hil/units.hpp"
 
+#include "text.hpp"
+
 namespace hil::analysis {
 namespace {
 
@@ -984,7 +986,7 @@ std::string confinement_sentence(const ResidualReport& r) {
   for (const auto& x : g) {
     if (x.at_floor) continue;
     ++failing;
-    spans += (spans.empty() ? "" : ", ") + fmt("%.3g-%.3g s", x.t0_s, x.t1_s);
+    spans += (spans.empty() ? "" : ", ") + text::instant(x.t0_s) + "-" + text::instant(x.t1_s) + " s";
   }
   const double kpa = units::kPaPerKpa;
   const bool first_bad = !g.front().at_floor, last_bad = !g.back().at_floor;
@@ -992,22 +994,19 @@ std::string confinement_sentence(const ResidualReport& r) {
     const ResidualReport::Segment* bad = nullptr;
     for (const auto& x : g)
       if (!x.at_floor) bad = &x;
-    return fmt("The error is confined to %.3g-%.3g s", bad->t0_s, bad->t1_s) +
-           fmt(" (RMS %.3g kPa there); before and after it is at the noise floor: something changed at %.3g s",
-               bad->rmse_pa / kpa, bad->t0_s) +
-           fmt(" and recovered at %.3g s.", bad->t1_s);
+    return "The error is confined to " + text::instant(bad->t0_s) + "-" + text::instant(bad->t1_s) + " s" +
+           fmt(" (RMS %.3g kPa there); before and after it is at the noise floor: something changed at ", bad->rmse_pa / kpa) +
+           text::instant(bad->t0_s) + " s and recovered at " + text::instant(bad->t1_s) + " s.";
   }
   if (failing == 1 && last_bad) {
-    return fmt("The error starts at %.3g s (RMS %.3g kPa after it); before it the model is at the noise floor: something "
-               "changed at %.3g s",
-               g.back().t0_s, g.back().rmse_pa / kpa, g.back().t0_s) +
-           " and did not recover before the end of the file.";
+    return "The error starts at " + text::instant(g.back().t0_s) +
+           fmt(" s (RMS %.3g kPa after it); before it the model is at the noise floor: something changed at ",
+               g.back().rmse_pa / kpa) +
+           text::instant(g.back().t0_s) + " s and did not recover before the end of the file.";
   }
   if (failing == 1 && first_bad) {
-    return fmt(
-        "The error is confined to the start of the run, up to %.3g s (RMS %.3g kPa); after it the model is at the "
-        "noise floor.",
-        g.front().t1_s, g.front().rmse_pa / kpa);
+    return "The error is confined to the start of the run, up to " + text::instant(g.front().t1_s) +
+           fmt(" s (RMS %.3g kPa); after it the model is at the noise floor.", g.front().rmse_pa / kpa);
   }
   return "The error comes and goes: above the noise in " + spans + "; at the noise floor in between.";
 }

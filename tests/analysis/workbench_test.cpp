@@ -714,6 +714,24 @@ TEST(CommandLine, DiagnoseTakesSeveralFilesOfOneRig) {
   EXPECT_NE(r.out.find(encoder_file + ": has theta_motor_deg column, but " + files[0] + " has none"), std::string::npos) << r.out;
 }
 
+// A logger on the Unix-epoch clock: compare's sentences name instants to the tenth of a second,
+// not "1.76e+09 s" for every one of them (the JSON always had the digits).
+TEST(CommandLine, InstantsOfAnEpochClockKeepTheirDigits) {
+  hil::test::TempDir dir;
+  hil::test::LabLog log;
+  log.name = "epoch";
+  log.t0_s = 1764250000.0;
+  log.duration_s = 4;
+  log.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "sensor_bias", "offset_kpa: 40"); };
+  const std::string file = hil::test::make_lab_log(log, dir.path()).string();
+  const CliRun r = hilbench("compare --model " + hil::test::nominal_model().string() + " --data " + file + " --out " +
+                            (dir.path() / "c").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("e+09"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" at 176425000"), std::string::npos) << r.out;  // "max ... at 1764250001.2 s"
+  EXPECT_NE(r.out.find("worst windows: 176425000"), std::string::npos) << r.out;
+}
+
 TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {
   hil::test::TempDir dir;
   hil::test::Scenario s;
