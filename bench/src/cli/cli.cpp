@@ -1,5 +1,7 @@
 #include "cli.hpp"
 
+#include <unistd.h>
+
 #include <cerrno>
 #include <climits>
 #include <cmath>
@@ -72,7 +74,11 @@ CLI::App* add_command(CLI::App& parent, const std::string& name, const std::stri
 namespace {
 std::atomic<bool> g_stop{false};
 volatile std::sig_atomic_t g_stop_signal = 0;
+// The first signal asks the work to stop cleanly (it polls the flag); a second one ends the
+// process at once, for work blocked where it cannot poll (a read from a pipe nobody writes:
+// the handler's restarted system call would otherwise wait for ever).
 extern "C" void on_stop_signal(int sig) {
+  if (g_stop.load()) ::_exit(128 + sig);
   g_stop_signal = sig;
   g_stop.store(true);
 }
