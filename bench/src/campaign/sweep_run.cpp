@@ -1,10 +1,5 @@
 // The sweep's folder and its points on threads: plan.json, the rows files, the resumable run.
 
-#include <fcntl.h>
-#include <sys/file.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,11 +8,11 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
-#include <system_error>
 #include <thread>
 
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
+#include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/json_file.hpp"
@@ -96,33 +91,18 @@ namespace {
 // One writer per rows file: a second `hilbench sweep` on the same --out (or the same shard twice)
 // would run the same points and splice its lines into the first one's. The lock is taken before
 // the rows are read, so the second learns of it before it plans any work; it goes with the process.
-class RowsLock {
- public:
-  explicit RowsLock(const std::filesystem::path& rows_file) {
-    std::filesystem::create_directories(rows_file.parent_path());
-    std::string name = ".";  // appended, not "." + ...: GCC 12 warns falsely (-Wrestrict) on that
-    name += rows_file.filename().string();
-    name += ".lock";
-    const auto lock_file = rows_file.parent_path() / name;
-    fd_ = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NONBLOCK, 0644);
-    if (fd_ < 0) throw std::system_error(errno, std::generic_category(), "cannot open " + lock_file.string());
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      const int e = errno;
-      ::close(fd_);
-      if (e == EWOULDBLOCK) {
-        throw std::runtime_error("another hilbench sweep is writing " + rows_file.string() +
-                                 " (the same --out and shard): wait for it to end, or stop it; then run this again");
-      }
-      throw std::system_error(e, std::generic_category(), "cannot lock " + lock_file.string());
-    }
+FileLock lock_rows(const std::filesystem::path& rows_file) {
+  std::filesystem::create_directories(rows_file.parent_path());
+  std::string name = ".";  // appended, not "." + ...: GCC 12 warns falsely (-Wrestrict) on that
+  name += rows_file.filename().string();
+  name += ".lock";
+  try {
+    return FileLock(rows_file.parent_path() / name);
+  } catch (const FileLock::Busy&) {
+    throw std::runtime_error("another hilbench sweep is writing " + rows_file.string() +
+                             " (the same --out and shard): wait for it to end, or stop it; then run this again");
   }
-  ~RowsLock() { ::close(fd_); }
-  RowsLock(const RowsLock&) = delete;
-  RowsLock& operator=(const RowsLock&) = delete;
-
- private:
-  int fd_ = -1;
-};
+}
 
 }  // namespace
 
@@ -131,7 +111,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   SweepRunResult result;
   result.total = plan.size();
   const auto rows_file = dir / "rows" / (options.rows_name + ".jsonl");
-  const RowsLock lock(rows_file);
+  const FileLock lock = lock_rows(rows_file);
   const auto done = read_rows(dir, plan, &result.damaged_lines);
   std::vector<long> todo;
   long shard_done = 0;  // this shard's points done before: where its progress starts

@@ -1,7 +1,6 @@
 #include "hil/bench/server/runner.hpp"
 
 #include <fcntl.h>
-#include <sys/file.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -18,6 +17,7 @@
 #include "hil/bench/rt/rig_registry.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/config.hpp"
+#include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
 #include "hil/units.hpp"
@@ -57,38 +57,9 @@ constexpr std::uintmax_t kReserveBytes = 1u << 20;
 constexpr const char* kFinalRecordUnwritten = "final_record_unwritten";
 constexpr double kBytesPerRow = 160;  // a loop telemetry row is about 110-140 characters
 
-// Held (flock) by the process running a run, released when it ends or dies: what tells a run
-// that is running from one whose server is gone.
-class RunLock {
- public:
-  explicit RunLock(const std::filesystem::path& dir) : file_(dir / ".lock") {
-    fd_ = ::open(file_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd_ < 0 || ::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      if (fd_ >= 0) ::close(fd_);
-      throw std::runtime_error("cannot lock " + file_.string());
-    }
-  }
-  ~RunLock() {
-    std::error_code ec;
-    std::filesystem::remove(file_, ec);
-    ::close(fd_);
-  }
-  RunLock(const RunLock&) = delete;
-  RunLock& operator=(const RunLock&) = delete;
-
- private:
-  std::filesystem::path file_;
-  int fd_ = -1;
-};
-
-// True when no live process holds the run's lock.
-bool run_abandoned(const std::filesystem::path& dir) {
-  const int fd = ::open((dir / ".lock").c_str(), O_RDWR | O_CLOEXEC);
-  if (fd < 0) return true;  // never locked, or the lock file is gone: nobody holds it
-  const bool free = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
-  ::close(fd);  // also releases it
-  return free;
-}
+// A run folder's `.lock` (a hil::FileLock), held by the process running the run and released when
+// it ends or dies: what tells a run that is running from one whose server is gone.
+std::filesystem::path run_lock_file(const std::filesystem::path& dir) { return dir / ".lock"; }
 
 // Telemetry rows in a CSV on disk: lines that are neither metadata (#) nor the header.
 std::uint64_t csv_rows(const std::filesystem::path& file) {
@@ -378,9 +349,9 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const RigConfig& rc = a.req.rig;
   const auto start_utc = SysClock::now();
   const auto dir = unique_dir(o_.runs_dir / (utc(start_utc, "%Y%m%dT%H%M%SZ") + "_" + c.name + "_" + run.name));
-  std::optional<RunLock> run_lock;
+  std::optional<FileLock> run_lock;
   try {
-    run_lock.emplace(dir);
+    run_lock.emplace(run_lock_file(dir), /*remove_when_released=*/true);
     // The reserve is taken first: a disk without room for it would not take the run's record.
     const int fd = ::open((dir / ".reserve").c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
     const int rc = fd < 0 ? errno : ::posix_fallocate(fd, 0, static_cast<off_t>(kReserveBytes));
@@ -702,7 +673,7 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
       continue;
     }
-    if (info.outcome != Outcome::running || !run_abandoned(dir)) continue;
+    if (info.outcome != Outcome::running || !FileLock::free(run_lock_file(dir))) continue;
     try {
       // What is on disk is the record: a line cut by the crash is removed and counted.
       json trimmed = json::object();
