@@ -39,6 +39,12 @@ std::string join(const std::vector<std::string>& words) {
 
 }  // namespace
 
+bool parse_number(std::string_view text, double& value) {
+  if (!text.empty() && text.front() == '+') text.remove_prefix(1);
+  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  return ec == std::errc() && ptr == text.data() + text.size() && std::isfinite(value);
+}
+
 std::string closest(std::string_view word, const std::vector<std::string>& candidates) {
   std::string best;
   std::size_t best_d = word.size() / 2 + 2;  // beyond this a suggestion misleads more than helps
@@ -192,12 +198,7 @@ double Node::number() const {
   if (!node_.IsScalar()) fail("expected a number, got " + describe(node_));
   const std::string& s = node_.Scalar();
   double v = 0;
-  const char* first = s.data();
-  if (!s.empty() && s[0] == '+') ++first;
-  const auto [ptr, ec] = std::from_chars(first, s.data() + s.size(), v);
-  if (ec != std::errc() || ptr != s.data() + s.size() || !std::isfinite(v)) {
-    fail("expected a number, got '" + s + "'");
-  }
+  if (!parse_number(s, v)) fail("expected a number, got '" + s + "'");
   return v;
 }
 

@@ -623,17 +623,12 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
       }
       const auto base_path = parse_path(axis.relative_to);
       const std::string base = walk_checked(base_path->plant ? plant : campaign, *base_path).as<std::string>();
-      // YAML's numbers may carry a '+' (initial_deg: +1.0, values: [+0.5]); from_chars takes none.
-      const auto number = [](std::string_view text, double& v) {
-        if (!text.empty() && text.front() == '+') text.remove_prefix(1);
-        const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
-        return r.ec == std::errc() && r.ptr == text.data() + text.size() && std::isfinite(v);
-      };
+      // As a YAML number (initial_deg: +1.0, values: [+0.5]), like every number of the campaign.
       double b = 0, d = 0;
-      if (!number(base, b)) {
+      if (!cfg::parse_number(base, b)) {
         throw cfg::Error(axis.path + ": relative to " + axis.relative_to + " = '" + base + "', which is no number");
       }
-      if (!number(values[i], d)) throw cfg::Error(axis.path + ": the increment '" + values[i] + "' is no number");
+      if (!cfg::parse_number(values[i], d)) throw cfg::Error(axis.path + ": the increment '" + values[i] + "' is no number");
       at = shortest(b + d);
     }
   }

@@ -88,6 +88,10 @@ class Node {
 // (so never ".", "..", or a hidden name). Campaign and run names, run ids, file names in requests.
 bool plain_name(std::string_view name);
 
+// A YAML scalar's text as a finite number: what from_chars reads, with YAML's optional leading
+// '+' (`+1.0`), the whole text, and never inf or nan. False when it is none.
+bool parse_number(std::string_view text, double& value);
+
 // "did you mean" helper, also used for sub-command and effect names.
 std::string closest(std::string_view word, const std::vector<std::string>& candidates);
 
