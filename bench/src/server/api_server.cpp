@@ -221,16 +221,19 @@ double number_field(const json& j, const char* key) {
   return v;
 }
 
+// `name` (a body field or a query option) when it is not one of `allowed`: 400 `error`, with a
+// "did you mean" and `after` in the detail. `shown` is the name as it may be echoed.
+void refuse_unknown(const std::string& name, const std::string& shown, const std::vector<std::string>& allowed, const char* error,
+                    const std::string& after = "") {
+  if (std::find(allowed.begin(), allowed.end(), name) != allowed.end()) return;
+  const std::string hint = cfg::closest(name, allowed);
+  throw ApiError{http::status::bad_request, error,
+                 "'" + shown + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + after, shown};
+}
+
 void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
-  for (const auto& item : j.items()) {
-    const std::string k = item.key();  // not a structured binding: clang 14 cannot capture one in a lambda
-    if (std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; }) == allowed.end()) {
-      std::vector<std::string> names(allowed.begin(), allowed.end());
-      const std::string hint = cfg::closest(k, names);
-      throw ApiError{http::status::bad_request, "unknown field",
-                     "'" + k + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)"), k};
-    }
-  }
+  const std::vector<std::string> names(allowed.begin(), allowed.end());
+  for (const auto& item : j.items()) refuse_unknown(item.key(), item.key(), names, "unknown field");
 }
 
 }  // namespace
@@ -639,12 +642,8 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   if (yaml_body) {  // the query carries the options: a typo (?run=) must not start every run
     const std::vector<std::string> names{"rig", "runs", "speed", "token"};
     for (const auto& item : t.query) {
-      if (std::find(names.begin(), names.end(), item.first) != names.end()) continue;
-      const std::string hint = cfg::closest(item.first, names), shown = loggable_target(item.first);
-      throw ApiError{http::status::bad_request, "unknown query option",
-                     "'" + shown + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
-                         "; a YAML body takes rig, runs and speed in the query",
-                     shown};
+      refuse_unknown(item.first, loggable_target(item.first), names, "unknown query option",
+                     "; a YAML body takes rig, runs and speed in the query");
     }
   }
   // Options come from the JSON body, or from the query when the body is the YAML itself.

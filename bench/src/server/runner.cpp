@@ -158,6 +158,8 @@ struct CampaignRunner::Active {
   // Guarded by the runner's mutex:
   bool stop = false, abort = false;
   std::string abort_reason;
+  // What an operator's abort ends a run or the campaign with.
+  std::string abort_text() const { return abort_reason.empty() ? "operator abort" : abort_reason; }
   std::size_t index = 0;
   std::filesystem::path dir;
   const RunLoop* loop = nullptr;
@@ -331,8 +333,8 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
     std::lock_guard lock(mutex_);
     if (worst == Outcome::completed && a->finished.size() < a->runs.size() && (a->abort || a->stop)) {
       last["outcome"] = to_string(a->abort ? Outcome::aborted : Outcome::stopped);
-      last["reason"] = a->abort ? (a->abort_reason.empty() ? "operator abort" : a->abort_reason)
-                                : std::string("operator stop before run '") + a->runs[a->finished.size()]->name + "'";
+      last["reason"] =
+          a->abort ? a->abort_text() : std::string("operator stop before run '") + a->runs[a->finished.size()]->name + "'";
     }
   }
   notice(
@@ -481,8 +483,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       case LoopEnd::tripped:
       case LoopEnd::running:
         outcome = Outcome::aborted;
-        reason = loop->trip() == Trip::operator_abort ? (a.abort_reason.empty() ? "operator abort" : a.abort_reason)
-                                                      : describe_trip(*loop);
+        reason = loop->trip() == Trip::operator_abort ? a.abort_text() : describe_trip(*loop);
         break;
     }
     a.periods_done += loop->periods_run();
