@@ -227,29 +227,36 @@ TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {
   EXPECT_NE(log.find("token=<redacted>"), std::string::npos) << log;
 }
 
-// A run whose final run.json cannot be written (its folder made immutable: no new file in it,
-// while the open telemetry and event files still take lines) keeps its end in events.jsonl, and
-// the next server restores that outcome instead of calling the run interrupted by a crash.
+// Runs a 3 s campaign on `server` and makes the run's folder immutable while it runs (no new
+// file in it, while the open telemetry and event files still take lines), so that its final
+// run.json cannot be written; returns the run's folder once the campaign has ended, still
+// immutable. Empty when chattr +i does not work here.
+std::filesystem::path run_whose_final_record_fails(ServerProcess& server, const std::filesystem::path& runs) {
+  const auto api = server.client();
+  EXPECT_EQ(api.request("POST", "/api/start", campaign_request(3, "short_adaptive", 1, "adaptive"), "application/json").status,
+            202);
+  hil::test::wait_status(
+      api, [](const json& s) { return hil::test::status_t(s) > 0.5; }, 30s);
+  const auto dir = hil::test::only_run(runs);
+  if (std::system(("chattr +i " + dir.string() + " 2>/dev/null").c_str()) != 0) return {};
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+  EXPECT_EQ(s["last"]["outcome"], "completed");
+  EXPECT_NE(server.log().find("cannot write the final run.json"), std::string::npos);
+  return dir;
+}
+
+// Such a run keeps its end in events.jsonl, and the next server restores that outcome instead of
+// calling the run interrupted by a crash.
 TEST(ServerHardening, ARunWhoseFinalRecordWasNotWrittenIsRestoredNotCalledInterrupted) {
   hil::test::TempDir base;
   const auto runs = base.path() / "runs";
   std::filesystem::path dir;
   {
     ServerProcess first({"--runs-dir", runs.string()});
-    const auto api = first.client();
-    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3, "short_adaptive", 1, "adaptive"), "application/json").status,
-              202);
-    hil::test::wait_status(
-        api, [](const json& s) { return hil::test::status_t(s) > 0.5; }, 30s);
-    dir = hil::test::only_run(runs);
-    if (std::system(("chattr +i " + dir.string() + " 2>/dev/null").c_str()) != 0) {
-      GTEST_SKIP() << "chattr +i does not work here (not root, or not ext2/3/4/xfs)";
-    }
-    const json s = hil::test::wait_status(
-        api, [](const json& x) { return x["state"] == "idle"; }, 30s);
+    dir = run_whose_final_record_fails(first, runs);
+    if (dir.empty()) GTEST_SKIP() << "chattr +i does not work here (not root, or not ext2/3/4/xfs)";
     ASSERT_EQ(std::system(("chattr -i " + dir.string()).c_str()), 0);
-    EXPECT_EQ(s["last"]["outcome"], "completed");
-    EXPECT_NE(first.log().find("cannot write the final run.json"), std::string::npos);
   }
   EXPECT_EQ(json::parse(hil::test::slurp(dir / "run.json"))["outcome"], "running");
   EXPECT_EQ(hil::test::read_jsonl(dir / "events.jsonl").back()["kind"], "final_record_unwritten");
@@ -259,6 +266,39 @@ TEST(ServerHardening, ARunWhoseFinalRecordWasNotWrittenIsRestoredNotCalledInterr
   EXPECT_EQ(run["outcome"], "completed") << run.dump(2);
   EXPECT_NE(run["reason"].get<std::string>().find("its final run.json could not be written"), std::string::npos);
   EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
+}
+
+// The live server does not list such a run as running while the file says so: it shows the end
+// it keeps, refuses a review (which reads the file) with a 409 that says why, and writes the file
+// as soon as the disk takes it again.
+TEST(ServerHardening, TheLiveServerShowsTheEndOfARunWhoseFinalRecordWasNotWritten) {
+  hil::test::TempDir base;
+  const auto runs = base.path() / "runs";
+  ServerProcess server({"--runs-dir", runs.string()});
+  const auto dir = run_whose_final_record_fails(server, runs);
+  if (dir.empty()) GTEST_SKIP() << "chattr +i does not work here (not root, or not ext2/3/4/xfs)";
+  const std::string id = dir.filename().string();
+  const auto api = server.client();
+
+  const auto listed = api.get("/api/runs").json()["runs"];
+  const auto one = api.get("/api/runs/" + id).json()["run"];
+  const auto review = api.get("/api/runs/" + id + "/report.html");
+  ASSERT_EQ(std::system(("chattr -i " + dir.string()).c_str()), 0);
+  ASSERT_EQ(listed.size(), 1u);
+  EXPECT_EQ(listed[0]["outcome"], "completed") << listed.dump(2);
+  EXPECT_NE(listed[0]["reason"].get<std::string>().find("final run.json could not be written"), std::string::npos);
+  EXPECT_EQ(one["outcome"], "completed") << one.dump(2);
+  EXPECT_EQ(review.status, 409) << review.body;
+  EXPECT_NE(review.body.find("final run.json could not be written"), std::string::npos) << review.body;
+  EXPECT_EQ(json::parse(hil::test::slurp(dir / "run.json"))["outcome"], "running");
+
+  // The folder takes files again: the next request writes the record, and it is the file's now.
+  EXPECT_EQ(api.get("/api/runs").json()["runs"][0]["outcome"], "completed");
+  const json run = json::parse(hil::test::slurp(dir / "run.json"));
+  EXPECT_EQ(run["outcome"], "completed") << run.dump(2);
+  EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
+  const int status = api.get("/api/runs/" + id + "/report.html").status;
+  EXPECT_TRUE(status == 200 || status == 202) << status;  // made now, or queued as a job
 }
 
 // Idle connections by the hundred (a flood took 20 000 descriptors and the next run.json could

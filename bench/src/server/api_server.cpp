@@ -563,6 +563,15 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   RigConfig rig_named(const std::string& name) const;
   // The folder of a recorded run (404 otherwise) and its record (422 when unreadable), 409 while it runs.
   std::filesystem::path ended_run(const std::string& id, RunRecord* record = nullptr) const;
+  // A run folder's record as the API shows it: its run.json, or, while that file still says
+  // "running" for a run this server ended, the end the runner keeps (CampaignRunner::unrecorded_end).
+  RunRecord record_of(const std::filesystem::path& dir) const {
+    RunRecord r = read_run_record(dir);
+    if (r.outcome == Outcome::running) {
+      if (auto end = runner.unrecorded_end(dir.filename().string())) return std::move(end->record);
+    }
+    return r;
+  }
   // An analysis of the run, from the jobs (queued, running, failed) or from its folder (done).
   std::optional<json> find_analysis(const std::string& id, const std::string& aid) const;
 };
@@ -806,7 +815,7 @@ Reply ApiServer::Impl::runs() {
   for (const auto& d : dirs) {
     json j = {{"id", d.filename().string()}};
     try {
-      const json r = read_run_record(d).to_json();
+      const json r = record_of(d).to_json();
       for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r[k];
     } catch (const std::exception& e) {
       j["error"] = e.what();  // names the file, and the line and column
@@ -832,6 +841,9 @@ Reply ApiServer::Impl::run(const std::string& id) {
     r = read_json_file(dir / "run.json");
   } catch (const std::exception& e) {
     throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
+  }
+  if (r.is_object() && r.value("outcome", json()) == "running") {
+    if (const auto end = runner.unrecorded_end(id)) r = end->record.to_json();
   }
   return json_reply(http::status::ok, {{"id", id}, {"files", files}, {"run", r}});
 }
@@ -862,6 +874,15 @@ std::filesystem::path ApiServer::Impl::ended_run(const std::string& id, RunRecor
     r = read_run_record(dir);
   } catch (const std::exception& e) {
     throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
+  }
+  const auto end = r.outcome == Outcome::running ? runner.unrecorded_end(id) : std::nullopt;
+  if (end && end->written) r = end->record;
+  if (end && !end->written) {
+    throw ApiError{http::status::conflict, "the run's record is not on disk",
+                   "run '" + id +
+                       "' has ended, but its final run.json could not be written, and a review reads that file; "
+                       "free room in the runs folder and ask again (GET /api/runs/" +
+                       id + " shows the end)"};
   }
   if (r.outcome == Outcome::running) {
     throw ApiError{http::status::conflict, "the run is still running",

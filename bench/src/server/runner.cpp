@@ -567,6 +567,8 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
              {"outcome", to_string(outcome)},
              {"reason", info.reason ? json(*info.reason) : json(nullptr)},
              {"error", e.what()}});
+    std::lock_guard lock(unrecorded_mutex_);
+    unrecorded_[dir.filename().string()] = info;
   }
   run_lock.reset();
   const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
@@ -642,6 +644,25 @@ json CampaignRunner::status() const {
                    {"elapsed_s", elapsed},
                    {"remaining_s", (total - done) / a.req.speed}};
   return s;
+}
+
+std::optional<CampaignRunner::UnrecordedEnd> CampaignRunner::unrecorded_end(const std::string& run_dir_name) {
+  std::lock_guard lock(unrecorded_mutex_);
+  const auto it = unrecorded_.find(run_dir_name);
+  if (it == unrecorded_.end()) return std::nullopt;
+  UnrecordedEnd end{it->second, false};
+  try {
+    write_run_record(o_.runs_dir / run_dir_name, end.record);
+    spdlog::info("run {}: the final run.json is written now", run_dir_name);
+    unrecorded_.erase(it);
+    end.written = true;
+  } catch (const std::exception& e) {
+    end.record.reason = (end.record.reason ? *end.record.reason + "; " : std::string()) +
+                        "its final run.json could not be written (" + e.what() +
+                        "), so the file still says running; this server shows the end it keeps, and a server restart "
+                        "restores it from events.jsonl";
+  }
+  return end;
 }
 
 namespace {

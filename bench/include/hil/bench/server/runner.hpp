@@ -10,8 +10,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -88,6 +90,16 @@ class CampaignRunner {
   void wait();  // until the campaign thread has finished
   nlohmann::json status() const;
 
+  // A run (its folder's name) that ended in this process but whose final run.json the disk
+  // refused, so that file still says "running". Tries the write again first: `written` says
+  // whether the file is the record now. Until a restart restores it from events.jsonl, the API
+  // shows this record instead of the file's. Nothing for any other run.
+  struct UnrecordedEnd {
+    RunRecord record;
+    bool written = false;
+  };
+  std::optional<UnrecordedEnd> unrecorded_end(const std::string& run_dir_name);
+
  private:
   struct Active;
   void run_campaign(std::shared_ptr<Active> a);
@@ -99,6 +111,8 @@ class CampaignRunner {
   std::shared_ptr<Active> active_;  // the running campaign, or null
   nlohmann::json last_;             // the last finished campaign
   std::thread thread_;
+  std::mutex unrecorded_mutex_;                  // not mutex_: a retried write must not hold up status()
+  std::map<std::string, RunRecord> unrecorded_;  // by run folder name; see unrecorded_end
 };
 
 }  // namespace hil::bench
