@@ -732,6 +732,36 @@ TEST(CommandLine, InstantsOfAnEpochClockKeepTheirDigits) {
   EXPECT_NE(r.out.find("worst windows: 176425000"), std::string::npos) << r.out;
 }
 
+// --write-model that would overwrite an input (the data, the model, through another name) or is
+// a folder is refused before the fit, and every input is left as it was.
+TEST(CommandLine, DiagnoseRefusesAFittedModelPathThatIsAnInputOrAFolder) {
+  hil::test::TempDir dir;
+  hil::test::LabLog log;
+  log.name = "inputs";
+  log.duration_s = 2;
+  const fs::path data = hil::test::make_lab_log(log, dir.path());
+  const fs::path model = dir.write("model.yaml", hil::test::slurp(hil::test::nominal_model()));
+  const fs::path link = dir.path() / "link.yaml";
+  fs::create_symlink(model, link);
+  const std::string data_before = hil::test::slurp(data), model_before = hil::test::slurp(model);
+  const std::vector<std::pair<fs::path, std::string>> refused = {
+      {data, ": is the input " + data.string() + ", which it would overwrite"},
+      {model, ": is the input " + model.string() + ", which it would overwrite"},
+      {link, ": is the input " + model.string() + ", which it would overwrite"},
+      {dir.path(), ": is a folder; give the fitted model's file name"},
+  };
+  for (const auto& [target, why] : refused) {
+    const CliRun r = hilbench("diagnose --model " + model.string() + " --data " + data.string() + " --out " +
+                              (dir.path() / "d").string() + " --write-model " + target.string());
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("--write-model " + target.string() + why), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir.path() / "d")) << "refused before the fit, nothing written";
+  }
+  EXPECT_EQ(hil::test::slurp(data), data_before);
+  EXPECT_EQ(hil::test::slurp(model), model_before);
+  EXPECT_TRUE(fs::is_symlink(link));
+}
+
 TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {
   hil::test::TempDir dir;
   hil::test::Scenario s;

@@ -116,6 +116,22 @@ TEST(Cli, AnOutputThatCannotBeWrittenFailsTheCommand) {
   EXPECT_NE(r.output.find("--out: needs a path, got the option '--quiet'"), std::string::npos) << r.output;
 }
 
+// characterise --readme on a symbolic link (a README kept elsewhere) updates the file it points
+// to and keeps the link; it used to put a plain file in the link's place.
+TEST(Cli, CharacteriseUpdatesTheReadmeALinkPointsTo) {
+  hil::test::TempDir dir;
+  const auto campaigns = source_path("configs/campaigns").string();
+  const auto table = run_command(hilbench() + " characterise --campaigns " + campaigns);
+  ASSERT_EQ(table.status, 0) << table.output;
+  const auto real = dir.write("real.md", "# Title\n<!-- characterise:begin -->\nold\n<!-- characterise:end -->\nafter\n");
+  const auto link = dir.path() / "link.md";
+  std::filesystem::create_symlink(real, link);
+  const auto r = run_command(hilbench() + " characterise --campaigns " + campaigns + " --readme " + link.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::is_symlink(link));
+  EXPECT_EQ(slurp(real), "# Title\n<!-- characterise:begin -->\n" + table.output + "<!-- characterise:end -->\nafter\n");
+}
+
 TEST(SimCli, NoiseFreeOverrideAndRunSelection) {
   hil::test::TempDir out;
   const auto r = run_command(hilbench() + " sim " + source_path("configs/campaigns/paper_constant.yaml").string() +

@@ -459,6 +459,22 @@ TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
   EXPECT_NE(html.find("hilbench sim " + (local / "points").string()), std::string::npos);
 }
 
+// --shard I/N out of its range is a usage error before anything is planned; a huge N overflowed
+// the shard's stride.
+TEST(Sweep, AShardOutOfItsRangeIsAUsageError) {
+  TempDir dir;
+  const auto sweep = source_path("tests/sweep/small.yaml");
+  const auto out = dir.path() / "out";
+  for (const char* shard : {"4/4", "0/0", "-1/4", "0/1000001", "1/9223372036854775807", "0/4x", "1"}) {
+    const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --shard " + shard);
+    EXPECT_EQ(r.status, 2) << shard << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string("--shard ") + shard + ": needs I/N with 0 <= I < N <= 1000000"), std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(out)) << shard;
+  }
+  EXPECT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --shard 999999/1000000 --quiet").status, 0);
+}
+
 // --slurm against stand-ins for sbatch and squeue that record what they were asked: the array
 // covers the shards with missing points, the aggregation job waits for it (afterany), the
 // scripts run this binary on this folder, and --status asks squeue about both jobs.

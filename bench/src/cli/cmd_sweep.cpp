@@ -371,17 +371,17 @@ int run_sweep_command(const SweepArgs& args) {
     dir = args.out_dir;
     return aggregate(dir, read_plan(dir), args.quiet);
   }
-  const SweepPlan plan = prepare(args, dir);
   SweepRunOptions options;
-  options.jobs = jobs_of(args);
-  options.progress = !args.quiet;
-  options.cancel = &StopSignal::install();
-  if (!args.shard.empty()) {
+  if (!args.shard.empty()) {  // a usage error before the folder and its plan are made
     const auto [i, n] = parse_shard(args.shard);
     options.shard = i;
     options.shards = n;
     options.rows_name = "shard-" + std::to_string(i) + "-of-" + std::to_string(n);
   }
+  const SweepPlan plan = prepare(args, dir);
+  options.jobs = jobs_of(args);
+  options.progress = !args.quiet;
+  options.cancel = &StopSignal::install();
   try {
     const SweepRunResult r = run_sweep(dir, plan, options);
     say_damaged_rows(stderr, dir, r.damaged_lines);
