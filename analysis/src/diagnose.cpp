@@ -338,6 +338,7 @@ void adopt_joint_values(std::vector<Added>& added, const VariantFit& chosen) {
 std::string param_text(const FittedParam& p) {
   std::string s = p.key + " = " + text::num(p.value, 4);
   if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
+  if (p.located_between()) s += " (anywhere from " + text::num(p.lo, 4) + " to " + text::num(p.hi, 4) + " fits as well)";
   if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
   return s;
 }
@@ -352,7 +353,72 @@ void localise_event_times(std::vector<FittedParam>& params, const ReplayData& da
     while (k + 1 < data.segments.size() && data.segments[k + 1].clock_offset_s <= p.value) ++k;
     p.file = static_cast<int>(k);
     p.value -= data.segments[k].clock_offset_s;
+    p.lo -= data.segments[k].clock_offset_s;  // the span on the same file's clock: it may reach into
+    p.hi -= data.segments[k].clock_offset_s;  // a neighbour's (below 0, or past the file's end)
   }
+}
+
+// How far an added effect's grid parameter (a step time) can move and still fit: its profile.
+// A step is located only by the motions around it; between two motions every time fits as well,
+// and the best grid value alone would claim more than the data say. From the chosen value the
+// walk steps outwards, doubling its stride while the cost stays within one standard error of the
+// best (the RSS of the coarse copy may rise by s^2 tau: the residual's variance times its
+// correlation time, a one-parameter chi-square of 1 for correlated noise), then bisects to the
+// last grid value inside. At each value the effect's continuous parameters are refitted (a short
+// LM from their values), the other effects held. Both directions run at once. NaN when the
+// effect has no grid parameter.
+std::pair<double, double> grid_span(const Context& ctx, const plant::Plant& base0, const std::vector<Added>& added,
+                                    std::size_t which, int& evaluations) {
+  const VariantFit& fit = added[which].fit;
+  if (fit.grid == nullptr || !fit.grid->grid_values) return {kNaN, kNaN};
+  const std::vector<double> values = fit.grid->grid_values(ctx.coarse);
+  if (values.size() < 2) return {kNaN, kNaN};
+  std::atomic<int> evals{0};
+  auto cost = [&](double g) {
+    throw_if_cancelled(ctx.cancel);
+    std::vector<Added> trial = added;
+    trial[which].fit.grid_value = g;
+    const plant::Plant m = apply_added(base0, trial);
+    if (fit.continuous.empty()) {
+      ++evals;
+      return rss_of(m, ctx.coarse, nullptr);
+    }
+    detail::Fitter f(m, fit.continuous, ctx.coarse);
+    const auto r = f.levenberg_marquardt(fit.values, kGridIter);
+    evals += f.evaluations();
+    return r.ok ? r.rss : kInf;
+  };
+  std::vector<double> residual;
+  const double rss_now = rss_of(apply_added(base0, added), ctx.coarse, &residual);
+  std::size_t k = 0;
+  for (const auto& a : added) k += a.fit.k();
+  if (!std::isfinite(rss_now) || residual.size() <= k + 1) return {kNaN, kNaN};
+  const double s2 = rss_now / static_cast<double>(residual.size() - k);
+  const double within = std::min(rss_now, cost(fit.grid_value)) + s2 * integrated_autocorrelation_time(residual);
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < values.size(); ++i)
+    if (std::abs(values[i] - fit.grid_value) < std::abs(values[best] - fit.grid_value)) best = i;
+  double ends[2] = {values[best], values[best]};
+  parallel_for(2, ctx.threads, [&](std::size_t side) {
+    const long dir = side == 0 ? -1 : 1, last = side == 0 ? 0 : static_cast<long>(values.size()) - 1;
+    long in = static_cast<long>(best), stride = 1;
+    for (;;) {
+      const long j = dir < 0 ? std::max(last, in - stride) : std::min(last, in + stride);
+      if (j == in) break;  // the span reaches the data's end
+      if (cost(values[static_cast<std::size_t>(j)]) <= within) {
+        in = j, stride *= 2;
+        continue;
+      }
+      for (long out = j; std::abs(out - in) > 1;) {  // the last value inside lies between
+        const long mid = (in + out) / 2;
+        (cost(values[static_cast<std::size_t>(mid)]) <= within ? in : out) = mid;
+      }
+      break;
+    }
+    ends[side] = values[static_cast<std::size_t>(in)];
+  });
+  evaluations += evals.load();
+  return {ends[0], ends[1]};
 }
 
 // --- one round, a path of rounds -----------------------------------------------------------------
@@ -800,8 +866,14 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   const plant::Plant current = apply_added(base0, added);
 
   // Final values (after the joint refit) of the added effects.
-  for (const auto& a : added) {
+  for (std::size_t i = 0; i < added.size(); ++i) {
+    const Added& a = added[i];
     CandidateResult c = describe(*a.cand, a.fit, base0);
+    if (a.fit.grid != nullptr) {
+      const auto [lo, hi] = grid_span(su.ctx, base0, added, i, d.evaluations);
+      c.parameters.back().lo = lo;  // describe() lists the grid parameter last
+      c.parameters.back().hi = hi;
+    }
     localise_event_times(c.parameters, full);
     c.earns_place = true;
     for (const auto& rd : d.rounds) {

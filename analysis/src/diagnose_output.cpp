@@ -29,6 +29,7 @@ nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
                       {"model_value", number(p.model_value)},
                       {"searched_on_grid", p.grid}});
     if (p.file >= 0) params.back()["file_index"] = p.file;
+    if (std::isfinite(p.lo) && std::isfinite(p.hi)) params.back()["fits_within_one_sigma"] = {p.lo, p.hi};
   }
   nlohmann::json j = {{"effect", c.effect},
                       {"variant", c.variant},
@@ -55,6 +56,7 @@ std::string params_text(const CandidateResult& c) {
   for (const auto& p : c.parameters) {
     s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
     if (std::isfinite(p.sigma)) s += " \u00b1 " + text::num(p.sigma, 2);
+    if (p.located_between()) s += " (anywhere from " + text::num(p.lo, 4) + " to " + text::num(p.hi, 4) + " fits as well)";
     if (p.file >= 0) s += " (file " + std::to_string(p.file + 1) + ")";
   }
   return s;

@@ -33,6 +33,9 @@ std::uint64_t seed_shift() {
 struct Expect {
   std::string key;  // parameter of the top-ranked effect
   double truth;
+  // A step time: placed only between the motions around it, so the truth must lie within the
+  // reported span of values that fit as well, not within 15 % of the best one.
+  bool within_span = false;
 };
 
 struct HiddenCase {
@@ -66,8 +69,8 @@ std::vector<HiddenCase> cases() {
   };
   add("backlash_gap", "backlash_change", {{"gap_deg", 1.8}}, 101, reference_square(1.0, 1.4, 3.0), true, 2.0, "adaptive",
       [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.8"); });
-  add("backlash_step", "backlash_change", {{"gap_deg", 1.0}, {"step_deg", 1.0}}, 102, reference_random(5, 0.9, 1.5, 1.5, 4.0),
-      false, 2.5, "adaptive",
+  add("backlash_step", "backlash_change", {{"gap_deg", 1.0}, {"step_deg", 1.0}, {"step_time_s", 14, true}}, 102,
+      reference_random(5, 0.9, 1.5, 1.5, 4.0), false, 2.5, "adaptive",
       [](const Plant& p) { return with_block(p, "backlash_change", "{gap_deg: 1.0, step_time_s: 14, step_deg: 1.0}"); });
   add("valve_offset", "valve_offset", {{"offset_deg", 1.5}}, 103, reference_ramps(0.95, 1.45, 5.0), false, 2.0, "none",
       [](const Plant& p) { return with_block(p, "valve_offset", "offset_deg: 1.5"); });
@@ -117,6 +120,15 @@ TEST_P(HiddenEffect, TopRankedIsTheHiddenOneAndTheErrorFalls) {
   EXPECT_EQ(d.at("added")[0].at("effect"), c.effect) << why;
   for (const auto& e : c.params) {
     const double v = hil::test::param(d.at("added")[0], e.key);
+    if (e.within_span) {
+      const auto span = hil::test::param_entry(d.at("added")[0], e.key).at("fits_within_one_sigma");
+      EXPECT_LE(span[0].get<double>(), e.truth) << span << "; " << why;
+      EXPECT_GE(span[1].get<double>(), e.truth) << span << "; " << why;
+      EXPECT_TRUE(span[0].get<double>() <= v && v <= span[1].get<double>()) << span << " " << v;
+      std::printf("[ %s ] %s = %.5g, fits as well from %.5g to %.5g (truth %.5g)\n", c.scenario.name.c_str(), e.key.c_str(), v,
+                  span[0].get<double>(), span[1].get<double>(), e.truth);
+      continue;
+    }
     EXPECT_NEAR(v, e.truth, 0.15 * std::abs(e.truth)) << e.key << "; " << why;
     std::printf("[ %s ] %s = %.5g (truth %.5g, %+.2f %%)\n", c.scenario.name.c_str(), e.key.c_str(), v, e.truth,
                 100 * (v - e.truth) / e.truth);

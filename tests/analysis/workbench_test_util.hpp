@@ -53,10 +53,16 @@ inline nlohmann::json run_compare(const std::filesystem::path& model, const std:
 }
 
 // The fitted value of `key` in a candidate entry of diagnosis.json (NaN when absent).
-inline double param(const nlohmann::json& candidate, const std::string& key) {
+inline const nlohmann::json& param_entry(const nlohmann::json& candidate, const std::string& key) {
+  static const nlohmann::json none = nlohmann::json::object();
   for (const auto& p : candidate.at("parameters"))
-    if (p.at("key") == key) return p.at("value").is_null() ? NAN : p.at("value").get<double>();
-  return NAN;
+    if (p.at("key") == key) return p;
+  return none;
+}
+
+inline double param(const nlohmann::json& candidate, const std::string& key) {
+  const auto& p = param_entry(candidate, key);
+  return p.contains("value") && !p.at("value").is_null() ? p.at("value").get<double>() : NAN;
 }
 
 // The fitted value of `key` of the added effect `effect` in diagnosis.json (NaN when not added).

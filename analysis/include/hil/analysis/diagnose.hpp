@@ -21,7 +21,9 @@
 // Offline code: allocates, throws, and uses up to `threads` worker threads.
 #pragma once
 
+#include <cmath>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,6 +45,11 @@ struct FittedParam {
   // Several files: an event time (a step) belongs to one file: its index here, and `value` counts
   // from that file's first row (-1: a parameter all files share).
   int file = -1;
+  // A grid parameter of an added effect (a step time): the lowest and highest grid values that
+  // fit within one standard error of the best, the others refitted (diagnose.cpp grid_span). A
+  // step is placed only between the motions around it; this says where. NaN otherwise.
+  double lo = std::numeric_limits<double>::quiet_NaN(), hi = std::numeric_limits<double>::quiet_NaN();
+  bool located_between() const { return std::isfinite(lo) && std::isfinite(hi) && hi > lo; }
 };
 
 struct CandidateResult {
