@@ -524,6 +524,8 @@ void TelemetryHub::publish_notice(const json& j) {
 // ---------------------------------------------------------------------------------------------
 // The routes.
 
+class HttpSession;
+
 struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
       : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_), jobs(options.max_waiting_jobs) {}
@@ -536,9 +538,13 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::string refuse_starts;  // io thread only
   std::shared_ptr<std::atomic<int>> open_connections = std::make_shared<std::atomic<int>>(0);
   std::chrono::steady_clock::time_point last_refusal_logged{};  // io thread only
+  // The HTTP sessions, for evicting the longest-idle one when the connections are at their cap
+  // (io thread only; expired ones are pruned there).
+  std::vector<std::weak_ptr<HttpSession>> http_sessions;
   JobQueue jobs;  // submitted to on the io thread only: a check and its submit never race
 
   void accept();
+  bool evict_longest_idle();
   bool authorised(const Request& req, const Target& t) const;
   // A parsed request's answer: authorisation, the route, errors as replies, the log line.
   Reply answer(const Request& req, const Target& t);
@@ -1325,7 +1331,18 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   HttpSession(const HttpSession&) = delete;
   HttpSession& operator=(const HttpSession&) = delete;
 
+  // Waiting for a request since when (nullopt: serving one, or closed): the connection to give up
+  // first when the server is at its connection cap.
+  std::optional<std::chrono::steady_clock::time_point> idle_since() const { return idle_since_; }
+  // Ends the wait for a request (the connection's slot goes to a newcomer). Io thread.
+  void evict() {
+    if (!idle_since_) return;
+    idle_since_.reset();
+    stream_.cancel();  // the pending read ends with operation_aborted, and the session closes
+  }
+
   void read() {
+    idle_since_ = std::chrono::steady_clock::now();
     parser_.emplace();
     parser_->body_limit(api_->options.max_body_bytes);
     parser_->header_limit(16 * 1024);
@@ -1336,7 +1353,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
  private:
   void on_read(beast::error_code ec) {
-    if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::connection_reset) return close();
+    idle_since_.reset();
+    if (ec == http::error::end_of_stream || ec == beast::error::timeout || ec == asio::error::connection_reset ||
+        ec == asio::error::operation_aborted)
+      return close();
     if (ec) {
       draining_ = ec == http::error::body_limit;  // read the rest of the body after answering, so the client sees the 413
       return send(api_->parse_failure(ec), false);
@@ -1449,26 +1469,54 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   bool draining_ = false;
   std::size_t drained_ = 0;
+  std::optional<std::chrono::steady_clock::time_point> idle_since_;
   std::array<char, 16384> scratch_{};
 };
 
 void ApiServer::Impl::accept() {
   acceptor.async_accept(asio::make_strand(io), [self = shared_from_this()](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;
-    if (!ec && *self->open_connections >= kMaxConnections) {
-      // Closed at once: no read, no reply to build; said in the log at most once a minute.
+    if (ec) return self->accept();
+    if (*self->open_connections >= kMaxConnections && !self->evict_longest_idle()) {
+      // Every connection is busy (WebSocket streams, requests being served): this one is closed
+      // at once, no read, no reply to build; said in the log at most once a minute.
       beast::error_code ignored;
       socket.close(ignored);
       const auto now = std::chrono::steady_clock::now();
       if (now - self->last_refusal_logged > std::chrono::minutes(1)) {
-        spdlog::warn("{} connections are open: refusing more until some close", kMaxConnections);
+        spdlog::warn("{} connections are open and none is idle: refusing more until some close", kMaxConnections);
         self->last_refusal_logged = now;
       }
-    } else if (!ec) {
-      std::make_shared<HttpSession>(std::move(socket), self)->read();
+      return self->accept();
     }
+    auto session = std::make_shared<HttpSession>(std::move(socket), self);
+    if (self->http_sessions.size() >= 2 * kMaxConnections)
+      std::erase_if(self->http_sessions, [](const auto& w) { return w.expired(); });
+    self->http_sessions.push_back(session);
+    session->read();
     self->accept();
   });
+}
+
+// At the connection cap, the connection that has waited longest for a request gives its place to
+// the newcomer: a flood of idle sockets (256 of them) otherwise locked the operator out until they
+// closed or the 60 s idle timeout ended them, in the middle of a run that may need an abort.
+// False when no connection waits (all stream telemetry or are being served).
+bool ApiServer::Impl::evict_longest_idle() {
+  std::erase_if(http_sessions, [](const auto& w) { return w.expired(); });
+  std::shared_ptr<HttpSession> oldest;
+  for (const auto& w : http_sessions) {
+    const auto s = w.lock();
+    if (s && s->idle_since() && (!oldest || *s->idle_since() < *oldest->idle_since())) oldest = s;
+  }
+  if (!oldest) return false;
+  oldest->evict();
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_refusal_logged > std::chrono::minutes(1)) {
+    spdlog::warn("{} connections are open: closing the longest idle one for each new one", kMaxConnections);
+    last_refusal_logged = now;
+  }
+  return true;
 }
 
 ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& runner, TelemetryHub& hub) {
