@@ -229,6 +229,49 @@ TEST(Sweep, AChangedCsvReferenceIsAnotherSweep) {
   EXPECT_NE(r.output.find("a file the campaign reads (a csv reference) changed"), std::string::npos) << r.output;
 }
 
+// A csv reference that an axis names (not the base campaign's own) is fingerprinted too, and so
+// is every file a shard run reads: a sweep resumed, or a shard run with only the folder, after
+// such a file changed would mix rows of the old contents with rows of the new.
+TEST(Sweep, AChangedFileThatAnAxisNamesStopsAResumeAndAShard) {
+  TempDir dir;
+  std::string campaign = slurp(source_path("tests/sweep/data/tiny_campaign.yaml"));
+  const std::string plant_line = "plant: ../../../configs/plant/nominal.yaml";
+  campaign.replace(campaign.find(plant_line), plant_line.size(), "plant: " + source_path("configs/plant/nominal.yaml").string());
+  const auto square = campaign.find("    - square:");
+  campaign.replace(square, campaign.find('\n', square) - square, "    - csv: {file: a.csv, column: p_mpa}");
+  dir.write("c.yaml", campaign);
+  const auto write_reference = [&](const std::string& name, double high_mpa) {
+    std::string csv = "t_s,p_mpa\n";
+    for (int k = 0; k <= 5; ++k) csv += std::to_string(k) + "," + std::to_string(k % 2 == 1 ? high_mpa : 1.0) + "\n";
+    return dir.write(name, csv);
+  };
+  write_reference("a.csv", 1.4);
+  const auto b = write_reference("b.csv", 1.3);
+  const auto sweep = dir.write(
+      "s.yaml", "campaign: c.yaml\nruns: [none]\naxes:\n  - path: campaign.reference.profile[0].csv.file\n    values: [a.csv, " +
+                    b.string() + "]\n  - path: campaign.seed\n    values: [5, 6, 7]\n");
+  const auto out = dir.path() / "out";
+  // Shard 0 of 2 runs points 0, 2, 4; the plan lists both files.
+  auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --shard 0/2 --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto plan = nlohmann::json::parse(slurp(out / "plan.json"));
+  ASSERT_EQ(plan.at("input_files").size(), 2u) << plan.at("input_files");
+  write_reference("b.csv", 1.25);
+  const std::string refused = b.string() + ": a file the sweep's points read has changed since " + out.string() + " was planned";
+  r = run_command(hilbench() + " sweep --out " + q(out) + " --shard 1/2 --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find(refused), std::string::npos) << r.output;
+  r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find(refused), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out / "rows" / "local.jsonl"));
+  // Put back, the same command goes on.
+  write_reference("b.csv", 1.3);
+  r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(csv_rows(out / "sweep.csv").size(), 7u);
+}
+
 TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
   TempDir dir;
   const std::string head = "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\naxes:\n";

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -43,6 +44,16 @@ std::uint64_t fnv1a(std::string_view text, std::uint64_t h = 0xcbf29ce484222325U
     h *= 0x100000001b3ULL;
   }
   return h;
+}
+
+std::string hex16(std::uint64_t h) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
+
+std::string content_hash(const std::filesystem::path& file) {
+  return hex16(fnv1a(read_text_file(file, "a file the sweep reads")));
 }
 
 // One step of an axis path: a mapping key or a sequence index.
@@ -307,7 +318,10 @@ nlohmann::json SweepPlan::to_json() const {
     for (const auto& [k, v] : m.slice) slice.push_back({k, v});
     maps_j.push_back({{"metric", m.metric}, {"x", m.x}, {"y", m.y}, {"reduce", m.reduce}, {"slice", slice}});
   }
+  json inputs = json::array();
+  for (const auto& f : input_files) inputs.push_back({{"path", f.path.string()}, {"fnv1a", f.hash}});
   return {{"format", "hilbench sweep plan 1"},
+          {"input_files", inputs},
           {"name", name},
           {"description", description},
           {"hash", hash},
@@ -367,6 +381,12 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
     }
     p.worst_by = j.at("worst_by").get<std::string>();
     p.points = j.at("points").get<std::vector<std::vector<std::string>>>();
+    if (j.contains("input_files")) {  // plans written before it have none
+      for (const auto& f : j.at("input_files")) {
+        p.input_files.push_back({f.at("path").get<std::string>(), f.at("fnv1a").get<std::string>()});
+        if (p.input_files.back().path.empty()) throw std::runtime_error("an input file without a path");
+      }
+    }
     for (const auto& pt : p.points) {
       if (pt.size() != p.axes.size()) throw std::runtime_error("a point without one value per axis");
     }
@@ -568,21 +588,26 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   // Files the campaign reads besides its YAML (a csv reference): a resumed sweep whose reference
   // file changed would mix rows of the old file with rows of the new one.
   for (const auto& f : base.data_files) h = fnv1a(read_text_file(f, "a file the base campaign reads"), h);
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
-  plan.hash = hex;
+  plan.hash = hex16(h);
   if (checked_hash && checked_hash(plan.name) == plan.hash) return plan;
 
   // Every point's campaign through the loader before anything runs: a value it refuses (a
   // negative gap, a reference out of the plant's reach) stops the sweep here, naming the point.
   // On every hardware thread, each point once; the refused point of the lowest index is reported
   // (not the first one found), so the message is the same on every machine.
+  // The files the points read are gathered on the way (an axis may name another csv reference).
   std::atomic<long> next{0}, first_bad{plan.size()};
   std::vector<std::string> why(static_cast<std::size_t>(plan.size()));
+  std::mutex files_mutex;
+  std::set<std::filesystem::path> files(base.data_files.begin(), base.data_files.end());
   auto check = [&] {
     for (long p = next.fetch_add(1); p < plan.size() && p < first_bad.load(); p = next.fetch_add(1)) {
       try {
         const Campaign c = point_campaign(plan, p);
+        if (!c.data_files.empty()) {
+          std::lock_guard lock(files_mutex);
+          files.insert(c.data_files.begin(), c.data_files.end());
+        }
         std::vector<std::string> names;
         for (const auto& r : c.runs) names.push_back(r.name);
         if (names != plan.runs) throw cfg::Error("its runs are not the sweep's runs");
@@ -602,7 +627,25 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
       values += (i ? ", " : "") + plan.axes[i].path + " = " + plan.points[static_cast<std::size_t>(p)][i];
     axes.fail("point " + std::to_string(p) + " (" + values + "): " + why[static_cast<std::size_t>(p)]);
   }
+  for (const auto& f : files) plan.input_files.push_back({std::filesystem::absolute(f), content_hash(f)});
   return plan;
+}
+
+void check_input_files(const SweepPlan& plan, const std::filesystem::path& dir) {
+  for (const auto& f : plan.input_files) {
+    std::string now;
+    try {
+      now = content_hash(f.path);
+    } catch (const std::exception& e) {
+      now = e.what();
+    }
+    if (now != f.hash) {
+      throw std::runtime_error(f.path.string() + ": a file the sweep's points read has changed since " + dir.string() +
+                               " was planned (or cannot be read now), and its rows were made with the old contents. Put it "
+                               "back, use another --out, or remove " +
+                               dir.string() + " to start afresh");
+    }
+  }
 }
 
 PointYaml point_yaml(const SweepPlan& plan, long p) {

@@ -124,6 +124,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   result.done = static_cast<long>(done.size());
   result.missing = static_cast<long>(todo.size());
   if (todo.empty()) return result;
+  check_input_files(plan, dir);  // before a row is made from a file that is no longer the planned one
 
   if (std::filesystem::exists(rows_file)) trim_to_whole_lines(rows_file);
   LineFile rows(rows_file, /*append=*/true);

@@ -60,6 +60,15 @@ struct SweepPlan {
   std::vector<SweepMap> maps;
   std::string worst_by;                          // a metric; the worst points are its largest
   std::vector<std::vector<std::string>> points;  // per point, each axis's value as a YAML scalar
+  // Every file a point's campaign reads besides its YAML (a csv reference, also one an axis
+  // names), with a hash of its contents when the sweep was planned: a sweep resumed, or a shard
+  // run, after one of them changed would mix rows made from the old contents with rows from the
+  // new (check_input_files).
+  struct InputFile {
+    std::filesystem::path path;
+    std::string hash;  // fnv1a-64 of the contents, 16 hex digits
+  };
+  std::vector<InputFile> input_files;
 
   long size() const { return static_cast<long>(points.size()); }
   // "<run>.<metric>" for every run: iae_mpa_s, stall_s_per_reversal, stall_vs_none (with a `none`
@@ -87,6 +96,9 @@ struct PointYaml {
   std::string campaign, plant;
 };
 PointYaml point_yaml(const SweepPlan& plan, long p);
+// Throws std::runtime_error naming the first of plan.input_files whose contents are no longer
+// those the sweep was planned with (or that cannot be read), and what to do.
+void check_input_files(const SweepPlan& plan, const std::filesystem::path& dir);
 Campaign point_campaign(const SweepPlan& plan, long p);
 
 // Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
