@@ -338,7 +338,7 @@ void adopt_joint_values(std::vector<Added>& added, const VariantFit& chosen) {
 std::string param_text(const FittedParam& p) {
   std::string s = p.key + " = " + text::num(p.value, 4);
   if (std::isfinite(p.sigma)) s += " +- " + text::num(p.sigma, 2);
-  if (p.located_between()) s += " (anywhere from " + text::num(p.lo, 4) + " to " + text::num(p.hi, 4) + " fits as well)";
+  s += p.span_text();
   if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
   return s;
 }
@@ -740,6 +740,10 @@ void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, s
 }
 
 }  // namespace
+
+std::string FittedParam::span_text() const {
+  return located_between() ? " [" + text::num(lo, 4) + " to " + text::num(hi, 4) + " fit as well]" : std::string();
+}
 
 Diagnosis diagnose(const plant::Plant& model, const Measurement& m, const DiagnoseSettings& s) {
   return diagnose(model, std::vector<const Measurement*>{&m}, s);

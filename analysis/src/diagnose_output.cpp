@@ -56,7 +56,7 @@ std::string params_text(const CandidateResult& c) {
   for (const auto& p : c.parameters) {
     s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
     if (std::isfinite(p.sigma)) s += " \u00b1 " + text::num(p.sigma, 2);
-    if (p.located_between()) s += " (anywhere from " + text::num(p.lo, 4) + " to " + text::num(p.hi, 4) + " fits as well)";
+    s += p.span_text();
     if (p.file >= 0) s += " (file " + std::to_string(p.file + 1) + ")";
   }
   return s;
@@ -222,6 +222,16 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
   const double mark_s = 0.15 * f.before.window_width_s;
   for (const double t : f.before.change_points_s)
     bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
+  // Where a step found in this file may have happened: the span of times that fit as well.
+  for (const auto& c : d.added)
+    for (const auto& p : c.parameters) {
+      const std::size_t k = p.file < 0 ? 0 : static_cast<std::size_t>(p.file);
+      if (!p.located_between() || k >= d.files.size() || &d.files[k] != &f) continue;
+      bands.push_back(
+          {p.lo + f.time_origin_s, p.hi + f.time_origin_s,
+           c.effect + " " + p.key + " = " + text::num(p.value + f.time_origin_s, 5) + ": anywhere in this span fits as well",
+           "rgba(44,160,44,0.30)"});
+    }
   doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
                     .x_label = "time [s]",
                     .y_label = "pressure [MPa]",

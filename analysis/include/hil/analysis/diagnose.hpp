@@ -50,6 +50,7 @@ struct FittedParam {
   // step is placed only between the motions around it; this says where. NaN otherwise.
   double lo = std::numeric_limits<double>::quiet_NaN(), hi = std::numeric_limits<double>::quiet_NaN();
   bool located_between() const { return std::isfinite(lo) && std::isfinite(hi) && hi > lo; }
+  std::string span_text() const;  // " [lo to hi fit as well]", or empty
 };
 
 struct CandidateResult {
