@@ -4,12 +4,14 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <thread>
 
 #include "commands.hpp"
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/progress_line.hpp"
 #include "hil/text_file.hpp"
 
 namespace hil::bench {
@@ -36,14 +38,6 @@ using nlohmann::json;
 json checked(const ApiReply& r) {
   if (!r.ok()) fail(r);
   return r.json();
-}
-
-std::string clock(double s) {
-  if (!std::isfinite(s) || s < 0) s = 0;
-  const long t = std::lround(s);
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
-  return buf;
 }
 
 std::string number(const json& j, const char* fmt_spec, const char* fallback = "-") {
@@ -76,8 +70,8 @@ void print_status(const json& s) {
               s.value("run_index", 0) + 1, s.value("runs_total", 0), s.value("speed", 1.0));
   std::printf("  progress %s%%  t = %s of %s s  elapsed %s  remaining %s\n",
               number(p["fraction"].get<double>() * 100, "%.1f").c_str(), number(p["t_s"], "%.2f").c_str(),
-              number(p["duration_s"], "%.1f").c_str(), clock(p.value("elapsed_s", 0.0)).c_str(),
-              clock(p.value("remaining_s", 0.0)).c_str());
+              number(p["duration_s"], "%.1f").c_str(), duration_text(p.value("elapsed_s", 0.0)).c_str(),
+              duration_text(p.value("remaining_s", 0.0)).c_str());
   if (s.contains("loop")) {
     const json& l = s["loop"];
     const json& w = l["wake_latency_us"];
@@ -113,44 +107,34 @@ void print_status(const json& s) {
   for (const auto& f : s.value("faults", json::array())) std::printf("  fault: %s\n", f.dump().c_str());
 }
 
-// Follows the running campaign with a progress bar; returns the exit status of its outcome.
+// Follows the running campaign with hil::ProgressLine (redrawn in place on a terminal, a line a
+// tenth in a log) until it ends; returns the exit status of its outcome.
 int watch(const ApiClient& api) {
-  const bool tty = ::isatty(STDERR_FILENO);
-  int last_decile = -1;
-  std::string last_run;
+  std::optional<ProgressLine> line;
   for (;;) {
     const json s = checked(api.get("/api/status"));
     if (s.value("state", "") == "idle") {
-      if (tty) std::fprintf(stderr, "\n");
+      if (line) line->end();
       print_last(s["last"]);
       const std::string outcome = s["last"].is_object() ? s["last"].value("outcome", "") : "";
       return outcome_from(outcome) == Outcome::completed ? 0 : 3;
     }
     const json& p = s["progress"];
-    const double f = std::clamp(p.value("fraction", 0.0), 0.0, 1.0);
-    const std::string run = s.value("run", "?");
-    constexpr int kWidth = 30;
-    const int filled = static_cast<int>(f * kWidth);
-    std::string bar(static_cast<std::size_t>(filled), '#');
-    bar.resize(kWidth, '.');
-    const std::string faults = s.value("faults", json::array()).empty() ? "" : "  faults " + std::to_string(s["faults"].size());
-    const std::string safe = s.value("state", "") == "safe" ? "  SAFE STATE" : "";
-    char line[300];
-    std::snprintf(
-        line, sizeof line, "[%s] %3.0f%%  %s %s (%d/%d)  t %5.1f/%.0f s  elapsed %s  remaining %s  lost %llu%s%s", bar.c_str(),
-        f * 100, s.value("campaign", "?").c_str(), run.c_str(), s.value("run_index", 0) + 1, s.value("runs_total", 0),
-        p.value("t_s", 0.0), p.value("duration_s", 0.0), clock(p.value("elapsed_s", 0.0)).c_str(),
-        clock(p.value("remaining_s", 0.0)).c_str(),
-        s.contains("telemetry") ? s["telemetry"].value("rows_lost", 0ULL) + s["telemetry"].value("rows_unwritten", 0ULL) : 0ULL,
-        faults.c_str(), safe.c_str());
-    const int decile = static_cast<int>(f * 10);
-    if (tty) {
-      std::fprintf(stderr, "\r%s\033[K", line);
-    } else if (decile != last_decile || run != last_run) {
-      std::fprintf(stderr, "%s\n", line);
+    const double f = p.value("fraction", 0.0);
+    if (!line) {
+      ProgressLine::Options o;
+      o.start_fraction = f;  // joined part way: the ETA is from the rate seen here
+      line.emplace(s.value("campaign", "?"), o);
     }
-    last_decile = decile;
-    last_run = run;
+    line->update(f, [&] {
+      const auto& t = s.contains("telemetry") ? s["telemetry"] : json::object();
+      const auto faults = s.value("faults", json::array()).size();
+      return s.value("run", "?") + " (" + std::to_string(s.value("run_index", 0) + 1) + "/" +
+             std::to_string(s.value("runs_total", 0)) + "), t " + number(p.value("t_s", 0.0), "%.1f") + "/" +
+             number(p.value("duration_s", 0.0), "%.0f") + " s, rows not recorded " +
+             std::to_string(t.value("rows_lost", 0ULL) + t.value("rows_unwritten", 0ULL)) +
+             (faults > 0 ? ", faults " + std::to_string(faults) : "") + (s.value("state", "") == "safe" ? ", SAFE STATE" : "");
+    });
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
 }
