@@ -94,6 +94,8 @@ int run_serve(const ServeArgs& args) {
   // (sessions) still unsubscribe from the hub when it is destroyed.
   TelemetryHub hub;
   boost::asio::io_context io;
+  // The hub's fan-out thread posts to io's sessions: it ends before io does.
+  const std::unique_ptr<TelemetryHub, void (*)(TelemetryHub*)> hub_stops_first(&hub, [](TelemetryHub* h) { h->stop(); });
   RunnerOptions ro;
   ro.runs_dir = api.runs_dir;
   ro.version = HIL_VERSION;

@@ -1,5 +1,8 @@
 #include "api_server.hpp"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <map>
@@ -8,6 +11,8 @@
 #include <fstream>
 #include <optional>
 #include <sstream>
+#include <unordered_map>
+#include <variant>
 
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/post.hpp>
@@ -310,18 +315,24 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     });
   }
 
-  // Any thread.
-  void send(std::shared_ptr<const std::string> text) {
-    asio::post(ws_.get_executor(), [self = shared_from_this(), text = std::move(text)] { self->enqueue({text, false}); });
-  }
-  // Any thread: one Message Data frame per subscription whose channel has a payload in `frame`.
-  void send(std::shared_ptr<const foxglove::Frame> frame) {
-    asio::post(ws_.get_executor(), [self = shared_from_this(), frame = std::move(frame)] {
-      for (const auto& [subscription, channel] : self->subscriptions_) {
-        const std::string& payload = frame->payloads[channel];
-        if (!payload.empty())
-          self->enqueue(
-              {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true});
+  // A message of the telemetry stream: a JSON text, or a Foxglove frame (one Message Data frame
+  // per subscription whose channel has a payload in it).
+  using Message = std::variant<std::shared_ptr<const std::string>, std::shared_ptr<const foxglove::Frame>>;
+  // Any thread: the messages of one round of the hub, in order, in one handler of the session.
+  void send(std::vector<Message> batch) {
+    asio::post(ws_.get_executor(), [self = shared_from_this(), batch = std::move(batch)] {
+      for (const auto& m : batch) {
+        if (const auto* text = std::get_if<std::shared_ptr<const std::string>>(&m)) {
+          self->enqueue({*text, false});
+          continue;
+        }
+        const auto& frame = std::get<std::shared_ptr<const foxglove::Frame>>(m);
+        for (const auto& [subscription, channel] : self->subscriptions_) {
+          const std::string& payload = frame->payloads[channel];
+          if (!payload.empty())
+            self->enqueue(
+                {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true});
+        }
       }
     });
   }
@@ -440,85 +451,162 @@ std::size_t TelemetryHub::subscribers() const {
   return subs_.size();
 }
 
+TelemetryHub::TelemetryHub() : thread_([this] { fan_out_loop(); }) {}
+
+TelemetryHub::~TelemetryHub() { stop(); }
+
+void TelemetryHub::stop() {
+  {
+    std::lock_guard lock(inbox_mutex_);
+    stop_ = true;
+  }
+  inbox_cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
 void TelemetryHub::publish_row(const TelemetryRecord& r) {
-  // Decide under the lock, send outside it: a session's last reference may die in here, and its
-  // destructor unsubscribes.
+  bool wake = false;
+  {
+    std::lock_guard lock(inbox_mutex_);
+    if (stop_) return;
+    if (inbox_.size() >= kInboxItems) {
+      ++inbox_dropped_;
+      return;
+    }
+    wake = inbox_.empty();
+    inbox_.push_back({r, nullptr});
+  }
+  if (wake) inbox_cv_.notify_one();
+}
+
+void TelemetryHub::publish_notice(const json& j) {
+  bool wake = false;
+  {
+    std::lock_guard lock(inbox_mutex_);
+    if (stop_) return;
+    if (inbox_.size() >= kInboxItems) {
+      ++inbox_dropped_;
+      return;
+    }
+    wake = inbox_.empty();
+    inbox_.push_back({TelemetryRecord{}, std::make_shared<const json>(j)});
+  }
+  if (wake) inbox_cv_.notify_one();
+}
+
+void TelemetryHub::fan_out_loop() {
+  // Below the recorder and the API (nice 10): watchers get what is left of the machine.
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
+  std::vector<Item> items;
+  std::uint64_t dropped_said = 0;
+  for (;;) {
+    {
+      std::unique_lock lock(inbox_mutex_);
+      inbox_cv_.wait(lock, [this] { return stop_ || !inbox_.empty(); });
+      if (stop_) return;
+      // A round gathers 10 ms of rows: each session gets at most 100 handlers a second on the io
+      // thread, whatever the loop's rate (a handler per row drowned the API's answers).
+      inbox_cv_.wait_for(lock, std::chrono::milliseconds(10), [this] { return stop_; });
+      if (stop_) return;
+      items.swap(inbox_);
+      if (inbox_dropped_ > dropped_said) {
+        spdlog::warn("telemetry stream: {} rows and notices not streamed (the fan-out fell behind); telemetry.csv has them",
+                     inbox_dropped_ - dropped_said);
+        dropped_said = inbox_dropped_;
+      }
+    }
+    fan_out(items);
+    items.clear();
+  }
+}
+
+void TelemetryHub::fan_out(const std::vector<Item>& items) {
+  // Each session's messages of this round, in order. Decided under the lock, sent outside it: a
+  // session's last reference may die in here, and its destructor unsubscribes.
+  std::vector<std::pair<std::shared_ptr<WsSession>, std::vector<WsSession::Message>>> out;
+  std::unordered_map<const WsSession*, std::size_t> index;
+  auto batch_of = [&](std::shared_ptr<WsSession> session) -> std::vector<WsSession::Message>& {
+    const auto [it, added] = index.emplace(session.get(), out.size());
+    if (added) out.emplace_back(std::move(session), std::vector<WsSession::Message>{});
+    return out[it->second].second;
+  };
   struct Due {
     std::shared_ptr<WsSession> session;
     bool foxglove;
     double comp_rad;  // the largest jump since this client's last row: a one-period jump is not decimated away
   };
   std::vector<Due> due;
-  {
-    std::lock_guard lock(mutex_);
-    const double t = r.step.t_s;
-    last_t_s_ = t;
-    for (auto& s : subs_) {
-      if (t < s.next_t_s - 2 * s.interval_s) s.next_t_s = t;  // time went back: a new run
-      if (std::abs(r.step.comp_rad) > std::abs(s.held_comp_rad)) s.held_comp_rad = r.step.comp_rad;
-      if (t + 1e-9 < s.next_t_s) continue;
-      s.next_t_s = s.next_t_s + s.interval_s > t ? s.next_t_s + s.interval_s : t + s.interval_s;
-      if (auto session = s.session.lock()) due.push_back({std::move(session), s.foxglove, s.held_comp_rad});
-      s.held_comp_rad = 0;
-    }
-  }
-  if (due.empty()) return;
-  // One message of each kind per distinct row (the record itself, or it with a held jump).
-  std::vector<std::pair<double, std::shared_ptr<const std::string>>> rows;
-  std::vector<std::pair<double, std::shared_ptr<const foxglove::Frame>>> frames;
-  auto with_comp = [&r](double comp_rad) {
-    TelemetryRecord copy = r;
-    copy.step.comp_rad = comp_rad;
-    return copy;
-  };
-  for (const auto& d : due) {
-    if (d.foxglove) {
-      auto it = std::find_if(frames.begin(), frames.end(), [&](const auto& f) { return f.first == d.comp_rad; });
-      if (it == frames.end()) {
-        const TelemetryRecord rec = with_comp(d.comp_rad);
-        frames.emplace_back(d.comp_rad, std::make_shared<const foxglove::Frame>(
-                                            foxglove::Frame{foxglove::timestamp_ns(rec.step.t_s), foxglove::payloads(rec)}));
-        it = frames.end() - 1;
+  for (const Item& item : items) {
+    due.clear();
+    double t_s = 0;
+    {
+      std::lock_guard lock(mutex_);
+      if (item.notice) {
+        t_s = last_t_s_;
+        for (auto& s : subs_) {
+          s.next_t_s = -1e300;
+          if (auto session = s.session.lock()) due.push_back({std::move(session), s.foxglove, 0});
+        }
+      } else {
+        const double t = item.row.step.t_s;
+        last_t_s_ = t;
+        for (auto& s : subs_) {
+          if (t < s.next_t_s - 2 * s.interval_s) s.next_t_s = t;  // time went back: a new run
+          if (std::abs(item.row.step.comp_rad) > std::abs(s.held_comp_rad)) s.held_comp_rad = item.row.step.comp_rad;
+          if (t + 1e-9 < s.next_t_s) continue;
+          s.next_t_s = s.next_t_s + s.interval_s > t ? s.next_t_s + s.interval_s : t + s.interval_s;
+          if (auto session = s.session.lock()) due.push_back({std::move(session), s.foxglove, s.held_comp_rad});
+          s.held_comp_rad = 0;
+        }
       }
-      d.session->send(it->second);
-    } else {
-      auto it = std::find_if(rows.begin(), rows.end(), [&](const auto& f) { return f.first == d.comp_rad; });
-      if (it == rows.end()) {
-        json j = {{"type", "row"}};
-        const auto values = telemetry_row(with_comp(d.comp_rad));
-        const auto& columns = telemetry_columns(ColumnSet::all);
-        for (std::size_t i = 0; i < columns.size(); ++i)
-          j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
-        rows.emplace_back(d.comp_rad, std::make_shared<const std::string>(dump_json(j)));
-        it = rows.end() - 1;
+    }
+    if (due.empty()) continue;
+    if (item.notice) {
+      const json& j = *item.notice;
+      if (j.contains("t_s") && j["t_s"].is_number()) t_s = j["t_s"].get<double>();
+      const auto message = std::make_shared<const std::string>(dump_json(j));
+      std::shared_ptr<const foxglove::Frame> frame;
+      for (auto& d : due) {
+        if (d.foxglove && !frame)
+          frame = std::make_shared<const foxglove::Frame>(foxglove::events_frame(foxglove::timestamp_ns(t_s), *message));
+        batch_of(std::move(d.session)).push_back(d.foxglove ? WsSession::Message(frame) : WsSession::Message(message));
       }
-      d.session->send(it->second);
-    }
-  }
-}
-
-void TelemetryHub::publish_notice(const json& j) {
-  auto message = std::make_shared<const std::string>(dump_json(j));
-  std::vector<std::pair<std::shared_ptr<WsSession>, bool>> all;
-  double t_s = 0;
-  {
-    std::lock_guard lock(mutex_);
-    t_s = last_t_s_;
-    for (auto& s : subs_) {
-      s.next_t_s = -1e300;
-      if (auto session = s.session.lock()) all.emplace_back(std::move(session), s.foxglove);
-    }
-  }
-  if (j.contains("t_s") && j["t_s"].is_number()) t_s = j["t_s"].get<double>();
-  std::shared_ptr<const foxglove::Frame> frame;
-  for (const auto& [session, foxglove] : all) {
-    if (!foxglove) {
-      session->send(message);
       continue;
     }
-    if (!frame) frame = std::make_shared<const foxglove::Frame>(foxglove::events_frame(foxglove::timestamp_ns(t_s), *message));
-    session->send(frame);
+    // One message of each kind per distinct row (the record itself, or it with a held jump).
+    std::vector<std::pair<double, std::shared_ptr<const std::string>>> rows;
+    std::vector<std::pair<double, std::shared_ptr<const foxglove::Frame>>> frames;
+    auto with_comp = [&item](double comp_rad) {
+      TelemetryRecord copy = item.row;
+      copy.step.comp_rad = comp_rad;
+      return copy;
+    };
+    for (auto& d : due) {
+      if (d.foxglove) {
+        auto it = std::find_if(frames.begin(), frames.end(), [&](const auto& f) { return f.first == d.comp_rad; });
+        if (it == frames.end()) {
+          const TelemetryRecord rec = with_comp(d.comp_rad);
+          frames.emplace_back(d.comp_rad, std::make_shared<const foxglove::Frame>(
+                                              foxglove::Frame{foxglove::timestamp_ns(rec.step.t_s), foxglove::payloads(rec)}));
+          it = frames.end() - 1;
+        }
+        batch_of(std::move(d.session)).push_back(it->second);
+      } else {
+        auto it = std::find_if(rows.begin(), rows.end(), [&](const auto& f) { return f.first == d.comp_rad; });
+        if (it == rows.end()) {
+          json j = {{"type", "row"}};
+          const auto values = telemetry_row(with_comp(d.comp_rad));
+          const auto& columns = telemetry_columns(ColumnSet::all);
+          for (std::size_t i = 0; i < columns.size(); ++i)
+            j[columns[i].name] = std::isfinite(values[i]) ? json(values[i]) : json(nullptr);
+          rows.emplace_back(d.comp_rad, std::make_shared<const std::string>(dump_json(j)));
+          it = rows.end() - 1;
+        }
+        batch_of(std::move(d.session)).push_back(it->second);
+      }
+    }
   }
+  for (auto& [session, batch] : out) session->send(std::move(batch));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -5,12 +5,14 @@
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include <boost/asio/io_context.hpp>
@@ -40,9 +42,19 @@ struct ApiOptions {
 class WsSession;
 
 // Fans telemetry out to WebSocket clients, each decimated to the rate it asked for. publish_*
-// may be called from any thread (the recorder's, the runner's); sends happen on the io thread.
+// may be called from any thread (the recorder's, the runner's) and only queue what they are
+// given: the fan-out runs on the hub's own thread, which hands each session its messages of a
+// round in one handler on the io thread. The recorder thread must never pay for the watchers:
+// a row per session per period cost it the time to drain the loop's ring, and 250 clients that
+// never read made a 10 kHz run lose rows and abort. What the hub cannot take (its queue full) is
+// lost for the stream only, counted, and said in the log; telemetry.csv is the record.
 class TelemetryHub {
  public:
+  TelemetryHub();
+  ~TelemetryHub();  // stop()
+  TelemetryHub(const TelemetryHub&) = delete;
+  TelemetryHub& operator=(const TelemetryHub&) = delete;
+
   void publish_row(const TelemetryRecord& r);
   void publish_notice(const nlohmann::json& j);
   // foxglove: the session speaks foxglove.websocket.v1 (binary frames per channel), else the
@@ -50,6 +62,9 @@ class TelemetryHub {
   void subscribe(const std::shared_ptr<WsSession>& s, double rate_hz, bool foxglove);
   void unsubscribe(const WsSession* s);
   std::size_t subscribers() const;
+  // Ends the fan-out thread (what is queued is dropped). Before the io_context the sessions post
+  // to is destroyed; idempotent.
+  void stop();
 
  private:
   struct Sub {
@@ -60,9 +75,24 @@ class TelemetryHub {
     bool foxglove;
     double held_comp_rad = 0;  // the largest compensation jump of the rows this client skipped
   };
-  mutable std::mutex mutex_;
+  struct Item {  // a row, or a notice when `notice` is set
+    TelemetryRecord row;
+    std::shared_ptr<const nlohmann::json> notice;
+  };
+  static constexpr std::size_t kInboxItems = 16384;  // 1.6 s of a 10 kHz loop
+  void fan_out_loop();
+  void fan_out(const std::vector<Item>& items);
+
+  mutable std::mutex mutex_;  // subs_, last_t_s_
   std::vector<Sub> subs_;
-  double last_t_s_ = 0;  // of the last row published: the time stamp of a notice without one
+  double last_t_s_ = 0;  // of the last row fanned out: the time stamp of a notice without one
+
+  std::mutex inbox_mutex_;
+  std::condition_variable inbox_cv_;
+  std::vector<Item> inbox_;
+  std::uint64_t inbox_dropped_ = 0;  // rows and notices the stream lost to a full inbox
+  bool stop_ = false;
+  std::thread thread_;
 };
 
 class ApiServer {

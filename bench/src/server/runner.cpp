@@ -469,6 +469,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       if (a.stop) requests.try_push({.kind = LoopRequest::Kind::stop});
     }
     notice({{"type", "run_start"},
+            {"t_s", 0.0},  // the new run's clock (the stream's last row is the previous run's end)
             {"campaign", c.name},
             {"run", run.name},
             {"dir", dir.filename().string()},
