@@ -392,6 +392,60 @@ TEST(ServerHardening, WatchersThatNeverReadDoNotCostTheRunAnyRow) {
   EXPECT_EQ(run["telemetry"]["rows_written"], 200000) << run.dump(2);
 }
 
+// One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
+// status line and headers, and its body.
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (fd < 0 || ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) return "no connection";
+  const timeval wait_s{30, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait_s, sizeof wait_s);
+  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  std::string reply;
+  char buf[4096];
+  for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;) {
+    reply.append(buf, static_cast<std::size_t>(n));
+    if (reply.find("HTTP/1.1 101") == 0 && reply.find("\r\n\r\n") != std::string::npos) break;  // a WebSocket now
+  }
+  ::close(fd);
+  return reply;
+}
+
+// A page of another web site open in the operator's browser may neither drive the bench nor
+// watch its stream: a tester's page injected a gap change into a running campaign (a no-cors
+// text/plain POST) and read 20 rows of telemetry. Requests carrying a foreign Origin get 403; the
+// console's own (Origin = the Host it was served from) and clients without an Origin go on.
+TEST(ServerHardening, APageOfAnotherSiteCannotDriveTheBenchNorWatchIt) {
+  ServerProcess server;
+  const std::string host = "127.0.0.1:" + std::to_string(server.port());
+  const auto inject = [&](const std::string& origin) {
+    const std::string body = R"({"gap_deg": 1.0})";
+    return raw_exchange(server.port(), "POST /api/inject/gap HTTP/1.1\r\nHost: " + host + "\r\n" + origin +
+                                           "Content-Type: text/plain\r\nContent-Length: " + std::to_string(body.size()) +
+                                           "\r\nConnection: close\r\n\r\n" + body);
+  };
+  const auto watch = [&](const std::string& origin) {
+    return raw_exchange(server.port(), "GET /api/telemetry HTTP/1.1\r\nHost: " + host + "\r\n" + origin +
+                                           "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: "
+                                           "dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
+  };
+  for (const std::string foreign : std::vector<std::string>{"Origin: http://evil.example\r\n", "Origin: null\r\n",
+                                                            "Origin: http://" + host + ".evil.example\r\n"}) {
+    const std::string posted = inject(foreign), upgraded = watch(foreign);
+    EXPECT_EQ(posted.rfind("HTTP/1.1 403", 0), 0u) << foreign << posted;
+    EXPECT_NE(posted.find("cross-origin request refused"), std::string::npos) << posted;
+    EXPECT_EQ(upgraded.rfind("HTTP/1.1 403", 0), 0u) << foreign << upgraded;
+  }
+  // The console's own origin, and no Origin at all (ctl, curl): served (409: nothing runs).
+  for (const std::string own : {"Origin: http://" + host + "\r\n", std::string()}) {
+    EXPECT_EQ(inject(own).rfind("HTTP/1.1 409", 0), 0u) << own;
+    EXPECT_EQ(watch(own).rfind("HTTP/1.1 101", 0), 0u) << own;
+  }
+}
+
 // ctl against something that is no hilbench server: what it sends reaches the terminal with its
 // control bytes shown, not obeyed; JSON of the wrong shape is said to be so; a reply announcing
 // more than 64 MiB is refused, not allocated.

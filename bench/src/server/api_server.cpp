@@ -31,6 +31,7 @@
 #include "hil/plant/plant.hpp"
 #include "hil/units.hpp"
 #include "hil/json_file.hpp"
+#include "hil/text_file.hpp"
 
 namespace hil::bench {
 namespace {
@@ -669,6 +670,31 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   // An analysis of the run, from the jobs (queued, running, failed) or from its folder (done).
   std::optional<json> find_analysis(const std::string& id, const std::string& aid) const;
 };
+
+namespace {
+
+// A request a browser sends for a page of another origin (any web site the operator has open)
+// carries that page's Origin: it may not drive the bench nor watch its stream. The console is
+// served here, so its requests carry this server's own origin, the Host they were sent to.
+// Clients that are no browser (ctl, curl, scripts) send no Origin and are not concerned.
+std::optional<std::string> foreign_origin(const Request& req) {
+  const auto origin = req[http::field::origin];
+  if (origin.empty()) return std::nullopt;
+  const auto host = req[http::field::host];
+  const std::string_view o(origin.data(), origin.size()), h(host.data(), host.size());
+  constexpr std::string_view scheme = "http://";
+  const auto lower = [](std::string_view v) {
+    std::string out(v);
+    std::transform(out.begin(), out.end(), out.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return out;
+  };
+  if (!h.empty() && o.size() == scheme.size() + h.size() && lower(o.substr(0, scheme.size())) == scheme &&
+      lower(o.substr(scheme.size())) == lower(h))
+    return std::nullopt;
+  return std::string(o);
+}
+
+}  // namespace
 
 bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
   if (options.token.empty()) return true;
@@ -1453,6 +1479,14 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     // One request's failure is that request's answer, never the server's end: a handler that
     // throws anything gets a 500 for this request, and a running campaign goes on.
     try {
+      if (const auto origin = foreign_origin(req)) {
+        spdlog::warn("{} {}: refused a request of a page of another origin", std::string(req.method_string()),
+                     loggable_target(req.target()));
+        return send(error_reply(http::status::forbidden, "cross-origin request refused",
+                                "the request came from a page of " + printable(*origin, 200) +
+                                    ", not from this server's console; a page of another site may not drive the bench"),
+                    false);
+      }
       const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
       if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
       Reply reply = api_->answer(req, target);
