@@ -1,6 +1,8 @@
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
@@ -16,6 +18,14 @@ namespace hil::drv {
 using std::chrono::milliseconds;
 
 // ---- configuration ---------------------------------------------------------------------------
+
+namespace {
+std::string hex4(std::uint16_t v) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "%04X", v);
+  return buf;
+}
+}  // namespace
 
 std::string_view modbus_exception_name(int code) {
   switch (code) {
@@ -155,7 +165,11 @@ void ModbusLink::connect() {
   modbus_set_slave(ctx_, cfg_.unit_id);
   const auto us = std::chrono::duration_cast<std::chrono::microseconds>(cfg_.response_timeout).count();
   modbus_set_response_timeout(ctx_, static_cast<uint32_t>(us / 1000000), static_cast<uint32_t>(us % 1000000));
-  modbus_set_byte_timeout(ctx_, static_cast<uint32_t>(us / 1000000), static_cast<uint32_t>(us % 1000000));
+  // Between two bytes of one reply, at most 100 ms (a character at 1200 baud is 9 ms): equal to
+  // the response timeout, a device trickling a byte every few seconds stretched one read to about
+  // 20 response timeouts, minutes in which a run's end and an abort waited.
+  const auto byte_us = std::min<long long>(us, 100000);
+  modbus_set_byte_timeout(ctx_, static_cast<uint32_t>(byte_us / 1000000), static_cast<uint32_t>(byte_us % 1000000));
   if (modbus_connect(ctx_) == -1) {
     const int e = errno;
     close();
@@ -395,6 +409,9 @@ struct ModbusDrive::Impl {
   bool reset_pulse = false;
   std::uint16_t last_control = 0xFFFF;
   std::uint16_t last_target[2] = {0xFFFF, 0xFFFF};
+  // The newest write failed (an exception reply: the device refuses its target or control word):
+  // a fault until a write goes through, since the drive then no longer does what the loop asks.
+  bool write_failed = false;
 
   static const ModbusDriveConfig& checked(const ModbusDriveConfig& c) {
     need(c.map, "control", true, "the enable and fault-reset bits");
@@ -428,9 +445,16 @@ struct ModbusDrive::Impl {
     fb.rx_time = Clock::now();
     ++fb.sequence;
     auto& h = poller.health();
+    const bool fault_was = h.statusword >> bit_fault & 1;
     h.statusword = status;
     h.fault = fb.fault;
     if (fb.fault && poller.slot(kFaultCode).reg) h.last_emcy_code = static_cast<std::uint16_t>(poller.slot(kFaultCode).read(buf));
+    if (fb.fault && !fault_was) {
+      char code[48] = "";
+      if (poller.slot(kFaultCode).reg) std::snprintf(code, sizeof code, ", fault_code 0x%04X", h.last_emcy_code);
+      h.set_last_error(poller.who() + ": status register " + std::to_string(cfg.map.at("status").address) +
+                       " reports a fault (bit " + std::to_string(bit_fault) + ", status 0x" + hex4(status) + code + ")");
+    }
 
     const DriveCommand cmd = command.load();
     if (cmd.fault_reset && !prev_cmd_reset) reset_requested = true;
@@ -444,23 +468,26 @@ struct ModbusDrive::Impl {
     const bool follow = enable && fb.enabled && !fb.fault;
     std::uint16_t words[2] = {0, 0};
     target.encode(follow ? cmd.target_position_rad : fb.position_rad, words);
-    const bool fresh = poller.fresh_connection();
+    // A fresh connection, or a write refused last time (retried each poll until one goes through).
+    const bool fresh = poller.fresh_connection() || write_failed;
     if (fresh || words[0] != last_target[0] || (target.words() == 2 && words[1] != last_target[1])) {
-      if (!poller.write(target, words)) return false;
+      if (!poller.write(target, words)) return write_failed = true, false;
       last_target[0] = words[0], last_target[1] = words[1];
+      write_failed = false;
     }
     std::uint16_t ctl[2] = {static_cast<std::uint16_t>((enable ? 1u << bit_enable : 0u) | (reset_pulse ? 1u << bit_reset : 0u)),
                             0};
     if (fresh || ctl[0] != last_control) {
-      if (!poller.write(control, ctl)) return false;
+      if (!poller.write(control, ctl)) return write_failed = true, false;
       last_control = ctl[0];
+      write_failed = false;
     }
     return true;
   }
 
   void publish() {
     auto& h = poller.health();
-    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected;
+    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected || write_failed;
     h.fault = fb.fault;
     feedback.store(fb);
     poller.health_box().store(h);
@@ -529,11 +556,17 @@ struct ModbusTransducer::Impl {
     const auto* buf = poller.buffer();
     r.pressure_pa = poller.slot(0).read(buf);
     const auto status = poller.slot(1).reg ? static_cast<std::uint16_t>(poller.slot(1).read(buf)) : 0;
+    const bool fault_was = r.fault;
     r.fault = (status >> bit_fault) & 1;
     r.valid = true;
     r.rx_time = Clock::now();
     ++r.sequence;
     poller.health().statusword = status;
+    if (r.fault && !fault_was)
+      poller.health().set_last_error(poller.who() + ": status register " + std::to_string(cfg.map.at("status").address) +
+                                     " reports a fault (bit " + std::to_string(bit_fault) + ", status 0x" + hex4(status) + ")");
+    if (!std::isfinite(r.pressure_pa) && r.valid)
+      poller.health().set_last_error(poller.who() + ": the pressure register reads " + std::to_string(r.pressure_pa));
     return true;
   }
   void publish() {

@@ -53,6 +53,7 @@ class ModbusServer {
   std::atomic<bool> silent{false};
   std::atomic<long long> delay_us{0};
   std::atomic<int> exception{0};
+  std::atomic<int> write_exception{0};  // the writes only
   std::atomic<bool> drop{false};
   std::atomic<bool> refuse{false};
 
@@ -141,7 +142,13 @@ class ModbusServer {
       }
       if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
         const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-        if (fd >= 0) clients_.push_back(fd);
+        // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process), and a
+        // device has few masters: past kMaxClients a newcomer is closed at once.
+        if (fd >= FD_SETSIZE || (fd >= 0 && clients_.size() >= kMaxClients)) {
+          ::close(fd);
+        } else if (fd >= 0) {
+          clients_.push_back(fd);
+        }
       }
       for (std::size_t i = 0; i < clients_.size();) {
         const int fd = clients_[i];
@@ -166,15 +173,16 @@ class ModbusServer {
     ++requests_;
     if (silent) return;
     if (const long long d = delay_us; d > 0) std::this_thread::sleep_for(std::chrono::microseconds(d));
-    if (const int code = exception; code != 0) {
+    const std::uint8_t function = q[modbus_get_header_length(ctx_)];
+    const bool write = function == 0x06 || function == 0x10 || function == 0x16 || function == 0x17;
+    if (const int code = write && write_exception != 0 ? write_exception.load() : exception.load(); code != 0) {
       modbus_reply_exception(ctx_, q, static_cast<unsigned>(code));
       return;
     }
-    const std::uint8_t function = q[modbus_get_header_length(ctx_)];
     std::lock_guard lock(model_mutex_);
     refresh_(mapping_);
     modbus_reply(ctx_, q, len, mapping_);
-    if (function == 0x06 || function == 0x10 || function == 0x16 || function == 0x17) apply_(mapping_);
+    if (write) apply_(mapping_);
   }
 
   ModbusLinkConfig cfg_;
@@ -184,6 +192,7 @@ class ModbusServer {
   modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
   int port_ = 0;
+  static constexpr std::size_t kMaxClients = 64;
   std::vector<int> clients_;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> requests_{0};
@@ -275,6 +284,7 @@ void ModbusDriveEmulator::raise_fault(std::uint16_t code) {
 void ModbusDriveEmulator::set_silent(bool s) { impl_->server->silent = s; }
 void ModbusDriveEmulator::set_response_delay(std::chrono::microseconds d) { impl_->server->delay_us = d.count(); }
 void ModbusDriveEmulator::set_exception(int code) { impl_->server->exception = code; }
+void ModbusDriveEmulator::set_write_exception(int code) { impl_->server->write_exception = code; }
 void ModbusDriveEmulator::drop_connections() { impl_->server->drop = true; }
 void ModbusDriveEmulator::refuse_connections(bool r) { impl_->server->refuse = r; }
 
@@ -309,6 +319,7 @@ std::uint64_t ModbusTransducerEmulator::requests() const { return impl_->server-
 void ModbusTransducerEmulator::set_silent(bool s) { impl_->server->silent = s; }
 void ModbusTransducerEmulator::set_response_delay(std::chrono::microseconds d) { impl_->server->delay_us = d.count(); }
 void ModbusTransducerEmulator::set_exception(int code) { impl_->server->exception = code; }
+void ModbusTransducerEmulator::set_write_exception(int code) { impl_->server->write_exception = code; }
 void ModbusTransducerEmulator::drop_connections() { impl_->server->drop = true; }
 void ModbusTransducerEmulator::refuse_connections(bool r) { impl_->server->refuse = r; }
 

@@ -225,6 +225,45 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   }
 }
 
+// A Modbus drive that answers its reads but refuses its writes (exception replies) no longer
+// does what the loop asks: a fault naming the register and the exception (it used to pass as a
+// healthy drive, and the run completed with the motor parked). One that refuses to be switched
+// off at the end is said: deactivate_failure() (the runner puts it in the reason, an event and
+// the outcome; it used to be kept where nobody read it).
+TEST(DeviceRig, AModbusDriveThatRefusesItsWritesIsAFaultAndAFailedSwitchOffIsSaid) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, double offset_rad) {
+    bench::RigReading rd;
+    for (int k = 0; k < 20000; ++k) {
+      std::this_thread::sleep_for(1ms);
+      const auto s = rig.read(Clock::now(), 1ms, rd);
+      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad + offset_rad, true, bench::kNaN});
+      if (s == want) return true;
+    }
+    return false;
+  };
+  TempDir dir;
+  const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+  bench::DeviceRig& rig = *owned_rig;
+  rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+  rig.activate();
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 0));
+  side.drive.set_write_exception(3);
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::fault, 0.01)) << rig.health().last_error_text();
+  const std::string text(rig.health().last_error_text());
+  EXPECT_NE(text.find("writing holding register"), std::string::npos) << text;
+  EXPECT_NE(text.find("ILLEGAL DATA VALUE (exception 3)"), std::string::npos) << text;
+  side.drive.set_write_exception(0);
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 0)) << rig.health().last_error_text();
+  EXPECT_EQ(rig.deactivate_failure(), "");
+  side.drive.set_write_exception(3);
+  rig.deactivate();
+  EXPECT_NE(rig.deactivate_failure().find("did not disable within"), std::string::npos) << rig.deactivate_failure();
+  side.drive.set_write_exception(0);
+}
+
 // The acceptance run on the CAN rig, in this process on the loopback bus, in simulated time:
 // paper_adaptive's adaptive run (18 s, gap 1 -> 2 deg at 12 s) through the real CiA 402 client,
 // the emulator, the Modbus transducer over TCP and the plant, stepped in lock-step with the loop

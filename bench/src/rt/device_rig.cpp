@@ -76,6 +76,8 @@ void DeviceRig::configure(const RigSetup& setup) {
   stale_ = Stale::none;
   reads_ = stale_reads_ = fault_reads_ = 0;
   deactivate_error_[0] = '\0';
+  implausible_ = Implausible::none;
+  enable_held_ = false;
   configured_ = true;
 }
 
@@ -102,6 +104,7 @@ void DeviceRig::activate() {
     }
     if (s == RigStatus::ok) {
       stale_ = Stale::none;
+      enable_held_ = true;  // from here on the drive must stay enabled until a command says otherwise
       return;
     }
     if (s == RigStatus::fault || Clock::now() > until) {
@@ -128,6 +131,15 @@ void DeviceRig::deactivate() noexcept {
 RigStatus DeviceRig::read_drive(Clock::time_point now, drv::DriveFeedback& fb) noexcept {
   fb = drive_->read(now, Clock::duration::zero());
   if (fb.fault) return RigStatus::fault;
+  if (fb.valid && !std::isfinite(fb.position_rad)) {
+    implausible_ = Implausible::position_not_finite;
+    return RigStatus::fault;
+  }
+  if (fb.valid && enable_held_ && !fb.enabled) {
+    implausible_ = Implausible::disabled;
+    implausible_status_ = fb.statusword;
+    return RigStatus::fault;
+  }
   const bool fresh = drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write
                          ? fb.valid && (last_write_ == Clock::time_point{} || fb.rx_time > last_write_)
                          : fb.valid && (now - fb.rx_time <= parts_.drive_max_age || first_read(fb.rx_time));
@@ -183,6 +195,7 @@ RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const 
     step_pending_ = true;
   }
   first_write_done_ = true;
+  if (!command.enable) enable_held_ = false;
   // Taken before the write that asks for the reply: a reply is fresh when it arrived after it.
   if (drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) last_write_ = Clock::now();
   drive_->write(now, period, {command.theta_cmd_rad + offset_rad_, command.enable, false});
@@ -212,14 +225,23 @@ RigHealth DeviceRig::health() const noexcept {
   h.drive_reconnects = d.reconnects;
   h.transducer_reconnects = t.reconnects;
   h.reconnects = d.reconnects + t.reconnects;
-  h.fault = !active_ || d.fault || (sensor_ && t.fault);
+  h.fault = !active_ || d.fault || (sensor_ && t.fault) || implausible_ != Implausible::none;
   char text[256];
   text[0] = '\0';
-  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr) {
+  // (A Modbus drive's fault text names its fault_code register's value itself.)
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr &&
+      std::strstr(d.last_error.data(), "fault_code") == nullptr) {
     // The newest error is about something else (heartbeat, bus): name the EMCY too.
     std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
   } else if (d.fault) {
     std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+  } else if (implausible_ == Implausible::position_not_finite) {
+    std::snprintf(text, sizeof text, "drive: its position reads as not a number");
+  } else if (implausible_ == Implausible::disabled) {
+    std::snprintf(text, sizeof text,
+                  "drive: switched itself off during the run without reporting a fault (status 0x%04X); every command "
+                  "asked it to stay enabled",
+                  implausible_status_);
   } else if (sensor_ && t.fault) {
     std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
   } else if (stale_ == Stale::drive && drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) {

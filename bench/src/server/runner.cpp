@@ -140,6 +140,19 @@ json faults_json(const LoopSnapshot& s) {
   return faults;
 }
 
+// After a rig's deactivate(): when the drive could not be switched off, says so everywhere an
+// operator looks (the reason, an event, the log): it may still be enabled, with the motor
+// attached. True when it could not.
+bool say_drive_not_disabled(const Rig& rig, Recorder& rec, std::string& reason) {
+  const std::string why = rig.deactivate_failure();
+  if (why.empty()) return false;
+  const std::string text = "switching the drive off failed (" + why + "): it may still be enabled";
+  spdlog::error("{}", text);
+  rec.log({{"kind", "drive_not_disabled"}, {"source", "bench"}, {"detail", text}});
+  reason += (reason.empty() ? "" : "; ") + text;
+  return true;
+}
+
 }  // namespace
 
 std::string utc_iso(SysClock::time_point t) {
@@ -434,6 +447,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     reason = std::string("rig '") + rc.name + "' setup: " + e.what();
     rec.log({{"kind", "rig_error"}, {"source", "bench"}, {"detail", reason}});
     rig->deactivate();
+    say_drive_not_disabled(*rig, rec, reason);
     loop.reset();
   }
 
@@ -501,6 +515,10 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
                   {"reconnects_by_device", {{"drive", h.drive_reconnects}, {"transducer", h.transducer_reconnects}}},
                   {"last_error", std::string(h.last_error_text())}};
     rig->deactivate();
+    if (say_drive_not_disabled(*rig, rec, reason)) {
+      rig_health["disable_error"] = rig->deactivate_failure();
+      if (outcome == Outcome::completed) outcome = Outcome::error;  // the run is over, the drive may not be
+    }
   }
   cpu_latency.reset();
 

@@ -2,6 +2,8 @@
 // pair), against an independent pymodbus server, and mbpoll against our emulators.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <arpa/inet.h>
+#include <sys/resource.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
@@ -160,10 +162,45 @@ TEST(ModbusTcp, DriveFaultIsReportedAndReset) {
   d.emulator.raise_fault(0x2310);
   ASSERT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).fault; }));
   EXPECT_FALSE(d.client.read(Clock::now(), 1ms).enabled);
-  EXPECT_EQ(d.client.health().last_emcy_code, 0x2310);    // from the fault_code register
+  EXPECT_EQ(d.client.health().last_emcy_code, 0x2310);  // from the fault_code register
+  // The fault is said, not an empty text: which register and bit, and the fault code.
+  const std::string said(d.client.health().last_error_text());
+  EXPECT_NE(said.find("reports a fault (bit 3, status 0x"), std::string::npos) << said;
+  EXPECT_NE(said.find("fault_code 0x2310"), std::string::npos) << said;
   d.client.write(Clock::now(), 1ms, {0.25, true, true});  // fault-reset edge from the loop
   EXPECT_TRUE(eventually([&] { return d.client.read(Clock::now(), 1ms).enabled; }));
   EXPECT_FALSE(d.client.read(Clock::now(), 1ms).fault);
+}
+
+// More masters than a device takes (a flood of 1100 idle connections): the emulator closes the
+// ones past its cap and goes on serving; it used to abort the whole process ("bit out of range
+// 0 - FD_SETSIZE on fd_set") once a descriptor passed 1023.
+TEST(ModbusTcp, AConnectionFloodDoesNotBringTheEmulatorDown) {
+  rlimit files{};
+  ::getrlimit(RLIMIT_NOFILE, &files);
+  if (files.rlim_cur < 1400) {
+    files.rlim_cur = std::min<rlim_t>(1400, files.rlim_max);
+    ::setrlimit(RLIMIT_NOFILE, &files);
+  }
+  TcpTransducer t;
+  std::vector<int> flood;
+  for (int i = 0; i < 1100; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) break;
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(t.emulator.port()));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+      ::close(fd);
+      break;
+    }
+    flood.push_back(fd);
+  }
+  std::this_thread::sleep_for(500ms);  // the emulator accepts (and closes) what is past its cap
+  for (const int fd : flood) ::close(fd);
+  t.client.configure();  // still serving
+  EXPECT_TRUE(eventually([&] { return std::abs(t.client.read(Clock::now(), 1ms).pressure_pa - 1.5e6) < 1.0; }));
 }
 
 TEST(ModbusTcp, ExceptionsAreSurfacedByName) {

@@ -21,6 +21,8 @@ class ModbusFaults {
   // Answer every request with this Modbus exception code (e.g. 2 ILLEGAL DATA ADDRESS,
   // 4 SERVER DEVICE FAILURE, 6 SERVER DEVICE BUSY); 0 answers normally again.
   virtual void set_exception(int code) = 0;
+  // The same for the writes only (a device that refuses its target, reads still answered).
+  virtual void set_write_exception(int code) = 0;
   // TCP: close every client connection now. RTU: close and reopen the serial line.
   virtual void drop_connections() = 0;
   // TCP: stop listening while set (new connections are refused), listen again when cleared.
@@ -51,6 +53,7 @@ class ModbusDriveEmulator final : public ModbusFaults {
   void set_silent(bool silent) override;
   void set_response_delay(std::chrono::microseconds delay) override;
   void set_exception(int code) override;
+  void set_write_exception(int code) override;
   void drop_connections() override;
   void refuse_connections(bool refuse) override;
 
@@ -73,6 +76,7 @@ class ModbusTransducerEmulator final : public ModbusFaults {
   void set_silent(bool silent) override;
   void set_response_delay(std::chrono::microseconds delay) override;
   void set_exception(int code) override;
+  void set_write_exception(int code) override;
   void drop_connections() override;
   void refuse_connections(bool refuse) override;
 

@@ -58,7 +58,8 @@ class DeviceRig final : public Rig {
   // name the device, the object or register, and the cause).
   void configure(const RigSetup& setup) override;
   void activate() override;             // enables the drive; waits for a fresh reading of every part
-  void deactivate() noexcept override;  // disables it; errors are kept in health()
+  void deactivate() noexcept override;  // disables it; errors are kept in health() and deactivate_failure()
+  std::string deactivate_failure() const override { return deactivate_error_.data(); }
 
   // Real-time safe. Stale: the drive's feedback or the pressure is not fresh (a drive answering
   // each write: no reply since the last write; polled parts: older than their limit). Fault: a
@@ -107,6 +108,12 @@ class DeviceRig final : public Rig {
   bool step_pending_ = false;  // a write since the last plant step
   std::uint64_t reads_ = 0, stale_reads_ = 0, fault_reads_ = 0;
   std::array<char, 256> deactivate_error_{};
+  // Feedback no working drive gives, taken as a fault: a position that is not a number, or the
+  // drive switching itself off (no fault bit) while every command asked it to stay enabled.
+  enum class Implausible : std::uint8_t { none, position_not_finite, disabled };
+  Implausible implausible_ = Implausible::none;
+  std::uint16_t implausible_status_ = 0;
+  bool enable_held_ = false;  // every command since activate() asked for enable
 };
 
 // The parts a rig file names (the `devices` block, validated at load), for the kinds' recipes.

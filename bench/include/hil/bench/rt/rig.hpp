@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <string_view>
 
 #include "hil/bench/rt/loop_stats.hpp"
@@ -110,6 +111,9 @@ class Rig {
   virtual void configure(const RigSetup& setup) = 0;
   virtual void activate() = 0;
   virtual void deactivate() noexcept = 0;
+  // Why the last deactivate() could not switch the drive off (it may still be enabled); empty
+  // when it did, or when there is nothing to switch off.
+  virtual std::string deactivate_failure() const { return {}; }
 
   // Real-time safe: noexcept, no allocation, no lock, no I/O, no waiting.
   virtual RigStatus read(Clock::time_point now, Clock::duration period, RigReading& out) noexcept = 0;
