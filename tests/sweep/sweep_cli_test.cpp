@@ -203,21 +203,29 @@ TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {
   EXPECT_EQ(csv_rows(out / "sweep.csv").size(), 5u);  // the first sweep's outputs stay
 }
 
-// Every point reads the campaign's csv reference again: a resumed sweep whose csv changed would
-// mix rows of the old reference with rows of the new one, so the plan fingerprints its content.
-TEST(Sweep, AChangedCsvReferenceIsAnotherSweep) {
-  TempDir dir;
+// c.yaml in `dir`: the tiny campaign with its square reference replaced by the csv `reference`.
+void write_csv_campaign(const TempDir& dir, const std::string& reference) {
   std::string campaign = slurp(source_path("tests/sweep/data/tiny_campaign.yaml"));
   const std::string plant_line = "plant: ../../../configs/plant/nominal.yaml";
   campaign.replace(campaign.find(plant_line), plant_line.size(), "plant: " + source_path("configs/plant/nominal.yaml").string());
   const auto square = campaign.find("    - square:");
-  campaign.replace(square, campaign.find('\n', square) - square, "    - csv: {file: ref.csv, column: p_mpa}");
+  campaign.replace(square, campaign.find('\n', square) - square, "    - csv: {file: " + reference + ", column: p_mpa}");
   dir.write("c.yaml", campaign);
-  const auto write_reference = [&](double high_mpa) {
-    std::string csv = "t_s,p_mpa\n";
-    for (int k = 0; k <= 5; ++k) csv += std::to_string(k) + "," + std::to_string(k % 2 == 1 ? high_mpa : 1.0) + "\n";
-    dir.write("ref.csv", csv);
-  };
+}
+
+// A csv reference alternating 1.0 and `high_mpa` each second for 5 s.
+fs::path write_csv_reference(const TempDir& dir, const std::string& name, double high_mpa) {
+  std::string csv = "t_s,p_mpa\n";
+  for (int k = 0; k <= 5; ++k) csv += std::to_string(k) + "," + std::to_string(k % 2 == 1 ? high_mpa : 1.0) + "\n";
+  return dir.write(name, csv);
+}
+
+// Every point reads the campaign's csv reference again: a resumed sweep whose csv changed would
+// mix rows of the old reference with rows of the new one, so the plan fingerprints its content.
+TEST(Sweep, AChangedCsvReferenceIsAnotherSweep) {
+  TempDir dir;
+  write_csv_campaign(dir, "ref.csv");
+  const auto write_reference = [&](double high_mpa) { write_csv_reference(dir, "ref.csv", high_mpa); };
   write_reference(1.4);
   const auto sweep = dir.write("s.yaml", "campaign: c.yaml\nruns: [none]\naxes:\n  - path: campaign.seed\n    values: [5, 6]\n");
   const auto out = dir.path() / "out";
@@ -234,17 +242,8 @@ TEST(Sweep, AChangedCsvReferenceIsAnotherSweep) {
 // such a file changed would mix rows of the old contents with rows of the new.
 TEST(Sweep, AChangedFileThatAnAxisNamesStopsAResumeAndAShard) {
   TempDir dir;
-  std::string campaign = slurp(source_path("tests/sweep/data/tiny_campaign.yaml"));
-  const std::string plant_line = "plant: ../../../configs/plant/nominal.yaml";
-  campaign.replace(campaign.find(plant_line), plant_line.size(), "plant: " + source_path("configs/plant/nominal.yaml").string());
-  const auto square = campaign.find("    - square:");
-  campaign.replace(square, campaign.find('\n', square) - square, "    - csv: {file: a.csv, column: p_mpa}");
-  dir.write("c.yaml", campaign);
-  const auto write_reference = [&](const std::string& name, double high_mpa) {
-    std::string csv = "t_s,p_mpa\n";
-    for (int k = 0; k <= 5; ++k) csv += std::to_string(k) + "," + std::to_string(k % 2 == 1 ? high_mpa : 1.0) + "\n";
-    return dir.write(name, csv);
-  };
+  write_csv_campaign(dir, "a.csv");
+  const auto write_reference = [&](const std::string& name, double high_mpa) { return write_csv_reference(dir, name, high_mpa); };
   write_reference("a.csv", 1.4);
   const auto b = write_reference("b.csv", 1.3);
   const auto sweep = dir.write(

@@ -465,22 +465,11 @@ void TelemetryHub::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-void TelemetryHub::publish_row(const TelemetryRecord& r) {
-  bool wake = false;
-  {
-    std::lock_guard lock(inbox_mutex_);
-    if (stop_) return;
-    if (inbox_.size() >= kInboxItems) {
-      ++inbox_dropped_;
-      return;
-    }
-    wake = inbox_.empty();
-    inbox_.push_back({r, nullptr});
-  }
-  if (wake) inbox_cv_.notify_one();
-}
+void TelemetryHub::publish_row(const TelemetryRecord& r) { enqueue({r, nullptr}); }
 
-void TelemetryHub::publish_notice(const json& j) {
+void TelemetryHub::publish_notice(const json& j) { enqueue({TelemetryRecord{}, std::make_shared<const json>(j)}); }
+
+void TelemetryHub::enqueue(Item item) {
   bool wake = false;
   {
     std::lock_guard lock(inbox_mutex_);
@@ -490,7 +479,7 @@ void TelemetryHub::publish_notice(const json& j) {
       return;
     }
     wake = inbox_.empty();
-    inbox_.push_back({TelemetryRecord{}, std::make_shared<const json>(j)});
+    inbox_.push_back(std::move(item));
   }
   if (wake) inbox_cv_.notify_one();
 }

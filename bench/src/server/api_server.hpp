@@ -80,6 +80,7 @@ class TelemetryHub {
     std::shared_ptr<const nlohmann::json> notice;
   };
   static constexpr std::size_t kInboxItems = 16384;  // 1.6 s of a 10 kHz loop
+  void enqueue(Item item);                           // any thread: a lock and a move, never a wait
   void fan_out_loop();
   void fan_out(const std::vector<Item>& items);
 
