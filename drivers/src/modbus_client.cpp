@@ -20,10 +20,14 @@ using std::chrono::milliseconds;
 // ---- configuration ---------------------------------------------------------------------------
 
 namespace {
-std::string hex4(std::uint16_t v) {
-  char buf[8];
-  std::snprintf(buf, sizeof buf, "%04X", v);
-  return buf;
+// "<who>: status register 3 reports a fault (bit 3, status 0x0008<more>)": a device's fault bit,
+// said with where it was read (the drive adds its fault_code).
+std::string fault_bit_text(const std::string& who, const RegisterMap& map, int bit, std::uint16_t status,
+                           const std::string& more = "") {
+  char hex[8];
+  std::snprintf(hex, sizeof hex, "%04X", status);
+  return who + ": status register " + std::to_string(map.at("status").address) + " reports a fault (bit " + std::to_string(bit) +
+         ", status 0x" + hex + more + ")";
 }
 }  // namespace
 
@@ -452,8 +456,7 @@ struct ModbusDrive::Impl {
     if (fb.fault && !fault_was) {
       char code[48] = "";
       if (poller.slot(kFaultCode).reg) std::snprintf(code, sizeof code, ", fault_code 0x%04X", h.last_emcy_code);
-      h.set_last_error(poller.who() + ": status register " + std::to_string(cfg.map.at("status").address) +
-                       " reports a fault (bit " + std::to_string(bit_fault) + ", status 0x" + hex4(status) + code + ")");
+      h.set_last_error(fault_bit_text(poller.who(), cfg.map, bit_fault, status, code));
     }
 
     const DriveCommand cmd = command.load();
@@ -562,10 +565,8 @@ struct ModbusTransducer::Impl {
     r.rx_time = Clock::now();
     ++r.sequence;
     poller.health().statusword = status;
-    if (r.fault && !fault_was)
-      poller.health().set_last_error(poller.who() + ": status register " + std::to_string(cfg.map.at("status").address) +
-                                     " reports a fault (bit " + std::to_string(bit_fault) + ", status 0x" + hex4(status) + ")");
-    if (!std::isfinite(r.pressure_pa) && r.valid)
+    if (r.fault && !fault_was) poller.health().set_last_error(fault_bit_text(poller.who(), cfg.map, bit_fault, status));
+    if (!std::isfinite(r.pressure_pa))
       poller.health().set_last_error(poller.who() + ": the pressure register reads " + std::to_string(r.pressure_pa));
     return true;
   }

@@ -228,9 +228,9 @@ RigHealth DeviceRig::health() const noexcept {
   h.fault = !active_ || d.fault || (sensor_ && t.fault) || implausible_ != Implausible::none;
   char text[256];
   text[0] = '\0';
-  // (A Modbus drive's fault text names its fault_code register's value itself.)
-  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), "EMCY") == nullptr &&
-      std::strstr(d.last_error.data(), "fault_code") == nullptr) {
+  char code[8];
+  std::snprintf(code, sizeof code, "0x%04X", d.last_emcy_code);
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), code) == nullptr) {
     // The newest error is about something else (heartbeat, bus): name the EMCY too.
     std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
   } else if (d.fault) {

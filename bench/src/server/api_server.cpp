@@ -488,7 +488,7 @@ void TelemetryHub::fan_out_loop() {
   // Below the recorder and the API (nice 10): watchers get what is left of the machine.
   ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
   std::vector<Item> items;
-  std::uint64_t dropped_said = 0;
+  std::uint64_t dropped_said = 0, dropped_now = 0;
   for (;;) {
     {
       std::unique_lock lock(inbox_mutex_);
@@ -499,11 +499,12 @@ void TelemetryHub::fan_out_loop() {
       inbox_cv_.wait_for(lock, std::chrono::milliseconds(10), [this] { return stop_; });
       if (stop_) return;
       items.swap(inbox_);
-      if (inbox_dropped_ > dropped_said) {
-        spdlog::warn("telemetry stream: {} rows and notices not streamed (the fan-out fell behind); telemetry.csv has them",
-                     inbox_dropped_ - dropped_said);
-        dropped_said = inbox_dropped_;
-      }
+      dropped_now = inbox_dropped_;
+    }
+    if (dropped_now > dropped_said) {  // said outside the lock: the recorder never waits on the log
+      spdlog::warn("telemetry stream: {} rows and notices not streamed (the fan-out fell behind); telemetry.csv has them",
+                   dropped_now - dropped_said);
+      dropped_said = dropped_now;
     }
     fan_out(items);
     items.clear();
