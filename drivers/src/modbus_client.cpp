@@ -1,3 +1,5 @@
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -156,6 +158,8 @@ std::string error_text(int err, const ModbusLinkConfig& cfg) {
   if (err == ETIMEDOUT) return "no reply within " + std::to_string(cfg.response_timeout.count()) + " ms (timeout)";
   return modbus_strerror(err);
 }
+
+bool ipv4_address(const std::string& host, in_addr& out) { return ::inet_pton(AF_INET, host.c_str(), &out) == 1; }
 
 modbus_t* new_context(const ModbusLinkConfig& c) {
   if (c.transport == ModbusLinkConfig::Transport::tcp) return modbus_new_tcp(c.host.c_str(), c.port);

@@ -60,7 +60,25 @@ class ModbusServer {
  private:
   bool tcp() const { return cfg_.transport == ModbusLinkConfig::Transport::tcp; }
 
+  // Before anything is opened (a throw from the constructor frees nothing).
+  void check_endpoint() {
+    // A name or a typo is refused here, before a bind that would not say so: inet_addr() made
+    // "localhost" 255.255.255.255, which Linux binds (a broadcast address) and no client reaches.
+    in_addr address{};
+    if (!cfg_.host.empty() && !ipv4_address(cfg_.host, address)) {
+      throw ModbusError(who_ + ": host '" + cfg_.host +
+                        "' is not a numeric IPv4 address (e.g. 127.0.0.1, or 0.0.0.0 for every interface; host names "
+                        "are not resolved)");
+    }
+    if (address.s_addr == htonl(INADDR_BROADCAST)) {
+      throw ModbusError(who_ + ": 255.255.255.255 is the broadcast address: no client can connect to it");
+    }
+    listen_address_ = address.s_addr;  // 0.0.0.0 (and no host): every interface
+    if (cfg_.port < 0 || cfg_.port > 65535) throw ModbusError(who_ + ": a TCP port is 0..65535 (0: any free port)");
+  }
+
   void open() {
+    if (tcp()) check_endpoint();
     ctx_ = new_context(cfg_);
     if (ctx_ == nullptr) throw ModbusError(who_ + ": cannot create a libmodbus context: " + modbus_strerror(errno));
     modbus_set_slave(ctx_, cfg_.unit_id);
@@ -83,7 +101,7 @@ class ModbusServer {
     sockaddr_in a{};
     a.sin_family = AF_INET;
     a.sin_port = htons(static_cast<std::uint16_t>(port_));
-    a.sin_addr.s_addr = cfg_.host.empty() || cfg_.host == "0.0.0.0" ? htonl(INADDR_ANY) : inet_addr(cfg_.host.c_str());
+    a.sin_addr.s_addr = listen_address_;
     socklen_t len = sizeof a;
     if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, 8) != 0 ||
         ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
@@ -191,6 +209,7 @@ class ModbusServer {
   modbus_t* ctx_ = nullptr;
   modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
+  in_addr_t listen_address_ = htonl(INADDR_ANY);
   int port_ = 0;
   static constexpr std::size_t kMaxClients = 64;
   std::vector<int> clients_;
