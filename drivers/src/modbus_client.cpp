@@ -58,10 +58,11 @@ milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback)
   return milliseconds(x);
 }
 
-RegisterMap map_from(const cfg::Node& n) {
+RegisterMap map_from(const cfg::Node& n, const MapNames& names) {
   const auto m = n.at("register_map");
-  if (m.is_scalar()) return RegisterMap::load(m.resolve_path(m.text()));
-  return RegisterMap::from_yaml(m);
+  RegisterMap map = m.is_scalar() ? RegisterMap::load(m.resolve_path(m.text())) : RegisterMap::from_yaml(m);
+  map.allow_names(names);
+  return map;
 }
 
 // Checks that `name` is in the map (and writable when asked), naming the map file otherwise.
@@ -117,9 +118,15 @@ std::string ModbusLinkConfig::describe() const {
 
 ModbusDriveConfig ModbusDriveConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"link", "register_map", "transition_ms"});
-  ModbusDriveConfig c{ModbusLinkConfig::from_yaml(n.at("link")), map_from(n)};
+  ModbusDriveConfig c{ModbusLinkConfig::from_yaml(n.at("link")), map_from(n, map_names())};
   c.transition_timeout = ms(n, "transition_ms", c.transition_timeout);
   return c;
+}
+
+const MapNames& ModbusDriveConfig::map_names() {
+  static const MapNames names{{"control", "target_position", "status", "actual_position", "actual_velocity", "fault_code"},
+                              {"enable", "fault_reset", "enabled", "fault"}};
+  return names;
 }
 
 ModbusDriveConfig ModbusDriveConfig::load(const std::filesystem::path& file) {
@@ -130,7 +137,12 @@ ModbusDriveConfig ModbusDriveConfig::load(const std::filesystem::path& file) {
 
 ModbusTransducerConfig ModbusTransducerConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"link", "register_map"});
-  return {ModbusLinkConfig::from_yaml(n.at("link")), map_from(n)};
+  return {ModbusLinkConfig::from_yaml(n.at("link")), map_from(n, map_names())};
+}
+
+const MapNames& ModbusTransducerConfig::map_names() {
+  static const MapNames names{{"pressure", "status"}, {"fault"}};
+  return names;
 }
 
 ModbusTransducerConfig ModbusTransducerConfig::load(const std::filesystem::path& file) {

@@ -229,6 +229,12 @@ std::uint16_t* slot(modbus_mapping_t* m, const Register& r) {
 void put(modbus_mapping_t* m, const Register* r, double v) {
   if (r) r->encode(v, slot(m, *r));
 }
+// The map with its names checked: an emulator reads only the names its device knows (a typo is an
+// error naming file:line, as for the clients).
+RegisterMap allowed(RegisterMap map, const MapNames& names) {
+  map.allow_names(names);
+  return map;
+}
 }  // namespace
 
 // ---- drive -------------------------------------------------------------------------------------
@@ -244,7 +250,7 @@ struct ModbusDriveEmulator::Impl {
   std::unique_ptr<detail::ModbusServer> server;
 
   Impl(ModbusLinkConfig cfg, RegisterMap m, DriveModel& mdl)
-      : map(std::move(m)),
+      : map(allowed(std::move(m), ModbusDriveConfig::map_names())),
         model(mdl),
         control(map.at("control")),
         target(map.at("target_position")),
@@ -318,7 +324,11 @@ struct ModbusTransducerEmulator::Impl {
   std::unique_ptr<detail::ModbusServer> server;
 
   Impl(ModbusLinkConfig cfg, RegisterMap m, PressureModel& mdl)
-      : map(std::move(m)), model(mdl), pressure(map.at("pressure")), status(map.find("status")), bit_fault(map.bit("fault", 0)) {
+      : map(allowed(std::move(m), ModbusTransducerConfig::map_names())),
+        model(mdl),
+        pressure(map.at("pressure")),
+        status(map.find("status")),
+        bit_fault(map.bit("fault", 0)) {
     const std::string who = "Modbus transducer emulator " + cfg.describe();
     server = std::make_unique<detail::ModbusServer>(
         std::move(cfg), map, who,

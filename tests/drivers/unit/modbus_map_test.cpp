@@ -1,9 +1,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "hil/config.hpp"
+#include "hil/drv/modbus.hpp"
+#include "hil/drv/modbus_emulator.hpp"
 #include "hil/drv/modbus_map.hpp"
+#include "servo_test_model.hpp"
 
 namespace hil::drv {
 namespace {
@@ -75,6 +79,53 @@ TEST(RegisterMap, ErrorsNameTheKey) {
                "a 16-bit register has no word order");
   expect_error("registers:\n  p: {table: coil, address: 0, type: int16}\n", "must be holding or input");
   expect_error("registers:\n  p: {table: input, adress: 0, type: int16}\n", "did you mean 'address'");
+}
+
+// A device reads only the names it knows: any other name was accepted and the register silently
+// left out (`staus:` lost the transducer's fault bit, `falut:` the drive's fault bit, which then
+// fell back to bit 3). Now refused, naming file:line:key and the name meant, by the clients'
+// configs and by the emulators.
+TEST(RegisterMap, NamesADeviceDoesNotReadAreRefused) {
+  const auto transducer = [](const std::string& map) {
+    return ModbusTransducerConfig::from_yaml(
+        cfg::Node::load_string("link: {host: 127.0.0.1, port: 1502}\nregister_map:\n" + map, "transducer.yaml"));
+  };
+  const std::string pressure = "    pressure: {table: input, address: 0, type: float32, scale: 1.0e6}\n";
+  const auto expect_error = [](const std::function<void()>& load, const std::string& text) {
+    try {
+      load();
+      ADD_FAILURE() << "accepted; expected " << text;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  expect_error([&] { transducer("  registers:\n" + pressure + "    staus: {table: input, address: 2, type: uint16}\n"); },
+               "transducer.yaml:5:5: register_map.registers.staus: unknown key 'staus' (did you mean 'status'?)");
+  expect_error([&] { transducer("  registers:\n" + pressure + "  bits:\n    falt: 0\n"); },
+               "transducer.yaml:6:5: register_map.bits.falt: unknown key 'falt' (did you mean 'fault'?)");
+  expect_error(
+      [&] {
+        ModbusDriveConfig::from_yaml(
+            cfg::Node::load_string("link: {host: 127.0.0.1, port: 1502}\nregister_map:\n  registers:\n"
+                                   "    control: {table: holding, address: 0, type: uint16}\n"
+                                   "    target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}\n"
+                                   "    status: {table: input, address: 0, type: uint16}\n"
+                                   "    actual_position: {table: input, address: 1, type: int32, scale: 1.0e-5}\n"
+                                   "  bits: {enable: 0, falut: 4}\n",
+                                   "drive.yaml"));
+      },
+      "drive.yaml:8:21: register_map.bits.falut: unknown key 'falut' (did you mean 'fault'?)");
+  // The emulators (hilbench plant's --drive-map, --transducer-map) check the same names.
+  PositionPressureTestModel model(1e6);
+  const auto typo = map_of(
+      "registers:\n  pressure: {table: input, address: 0, type: float32}\n  staus: {table: input, address: 2, type: uint16}\n");
+  ModbusLinkConfig link;
+  link.port = 0;
+  expect_error([&] { ModbusTransducerEmulator(link, typo, model); }, "map.yaml:3:3: registers.staus: unknown key 'staus'");
+  // The shipped maps use only names their device reads.
+  RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_drive_map.yaml").allow_names(ModbusDriveConfig::map_names());
+  RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_transducer_map.yaml")
+      .allow_names(ModbusTransducerConfig::map_names());
 }
 
 }  // namespace
