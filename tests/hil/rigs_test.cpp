@@ -65,6 +65,29 @@ TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
   EXPECT_EQ(rc.devices.transducer_max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
 }
 
+// A Modbus device's max_age_ms at or below its poll period is a device stale at every poll (a
+// reading is up to one poll old before the next arrives): it was accepted. The default, two polls,
+// was uncapped (poll_period_ms may be up to 600 s); it now has the 60 s limit of a given value.
+TEST(RigConfig, AnAgeLimitADeviceCannotMeetIsRefused) {
+  const auto rig = [](int poll_period_ms, const std::string& max_age) {
+    return "kind: modbus\ndevices:\n  drive:\n    modbus: " + source_path("drivers/configs/modbus_drive.yaml").string() +
+           "\n  transducer:\n    modbus:\n      link: {port: 1503, poll_period_ms: " + std::to_string(poll_period_ms) +
+           "}\n      register_map: " + source_path("drivers/configs/modbus_transducer_map.yaml").string() + "\n" + max_age +
+           kSafety;
+  };
+  auto has = [](const std::string& what, const std::string& part) { EXPECT_NE(what.find(part), std::string::npos) << what; };
+  std::string e = config_error(rig(5, "    max_age_ms: 5\n"));
+  has(e, "bad.yaml:9:5: devices.transducer.max_age_ms: max_age_ms 5 is not above the device's poll_period_ms 5");
+  has(e, "stale at every poll");
+  e = config_error(rig(5, "    max_age_ms: 0.5\n"));
+  has(e, "max_age_ms 0.5 is not above the device's poll_period_ms 5");
+  e = config_error(rig(40000, ""));
+  has(e, "bad.yaml:5:3: devices.transducer: the default max_age_ms, two polls of poll_period_ms 40000, is past the 60000 ms");
+  EXPECT_EQ(bench::load_rig_config_text(rig(5, "    max_age_ms: 6\n"), "ok.yaml").devices.transducer_max_age,
+            std::chrono::milliseconds(6));
+  EXPECT_EQ(bench::load_rig_config_text(rig(30000, ""), "ok.yaml").devices.transducer_max_age, std::chrono::seconds(60));
+}
+
 TEST(RigConfig, ErrorsNameFileLineAndKey) {
   const std::string drive = source_path("drivers/configs/cia402_drive.yaml").string();
   const std::string mdrive = source_path("drivers/configs/modbus_drive.yaml").string();

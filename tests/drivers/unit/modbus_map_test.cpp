@@ -128,5 +128,43 @@ TEST(RegisterMap, NamesADeviceDoesNotReadAreRefused) {
       .allow_names(ModbusTransducerConfig::map_names());
 }
 
+// Link values libmodbus would bend without a word (any baud not in its table is 9600, data bits
+// other than 5..7 are 8, stop bits other than 1 are 2, "localhost" is 255.255.255.255), values a
+// client cannot use (port 0, unit 0: a broadcast no device answers), numbers that passed their
+// range only after a cast to int, and keys of the other transport that were ignored: refused,
+// naming file:line:key.
+TEST(ModbusLinkConfig, ValuesAClientCannotUseAreRefused) {
+  const auto expect_error = [](const std::string& link, const std::string& text) {
+    try {
+      ModbusLinkConfig::from_yaml(cfg::Node::load_string("link: {" + link + "}\n", "link.yaml").at("link"));
+      ADD_FAILURE() << "accepted: " << link;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  const std::string rtu = "transport: rtu, device: /dev/ttyUSB0, ";
+  expect_error("port: 0", "link.yaml:1:");
+  expect_error("port: 0", "link.port: a device's TCP port is 1..65535, got '0'");
+  expect_error("port: 4294967298", "link.port: a device's TCP port is 1..65535, got '4294967298'");
+  expect_error("host: localhost, port: 502", "link.host: must be the device's numeric IPv4 address");
+  expect_error("host: 0.0.0.0, port: 502", "link.host: must be the device's numeric IPv4 address");
+  expect_error("port: 502, unit_id: 0", "link.unit_id: a device's unit id is 1..247 (0 is a broadcast");
+  expect_error("port: 502, unit_id: 4294967297", "link.unit_id: a device's unit id is 1..247");
+  expect_error("port: 502, baud: 9600", "link.baud: a tcp link has no baud");
+  expect_error(rtu + "baud: 12345", "link.baud: must be one of 110, 300,");
+  expect_error(rtu + "baud: 12345", "(libmodbus makes any other 9600), got '12345'");
+  expect_error(rtu + "baud: -9600", "link.baud: must be one of");
+  expect_error(rtu + "data_bits: 9", "link.data_bits: must be 5..8 (libmodbus makes any other 8), got '9'");
+  expect_error(rtu + "stop_bits: 0", "link.stop_bits: must be 1 or 2 (libmodbus makes any other 2), got '0'");
+  expect_error(rtu + "parity: X", "link.parity: must be N, E or O, got 'X'");
+  expect_error(rtu + "port: 502", "link.port: a rtu link has no port");
+  expect_error("port: 502, response_timeout_ms: 0", "link.response_timeout_ms: must be 1..600000 ms");
+  expect_error("port: 502, poll_period_ms: -1", "link.poll_period_ms: must be 1..600000 ms");
+  // What a device takes stays accepted.
+  const auto ok = ModbusLinkConfig::from_yaml(
+      cfg::Node::load_string("{" + rtu + "baud: 19200, parity: E, data_bits: 7, stop_bits: 2, unit_id: 247}", "ok.yaml"));
+  EXPECT_EQ(ok.describe(), "rtu /dev/ttyUSB0 19200 7E2 unit 247");
+}
+
 }  // namespace
 }  // namespace hil::drv
