@@ -322,6 +322,7 @@ class Poller {
     }
     health_.last_heartbeat = Clock::now();
     health_.connected = true;
+    health_.failing = false;
     return true;
   }
 
@@ -392,6 +393,7 @@ class Poller {
           backoff = cfg_.reconnect_initial;
         } catch (const ModbusError& e) {
           health_.connected = false;
+          health_.failing = true;
           ++health_.tx_failed;
           health_.set_last_error(std::string(who_) + ": " + e.what());
           publish_();
@@ -405,6 +407,7 @@ class Poller {
       } else {
         const auto f = detail::classify(link_.error());
         health_.set_last_error(failure_text());
+        health_.failing = true;
         ++health_.tx_failed;
         if (f == detail::Failure::exception) {
           ++health_.aborts_or_exceptions;  // the device answered: the link is fine

@@ -287,6 +287,41 @@ TEST(DeviceRig, AModbusDriveThatRefusesItsWritesIsAFaultAndAFailedSwitchOffIsSai
   side.drive.set_write_exception(0);
 }
 
+// A Modbus device answering its reads with exception replies delivers no reading: it goes stale
+// (the watchdog's business, as for a silent one), and the stale text names the exception. It gave
+// only the reading's age, so a run tripped "watchdog" with no cause.
+TEST(DeviceRig, AReadRefusedWithAnExceptionIsNamedWhenTheReadingGoesStale) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  // Period by period until the status is `want` and the health text holds `text`; the bound only
+  // ends a chain that is broken.
+  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, const std::string& text = "") {
+    bench::RigReading rd;
+    for (int k = 0; k < 20000; ++k) {
+      std::this_thread::sleep_for(1ms);
+      const auto s = rig.read(Clock::now(), 1ms, rd);
+      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad, true, bench::kNaN});
+      if (s == want && rig.health().last_error_text().find(text) != std::string_view::npos) return true;
+    }
+    return false;
+  };
+  TempDir dir;
+  const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+  bench::DeviceRig& rig = *owned_rig;
+  rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+  rig.activate();
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
+  side.transducer.set_exception(2);
+  EXPECT_TRUE(run_until(rig, bench::RigStatus::stale, "ILLEGAL DATA ADDRESS (exception 2)")) << rig.health().last_error_text();
+  const std::string text(rig.health().last_error_text());
+  EXPECT_NE(text.find("transducer: newest reading"), std::string::npos) << text;
+  EXPECT_NE(text.find("reading input registers 0..2 (pressure, status)"), std::string::npos) << text;
+  side.transducer.set_exception(0);
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok)) << rig.health().last_error_text();
+  rig.deactivate();
+}
+
 // The acceptance run on the CAN rig, in this process on the loopback bus, in simulated time:
 // paper_adaptive's adaptive run (18 s, gap 1 -> 2 deg at 12 s) through the real CiA 402 client,
 // the emulator, the Modbus transducer over TCP and the plant, stepped in lock-step with the loop
