@@ -94,7 +94,8 @@ class ModbusServer {
   // Our own listening socket (not modbus_tcp_listen) so that refuse_connections() can close it
   // and listen again on the same port.
   bool listen() {
-    listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    // Non-blocking: run() accepts every pending connection in one round, until EAGAIN.
+    listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
     if (listen_fd_ < 0) return false;
     const int on = 1;
     ::setsockopt(listen_fd_, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);
@@ -103,7 +104,7 @@ class ModbusServer {
     a.sin_port = htons(static_cast<std::uint16_t>(port_));
     a.sin_addr.s_addr = listen_address_;
     socklen_t len = sizeof a;
-    if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, 8) != 0 ||
+    if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, SOMAXCONN) != 0 ||
         ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
       const int e = errno;
       ::close(listen_fd_);
@@ -159,13 +160,16 @@ class ModbusServer {
         continue;
       }
       if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
-        const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
+        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
         // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process), and a
         // device has few masters: past kMaxClients a newcomer is closed at once.
-        if (fd >= FD_SETSIZE || (fd >= 0 && clients_.size() >= kMaxClients)) {
-          ::close(fd);
-        } else if (fd >= 0) {
-          clients_.push_back(fd);
+        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
+          if (fd >= FD_SETSIZE || clients_.size() >= kMaxClients) {
+            ::close(fd);
+          } else {
+            clients_.push_back(fd);
+          }
         }
       }
       for (std::size_t i = 0; i < clients_.size();) {
