@@ -31,9 +31,17 @@ class ModbusServer {
       : cfg_(std::move(cfg)), who_(std::move(who)), refresh_(std::move(refresh)), apply_(std::move(apply)) {
     const auto [h0, h1] = map.extent(RegisterTable::holding);
     const auto [i0, i1] = map.extent(RegisterTable::input);
+    if (tcp()) check_endpoint();
     mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, h0, h1 - h0, i0, i1 - i0);
     if (mapping_ == nullptr) throw ModbusError(who_ + ": cannot allocate the register space");
-    open();
+    try {
+      open();
+    } catch (...) {  // the destructor does not run for a constructor that throws
+      if (listen_fd_ >= 0) ::close(listen_fd_);
+      if (ctx_) modbus_free(ctx_);
+      modbus_mapping_free(mapping_);
+      throw;
+    }
     thread_ = std::thread([this] { run(); });
   }
 
@@ -60,7 +68,7 @@ class ModbusServer {
  private:
   bool tcp() const { return cfg_.transport == ModbusLinkConfig::Transport::tcp; }
 
-  // Before anything is opened (a throw from the constructor frees nothing).
+  // Before anything is allocated or opened.
   void check_endpoint() {
     // A name or a typo is refused here, before a bind that would not say so: inet_addr() made
     // "localhost" 255.255.255.255, which Linux binds (a broadcast address) and no client reaches.
@@ -78,7 +86,6 @@ class ModbusServer {
   }
 
   void open() {
-    if (tcp()) check_endpoint();
     ctx_ = new_context(cfg_);
     if (ctx_ == nullptr) throw ModbusError(who_ + ": cannot create a libmodbus context: " + modbus_strerror(errno));
     modbus_set_slave(ctx_, cfg_.unit_id);
