@@ -1,4 +1,7 @@
+#include <arpa/inet.h>
+
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <condition_variable>
@@ -56,10 +59,27 @@ milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback)
   return milliseconds(x);
 }
 
-RegisterMap map_from(const cfg::Node& n) {
+// An integer key within [lo, hi], checked before it is narrowed to int (a cast first would make
+// 4294967298 a 2 and pass). `why` says the range and what happens outside it.
+int int_in(const cfg::Node& n, std::string_view key, long long fallback, long long lo, long long hi, std::string_view why) {
+  const auto v = n.find(key);
+  if (!v) return static_cast<int>(fallback);
+  const long long x = v->integer();
+  v->require(x >= lo && x <= hi, why);
+  return static_cast<int>(x);
+}
+
+// The serial rates libmodbus 3.1 sets on Linux (modbus-rtu.c): it makes any other rate 9600 baud
+// without a word ("Unknown baud rate ... (B9600 used)" only in its debug mode).
+constexpr std::array<int, 23> kBaudRates{110,     300,     600,     1200,    2400,    4800,    9600,   19200,
+                                         38400,   57600,   115200,  230400,  460800,  500000,  576000, 921600,
+                                         1000000, 1152000, 1500000, 2500000, 3000000, 3500000, 4000000};
+
+RegisterMap map_from(const cfg::Node& n, const MapNames& names) {
   const auto m = n.at("register_map");
-  if (m.is_scalar()) return RegisterMap::load(m.resolve_path(m.text()));
-  return RegisterMap::from_yaml(m);
+  RegisterMap map = m.is_scalar() ? RegisterMap::load(m.resolve_path(m.text())) : RegisterMap::from_yaml(m);
+  map.allow_names(names);
+  return map;
 }
 
 // Checks that `name` is in the map (and writable when asked), naming the map file otherwise.
@@ -81,21 +101,44 @@ ModbusLinkConfig ModbusLinkConfig::from_yaml(const cfg::Node& n) {
     c.transport = Transport::rtu;
   else if (t != "tcp")
     n.at("transport").fail("must be tcp or rtu, got '" + t + "'");
+  // The other transport's keys would be ignored: a `baud:` on a TCP link is a mistake to say.
+  const bool tcp = c.transport == Transport::tcp;
+  const std::vector<std::string> other_keys = tcp ? std::vector<std::string>{"device", "baud", "parity", "data_bits", "stop_bits"}
+                                                  : std::vector<std::string>{"host", "port"};
+  for (const auto& key : other_keys) {
+    if (n.has(key)) n.at(key).fail(std::string("a ") + (tcp ? "tcp" : "rtu") + " link has no " + key);
+  }
   if (c.transport == Transport::tcp) {
     c.host = n.text("host", c.host);
-    c.port = static_cast<int>(n.at("port").integer());
-    n.at("port").require(c.port >= 0 && c.port <= 65535, "a TCP port is 0..65535");
+    in_addr address{};
+    if (auto h = n.find("host")) {
+      h->require(detail::ipv4_address(c.host, address) && address.s_addr != htonl(INADDR_ANY) &&
+                     address.s_addr != htonl(INADDR_BROADCAST),
+                 "must be the device's numeric IPv4 address (libmodbus resolves no names: 'localhost' became "
+                 "255.255.255.255)");
+    }
+    const long long port = n.at("port").integer();
+    n.at("port").require(port >= 1 && port <= 65535, "a device's TCP port is 1..65535");
+    c.port = static_cast<int>(port);
   } else {
     c.device = n.text("device");
-    c.baud = static_cast<int>(n.integer("baud", c.baud));
+    std::string rates;
+    for (const int r : kBaudRates) rates += (rates.empty() ? "" : ", ") + std::to_string(r);
+    if (auto b = n.find("baud")) {
+      const long long baud = b->integer();
+      b->require(std::find(kBaudRates.begin(), kBaudRates.end(), baud) != kBaudRates.end(),
+                 "must be one of " + rates + " (libmodbus makes any other 9600)");
+      c.baud = static_cast<int>(baud);
+    }
     const std::string p = n.text("parity", "N");
-    if (p != "N" && p != "E" && p != "O") n.at("parity").fail("must be N, E or O");
+    if (p != "N" && p != "E" && p != "O") n.at("parity").fail("must be N, E or O, got '" + p + "'");
     c.parity = p[0];
-    c.data_bits = static_cast<int>(n.integer("data_bits", 8));
-    c.stop_bits = static_cast<int>(n.integer("stop_bits", 1));
+    c.data_bits = int_in(n, "data_bits", 8, 5, 8, "must be 5..8 (libmodbus makes any other 8)");
+    c.stop_bits = int_in(n, "stop_bits", 1, 1, 2, "must be 1 or 2 (libmodbus makes any other 2)");
   }
-  c.unit_id = static_cast<int>(n.integer("unit_id", 1));
-  if (auto u = n.find("unit_id")) u->require(c.unit_id >= 0 && c.unit_id <= 247, "a unit id is 0..247");
+  // A client asks one device: unit 0 is a broadcast, which no device answers (and 248..255 are
+  // reserved).
+  c.unit_id = int_in(n, "unit_id", 1, 1, 247, "a device's unit id is 1..247 (0 is a broadcast, which no device answers)");
   c.response_timeout = ms(n, "response_timeout_ms", c.response_timeout);
   c.poll_period = ms(n, "poll_period_ms", c.poll_period);
   if (auto r = n.find("reconnect")) {
@@ -115,9 +158,15 @@ std::string ModbusLinkConfig::describe() const {
 
 ModbusDriveConfig ModbusDriveConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"link", "register_map", "transition_ms"});
-  ModbusDriveConfig c{ModbusLinkConfig::from_yaml(n.at("link")), map_from(n)};
+  ModbusDriveConfig c{ModbusLinkConfig::from_yaml(n.at("link")), map_from(n, map_names())};
   c.transition_timeout = ms(n, "transition_ms", c.transition_timeout);
   return c;
+}
+
+const MapNames& ModbusDriveConfig::map_names() {
+  static const MapNames names{{"control", "target_position", "status", "actual_position", "actual_velocity", "fault_code"},
+                              {"enable", "fault_reset", "enabled", "fault"}};
+  return names;
 }
 
 ModbusDriveConfig ModbusDriveConfig::load(const std::filesystem::path& file) {
@@ -128,7 +177,12 @@ ModbusDriveConfig ModbusDriveConfig::load(const std::filesystem::path& file) {
 
 ModbusTransducerConfig ModbusTransducerConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"link", "register_map"});
-  return {ModbusLinkConfig::from_yaml(n.at("link")), map_from(n)};
+  return {ModbusLinkConfig::from_yaml(n.at("link")), map_from(n, map_names())};
+}
+
+const MapNames& ModbusTransducerConfig::map_names() {
+  static const MapNames names{{"pressure", "status"}, {"fault"}};
+  return names;
 }
 
 ModbusTransducerConfig ModbusTransducerConfig::load(const std::filesystem::path& file) {
@@ -156,6 +210,8 @@ std::string error_text(int err, const ModbusLinkConfig& cfg) {
   if (err == ETIMEDOUT) return "no reply within " + std::to_string(cfg.response_timeout.count()) + " ms (timeout)";
   return modbus_strerror(err);
 }
+
+bool ipv4_address(const std::string& host, in_addr& out) { return ::inet_pton(AF_INET, host.c_str(), &out) == 1; }
 
 modbus_t* new_context(const ModbusLinkConfig& c) {
   if (c.transport == ModbusLinkConfig::Transport::tcp) return modbus_new_tcp(c.host.c_str(), c.port);
@@ -266,6 +322,7 @@ class Poller {
     }
     health_.last_heartbeat = Clock::now();
     health_.connected = true;
+    health_.failing = false;
     return true;
   }
 
@@ -336,6 +393,7 @@ class Poller {
           backoff = cfg_.reconnect_initial;
         } catch (const ModbusError& e) {
           health_.connected = false;
+          health_.failing = true;
           ++health_.tx_failed;
           health_.set_last_error(std::string(who_) + ": " + e.what());
           publish_();
@@ -349,6 +407,7 @@ class Poller {
       } else {
         const auto f = detail::classify(link_.error());
         health_.set_last_error(failure_text());
+        health_.failing = true;
         ++health_.tx_failed;
         if (f == detail::Failure::exception) {
           ++health_.aborts_or_exceptions;  // the device answered: the link is fine

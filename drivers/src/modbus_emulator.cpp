@@ -31,9 +31,17 @@ class ModbusServer {
       : cfg_(std::move(cfg)), who_(std::move(who)), refresh_(std::move(refresh)), apply_(std::move(apply)) {
     const auto [h0, h1] = map.extent(RegisterTable::holding);
     const auto [i0, i1] = map.extent(RegisterTable::input);
+    if (tcp()) check_endpoint();
     mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, h0, h1 - h0, i0, i1 - i0);
     if (mapping_ == nullptr) throw ModbusError(who_ + ": cannot allocate the register space");
-    open();
+    try {
+      open();
+    } catch (...) {  // the destructor does not run for a constructor that throws
+      if (listen_fd_ >= 0) ::close(listen_fd_);
+      if (ctx_) modbus_free(ctx_);
+      modbus_mapping_free(mapping_);
+      throw;
+    }
     thread_ = std::thread([this] { run(); });
   }
 
@@ -60,6 +68,23 @@ class ModbusServer {
  private:
   bool tcp() const { return cfg_.transport == ModbusLinkConfig::Transport::tcp; }
 
+  // Before anything is allocated or opened.
+  void check_endpoint() {
+    // A name or a typo is refused here, before a bind that would not say so: inet_addr() made
+    // "localhost" 255.255.255.255, which Linux binds (a broadcast address) and no client reaches.
+    in_addr address{};
+    if (!cfg_.host.empty() && !ipv4_address(cfg_.host, address)) {
+      throw ModbusError(who_ + ": host '" + cfg_.host +
+                        "' is not a numeric IPv4 address (e.g. 127.0.0.1, or 0.0.0.0 for every interface; host names "
+                        "are not resolved)");
+    }
+    if (address.s_addr == htonl(INADDR_BROADCAST)) {
+      throw ModbusError(who_ + ": 255.255.255.255 is the broadcast address: no client can connect to it");
+    }
+    listen_address_ = address.s_addr;  // 0.0.0.0 (and no host): every interface
+    if (cfg_.port < 0 || cfg_.port > 65535) throw ModbusError(who_ + ": a TCP port is 0..65535 (0: any free port)");
+  }
+
   void open() {
     ctx_ = new_context(cfg_);
     if (ctx_ == nullptr) throw ModbusError(who_ + ": cannot create a libmodbus context: " + modbus_strerror(errno));
@@ -76,16 +101,17 @@ class ModbusServer {
   // Our own listening socket (not modbus_tcp_listen) so that refuse_connections() can close it
   // and listen again on the same port.
   bool listen() {
-    listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    // Non-blocking: run() accepts every pending connection in one round, until EAGAIN.
+    listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
     if (listen_fd_ < 0) return false;
     const int on = 1;
     ::setsockopt(listen_fd_, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);
     sockaddr_in a{};
     a.sin_family = AF_INET;
     a.sin_port = htons(static_cast<std::uint16_t>(port_));
-    a.sin_addr.s_addr = cfg_.host.empty() || cfg_.host == "0.0.0.0" ? htonl(INADDR_ANY) : inet_addr(cfg_.host.c_str());
+    a.sin_addr.s_addr = listen_address_;
     socklen_t len = sizeof a;
-    if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, 8) != 0 ||
+    if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::listen(listen_fd_, SOMAXCONN) != 0 ||
         ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
       const int e = errno;
       ::close(listen_fd_);
@@ -141,13 +167,16 @@ class ModbusServer {
         continue;
       }
       if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
-        const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
+        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
+        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
         // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process), and a
         // device has few masters: past kMaxClients a newcomer is closed at once.
-        if (fd >= FD_SETSIZE || (fd >= 0 && clients_.size() >= kMaxClients)) {
-          ::close(fd);
-        } else if (fd >= 0) {
-          clients_.push_back(fd);
+        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
+          if (fd >= FD_SETSIZE || clients_.size() >= kMaxClients) {
+            ::close(fd);
+          } else {
+            clients_.push_back(fd);
+          }
         }
       }
       for (std::size_t i = 0; i < clients_.size();) {
@@ -191,6 +220,7 @@ class ModbusServer {
   modbus_t* ctx_ = nullptr;
   modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
+  in_addr_t listen_address_ = htonl(INADDR_ANY);
   int port_ = 0;
   static constexpr std::size_t kMaxClients = 64;
   std::vector<int> clients_;
@@ -210,6 +240,12 @@ std::uint16_t* slot(modbus_mapping_t* m, const Register& r) {
 void put(modbus_mapping_t* m, const Register* r, double v) {
   if (r) r->encode(v, slot(m, *r));
 }
+// The map with its names checked: an emulator reads only the names its device knows (a typo is an
+// error naming file:line, as for the clients).
+RegisterMap allowed(RegisterMap map, const MapNames& names) {
+  map.allow_names(names);
+  return map;
+}
 }  // namespace
 
 // ---- drive -------------------------------------------------------------------------------------
@@ -225,7 +261,7 @@ struct ModbusDriveEmulator::Impl {
   std::unique_ptr<detail::ModbusServer> server;
 
   Impl(ModbusLinkConfig cfg, RegisterMap m, DriveModel& mdl)
-      : map(std::move(m)),
+      : map(allowed(std::move(m), ModbusDriveConfig::map_names())),
         model(mdl),
         control(map.at("control")),
         target(map.at("target_position")),
@@ -299,7 +335,11 @@ struct ModbusTransducerEmulator::Impl {
   std::unique_ptr<detail::ModbusServer> server;
 
   Impl(ModbusLinkConfig cfg, RegisterMap m, PressureModel& mdl)
-      : map(std::move(m)), model(mdl), pressure(map.at("pressure")), status(map.find("status")), bit_fault(map.bit("fault", 0)) {
+      : map(allowed(std::move(m), ModbusTransducerConfig::map_names())),
+        model(mdl),
+        pressure(map.at("pressure")),
+        status(map.find("status")),
+        bit_fault(map.bit("fault", 0)) {
     const std::string who = "Modbus transducer emulator " + cfg.describe();
     server = std::make_unique<detail::ModbusServer>(
         std::move(cfg), map, who,

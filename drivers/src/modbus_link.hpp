@@ -2,6 +2,7 @@
 #pragma once
 
 #include <modbus/modbus.h>
+#include <netinet/in.h>
 
 #include <string>
 
@@ -15,6 +16,10 @@ Failure classify(int err);
 // "ILLEGAL DATA ADDRESS (exception 2)", "no reply within 100 ms", "Connection reset by peer"...
 std::string error_text(int err, const ModbusLinkConfig& cfg);
 modbus_t* new_context(const ModbusLinkConfig& cfg);  // TCP or RTU by cfg.transport; nullptr on failure
+// `host` as a numeric IPv4 address (dotted quad) into `out`; false for anything else. libmodbus'
+// TCP context takes inet_addr() of its host, which makes a name such as "localhost"
+// 255.255.255.255 (INADDR_NONE) instead of failing: clients and emulators both take numbers only.
+bool ipv4_address(const std::string& host, in_addr& out);
 
 class ModbusLink {
  public:

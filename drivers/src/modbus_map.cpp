@@ -108,7 +108,9 @@ RegisterMap RegisterMap::from_yaml(const cfg::Node& node) {
     }
     m.registers_.push_back(r);
   }
+  m.registers_node_ = std::make_shared<const cfg::Node>(node.at("registers"));
   if (auto bits = node.find("bits")) {
+    m.bits_node_ = std::make_shared<const cfg::Node>(*bits);
     for (const auto& [name, b] : bits->entries()) {
       const long long v = b.integer();
       b.require(v >= 0 && v <= 15, "a bit number is 0..15");
@@ -116,6 +118,11 @@ RegisterMap RegisterMap::from_yaml(const cfg::Node& node) {
     }
   }
   return m;
+}
+
+void RegisterMap::allow_names(const MapNames& names) const {
+  if (registers_node_) registers_node_->allow_keys(names.registers);
+  if (bits_node_) bits_node_->allow_keys(names.bits);
 }
 
 RegisterMap RegisterMap::load(const std::filesystem::path& file) { return from_yaml(cfg::Node::load_file(file)); }

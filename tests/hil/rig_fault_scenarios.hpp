@@ -31,6 +31,8 @@ inline void expect_safe_stop(const RunFiles& f, const std::string& expect_trip, 
   EXPECT_EQ(f.run["trip"]["reason"], expect_trip) << f.run.dump(2);
   const std::string why = expect_trip == "rig fault" ? text : "watchdog: " + std::to_string(watchdog) + " rig reads missed";
   EXPECT_NE(f.run["reason"].get<std::string>().find(why), std::string::npos) << f.run["reason"];
+  // The reason names the cause for the watchdog too (it gave only the count of missed reads).
+  EXPECT_NE(f.run["reason"].get<std::string>().find(text), std::string::npos) << f.run["reason"];
   const json* trip = f.event("trip");
   const json* safe = f.event("safe_state");
   ASSERT_TRUE(trip && safe);
@@ -257,6 +259,21 @@ inline void modbus_timeout(const FaultSetup& s) {
       << f.run["rig_health"];  // closed on the timeout, reopened
   EXPECT_TRUE(f.run["rig_health"]["connected"].get<bool>()) << f.run["rig_health"];
   expect_next_campaign_completes(b, s, modbus_rig_yaml(side, {}, kRelaxedTimeouts));
+}
+
+// A Modbus transducer answering every read with an exception reply (ILLEGAL DATA ADDRESS): no
+// reading arrives, the watchdog trips after kSilentTransducerWatchdog stale periods, and the run's
+// reason and the trip's detail name the exception. They said "watchdog: 40 rig reads missed in a
+// row" and nothing of why; the client knew (its last error) but the rig's stale text dropped it.
+inline void modbus_read_exception(const FaultSetup& s) {
+  const auto c = short_paper_campaign(4, 0, s.period_ms);
+  SimulatorSide side(c, s.can_transport, s.can_interface);
+  Bench b(s.can_transport);
+  const std::string rig = modbus_rig_yaml(side, fault_rig(200, kSilentTransducerWatchdog));
+  const RunFiles f = run_with_fault(
+      b, c, rig, "watchdog", [&] { side.transducer.set_exception(2); }, [&] { side.transducer.set_exception(0); });
+  expect_safe_stop(f, "watchdog", "ILLEGAL DATA ADDRESS (exception 2)", c.period_s, kSilentTransducerWatchdog);
+  EXPECT_NE(f.run["reason"].get<std::string>().find("transducer: newest reading"), std::string::npos) << f.run["reason"];
 }
 
 }  // namespace hil::test

@@ -23,3 +23,4 @@ TEST_F(RigFaults, EmcyFaultTripsAndIsNamed) { emcy_fault(setup); }
 TEST_F(RigFaults, BusOffIsDetectedReportedAndRecovered) { bus_off(setup); }
 TEST_F(RigFaults, SdoAbortAtConfigureNamesTheObject) { sdo_abort(setup); }
 TEST_F(RigFaults, ModbusTimeoutTripsThenReconnectsAndResumes) { modbus_timeout(setup); }
+TEST_F(RigFaults, ModbusReadExceptionTripsTheWatchdogNamingTheException) { modbus_read_exception(setup); }

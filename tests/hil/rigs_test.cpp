@@ -65,6 +65,29 @@ TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
   EXPECT_EQ(rc.devices.transducer_max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
 }
 
+// A Modbus device's max_age_ms at or below its poll period is a device stale at every poll (a
+// reading is up to one poll old before the next arrives): it was accepted. The default, two polls,
+// was uncapped (poll_period_ms may be up to 600 s); it now has the 60 s limit of a given value.
+TEST(RigConfig, AnAgeLimitADeviceCannotMeetIsRefused) {
+  const auto rig = [](int poll_period_ms, const std::string& max_age) {
+    return "kind: modbus\ndevices:\n  drive:\n    modbus: " + source_path("drivers/configs/modbus_drive.yaml").string() +
+           "\n  transducer:\n    modbus:\n      link: {port: 1503, poll_period_ms: " + std::to_string(poll_period_ms) +
+           "}\n      register_map: " + source_path("drivers/configs/modbus_transducer_map.yaml").string() + "\n" + max_age +
+           kSafety;
+  };
+  auto has = [](const std::string& what, const std::string& part) { EXPECT_NE(what.find(part), std::string::npos) << what; };
+  std::string e = config_error(rig(5, "    max_age_ms: 5\n"));
+  has(e, "bad.yaml:9:5: devices.transducer.max_age_ms: max_age_ms 5 is not above the device's poll_period_ms 5");
+  has(e, "stale at every poll");
+  e = config_error(rig(5, "    max_age_ms: 0.5\n"));
+  has(e, "max_age_ms 0.5 is not above the device's poll_period_ms 5");
+  e = config_error(rig(40000, ""));
+  has(e, "bad.yaml:5:3: devices.transducer: the default max_age_ms, two polls of poll_period_ms 40000, is past the 60000 ms");
+  EXPECT_EQ(bench::load_rig_config_text(rig(5, "    max_age_ms: 6\n"), "ok.yaml").devices.transducer_max_age,
+            std::chrono::milliseconds(6));
+  EXPECT_EQ(bench::load_rig_config_text(rig(30000, ""), "ok.yaml").devices.transducer_max_age, std::chrono::seconds(60));
+}
+
 TEST(RigConfig, ErrorsNameFileLineAndKey) {
   const std::string drive = source_path("drivers/configs/cia402_drive.yaml").string();
   const std::string mdrive = source_path("drivers/configs/modbus_drive.yaml").string();
@@ -262,6 +285,41 @@ TEST(DeviceRig, AModbusDriveThatRefusesItsWritesIsAFaultAndAFailedSwitchOffIsSai
   rig.deactivate();
   EXPECT_NE(rig.deactivate_failure().find("did not disable within"), std::string::npos) << rig.deactivate_failure();
   side.drive.set_write_exception(0);
+}
+
+// A Modbus device answering its reads with exception replies delivers no reading: it goes stale
+// (the watchdog's business, as for a silent one), and the stale text names the exception. It gave
+// only the reading's age, so a run tripped "watchdog" with no cause.
+TEST(DeviceRig, AReadRefusedWithAnExceptionIsNamedWhenTheReadingGoesStale) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  // Period by period until the status is `want` and the health text holds `text`; the bound only
+  // ends a chain that is broken.
+  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, const std::string& text = "") {
+    bench::RigReading rd;
+    for (int k = 0; k < 20000; ++k) {
+      std::this_thread::sleep_for(1ms);
+      const auto s = rig.read(Clock::now(), 1ms, rd);
+      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad, true, bench::kNaN});
+      if (s == want && rig.health().last_error_text().find(text) != std::string_view::npos) return true;
+    }
+    return false;
+  };
+  TempDir dir;
+  const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+  bench::DeviceRig& rig = *owned_rig;
+  rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+  rig.activate();
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
+  side.transducer.set_exception(2);
+  EXPECT_TRUE(run_until(rig, bench::RigStatus::stale, "ILLEGAL DATA ADDRESS (exception 2)")) << rig.health().last_error_text();
+  const std::string text(rig.health().last_error_text());
+  EXPECT_NE(text.find("transducer: newest reading"), std::string::npos) << text;
+  EXPECT_NE(text.find("reading input registers 0..2 (pressure, status)"), std::string::npos) << text;
+  side.transducer.set_exception(0);
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok)) << rig.health().last_error_text();
+  rig.deactivate();
 }
 
 // The acceptance run on the CAN rig, in this process on the loopback bus, in simulated time:

@@ -6,6 +6,7 @@
 // reference and gap programme, so the plant is the one `hilbench sim` would run (options given
 // as well win). --port-file F: once every emulator listens and the plant runs, F holds
 // {"modbus_drive_port": N, "transducer_port": M} (0 without --modbus): the ready signal.
+#include <charconv>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -29,16 +30,22 @@ namespace {
 std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) { g_stop = true; }
 
-// "tcp:HOST:PORT" -> link config.
+// "tcp:HOST:PORT" -> the drive emulator's link (the transducer's is PORT + 1). PORT is the whole
+// text as a number 0..65534: stoi took "12abc" as 12 and 70000 went on to a 16-bit 4464, and 65535
+// left the transducer 65536, which became 0. 0 means any free ports (printed and in --port-file).
+// HOST is checked by the emulators, which refuse anything but a numeric IPv4 address.
 drv::ModbusLinkConfig tcp_link(const std::string& spec) {
   const auto a = spec.find(':'), b = spec.rfind(':');
   if (spec.rfind("tcp:", 0) != 0 || a == b) throw UsageError("--modbus wants tcp:HOST:PORT, got '" + spec + "'");
   drv::ModbusLinkConfig link;
   link.host = spec.substr(a + 1, b - a - 1);
-  try {
-    link.port = std::stoi(spec.substr(b + 1));
-  } catch (const std::exception&) {
-    throw UsageError("--modbus: '" + spec.substr(b + 1) + "' is not a port number");
+  if (link.host.empty()) throw UsageError("--modbus: no HOST in '" + spec + "' (e.g. tcp:127.0.0.1:5020)");
+  const std::string port = spec.substr(b + 1);
+  const char* end = port.data() + port.size();
+  const auto [stop, ec] = std::from_chars(port.data(), end, link.port);
+  if (port.empty() || ec != std::errc{} || stop != end || link.port < 0 || link.port > 65534) {
+    throw UsageError("--modbus: the PORT '" + port +
+                     "' is not a whole number 0..65534 (the transducer takes PORT + 1; 0: any free ports)");
   }
   return link;
 }
@@ -64,6 +71,9 @@ struct PlantArgs {
 
 int run_plant(const PlantArgs& args) {
   if (args.can_interface.empty() && args.modbus.empty()) throw UsageError("give --can IFACE and/or --modbus tcp:HOST:PORT");
+  // Before the plant is loaded: a bad endpoint is refused before anything starts.
+  const std::optional<drv::ModbusLinkConfig> modbus_link =
+      args.modbus.empty() ? std::nullopt : std::optional(tcp_link(args.modbus));
   PlantServiceConfig config;
   std::string plant_name = args.plant_file;
   if (!args.campaign_file.empty()) {
@@ -100,8 +110,8 @@ int run_plant(const PlantArgs& args) {
     if (args.node_id_opt->count() > 0) cfg.node_id = static_cast<std::uint8_t>(args.node_id);
     can = std::make_unique<drv::Cia402DriveEmulator>(cfg, service.add_drive());
   }
-  if (!args.modbus.empty()) {
-    drv::ModbusLinkConfig drive = tcp_link(args.modbus);
+  if (modbus_link) {
+    const drv::ModbusLinkConfig& drive = *modbus_link;
     drv::ModbusLinkConfig pressure = drive;
     pressure.port = drive.port == 0 ? 0 : drive.port + 1;
     mb_drive = std::make_unique<drv::ModbusDriveEmulator>(drive, drv::RegisterMap::load(args.drive_map), service.add_drive());

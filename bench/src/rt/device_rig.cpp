@@ -249,11 +249,12 @@ RigHealth DeviceRig::health() const noexcept {
     std::snprintf(text, sizeof text, "drive: %.*s (newest %.1f ms old)", static_cast<int>(missing.size()), missing.data(),
                   stale_age_ms_);
   } else if (stale_ == Stale::drive) {
-    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)", stale_age_ms_,
-                  ms(parts_.drive_max_age));
+    // Why it is old, when the device said: an exception reply is an answer, not silence.
+    std::snprintf(text, sizeof text, "drive: newest feedback %.1f ms old (limit %.1f ms)%s%s", stale_age_ms_,
+                  ms(parts_.drive_max_age), d.failing ? ": " : "", d.failing ? d.last_error.data() : "");
   } else if (stale_ == Stale::transducer) {
-    std::snprintf(text, sizeof text, "transducer: newest reading %.1f ms old (limit %.1f ms)", stale_age_ms_,
-                  ms(parts_.sensor_max_age));
+    std::snprintf(text, sizeof text, "transducer: newest reading %.1f ms old (limit %.1f ms)%s%s", stale_age_ms_,
+                  ms(parts_.sensor_max_age), t.failing ? ": " : "", t.failing ? t.last_error.data() : "");
   } else if (deactivate_error_[0] != '\0') {
     std::snprintf(text, sizeof text, "%s", deactivate_error_.data());
   } else if (d.last_error[0] != '\0') {

@@ -1,5 +1,7 @@
 #include "hil/bench/rt/rig_config.hpp"
 
+#include <cstdio>
+
 #include "hil/bench/rt/rig_registry.hpp"
 #include "hil/config.hpp"
 
@@ -14,11 +16,31 @@ Config device_config(const cfg::Node& n) {
   return Config::from_yaml(n);
 }
 
+// A Modbus device's age limit: max_age_ms, or two polls. A reading is up to one poll period old
+// (plus its reply's time) when the next one arrives, so a limit at or below the poll period is a
+// device stale at every poll: refused, naming both. Given or by default, at most 60 s: a slower
+// device is no feedback for a control loop (poll_period_ms alone may be up to 600 s).
 std::chrono::microseconds max_age(const cfg::Node& device, std::chrono::milliseconds poll_period) {
+  constexpr double kLimitMs = 60000;
+  const double poll_ms = static_cast<double>(poll_period.count());
   const auto key = device.find("max_age_ms");
-  if (!key) return 2 * poll_period;  // two polls
-  key->require(key->number() > 0 && key->number() <= 60000, "must be > 0 and <= 60000 ms");
-  return std::chrono::microseconds(std::lround(key->number() * 1000));
+  if (!key) {
+    if (2 * poll_ms > kLimitMs) {
+      device.fail("the default max_age_ms, two polls of poll_period_ms " + std::to_string(poll_period.count()) +
+                  ", is past the 60000 ms limit: poll faster");
+    }
+    return 2 * poll_period;
+  }
+  const double ms = key->number();
+  key->require(ms > 0 && ms <= kLimitMs, "must be > 0 and <= 60000 ms");
+  if (ms <= poll_ms) {
+    char given[32];
+    std::snprintf(given, sizeof given, "%g", ms);
+    key->fail("max_age_ms " + std::string(given) + " is not above the device's poll_period_ms " +
+              std::to_string(poll_period.count()) +
+              ": a reading is up to one poll old before the next arrives, so it would be stale at every poll");
+  }
+  return std::chrono::microseconds(std::lround(ms * 1000));
 }
 
 bool takes_cia402(DriveNeed n) { return n == DriveNeed::cia402 || n == DriveNeed::cia402_or_modbus; }

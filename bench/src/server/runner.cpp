@@ -100,7 +100,13 @@ std::string describe_trip(const RunLoop& loop) {
     case Trip::underpressure:
       return fmt("underpressure: p_meas %.4f MPa below the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
                  units::pa_to_mpa(loop.trip_limit()), t);
-    case Trip::watchdog: return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t);
+    case Trip::watchdog: {
+      // What the rig says the reads waited on ("transducer: newest reading 41.0 ms old (limit 4.0
+      // ms): ...: ILLEGAL DATA ADDRESS (exception 2)"): the count alone named no cause.
+      const std::string detail(loop.trip_detail());
+      return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t) +
+             (detail.empty() ? "" : ": " + detail);
+    }
     case Trip::rig_fault: return fmt("rig fault at t = %.3f s: ", t) + std::string(loop.trip_detail());
     case Trip::overruns:
       return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);

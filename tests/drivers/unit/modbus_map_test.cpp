@@ -1,9 +1,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "hil/config.hpp"
+#include "hil/drv/modbus.hpp"
+#include "hil/drv/modbus_emulator.hpp"
 #include "hil/drv/modbus_map.hpp"
+#include "servo_test_model.hpp"
 
 namespace hil::drv {
 namespace {
@@ -75,6 +79,91 @@ TEST(RegisterMap, ErrorsNameTheKey) {
                "a 16-bit register has no word order");
   expect_error("registers:\n  p: {table: coil, address: 0, type: int16}\n", "must be holding or input");
   expect_error("registers:\n  p: {table: input, adress: 0, type: int16}\n", "did you mean 'address'");
+}
+
+// A device reads only the names it knows: any other name was accepted and the register silently
+// left out (`staus:` lost the transducer's fault bit, `falut:` the drive's fault bit, which then
+// fell back to bit 3). Now refused, naming file:line:key and the name meant, by the clients'
+// configs and by the emulators.
+TEST(RegisterMap, NamesADeviceDoesNotReadAreRefused) {
+  const auto transducer = [](const std::string& map) {
+    return ModbusTransducerConfig::from_yaml(
+        cfg::Node::load_string("link: {host: 127.0.0.1, port: 1502}\nregister_map:\n" + map, "transducer.yaml"));
+  };
+  const std::string pressure = "    pressure: {table: input, address: 0, type: float32, scale: 1.0e6}\n";
+  const auto expect_error = [](const std::function<void()>& load, const std::string& text) {
+    try {
+      load();
+      ADD_FAILURE() << "accepted; expected " << text;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  expect_error([&] { transducer("  registers:\n" + pressure + "    staus: {table: input, address: 2, type: uint16}\n"); },
+               "transducer.yaml:5:5: register_map.registers.staus: unknown key 'staus' (did you mean 'status'?)");
+  expect_error([&] { transducer("  registers:\n" + pressure + "  bits:\n    falt: 0\n"); },
+               "transducer.yaml:6:5: register_map.bits.falt: unknown key 'falt' (did you mean 'fault'?)");
+  expect_error(
+      [&] {
+        ModbusDriveConfig::from_yaml(
+            cfg::Node::load_string("link: {host: 127.0.0.1, port: 1502}\nregister_map:\n  registers:\n"
+                                   "    control: {table: holding, address: 0, type: uint16}\n"
+                                   "    target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}\n"
+                                   "    status: {table: input, address: 0, type: uint16}\n"
+                                   "    actual_position: {table: input, address: 1, type: int32, scale: 1.0e-5}\n"
+                                   "  bits: {enable: 0, falut: 4}\n",
+                                   "drive.yaml"));
+      },
+      "drive.yaml:8:21: register_map.bits.falut: unknown key 'falut' (did you mean 'fault'?)");
+  // The emulators (hilbench plant's --drive-map, --transducer-map) check the same names.
+  PositionPressureTestModel model(1e6);
+  const auto typo = map_of(
+      "registers:\n  pressure: {table: input, address: 0, type: float32}\n  staus: {table: input, address: 2, type: uint16}\n");
+  ModbusLinkConfig link;
+  link.port = 0;
+  expect_error([&] { ModbusTransducerEmulator(link, typo, model); }, "map.yaml:3:3: registers.staus: unknown key 'staus'");
+  // The shipped maps use only names their device reads.
+  RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_drive_map.yaml").allow_names(ModbusDriveConfig::map_names());
+  RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_transducer_map.yaml")
+      .allow_names(ModbusTransducerConfig::map_names());
+}
+
+// Link values libmodbus would bend without a word (any baud not in its table is 9600, data bits
+// other than 5..7 are 8, stop bits other than 1 are 2, "localhost" is 255.255.255.255), values a
+// client cannot use (port 0, unit 0: a broadcast no device answers), numbers that passed their
+// range only after a cast to int, and keys of the other transport that were ignored: refused,
+// naming file:line:key.
+TEST(ModbusLinkConfig, ValuesAClientCannotUseAreRefused) {
+  const auto expect_error = [](const std::string& link, const std::string& text) {
+    try {
+      ModbusLinkConfig::from_yaml(cfg::Node::load_string("link: {" + link + "}\n", "link.yaml").at("link"));
+      ADD_FAILURE() << "accepted: " << link;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+    }
+  };
+  const std::string rtu = "transport: rtu, device: /dev/ttyUSB0, ";
+  expect_error("port: 0", "link.yaml:1:");
+  expect_error("port: 0", "link.port: a device's TCP port is 1..65535, got '0'");
+  expect_error("port: 4294967298", "link.port: a device's TCP port is 1..65535, got '4294967298'");
+  expect_error("host: localhost, port: 502", "link.host: must be the device's numeric IPv4 address");
+  expect_error("host: 0.0.0.0, port: 502", "link.host: must be the device's numeric IPv4 address");
+  expect_error("port: 502, unit_id: 0", "link.unit_id: a device's unit id is 1..247 (0 is a broadcast");
+  expect_error("port: 502, unit_id: 4294967297", "link.unit_id: a device's unit id is 1..247");
+  expect_error("port: 502, baud: 9600", "link.baud: a tcp link has no baud");
+  expect_error(rtu + "baud: 12345", "link.baud: must be one of 110, 300,");
+  expect_error(rtu + "baud: 12345", "(libmodbus makes any other 9600), got '12345'");
+  expect_error(rtu + "baud: -9600", "link.baud: must be one of");
+  expect_error(rtu + "data_bits: 9", "link.data_bits: must be 5..8 (libmodbus makes any other 8), got '9'");
+  expect_error(rtu + "stop_bits: 0", "link.stop_bits: must be 1 or 2 (libmodbus makes any other 2), got '0'");
+  expect_error(rtu + "parity: X", "link.parity: must be N, E or O, got 'X'");
+  expect_error(rtu + "port: 502", "link.port: a rtu link has no port");
+  expect_error("port: 502, response_timeout_ms: 0", "link.response_timeout_ms: must be 1..600000 ms");
+  expect_error("port: 502, poll_period_ms: -1", "link.poll_period_ms: must be 1..600000 ms");
+  // What a device takes stays accepted.
+  const auto ok = ModbusLinkConfig::from_yaml(
+      cfg::Node::load_string("{" + rtu + "baud: 19200, parity: E, data_bits: 7, stop_bits: 2, unit_id: 247}", "ok.yaml"));
+  EXPECT_EQ(ok.describe(), "rtu /dev/ttyUSB0 19200 7E2 unit 247");
 }
 
 }  // namespace

@@ -59,6 +59,9 @@ struct DeviceHealth {
   bool connected = false;       // CAN: heartbeats arrive and the bus is not off; Modbus: last request answered
   bool fault = false;           // something the bench must act on; last_error says what
   bool heartbeat_lost = false;  // CAN: no heartbeat within heartbeat_timeout
+  // Modbus: the newest request failed (an exception reply, a timeout, a lost link; last_error says
+  // how), until a poll goes through. What a stale reading is waiting on.
+  bool failing = false;
   BusState bus_state = BusState::error_active;
   std::uint8_t nmt_state = 0xFF;               // CAN: last heartbeat state byte (0x05 operational); 0xFF unknown
   std::uint16_t statusword = 0;                // last statusword / status register

@@ -59,6 +59,8 @@ struct ModbusDriveConfig {
   // `node`: {link: {...}, register_map: <file relative to this one> or {registers: ...}, transition_ms}
   static ModbusDriveConfig from_yaml(const cfg::Node& node);
   static ModbusDriveConfig load(const std::filesystem::path& file);  // top level or `modbus_drive:`
+  // Every name the drive (client and emulator) reads from its map; from_yaml refuses others.
+  static const MapNames& map_names();
 };
 
 struct ModbusTransducerConfig {
@@ -66,6 +68,8 @@ struct ModbusTransducerConfig {
   RegisterMap map;  // needs: pressure (in Pa after scale/offset); optional status (bit `fault`)
   static ModbusTransducerConfig from_yaml(const cfg::Node& node);
   static ModbusTransducerConfig load(const std::filesystem::path& file);  // top level or `modbus_transducer:`
+  // Every name the transducer (client and emulator) reads from its map; from_yaml refuses others.
+  static const MapNames& map_names();
 };
 
 // The drive's control register: bit `enable` (default 0) switches the power stage on, a rising

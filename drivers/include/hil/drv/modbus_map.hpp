@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -51,6 +52,13 @@ struct RegisterBlock {
   std::string names;  // "status, actual_position"
 };
 
+// The register and bit names a device's map may use (ModbusDriveConfig::map_names and
+// ModbusTransducerConfig::map_names): a device reads only the names it knows, so any other name is
+// a typo that would leave a register silently out (`staus:` lost the transducer's fault bit).
+struct MapNames {
+  std::vector<std::string> registers, bits;
+};
+
 class RegisterMap {
  public:
   // `node` holds `registers:` (and optional `bits:`); errors name file:line and key.
@@ -63,6 +71,9 @@ class RegisterMap {
   const std::vector<Register>& registers() const { return registers_; }
   int bit(std::string_view name, int fallback) const;
   const std::string& origin() const { return origin_; }
+  // Refuses a register or bit name outside `names` (cfg::Error naming file:line:key and the
+  // closest allowed name). A map not read from YAML has nothing to check.
+  void allow_names(const MapNames& names) const;
 
   // The fewest requests that read `names` (missing names skipped).
   std::vector<RegisterBlock> blocks(const std::vector<std::string>& names) const;
@@ -73,6 +84,7 @@ class RegisterMap {
   std::vector<Register> registers_;
   std::map<std::string, int, std::less<>> bits_;
   std::string origin_;
+  std::shared_ptr<const cfg::Node> registers_node_, bits_node_;  // where the names were read
 };
 
 std::string_view to_string(RegisterTable t);
