@@ -392,17 +392,28 @@ TEST(ServerHardening, WatchersThatNeverReadDoNotCostTheRunAnyRow) {
   EXPECT_EQ(run["telemetry"]["rows_written"], 200000) << run.dump(2);
 }
 
-// One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
-// status line and headers, and its body.
-std::string raw_exchange(int port, const std::string& request) {
+// A connected socket to the server; reads give up after `wait_s` (a failure, not a hang).
+int connect_raw(int port, long wait_s = 30) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return -1;
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<std::uint16_t>(port));
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (fd < 0 || ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) return "no connection";
-  const timeval wait_s{30, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait_s, sizeof wait_s);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  const timeval wait{wait_s, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
+  return fd;
+}
+
+// One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
+// status line and headers, and its body.
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = connect_raw(port);
+  if (fd < 0) return "no connection";
   ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
   std::string reply;
   char buf[4096];
@@ -598,3 +609,79 @@ TEST(ServerHardening, ARunJsonThatIsAFifoIsRefusedAndTheServerKeepsAnswering) {
   EXPECT_EQ(api.get("/api/runs").status, 200);
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The HTTP and WebSocket protocol against a hostile client, on raw sockets: query options, the
+// handshake, the auth scheme, HEAD, Foxglove's session id, frames sent with the upgrade, the
+// drop notice.
+
+namespace {
+
+// A WebSocket upgrade request for `target`, with `extra` header lines ("Name: value\r\n").
+std::string upgrade_request(const std::string& target, const std::string& extra = "") {
+  return "GET " + target +
+         " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+         "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
+         extra + "\r\n";
+}
+
+// An error reply's JSON body (null when it is none), from a raw exchange.
+json error_body(const std::string& reply) {
+  const auto head_end = reply.find("\r\n\r\n");
+  if (head_end == std::string::npos) return nullptr;
+  return json::parse(reply.substr(head_end + 4), nullptr, false);
+}
+
+// A telemetry stream asks for a rate that is a whole number token in (0, 5000] and for no option
+// the server does not know: "20abc" was streamed at 20 rows/s and "?rate=5000" at the default 20,
+// both without a word. The YAML start's ?speed= is read the same way.
+TEST(ServerProtocol, TelemetryQueryOptionsAreWholeNumbersAndKnownNames) {
+  ServerProcess server;
+  struct Bad {
+    std::string query, field;
+  };
+  for (const Bad& b : {Bad{"rate_hz=20abc", "rate_hz"}, Bad{"rate_hz=", "rate_hz"}, Bad{"rate_hz=nan", "rate_hz"},
+                       Bad{"rate_hz=inf", "rate_hz"}, Bad{"rate_hz=1e400", "rate_hz"}, Bad{"rate_hz=0", "rate_hz"},
+                       Bad{"rate_hz=5001", "rate_hz"}, Bad{"rate=5000", "rate"}, Bad{"rate_hz=20&x%ff=1", "x%FF"}}) {
+    const std::string reply = raw_exchange(server.port(), upgrade_request("/api/telemetry?" + b.query));
+    EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << b.query << "\n" << reply;
+    const json body = error_body(reply);
+    ASSERT_TRUE(body.is_object()) << reply;
+    EXPECT_EQ(body.value("field", ""), b.field) << b.query << "\n" << reply;
+  }
+  EXPECT_NE(error_body(raw_exchange(server.port(), upgrade_request("/api/telemetry?rate=5000")))
+                .value("detail", "")
+                .find("did you mean 'rate_hz'"),
+            std::string::npos);
+  EXPECT_EQ(raw_exchange(server.port(), upgrade_request("/api/telemetry?rate_hz=2.5")).rfind("HTTP/1.1 101", 0), 0u);
+
+  const auto api = server.client();
+  const auto start = api.request("POST", "/api/start?speed=2abc", hil::test::short_campaign_yaml(1), "application/yaml");
+  EXPECT_EQ(start.status, 400) << start.body;
+  EXPECT_EQ(start.json().value("field", ""), "speed") << start.body;
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
+// What Beast refuses in a handshake (no Sec-WebSocket-Key, another version) was answered as plain
+// text; every error of the API is a JSON body naming the field at fault.
+TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {
+  ServerProcess server({}, "right-token-123");
+  const std::string base =
+      "GET /api/telemetry?token=right-token-123 HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n";
+  const std::string no_key = raw_exchange(server.port(), base + "Sec-WebSocket-Version: 13\r\n\r\n");
+  EXPECT_EQ(no_key.rfind("HTTP/1.1 400", 0), 0u) << no_key;
+  EXPECT_NE(no_key.find("Content-Type: application/json"), std::string::npos) << no_key;
+  EXPECT_EQ(error_body(no_key).value("field", ""), "Sec-WebSocket-Key") << no_key;
+  const std::string old_version =
+      raw_exchange(server.port(), base + "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 8\r\n\r\n");
+  EXPECT_EQ(old_version.rfind("HTTP/1.1 426", 0), 0u) << old_version;
+  EXPECT_EQ(error_body(old_version).value("field", ""), "Sec-WebSocket-Version") << old_version;
+  // Refused before Beast (no token, a bad option): JSON too, and the token is not echoed.
+  for (const std::string& refused : {raw_exchange(server.port(), upgrade_request("/api/telemetry")),
+                                     raw_exchange(server.port(), upgrade_request("/api/telemetry?token=right-token-123&r=1"))}) {
+    EXPECT_TRUE(error_body(refused).is_object()) << refused;
+    EXPECT_EQ(refused.find("right-token-123"), std::string::npos) << refused;
+  }
+}
+
+}  // namespace

@@ -242,6 +242,33 @@ void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
   for (const auto& item : j.items()) refuse_unknown(item.key(), item.key(), names, "unknown field");
 }
 
+// A number given in the query (`key`): the whole text is the number (cfg::parse_number), so
+// "20abc" is refused rather than read as 20.
+double query_number(const Target& t, const char* key, double fallback) {
+  const auto q = t.query.find(key);
+  if (q == t.query.end()) return fallback;
+  double value = 0;
+  if (!cfg::parse_number(q->second, value)) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   std::string("'") + key + "' must be a number, got '" + printable(q->second, 40) + "'", key};
+  }
+  return value;
+}
+
+// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given). A typo in an
+// option (?rate=5000) or a half-number (?rate_hz=20abc) is refused: silently streaming at another
+// rate than asked for hides the mistake.
+double telemetry_rate_hz(const Target& t) {
+  for (const auto& item : t.query) {
+    refuse_unknown(item.first, loggable_target(item.first), {"rate_hz", "token"}, "unknown query option",
+                   "; /api/telemetry takes rate_hz (and token)");
+  }
+  const double rate_hz = query_number(t, "rate_hz", 20);
+  if (!(rate_hz > 0 && rate_hz <= 5000))
+    throw ApiError{http::status::bad_request, "bad field", "'rate_hz' must be in (0, 5000] rows per second", "rate_hz"};
+  return rate_hz;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -262,6 +289,22 @@ bool offers_foxglove(const Request& req) {
     list.remove_prefix(comma + 1);
   }
   return false;
+}
+
+// Beast refuses a handshake it cannot complete (no Sec-WebSocket-Key, a version other than 13, no
+// Host) with its message as plain text; the API's errors are JSON, so the refusal becomes the same
+// error body, naming the header at fault. The decorator sees only the response, and Beast's
+// message names the header ("The WebSocket handshake Sec-WebSocket-Key field is missing").
+void refused_handshake(websocket::response_type& res) {
+  const std::string why = res.body();
+  std::string header;
+  for (const char* name : {"Sec-WebSocket-Key", "Sec-WebSocket-Version", "Host"}) {
+    if (why.find(std::string(" ") + name + " field") != std::string::npos) header = name;
+  }
+  const Reply reply = error_reply(res.result(), "WebSocket handshake refused", why, header);
+  res.set(http::field::content_type, reply.content_type);
+  res.body() = reply.body;
+  res.prepare_payload();
 }
 
 // One open client connection, HTTP or WebSocket, counted while it lives: the server takes at
@@ -298,6 +341,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     ws_.set_option(websocket::stream_base::decorator([foxglove = foxglove_](websocket::response_type& res) {
       res.set(http::field::server, "hilbench");
+      if (res.result() != http::status::switching_protocols) return refused_handshake(res);
       if (foxglove) res.set(http::field::sec_websocket_protocol, std::string(foxglove::kSubprotocol));
     }));
     ws_.read_message_max(kWsClientMessageMax);
@@ -784,13 +828,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
         if (!r.empty()) s.runs.push_back(r);
       }
     }
-    if (const auto speed = option("speed")) {
-      try {
-        s.speed = std::stod(*speed);
-      } catch (const std::exception&) {
-        throw ApiError{http::status::bad_request, "bad field", "'speed' must be a number"};
-      }
-    }
+    if (option("speed")) s.speed = query_number(t, "speed", s.speed);
   } else {
     s.runs = field<std::vector<std::string>>(body, "runs", {});
     if (body.contains("speed")) s.speed = number_field(body, "speed");
@@ -1480,7 +1518,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
       if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
       Reply reply = api_->answer(req, target);
-      send(std::move(reply), req.keep_alive());
+      // A refused upgrade ends the connection, as Beast's own refusals of a handshake do: the
+      // client asked for a WebSocket, not for more HTTP on this connection.
+      send(std::move(reply), req.keep_alive() && !websocket::is_upgrade(req));
     } catch (const std::exception& e) {
       spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
       send(error_reply(http::status::internal_server_error, "internal error", e.what()), false);
@@ -1494,18 +1534,14 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (target.path != std::vector<std::string>{"api", "telemetry"}) {
       return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
     }
-    double rate = 20;
-    if (const auto q = target.query.find("rate_hz"); q != target.query.end()) {
-      try {
-        rate = std::stod(q->second);
-      } catch (const std::exception&) {
-        rate = -1;
-      }
+    double rate_hz = 20;
+    try {
+      rate_hz = telemetry_rate_hz(target);
+    } catch (const ApiError& e) {
+      return send(error_reply(e.status, e.error, e.detail, e.field), false);
     }
-    if (!(rate > 0 && rate <= 5000))
-      return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
     const bool foxglove = offers_foxglove(req);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, std::move(slot_))->run(std::move(req), rate);
+    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, std::move(slot_))->run(std::move(req), rate_hz);
   }
 
   void send(Reply reply, bool keep_alive) {
