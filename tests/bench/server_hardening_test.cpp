@@ -684,4 +684,23 @@ TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {
   }
 }
 
+// RFC 9110: the auth scheme is case-insensitive; "bearer T" was refused. The token is not.
+TEST(ServerProtocol, TheBearerSchemeIsCaseInsensitiveAndTheTokenIsNot) {
+  ServerProcess server({}, "right-token-123");
+  const auto status_with = [&](const std::string& authorization) {
+    const std::string reply =
+        raw_exchange(server.port(), "GET /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: " + authorization +
+                                        "\r\nConnection: close\r\n\r\n");
+    return reply.substr(0, 12);
+  };
+  EXPECT_EQ(status_with("bearer right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("BEARER  right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("Bearer right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("bearer RIGHT-TOKEN-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearer right-token-12"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearerright-token-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("Basic right-token-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearer "), "HTTP/1.1 401");
+}
+
 }  // namespace

@@ -733,11 +733,16 @@ std::optional<std::string> foreign_origin(const Request& req) {
 bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
   if (options.token.empty()) return true;
   const auto field = req[http::field::authorization];
-  const std::string_view auth(field.data(), field.size());
-  constexpr std::string_view bearer = "Bearer ";
-  if (auth.size() > bearer.size() && auth.substr(0, bearer.size()) == bearer &&
-      constant_time_equal(std::string_view(auth.data() + bearer.size(), auth.size() - bearer.size()), options.token)) {
-    return true;
+  std::string_view auth(field.data(), field.size());
+  // RFC 9110 11.1: the scheme is case-insensitive ("bearer", "BEARER"), and one or more spaces
+  // part it from the credentials. The token itself is compared exactly, in constant time.
+  constexpr std::string_view bearer = "bearer";
+  if (auth.size() > bearer.size() &&
+      beast::iequals(field.substr(0, bearer.size()), beast::string_view(bearer.data(), bearer.size())) &&
+      auth[bearer.size()] == ' ') {
+    auth.remove_prefix(bearer.size());
+    while (!auth.empty() && auth.front() == ' ') auth.remove_prefix(1);
+    if (!auth.empty() && constant_time_equal(auth, options.token)) return true;
   }
   // Browsers cannot set headers on a WebSocket: the query may carry it.
   const auto q = t.query.find("token");
