@@ -703,4 +703,40 @@ TEST(ServerProtocol, TheBearerSchemeIsCaseInsensitiveAndTheTokenIsNot) {
   EXPECT_EQ(status_with("bearer "), "HTTP/1.1 401");
 }
 
+// A HEAD was answered 405 with a body: on a kept-alive connection the client read that body as
+// the start of the next answer. HEAD mirrors GET's header without the body, and where there is
+// no GET it is a 405 without a body; the answer after it parses.
+TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
+  ServerProcess server;
+  const auto run = server.runs_dir() / "20261127T050000Z_head_adaptive";  // a file is sent from disk
+  std::filesystem::create_directories(run);
+  std::ofstream(run / "run.json") << "{}\n";
+  std::ofstream(run / "telemetry.csv") << "t_s,p_meas_mpa\n0,1\n";
+  const std::string get_body = server.client().get("/api/health").body;
+  const std::string reply = raw_exchange(server.port(),
+                                         "HEAD /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+                                         "HEAD /api/start HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+                                         "HEAD /api/runs/20261127T050000Z_head_adaptive/telemetry.csv HTTP/1.1\r\n"
+                                         "Host: 127.0.0.1\r\n\r\n"
+                                         "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  std::vector<std::string> heads;
+  std::size_t at = 0;
+  for (int i = 0; i < 4; ++i) {
+    const auto end = reply.find("\r\n\r\n", at);
+    ASSERT_NE(end, std::string::npos) << reply;
+    heads.push_back(reply.substr(at, end - at));
+    at = end + 4;
+    if (i < 3) {
+      ASSERT_EQ(reply.compare(at, 9, "HTTP/1.1 "), 0) << "a body after answer " << i + 1 << ":\n" << reply;
+    }
+  }
+  EXPECT_EQ(heads[0].rfind("HTTP/1.1 200", 0), 0u) << heads[0];
+  EXPECT_NE(heads[0].find("Content-Length: " + std::to_string(get_body.size())), std::string::npos) << heads[0];
+  EXPECT_EQ(heads[1].rfind("HTTP/1.1 405", 0), 0u) << heads[1];
+  EXPECT_EQ(heads[2].rfind("HTTP/1.1 200", 0), 0u) << heads[2];
+  EXPECT_NE(heads[2].find("Content-Length: 19"), std::string::npos) << heads[2];
+  EXPECT_EQ(heads[3].rfind("HTTP/1.1 200", 0), 0u) << heads[3];
+  EXPECT_EQ(json::parse(reply.substr(at)).value("ok", false), true) << reply;
+}
+
 }  // namespace

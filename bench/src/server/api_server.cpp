@@ -1391,7 +1391,9 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   const Route* other_method = nullptr;
   for (const auto& r : kRoutes) {
     if (!match(r.path, t.path, args)) continue;
-    if (r.method == req.method()) return r.handle(*this, req, t, args);
+    // HEAD is GET without the body (RFC 9110 9.3.2): the same route, the same header fields.
+    const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
+    if (r.method == req.method() || head_of_get) return r.handle(*this, req, t, args);
     other_method = &r;
   }
   if (other_method != nullptr) {
@@ -1506,9 +1508,11 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return close();
     if (ec) {
       draining_ = ec == http::error::body_limit;  // read the rest of the body after answering, so the client sees the 413
+      head_ = false;
       return send(api_->parse_failure(ec), false);
     }
     Request req = parser_->release();
+    head_ = req.method() == http::verb::head;
     // One request's failure is that request's answer, never the server's end: a handler that
     // throws anything gets a 500 for this request, and a running campaign goes on.
     try {
@@ -1593,6 +1597,15 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   template <class Response>
   void write(const std::shared_ptr<Response>& res) {
+    if constexpr (!std::is_same_v<typename Response::body_type, http::empty_body>) {
+      if (head_) {
+        // The answer to HEAD is the header alone, its Content-Length that of the body not sent: a
+        // body after it would be read by the client as the start of the next answer.
+        auto header_only = std::make_shared<http::response<http::empty_body>>();
+        header_only->base() = res->base();
+        return write(header_only);
+      }
+    }
     http::async_write(stream_, *res, [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
       if (ec || !res->keep_alive()) return self->close();
       self->read();
@@ -1621,6 +1634,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   bool draining_ = false;
+  bool head_ = false;  // the request being answered is a HEAD: its answer has no body
   std::size_t drained_ = 0;
   std::optional<std::chrono::steady_clock::time_point> idle_since_;
   std::array<char, 16384> scratch_{};
