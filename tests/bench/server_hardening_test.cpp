@@ -739,4 +739,20 @@ TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
   EXPECT_EQ(json::parse(reply.substr(at)).value("ok", false), true) << reply;
 }
 
+// ctl telemetry said only "the WebSocket handshake was declined"; it says the server's status and
+// error now, as every other ctl command does.
+TEST(ServerProtocol, CtlTelemetrySaysWhyTheServerRefusedTheStream) {
+  ServerProcess server({}, "right-token-123");
+  const std::string ctl =
+      "timeout 60 " + hil::test::hilbench_exe() + " ctl --server http://127.0.0.1:" + std::to_string(server.port());
+  const auto too_fast = hil::test::run_command(ctl + " --token right-token-123 telemetry --rate-hz 6000 --count 1");
+  EXPECT_EQ(too_fast.status, 1) << too_fast.output;
+  EXPECT_NE(too_fast.output.find("(field 'rate_hz')"), std::string::npos) << too_fast.output;
+  EXPECT_NE(too_fast.output.find("(HTTP 400)"), std::string::npos) << too_fast.output;
+  const auto no_token = hil::test::run_command(ctl + " telemetry --count 1");
+  EXPECT_EQ(no_token.status, 1) << no_token.output;
+  EXPECT_NE(no_token.output.find("unauthorized"), std::string::npos) << no_token.output;
+  EXPECT_NE(no_token.output.find("(HTTP 401)"), std::string::npos) << no_token.output;
+}
+
 }  // namespace
