@@ -755,4 +755,77 @@ TEST(ServerProtocol, CtlTelemetrySaysWhyTheServerRefusedTheStream) {
   EXPECT_NE(no_token.output.find("(HTTP 401)"), std::string::npos) << no_token.output;
 }
 
+const std::string kFoxglove = "Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n";
+
+// Reads until `pending` holds `n` bytes; false at the end of the stream or the read timeout.
+bool fill(int fd, std::string& pending, std::size_t n) {
+  char buf[8192];
+  while (pending.size() < n) {
+    const ssize_t got = ::recv(fd, buf, sizeof buf, 0);
+    if (got <= 0) return false;
+    pending.append(buf, static_cast<std::size_t>(got));
+  }
+  return true;
+}
+
+// The server's next message (continuation frames joined; a control frame comes alone): opcode and
+// payload, or nullopt at the end of the stream or the read timeout. `pending`: bytes read ahead.
+std::optional<std::pair<int, std::string>> next_message(int fd, std::string& pending) {
+  std::optional<std::pair<int, std::string>> message;
+  for (;;) {
+    if (!fill(fd, pending, 2)) return std::nullopt;
+    const int opcode = pending[0] & 0x0f;
+    const bool fin = (pending[0] & 0x80) != 0;
+    std::size_t size = pending[1] & 0x7f, at = 2;
+    if (size == 126 || size == 127) {
+      const std::size_t bytes = size == 126 ? 2 : 8;
+      if (!fill(fd, pending, 2 + bytes)) return std::nullopt;
+      size = 0;
+      for (std::size_t i = 0; i < bytes; ++i) size = size << 8 | static_cast<unsigned char>(pending[2 + i]);
+      at += bytes;
+    }
+    if (!fill(fd, pending, at + size)) return std::nullopt;
+    std::string payload = pending.substr(at, size);
+    pending.erase(0, at + size);
+    if (opcode >= 8) return std::pair<int, std::string>{opcode, payload};
+    if (!message) message.emplace(opcode, "");
+    message->second += payload;
+    if (fin) return message;
+  }
+}
+
+// Sends the upgrade (and anything after it in the same write) and reads the 101's header; the
+// bytes read past it stay in `pending`. False when the answer is not a 101.
+bool open_stream(int fd, const std::string& bytes, std::string& pending) {
+  if (::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size())) return false;
+  while (pending.find("\r\n\r\n") == std::string::npos) {
+    if (!fill(fd, pending, pending.size() + 1)) return false;
+  }
+  const bool upgraded = pending.rfind("HTTP/1.1 101", 0) == 0;
+  pending.erase(0, pending.find("\r\n\r\n") + 4);
+  return upgraded;
+}
+
+// Foxglove's sessionId was the session's heap address: it told any client the server's memory
+// layout, and differed per connection, so a client could not tell a reconnect from a restart.
+TEST(ServerProtocol, TheFoxgloveSessionIdIsTheServersAndNoAddress) {
+  ServerProcess server;
+  std::vector<std::string> ids;
+  std::vector<int> fds;
+  for (int i = 0; i < 2; ++i) {  // both open at once: two sessions alive at two addresses
+    fds.push_back(connect_raw(server.port()));
+    std::string pending;
+    ASSERT_TRUE(open_stream(fds.back(), upgrade_request("/api/telemetry", kFoxglove), pending));
+    const auto info = next_message(fds.back(), pending);
+    ASSERT_TRUE(info.has_value());
+    const json j = json::parse(info->second);
+    ASSERT_EQ(j.value("op", ""), "serverInfo") << info->second;
+    ids.push_back(j.value("sessionId", ""));
+  }
+  for (const int fd : fds) ::close(fd);
+  EXPECT_FALSE(ids[0].empty());
+  EXPECT_EQ(ids[0], ids[1]);
+  EXPECT_NE(ids[0].find_first_not_of("0123456789"), std::string::npos) << ids[0];  // not a pointer's decimal
+}
+
 }  // namespace

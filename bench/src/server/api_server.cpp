@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
 #include <map>
 #include <cmath>
 #include <deque>
 #include <fstream>
 #include <optional>
+#include <random>
 #include <sstream>
 #include <unordered_map>
 #include <variant>
@@ -328,8 +330,9 @@ class ConnectionSlot {
 
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove, ConnectionSlot slot)
-      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), slot_(std::move(slot)) {}
+  // session_id: Foxglove's serverInfo.sessionId, the server's (ApiServer::Impl::session_id).
+  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove, std::string session_id, ConnectionSlot slot)
+      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), session_id_(std::move(session_id)), slot_(std::move(slot)) {}
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
   ~WsSession() {
@@ -348,7 +351,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.async_accept(req, [self = shared_from_this(), rate_hz](beast::error_code ec) {
       if (ec) return;
       if (self->foxglove_) {
-        self->send_text(dump_json(foxglove::server_info(std::to_string(reinterpret_cast<std::uintptr_t>(self.get())))));
+        self->send_text(dump_json(foxglove::server_info(self->session_id_)));
         self->send_text(dump_json(foxglove::advertise()));
       } else {
         json names = json::array();
@@ -470,6 +473,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   websocket::stream<beast::tcp_stream> ws_;
   TelemetryHub& hub_;
   const bool foxglove_;
+  const std::string session_id_;
   ConnectionSlot slot_;                                 // handed over from the HTTP session it was upgraded from
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
@@ -649,6 +653,23 @@ void TelemetryHub::fan_out(const std::vector<Item>& items) {
 
 class HttpSession;
 
+namespace {
+
+// This server process's Foxglove sessionId: the same for every connection to it and new at each
+// start, so that a client reconnecting can tell a restarted server from a dropped connection. The
+// start time and random bits, never an address (a heap pointer told any client the process's
+// memory layout, which address-space randomisation is there to hide).
+std::string new_session_id() {
+  std::random_device random;
+  const auto start_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  char text[64];
+  std::snprintf(text, sizeof text, "%llx-%08x%08x", static_cast<unsigned long long>(start_ns), random(), random());
+  return text;
+}
+
+}  // namespace
+
 struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
       : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_), jobs(options.max_waiting_jobs) {}
@@ -664,7 +685,8 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   // The HTTP sessions, for evicting the longest-idle one when the connections are at their cap
   // (io thread only; expired ones are pruned there).
   std::vector<std::weak_ptr<HttpSession>> http_sessions;
-  JobQueue jobs;  // submitted to on the io thread only: a check and its submit never race
+  JobQueue jobs;                                    // submitted to on the io thread only: a check and its submit never race
+  const std::string session_id = new_session_id();  // Foxglove's serverInfo.sessionId
 
   void accept();
   bool evict_longest_idle();
@@ -1550,7 +1572,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return send(error_reply(e.status, e.error, e.detail, e.field), false);
     }
     const bool foxglove = offers_foxglove(req);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, std::move(slot_))->run(std::move(req), rate_hz);
+    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, api_->session_id, std::move(slot_))
+        ->run(std::move(req), rate_hz);
   }
 
   void send(Reply reply, bool keep_alive) {
