@@ -828,4 +828,53 @@ TEST(ServerProtocol, TheFoxgloveSessionIdIsTheServersAndNoAddress) {
   EXPECT_NE(ids[0].find_first_not_of("0123456789"), std::string::npos) << ids[0];  // not a pointer's decimal
 }
 
+// A client's frame: final, masked as RFC 6455 requires of a client. opcode 1 text, 9 ping.
+std::string client_frame(std::uint8_t opcode, std::string_view payload) {
+  std::string f{static_cast<char>(0x80 | opcode)};
+  const std::array<char, 4> mask = {0x12, 0x34, 0x56, 0x78};
+  if (payload.size() < 126) {
+    f.push_back(static_cast<char>(0x80 | payload.size()));
+  } else {
+    f += {static_cast<char>(0x80 | 126), static_cast<char>(payload.size() >> 8), static_cast<char>(payload.size() & 0xff)};
+  }
+  f.append(mask.data(), mask.size());
+  for (std::size_t i = 0; i < payload.size(); ++i) f.push_back(static_cast<char>(payload[i] ^ mask[i % 4]));
+  return f;
+}
+
+// A client that sends the upgrade and its first frames in one write (a Foxglove subscribe, a
+// ping) is answered: those bytes were read by the HTTP session and lost at the hand-over.
+TEST(ServerProtocol, FramesSentWithTheUpgradeAreRead) {
+  ServerProcess server;
+  const int fd = connect_raw(server.port(), 10);
+  std::string pending;
+  ASSERT_TRUE(open_stream(fd,
+                          upgrade_request("/api/telemetry", kFoxglove) +
+                              client_frame(1, R"({"op":"subscribe","subscriptions":[{"id":1,"channelId":999}]})") +
+                              client_frame(9, "are you there"),
+                          pending));
+  std::vector<std::pair<int, std::string>> got;
+  for (int i = 0; i < 4; ++i) {
+    const auto m = next_message(fd, pending);
+    if (!m) break;
+    got.push_back(*m);
+  }
+  ::close(fd);
+  ASSERT_EQ(got.size(), 4u) << "the frames sent with the upgrade were not answered";
+  // Beast sends the pong as it reads the ping, before or after the messages the session queued.
+  std::vector<std::string> ops;
+  for (const auto& [opcode, payload] : got) {
+    if (opcode == 10) {
+      EXPECT_EQ(payload, "are you there");
+      continue;
+    }
+    const json j = json::parse(payload);
+    ops.push_back(j.value("op", ""));
+    if (ops.back() == "status") {
+      EXPECT_NE(j.value("message", "").find("channel 999 is not advertised"), std::string::npos) << payload;
+    }
+  }
+  EXPECT_EQ(ops, (std::vector<std::string>{"serverInfo", "advertise", "status"}));
+}
+
 }  // namespace

@@ -328,11 +328,39 @@ class ConnectionSlot {
   std::shared_ptr<std::atomic<int>> open_;
 };
 
+namespace {
+
+// The connection of a WebSocket session: what the HTTP session had read past the upgrade request
+// is read first, then the socket. A client may send its first frames in the same write as the
+// upgrade (a Foxglove subscribe, a ping); handed over as a bare socket, those bytes were lost and
+// the client waited for an answer that never came.
+class UpgradedStream : public beast::buffered_read_stream<beast::tcp_stream, beast::flat_buffer> {
+ public:
+  using buffered_read_stream::buffered_read_stream;
+};
+
+// The WebSocket close on it is the TCP stream's (Beast looks these up by argument).
+[[maybe_unused]] void teardown(beast::role_type role, UpgradedStream& stream, beast::error_code& ec) {
+  using beast::websocket::teardown;
+  teardown(role, stream.next_layer(), ec);
+}
+template <class Handler>
+void async_teardown(beast::role_type role, UpgradedStream& stream, Handler&& handler) {
+  using beast::websocket::async_teardown;
+  async_teardown(role, stream.next_layer(), std::forward<Handler>(handler));
+}
+
+}  // namespace
+
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
+  // read_ahead: the bytes the HTTP session read past the upgrade request, the client's first frames.
   // session_id: Foxglove's serverInfo.sessionId, the server's (ApiServer::Impl::session_id).
-  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove, std::string session_id, ConnectionSlot slot)
-      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), session_id_(std::move(session_id)), slot_(std::move(slot)) {}
+  WsSession(tcp::socket&& socket, beast::flat_buffer read_ahead, TelemetryHub& hub, bool foxglove, std::string session_id,
+            ConnectionSlot slot)
+      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), session_id_(std::move(session_id)), slot_(std::move(slot)) {
+    ws_.next_layer().buffer() = std::move(read_ahead);
+  }
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
   ~WsSession() {
@@ -470,7 +498,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
   }
 
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<UpgradedStream> ws_;
   TelemetryHub& hub_;
   const bool foxglove_;
   const std::string session_id_;
@@ -1572,7 +1600,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return send(error_reply(e.status, e.error, e.detail, e.field), false);
     }
     const bool foxglove = offers_foxglove(req);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, api_->session_id, std::move(slot_))
+    std::make_shared<WsSession>(stream_.release_socket(), std::move(buffer_), api_->hub, foxglove, api_->session_id,
+                                std::move(slot_))
         ->run(std::move(req), rate_hz);
   }
 
