@@ -877,4 +877,33 @@ TEST(ServerProtocol, FramesSentWithTheUpgradeAreRead) {
   EXPECT_EQ(ops, (std::vector<std::string>{"serverInfo", "advertise", "status"}));
 }
 
+// A Foxglove client that sends requests without reading the answers: the answers it cannot take
+// are not telemetry, and the client is not told it missed telemetry (it was, once the server's
+// queue was full of answers to its own bad requests).
+TEST(ServerProtocol, AnswersAClientDidNotReadAreNotCalledDroppedTelemetry) {
+  ServerProcess server;  // idle: no telemetry flows at all
+  const int fd = connect_raw(server.port(), 3);
+  const int small = 4096;  // the server's sends stall at once
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  std::string pending;
+  ASSERT_TRUE(open_stream(fd, upgrade_request("/api/telemetry", kFoxglove), pending));
+  std::string requests;
+  for (int i = 0; i < 3000; ++i) requests += client_frame(1, R"({"op":"nothing"})");
+  ASSERT_EQ(::send(fd, requests.data(), requests.size(), MSG_NOSIGNAL), static_cast<ssize_t>(requests.size()));
+  std::size_t answers = 0;
+  std::vector<std::string> dropped;
+  while (const auto m = next_message(fd, pending)) {  // until 3 s pass without a message
+    if (m->second.find("\"status\"") == std::string::npos) continue;
+    if (m->second.find("dropped") != std::string::npos) {
+      dropped.push_back(m->second);
+    } else {
+      ++answers;
+    }
+  }
+  ::close(fd);
+  EXPECT_TRUE(dropped.empty()) << dropped.front();
+  EXPECT_GT(answers, 0u);
+  EXPECT_EQ(server.client().get("/api/health").status, 200);
+}
+
 }  // namespace

@@ -46,7 +46,8 @@ using tcp = asio::ip::tcp;
 using nlohmann::json;
 using Request = http::request<http::string_body>;
 
-constexpr std::size_t kWsQueueLimit = 1024;  // messages per client; beyond: dropped and counted
+constexpr std::size_t kWsQueueLimit = 1024;  // telemetry messages per client; beyond: dropped and counted
+constexpr std::size_t kWsRepliesLimit = 64;  // the session's own messages per client (answers to its requests)
 
 struct Reply;
 
@@ -366,6 +367,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   ~WsSession() {
     hub_.unsubscribe(this);
     if (dropped_ > 0) spdlog::info("telemetry WebSocket closed; {} messages were dropped for a slow reader", dropped_);
+    if (replies_dropped_ > 0)
+      spdlog::info("telemetry WebSocket closed; {} answers to its requests were dropped (it asked without reading)",
+                   replies_dropped_);
   }
 
   void run(Request req, double rate_hz) {
@@ -399,7 +403,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::post(ws_.get_executor(), [self = shared_from_this(), batch = std::move(batch)] {
       for (const auto& m : batch) {
         if (const auto* text = std::get_if<std::shared_ptr<const std::string>>(&m)) {
-          self->enqueue({*text, false});
+          self->enqueue({*text, false, true});
           continue;
         }
         const auto& frame = std::get<std::shared_ptr<const foxglove::Frame>>(m);
@@ -407,7 +411,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
           const std::string& payload = frame->payloads[channel];
           if (!payload.empty())
             self->enqueue(
-                {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true});
+                {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true,
+                 true});
         }
       }
     });
@@ -417,21 +422,35 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   struct Outgoing {
     std::shared_ptr<const std::string> bytes;
     bool binary;
+    bool telemetry;  // of the hub's stream (rows, notices), not the session's own message
   };
   static constexpr std::size_t kWsClientMessageMax = 64 * 1024;
 
-  void send_text(std::string text) { enqueue({std::make_shared<const std::string>(std::move(text)), false}); }
+  // The session's own message: the hello, Foxglove's serverInfo and advertise, an answer to the client.
+  void send_text(std::string text) { enqueue({std::make_shared<const std::string>(std::move(text)), false, false}); }
 
-  // Session thread.
+  // Session thread. What is dropped, and told to the client as dropped, is telemetry only: the
+  // session's answers to a client's requests counted as dropped rows before, so a client sending
+  // bad requests was told it had missed telemetry it had not. Those answers have their own bound
+  // (a client that asks without reading loses answers, not the server's memory).
   void enqueue(Outgoing message) {
     if (closed_) return;
-    if (queue_.size() >= kWsQueueLimit) {
+    if (message.telemetry && telemetry_queued_ >= kWsQueueLimit) {
       ++dropped_;
       ++dropped_unreported_;
       return;
     }
-    queue_.push_back(std::move(message));
+    if (!message.telemetry && queue_.size() - telemetry_queued_ >= kWsRepliesLimit) {
+      ++replies_dropped_;
+      return;
+    }
+    push(std::move(message));
     if (queue_.size() == 1) write();
+  }
+
+  void push(Outgoing message) {
+    if (message.telemetry) ++telemetry_queued_;
+    queue_.push_back(std::move(message));
   }
 
   void write() {
@@ -440,19 +459,21 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       if (ec) {
         self->closed_ = true;
         self->queue_.clear();
+        self->telemetry_queued_ = 0;
         self->hub_.unsubscribe(self.get());
         return;
       }
+      if (self->queue_.front().telemetry) --self->telemetry_queued_;
       self->queue_.pop_front();
       // The client learns in-band what it missed, once there is room to tell it.
-      if (self->dropped_unreported_ > 0 && self->queue_.size() < kWsQueueLimit / 2) {
+      if (self->dropped_unreported_ > 0 && self->telemetry_queued_ < kWsQueueLimit / 2) {
         const std::string why = "this client read slower than the telemetry was sent; telemetry.csv is the lossless record";
         const json notice =
             self->foxglove_
                 ? foxglove::status(1, std::to_string(self->dropped_unreported_) + " messages dropped (" +
                                           std::to_string(self->dropped_) + " in all): " + why)
                 : json{{"type", "dropped"}, {"messages", self->dropped_unreported_}, {"total", self->dropped_}, {"why", why}};
-        self->queue_.push_back({std::make_shared<const std::string>(dump_json(notice)), false});
+        self->push({std::make_shared<const std::string>(dump_json(notice)), false, false});
         self->dropped_unreported_ = 0;
       }
       if (!self->queue_.empty()) self->write();
@@ -506,7 +527,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
   std::deque<Outgoing> queue_;
-  std::size_t dropped_ = 0, dropped_unreported_ = 0;
+  std::size_t telemetry_queued_ = 0;  // of queue_
+  std::size_t dropped_ = 0, dropped_unreported_ = 0, replies_dropped_ = 0;
   bool closed_ = false;
 };
 
