@@ -103,6 +103,15 @@ YAML::Node checked(YAML::Node node, const std::string& origin) {
 
 Node Node::load_file(const std::filesystem::path& file, std::string* text) {
   auto shared = std::make_shared<const std::filesystem::path>(file);
+  // A config is a page or two (the largest this project ships is 2 KB); a file of megabytes is a
+  // mistake or an attack, and parsing it held up its reader (a 6.7 MB register map kept the
+  // server's I/O thread, aborts included, for 60 s). Refused before it is read.
+  constexpr std::uintmax_t kMaxYamlBytes = 1 << 20;
+  std::error_code size_error;  // none: read_text_file says why the file cannot be read
+  if (const auto bytes = std::filesystem::file_size(file, size_error); !size_error && bytes > kMaxYamlBytes) {
+    throw Error(file.string() + ": " + std::to_string(bytes) + " bytes, more than the " + std::to_string(kMaxYamlBytes) +
+                " bytes (1 MiB) a YAML config file may have; refused");
+  }
   std::string content;
   try {
     content = read_text_file(file, "a YAML file");

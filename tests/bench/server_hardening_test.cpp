@@ -907,3 +907,39 @@ TEST(ServerProtocol, AnswersAClientDidNotReadAreNotCalledDroppedTelemetry) {
 }
 
 }  // namespace
+
+// A rig whose register map is megabytes (a tester's 6.7 MB map kept the server's I/O thread, and
+// every request with it, for 60 s at each GET /api/rigs): refused unread past 1 MiB, the rig
+// listed with an error naming the file and the limit; the other rigs are listed as before.
+TEST(ServerProtocol, AHugeRegisterMapIsRefusedNamingTheFileAndTheLimit) {
+  hil::test::TempDir base;
+  const auto configs = base.path() / "configs", drivers = base.path() / "drivers" / "configs";
+  std::filesystem::create_directories(drivers);
+  std::filesystem::copy(hil::test::source_path("configs"), configs, std::filesystem::copy_options::recursive);
+  std::filesystem::copy(hil::test::source_path("drivers/configs"), drivers, std::filesystem::copy_options::recursive);
+  {
+    std::ofstream map(drivers / "huge_map.yaml");
+    map << hil::test::slurp(drivers / "modbus_transducer_map.yaml");
+    const std::string padding = "# " + std::string(98, '-') + "\n";
+    for (int i = 0; i < 12000; ++i) map << padding;  // 1.2 MB of comments: valid YAML, and the same map
+  }
+  std::string rig = hil::test::slurp(configs / "rigs" / "modbus.yaml");
+  rig.replace(rig.find("modbus_transducer_map.yaml"), std::string("modbus_transducer_map.yaml").size(), "huge_map.yaml");
+  std::ofstream(configs / "rigs" / "huge.yaml") << rig;
+
+  ServerProcess server({"--configs", configs.string()});
+  const json rigs = server.client().get("/api/rigs").json()["rigs"];
+  ASSERT_EQ(rigs.size(), 5u) << rigs.dump(2);
+  for (const auto& r : rigs) {
+    if (r["name"] != "huge") {
+      EXPECT_FALSE(r.contains("error")) << r.dump(2);
+      continue;
+    }
+    const std::string error = r.value("error", "");
+    EXPECT_NE(error.find("huge_map.yaml: "), std::string::npos) << error;
+    EXPECT_NE(error.find("more than the 1048576 bytes (1 MiB) a YAML config file may have"), std::string::npos) << error;
+  }
+  const auto start = server.client().post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "huge"}});
+  EXPECT_FALSE(start.ok()) << start.body;  // "invalid rig file", as for any rig file that does not load
+  EXPECT_NE(start.body.find("huge_map.yaml"), std::string::npos) << start.body;
+}
