@@ -678,6 +678,7 @@ TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {
   EXPECT_EQ(error_body(old_version).value("field", ""), "Sec-WebSocket-Version") << old_version;
   // Refused before Beast (no token, a bad option): JSON too, and the token is not echoed.
   for (const std::string& refused : {raw_exchange(server.port(), upgrade_request("/api/telemetry")),
+                                     raw_exchange(server.port(), upgrade_request("/")),  // not the token form
                                      raw_exchange(server.port(), upgrade_request("/api/telemetry?token=right-token-123&r=1"))}) {
     EXPECT_TRUE(error_body(refused).is_object()) << refused;
     EXPECT_EQ(refused.find("right-token-123"), std::string::npos) << refused;

@@ -1507,7 +1507,8 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
   Reply reply;
   if (!authorised(req, t)) {
     spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
-    if (t.path.empty() && req.method() == http::verb::get) {
+    // A page asks for the token; a WebSocket handshake to / is refused in JSON like any other.
+    if (t.path.empty() && req.method() == http::verb::get && !websocket::is_upgrade(req)) {
       Reply r{http::status::unauthorized, std::string(kTokenForm), "text/html; charset=utf-8", {}, {}};
       r.no_store = true;
       return r;
