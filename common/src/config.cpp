@@ -1,11 +1,14 @@
 #include "hil/config.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <string_view>
 #include <unordered_map>
 
+#include "hil/config_files.hpp"
 #include "hil/text_file.hpp"
 
 namespace hil::cfg {
@@ -101,7 +104,42 @@ YAML::Node checked(YAML::Node node, const std::string& origin) {
 
 }  // namespace
 
+namespace {
+
+thread_local ReadFiles* innermost_read_files = nullptr;
+
+}  // namespace
+
+FileStamp stamp_of(const std::filesystem::path& file) {
+  FileStamp s;
+  s.path = file;
+  struct stat st {};
+  if (::stat(file.c_str(), &st) != 0) return s;
+  s.exists = true;
+  s.device = st.st_dev;
+  s.inode = st.st_ino;
+  s.bytes = static_cast<std::uint64_t>(st.st_size);
+  s.modified_ns = st.st_mtim.tv_sec * 1'000'000'000LL + st.st_mtim.tv_nsec;
+  s.changed_ns = st.st_ctim.tv_sec * 1'000'000'000LL + st.st_ctim.tv_nsec;
+  return s;
+}
+
+bool unchanged(const std::vector<FileStamp>& files) {
+  return std::all_of(files.begin(), files.end(), [](const FileStamp& f) { return stamp_of(f.path) == f; });
+}
+
+ReadFiles::ReadFiles() : outer_(innermost_read_files) { innermost_read_files = this; }
+
+ReadFiles::~ReadFiles() { innermost_read_files = outer_; }
+
+void ReadFiles::note(const std::filesystem::path& file) {
+  if (innermost_read_files == nullptr) return;
+  const FileStamp stamp = stamp_of(file);
+  for (ReadFiles* r = innermost_read_files; r != nullptr; r = r->outer_) r->files_.push_back(stamp);
+}
+
 Node Node::load_file(const std::filesystem::path& file, std::string* text) {
+  ReadFiles::note(file);  // before any refusal: a file fixed later is read again
   auto shared = std::make_shared<const std::filesystem::path>(file);
   // A config is a page or two (the largest this project ships is 2 KB); a file of megabytes is a
   // mistake or an attack, and parsing it held up its reader (a 6.7 MB register map kept the

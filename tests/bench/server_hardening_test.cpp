@@ -909,26 +909,32 @@ TEST(ServerProtocol, AnswersAClientDidNotReadAreNotCalledDroppedTelemetry) {
 
 }  // namespace
 
+// A copy of the bench's configs (and the driver files its rigs name) in `base`, with a rig named
+// `rig` like modbus.yaml whose transducer's register map is padded with comments to about
+// `map_bytes` (valid YAML, the same map). Returns the configs folder.
+std::filesystem::path configs_with_padded_map(const std::filesystem::path& base, const std::string& rig, std::size_t map_bytes) {
+  const auto configs = base / "configs", drivers = base / "drivers" / "configs";
+  std::filesystem::create_directories(drivers);
+  std::filesystem::copy(hil::test::source_path("configs"), configs, std::filesystem::copy_options::recursive);
+  std::filesystem::copy(hil::test::source_path("drivers/configs"), drivers, std::filesystem::copy_options::recursive);
+  {
+    std::ofstream map(drivers / (rig + "_map.yaml"));
+    map << hil::test::slurp(drivers / "modbus_transducer_map.yaml");
+    const std::string padding = "# " + std::string(98, '-') + "\n";
+    for (std::size_t bytes = 0; bytes < map_bytes; bytes += padding.size()) map << padding;
+  }
+  std::string text = hil::test::slurp(configs / "rigs" / "modbus.yaml");
+  text.replace(text.find("modbus_transducer_map.yaml"), std::string("modbus_transducer_map.yaml").size(), rig + "_map.yaml");
+  std::ofstream(configs / "rigs" / (rig + ".yaml")) << text;
+  return configs;
+}
+
 // A rig whose register map is megabytes (a tester's 6.7 MB map kept the server's I/O thread, and
 // every request with it, for 60 s at each GET /api/rigs): refused unread past 1 MiB, the rig
 // listed with an error naming the file and the limit; the other rigs are listed as before.
 TEST(ServerProtocol, AHugeRegisterMapIsRefusedNamingTheFileAndTheLimit) {
   hil::test::TempDir base;
-  const auto configs = base.path() / "configs", drivers = base.path() / "drivers" / "configs";
-  std::filesystem::create_directories(drivers);
-  std::filesystem::copy(hil::test::source_path("configs"), configs, std::filesystem::copy_options::recursive);
-  std::filesystem::copy(hil::test::source_path("drivers/configs"), drivers, std::filesystem::copy_options::recursive);
-  {
-    std::ofstream map(drivers / "huge_map.yaml");
-    map << hil::test::slurp(drivers / "modbus_transducer_map.yaml");
-    const std::string padding = "# " + std::string(98, '-') + "\n";
-    for (int i = 0; i < 12000; ++i) map << padding;  // 1.2 MB of comments: valid YAML, and the same map
-  }
-  std::string rig = hil::test::slurp(configs / "rigs" / "modbus.yaml");
-  rig.replace(rig.find("modbus_transducer_map.yaml"), std::string("modbus_transducer_map.yaml").size(), "huge_map.yaml");
-  std::ofstream(configs / "rigs" / "huge.yaml") << rig;
-
-  ServerProcess server({"--configs", configs.string()});
+  ServerProcess server({"--configs", configs_with_padded_map(base.path(), "huge", 1'200'000).string()});
   const json rigs = server.client().get("/api/rigs").json()["rigs"];
   ASSERT_EQ(rigs.size(), 5u) << rigs.dump(2);
   for (const auto& r : rigs) {
@@ -943,4 +949,37 @@ TEST(ServerProtocol, AHugeRegisterMapIsRefusedNamingTheFileAndTheLimit) {
   const auto start = server.client().post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "huge"}});
   EXPECT_FALSE(start.ok()) << start.body;  // "invalid rig file", as for any rig file that does not load
   EXPECT_NE(start.body.find("huge_map.yaml"), std::string::npos) << start.body;
+}
+
+// The bytes the server process has read so far (its /proc/PID/io rchar: files and sockets).
+std::uint64_t bytes_read(pid_t pid) {
+  std::ifstream io("/proc/" + std::to_string(pid) + "/io");
+  for (std::string key; io >> key;) {
+    std::uint64_t value = 0;
+    io >> value;
+    if (key == "rchar:") return value;
+  }
+  return 0;
+}
+
+// GET /api/rigs loads each rig with its device files and register maps on the I/O thread; an
+// unchanged rig is not read again (a 900 KB register map was read and parsed at every request),
+// and a change to any file a rig's load read (here its register map, not the rig file) is seen.
+TEST(ServerProtocol, AnUnchangedRigIsNotReadAgainAndAChangeToItsRegisterMapIs) {
+  hil::test::TempDir base;
+  const auto configs = configs_with_padded_map(base.path(), "padded", 900'000);
+  ServerProcess server({"--configs", configs.string()});
+  const auto api = server.client();
+  const std::string first = api.get("/api/rigs").body;
+  EXPECT_EQ(first.find("\"error\""), std::string::npos) << first;
+  const std::uint64_t before = bytes_read(server.pid());
+  const std::string second = api.get("/api/rigs").body;
+  EXPECT_LT(bytes_read(server.pid()) - before, 100'000u) << "the rigs were read again";
+  EXPECT_EQ(second, first);
+
+  std::ofstream(base.path() / "drivers" / "configs" / "padded_map.yaml", std::ios::app) << "bits: {fault: 1}\n";
+  const json rigs = api.get("/api/rigs").json()["rigs"];
+  const auto padded = std::find_if(rigs.begin(), rigs.end(), [](const json& r) { return r["name"] == "padded"; });
+  ASSERT_NE(padded, rigs.end()) << rigs.dump(2);
+  EXPECT_NE(padded->value("error", "").find("duplicate key 'bits'"), std::string::npos) << padded->dump(2);
 }

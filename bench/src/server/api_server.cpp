@@ -30,6 +30,7 @@
 #include "jobs.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/config.hpp"
+#include "hil/config_files.hpp"
 #include "hil/plant/plant.hpp"
 #include "hil/units.hpp"
 #include "hil/json_file.hpp"
@@ -737,6 +738,13 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::vector<std::weak_ptr<HttpSession>> http_sessions;
   JobQueue jobs;                                    // submitted to on the io thread only: a check and its submit never race
   const std::string session_id = new_session_id();  // Foxglove's serverInfo.sessionId
+  // GET /api/rigs's entry of each rig, with the files its load read (the rig's, its device files,
+  // register maps): parsed again only when one of them has changed. Io thread only.
+  struct RigListing {
+    json entry;
+    std::vector<cfg::FileStamp> files;
+  };
+  std::map<std::string, RigListing> rig_listings;
 
   void accept();
   bool evict_longest_idle();
@@ -856,9 +864,18 @@ Reply ApiServer::Impl::campaigns() {
 }
 
 Reply ApiServer::Impl::rigs() {
+  // Loading a rig reads and checks its device files and register maps, on the io thread: an
+  // unchanged rig is not loaded again (a large register map took seconds at each request).
+  std::map<std::string, RigListing> listings;
   json list = json::array();
   for (const auto& name : yaml_stems(options.rigs_dir)) {
+    if (const auto kept = rig_listings.find(name); kept != rig_listings.end() && cfg::unchanged(kept->second.files)) {
+      list.push_back(kept->second.entry);
+      listings.insert(rig_listings.extract(kept));
+      continue;
+    }
     json j = {{"name", name}, {"file", (options.rigs_dir / (name + ".yaml")).string()}};
+    cfg::ReadFiles read;
     try {
       const RigConfig r = load_rig_config(options.rigs_dir / (name + ".yaml"));
       j["kind"] = r.kind;
@@ -869,7 +886,9 @@ Reply ApiServer::Impl::rigs() {
       j["error"] = e.what();
     }
     list.push_back(j);
+    listings.emplace(name, RigListing{std::move(j), read.files()});
   }
+  rig_listings = std::move(listings);  // rigs whose file is gone are forgotten
   return json_reply(http::status::ok, {{"rigs", list}});
 }
 
