@@ -350,7 +350,14 @@ TEST(ServerEndToEnd, TokenRequiredOffLoopback) {
   const auto refused = anonymous.post("/api/start", {{"campaign", "paper_adaptive"}});
   EXPECT_EQ(refused.status, 401);
   EXPECT_EQ(refused.json()["error"], "unauthorized");
-  EXPECT_THROW(anonymous.stream("/api/telemetry", [](const std::string&) { return false; }), hil::bench::ApiUnreachable);
+  try {
+    anonymous.stream("/api/telemetry", [](const std::string&) { return false; });
+    ADD_FAILURE() << "the stream was opened without the token";
+  } catch (const hil::bench::ApiRefused& e) {  // the server's reply, and its reason in what()
+    EXPECT_EQ(e.reply().status, 401);
+    EXPECT_EQ(e.reply().json()["error"], "unauthorized");
+    EXPECT_NE(std::string(e.what()).find("HTTP 401 instead of the upgrade: {"), std::string::npos) << e.what();
+  }
   EXPECT_EQ(right.get("/api/status").json()["state"], "idle");  // nothing started
 }
 

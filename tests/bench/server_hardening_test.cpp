@@ -392,17 +392,28 @@ TEST(ServerHardening, WatchersThatNeverReadDoNotCostTheRunAnyRow) {
   EXPECT_EQ(run["telemetry"]["rows_written"], 200000) << run.dump(2);
 }
 
-// One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
-// status line and headers, and its body.
-std::string raw_exchange(int port, const std::string& request) {
+// A connected socket to the server; reads give up after `wait_s` (a failure, not a hang).
+int connect_raw(int port, long wait_s = 30) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return -1;
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<std::uint16_t>(port));
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (fd < 0 || ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) return "no connection";
-  const timeval wait_s{30, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait_s, sizeof wait_s);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  const timeval wait{wait_s, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
+  return fd;
+}
+
+// One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
+// status line and headers, and its body.
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = connect_raw(port);
+  if (fd < 0) return "no connection";
   ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
   std::string reply;
   char buf[4096];
@@ -597,4 +608,378 @@ TEST(ServerHardening, ARunJsonThatIsAFifoIsRefusedAndTheServerKeepsAnswering) {
   EXPECT_EQ(report.status, 422) << report.body;
   EXPECT_EQ(api.get("/api/runs").status, 200);
   EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The HTTP and WebSocket protocol against a hostile client, on raw sockets: query options, the
+// handshake, the auth scheme, HEAD, Foxglove's session id, frames sent with the upgrade, the
+// drop notice.
+
+namespace {
+
+// A WebSocket upgrade request for `target`, with `extra` header lines ("Name: value\r\n").
+std::string upgrade_request(const std::string& target, const std::string& extra = "") {
+  return "GET " + target +
+         " HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+         "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
+         extra + "\r\n";
+}
+
+// An error reply's JSON body (null when it is none), from a raw exchange.
+json error_body(const std::string& reply) {
+  const auto head_end = reply.find("\r\n\r\n");
+  if (head_end == std::string::npos) return nullptr;
+  return json::parse(reply.substr(head_end + 4), nullptr, false);
+}
+
+// A telemetry stream asks for a rate that is a whole number token in (0, 5000] and for no option
+// the server does not know: "20abc" was streamed at 20 rows/s and "?rate=5000" at the default 20,
+// both without a word. The YAML start's ?speed= is read the same way.
+TEST(ServerProtocol, TelemetryQueryOptionsAreWholeNumbersAndKnownNames) {
+  ServerProcess server;
+  struct Bad {
+    std::string query, field;
+  };
+  for (const Bad& b : {Bad{"rate_hz=20abc", "rate_hz"}, Bad{"rate_hz=", "rate_hz"}, Bad{"rate_hz=nan", "rate_hz"},
+                       Bad{"rate_hz=inf", "rate_hz"}, Bad{"rate_hz=1e400", "rate_hz"}, Bad{"rate_hz=0", "rate_hz"},
+                       Bad{"rate_hz=5001", "rate_hz"}, Bad{"rate=5000", "rate"}, Bad{"rate_hz=20&x%ff=1", "x%FF"}}) {
+    const std::string reply = raw_exchange(server.port(), upgrade_request("/api/telemetry?" + b.query));
+    EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << b.query << "\n" << reply;
+    const json body = error_body(reply);
+    ASSERT_TRUE(body.is_object()) << reply;
+    EXPECT_EQ(body.value("field", ""), b.field) << b.query << "\n" << reply;
+  }
+  EXPECT_NE(error_body(raw_exchange(server.port(), upgrade_request("/api/telemetry?rate=5000")))
+                .value("detail", "")
+                .find("did you mean 'rate_hz'"),
+            std::string::npos);
+  EXPECT_EQ(raw_exchange(server.port(), upgrade_request("/api/telemetry?rate_hz=2.5")).rfind("HTTP/1.1 101", 0), 0u);
+
+  const auto api = server.client();
+  const auto start = api.request("POST", "/api/start?speed=2abc", hil::test::short_campaign_yaml(1), "application/yaml");
+  EXPECT_EQ(start.status, 400) << start.body;
+  EXPECT_EQ(start.json().value("field", ""), "speed") << start.body;
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
+// What Beast refuses in a handshake (no Sec-WebSocket-Key, another version) was answered as plain
+// text; every error of the API is a JSON body naming the field at fault.
+TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {
+  ServerProcess server({}, "right-token-123");
+  const std::string base =
+      "GET /api/telemetry?token=right-token-123 HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n";
+  const std::string no_key = raw_exchange(server.port(), base + "Sec-WebSocket-Version: 13\r\n\r\n");
+  EXPECT_EQ(no_key.rfind("HTTP/1.1 400", 0), 0u) << no_key;
+  EXPECT_NE(no_key.find("Content-Type: application/json"), std::string::npos) << no_key;
+  EXPECT_EQ(error_body(no_key).value("field", ""), "Sec-WebSocket-Key") << no_key;
+  const std::string old_version =
+      raw_exchange(server.port(), base + "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 8\r\n\r\n");
+  EXPECT_EQ(old_version.rfind("HTTP/1.1 426", 0), 0u) << old_version;
+  EXPECT_EQ(error_body(old_version).value("field", ""), "Sec-WebSocket-Version") << old_version;
+  // Refused before Beast (no token, a bad option): JSON too, and the token is not echoed.
+  for (const std::string& refused : {raw_exchange(server.port(), upgrade_request("/api/telemetry")),
+                                     raw_exchange(server.port(), upgrade_request("/")),  // not the token form
+                                     raw_exchange(server.port(), upgrade_request("/api/telemetry?token=right-token-123&r=1"))}) {
+    EXPECT_TRUE(error_body(refused).is_object()) << refused;
+    EXPECT_EQ(refused.find("right-token-123"), std::string::npos) << refused;
+  }
+}
+
+// RFC 9110: the auth scheme is case-insensitive; "bearer T" was refused. The token is not.
+TEST(ServerProtocol, TheBearerSchemeIsCaseInsensitiveAndTheTokenIsNot) {
+  ServerProcess server({}, "right-token-123");
+  const auto status_with = [&](const std::string& authorization) {
+    const std::string reply =
+        raw_exchange(server.port(), "GET /api/status HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: " + authorization +
+                                        "\r\nConnection: close\r\n\r\n");
+    return reply.substr(0, 12);
+  };
+  EXPECT_EQ(status_with("bearer right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("BEARER  right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("Bearer right-token-123"), "HTTP/1.1 200");
+  EXPECT_EQ(status_with("bearer RIGHT-TOKEN-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearer right-token-12"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearerright-token-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("Basic right-token-123"), "HTTP/1.1 401");
+  EXPECT_EQ(status_with("bearer "), "HTTP/1.1 401");
+}
+
+// A HEAD was answered 405 with a body: on a kept-alive connection the client read that body as
+// the start of the next answer. HEAD mirrors GET's header without the body, and where there is
+// no GET it is a 405 without a body; the answer after it parses.
+TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
+  ServerProcess server;
+  const auto run = server.runs_dir() / "20261127T050000Z_head_adaptive";  // a file is sent from disk
+  std::filesystem::create_directories(run);
+  std::ofstream(run / "run.json") << "{}\n";
+  std::ofstream(run / "telemetry.csv") << "t_s,p_meas_mpa\n0,1\n";
+  const std::string get_body = server.client().get("/api/health").body;
+  const std::string reply = raw_exchange(server.port(),
+                                         "HEAD /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+                                         "HEAD /api/start HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+                                         "HEAD /api/runs/20261127T050000Z_head_adaptive/telemetry.csv HTTP/1.1\r\n"
+                                         "Host: 127.0.0.1\r\n\r\n"
+                                         "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+  std::vector<std::string> heads;
+  std::size_t at = 0;
+  for (int i = 0; i < 4; ++i) {
+    const auto end = reply.find("\r\n\r\n", at);
+    ASSERT_NE(end, std::string::npos) << reply;
+    heads.push_back(reply.substr(at, end - at));
+    at = end + 4;
+    if (i < 3) {
+      ASSERT_EQ(reply.compare(at, 9, "HTTP/1.1 "), 0) << "a body after answer " << i + 1 << ":\n" << reply;
+    }
+  }
+  EXPECT_EQ(heads[0].rfind("HTTP/1.1 200", 0), 0u) << heads[0];
+  EXPECT_NE(heads[0].find("Content-Length: " + std::to_string(get_body.size())), std::string::npos) << heads[0];
+  EXPECT_EQ(heads[1].rfind("HTTP/1.1 405", 0), 0u) << heads[1];
+  EXPECT_EQ(heads[2].rfind("HTTP/1.1 200", 0), 0u) << heads[2];
+  EXPECT_NE(heads[2].find("Content-Length: 19"), std::string::npos) << heads[2];
+  EXPECT_EQ(heads[3].rfind("HTTP/1.1 200", 0), 0u) << heads[3];
+  EXPECT_EQ(json::parse(reply.substr(at)).value("ok", false), true) << reply;
+}
+
+// ctl telemetry said only "the WebSocket handshake was declined"; it says the server's status and
+// error now, as every other ctl command does.
+TEST(ServerProtocol, CtlTelemetrySaysWhyTheServerRefusedTheStream) {
+  ServerProcess server({}, "right-token-123");
+  const std::string ctl =
+      "timeout 60 " + hil::test::hilbench_exe() + " ctl --server http://127.0.0.1:" + std::to_string(server.port());
+  const auto too_fast = hil::test::run_command(ctl + " --token right-token-123 telemetry --rate-hz 6000 --count 1");
+  EXPECT_EQ(too_fast.status, 1) << too_fast.output;
+  EXPECT_NE(too_fast.output.find("(field 'rate_hz')"), std::string::npos) << too_fast.output;
+  EXPECT_NE(too_fast.output.find("(HTTP 400)"), std::string::npos) << too_fast.output;
+  const auto no_token = hil::test::run_command(ctl + " telemetry --count 1");
+  EXPECT_EQ(no_token.status, 1) << no_token.output;
+  EXPECT_NE(no_token.output.find("unauthorized"), std::string::npos) << no_token.output;
+  EXPECT_NE(no_token.output.find("(HTTP 401)"), std::string::npos) << no_token.output;
+}
+
+const std::string kFoxglove = "Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n";
+
+// Reads until `pending` holds `n` bytes; false at the end of the stream or the read timeout.
+bool fill(int fd, std::string& pending, std::size_t n) {
+  char buf[8192];
+  while (pending.size() < n) {
+    const ssize_t got = ::recv(fd, buf, sizeof buf, 0);
+    if (got <= 0) return false;
+    pending.append(buf, static_cast<std::size_t>(got));
+  }
+  return true;
+}
+
+// The server's next message (continuation frames joined; a control frame comes alone): opcode and
+// payload, or nullopt at the end of the stream or the read timeout. `pending`: bytes read ahead.
+std::optional<std::pair<int, std::string>> next_message(int fd, std::string& pending) {
+  std::optional<std::pair<int, std::string>> message;
+  for (;;) {
+    if (!fill(fd, pending, 2)) return std::nullopt;
+    const int opcode = pending[0] & 0x0f;
+    const bool fin = (pending[0] & 0x80) != 0;
+    std::size_t size = pending[1] & 0x7f, at = 2;
+    if (size == 126 || size == 127) {
+      const std::size_t bytes = size == 126 ? 2 : 8;
+      if (!fill(fd, pending, 2 + bytes)) return std::nullopt;
+      size = 0;
+      for (std::size_t i = 0; i < bytes; ++i) size = size << 8 | static_cast<unsigned char>(pending[2 + i]);
+      at += bytes;
+    }
+    if (!fill(fd, pending, at + size)) return std::nullopt;
+    std::string payload = pending.substr(at, size);
+    pending.erase(0, at + size);
+    if (opcode >= 8) return std::pair<int, std::string>{opcode, payload};
+    if (!message) message.emplace(opcode, "");
+    message->second += payload;
+    if (fin) return message;
+  }
+}
+
+// Sends the upgrade (and anything after it in the same write) and reads the 101's header; the
+// bytes read past it stay in `pending`. False when the answer is not a 101.
+bool open_stream(int fd, const std::string& bytes, std::string& pending) {
+  if (::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size())) return false;
+  while (pending.find("\r\n\r\n") == std::string::npos) {
+    if (!fill(fd, pending, pending.size() + 1)) return false;
+  }
+  const bool upgraded = pending.rfind("HTTP/1.1 101", 0) == 0;
+  pending.erase(0, pending.find("\r\n\r\n") + 4);
+  return upgraded;
+}
+
+// Foxglove's sessionId was the session's heap address: it told any client the server's memory
+// layout, and differed per connection, so a client could not tell a reconnect from a restart.
+TEST(ServerProtocol, TheFoxgloveSessionIdIsTheServersAndNoAddress) {
+  ServerProcess server;
+  std::vector<std::string> ids;
+  std::vector<int> fds;
+  for (int i = 0; i < 2; ++i) {  // both open at once: two sessions alive at two addresses
+    fds.push_back(connect_raw(server.port()));
+    std::string pending;
+    ASSERT_TRUE(open_stream(fds.back(), upgrade_request("/api/telemetry", kFoxglove), pending));
+    const auto info = next_message(fds.back(), pending);
+    ASSERT_TRUE(info.has_value());
+    const json j = json::parse(info->second);
+    ASSERT_EQ(j.value("op", ""), "serverInfo") << info->second;
+    ids.push_back(j.value("sessionId", ""));
+  }
+  for (const int fd : fds) ::close(fd);
+  EXPECT_FALSE(ids[0].empty());
+  EXPECT_EQ(ids[0], ids[1]);
+  EXPECT_NE(ids[0].find_first_not_of("0123456789"), std::string::npos) << ids[0];  // not a pointer's decimal
+}
+
+// A client's frame: final, masked as RFC 6455 requires of a client. opcode 1 text, 9 ping.
+std::string client_frame(std::uint8_t opcode, std::string_view payload) {
+  std::string f{static_cast<char>(0x80 | opcode)};
+  const std::array<char, 4> mask = {0x12, 0x34, 0x56, 0x78};
+  if (payload.size() < 126) {
+    f.push_back(static_cast<char>(0x80 | payload.size()));
+  } else {
+    f += {static_cast<char>(0x80 | 126), static_cast<char>(payload.size() >> 8), static_cast<char>(payload.size() & 0xff)};
+  }
+  f.append(mask.data(), mask.size());
+  for (std::size_t i = 0; i < payload.size(); ++i) f.push_back(static_cast<char>(payload[i] ^ mask[i % 4]));
+  return f;
+}
+
+// A client that sends the upgrade and its first frames in one write (a Foxglove subscribe, a
+// ping) is answered: those bytes were read by the HTTP session and lost at the hand-over.
+TEST(ServerProtocol, FramesSentWithTheUpgradeAreRead) {
+  ServerProcess server;
+  const int fd = connect_raw(server.port(), 10);
+  std::string pending;
+  ASSERT_TRUE(open_stream(fd,
+                          upgrade_request("/api/telemetry", kFoxglove) +
+                              client_frame(1, R"({"op":"subscribe","subscriptions":[{"id":1,"channelId":999}]})") +
+                              client_frame(9, "are you there"),
+                          pending));
+  std::vector<std::pair<int, std::string>> got;
+  for (int i = 0; i < 4; ++i) {
+    const auto m = next_message(fd, pending);
+    if (!m) break;
+    got.push_back(*m);
+  }
+  ::close(fd);
+  ASSERT_EQ(got.size(), 4u) << "the frames sent with the upgrade were not answered";
+  // Beast sends the pong as it reads the ping, before or after the messages the session queued.
+  std::vector<std::string> ops;
+  for (const auto& [opcode, payload] : got) {
+    if (opcode == 10) {
+      EXPECT_EQ(payload, "are you there");
+      continue;
+    }
+    const json j = json::parse(payload);
+    ops.push_back(j.value("op", ""));
+    if (ops.back() == "status") {
+      EXPECT_NE(j.value("message", "").find("channel 999 is not advertised"), std::string::npos) << payload;
+    }
+  }
+  EXPECT_EQ(ops, (std::vector<std::string>{"serverInfo", "advertise", "status"}));
+}
+
+// A Foxglove client that sends requests without reading the answers: the answers it cannot take
+// are not telemetry, and the client is not told it missed telemetry (it was, once the server's
+// queue was full of answers to its own bad requests).
+TEST(ServerProtocol, AnswersAClientDidNotReadAreNotCalledDroppedTelemetry) {
+  ServerProcess server;  // idle: no telemetry flows at all
+  const int fd = connect_raw(server.port(), 3);
+  const int small = 4096;  // the server's sends stall at once
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  std::string pending;
+  ASSERT_TRUE(open_stream(fd, upgrade_request("/api/telemetry", kFoxglove), pending));
+  std::string requests;
+  for (int i = 0; i < 3000; ++i) requests += client_frame(1, R"({"op":"nothing"})");
+  ASSERT_EQ(::send(fd, requests.data(), requests.size(), MSG_NOSIGNAL), static_cast<ssize_t>(requests.size()));
+  std::size_t answers = 0;
+  std::vector<std::string> dropped;
+  while (const auto m = next_message(fd, pending)) {  // until 3 s pass without a message
+    if (m->second.find("\"status\"") == std::string::npos) continue;
+    if (m->second.find("dropped") != std::string::npos) {
+      dropped.push_back(m->second);
+    } else {
+      ++answers;
+    }
+  }
+  ::close(fd);
+  EXPECT_TRUE(dropped.empty()) << dropped.front();
+  EXPECT_GT(answers, 0u);
+  EXPECT_EQ(server.client().get("/api/health").status, 200);
+}
+
+}  // namespace
+
+// A copy of the bench's configs (and the driver files its rigs name) in `base`, with a rig named
+// `rig` like modbus.yaml whose transducer's register map is padded with comments to about
+// `map_bytes` (valid YAML, the same map). Returns the configs folder.
+std::filesystem::path configs_with_padded_map(const std::filesystem::path& base, const std::string& rig, std::size_t map_bytes) {
+  const auto configs = base / "configs", drivers = base / "drivers" / "configs";
+  std::filesystem::create_directories(drivers);
+  std::filesystem::copy(hil::test::source_path("configs"), configs, std::filesystem::copy_options::recursive);
+  std::filesystem::copy(hil::test::source_path("drivers/configs"), drivers, std::filesystem::copy_options::recursive);
+  {
+    std::ofstream map(drivers / (rig + "_map.yaml"));
+    map << hil::test::slurp(drivers / "modbus_transducer_map.yaml");
+    const std::string padding = "# " + std::string(98, '-') + "\n";
+    for (std::size_t bytes = 0; bytes < map_bytes; bytes += padding.size()) map << padding;
+  }
+  std::string text = hil::test::slurp(configs / "rigs" / "modbus.yaml");
+  text.replace(text.find("modbus_transducer_map.yaml"), std::string("modbus_transducer_map.yaml").size(), rig + "_map.yaml");
+  std::ofstream(configs / "rigs" / (rig + ".yaml")) << text;
+  return configs;
+}
+
+// A rig whose register map is megabytes (a tester's 6.7 MB map kept the server's I/O thread, and
+// every request with it, for 60 s at each GET /api/rigs): refused unread past 1 MiB, the rig
+// listed with an error naming the file and the limit; the other rigs are listed as before.
+TEST(ServerProtocol, AHugeRegisterMapIsRefusedNamingTheFileAndTheLimit) {
+  hil::test::TempDir base;
+  ServerProcess server({"--configs", configs_with_padded_map(base.path(), "huge", 1'200'000).string()});
+  const json rigs = server.client().get("/api/rigs").json()["rigs"];
+  ASSERT_EQ(rigs.size(), 5u) << rigs.dump(2);
+  for (const auto& r : rigs) {
+    if (r["name"] != "huge") {
+      EXPECT_FALSE(r.contains("error")) << r.dump(2);
+      continue;
+    }
+    const std::string error = r.value("error", "");
+    EXPECT_NE(error.find("huge_map.yaml: "), std::string::npos) << error;
+    EXPECT_NE(error.find("more than the 1048576 bytes (1 MiB) a YAML config file may have"), std::string::npos) << error;
+  }
+  const auto start = server.client().post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "huge"}});
+  EXPECT_FALSE(start.ok()) << start.body;  // "invalid rig file", as for any rig file that does not load
+  EXPECT_NE(start.body.find("huge_map.yaml"), std::string::npos) << start.body;
+}
+
+// The bytes the server process has read so far (its /proc/PID/io rchar: files and sockets).
+std::uint64_t bytes_read(pid_t pid) {
+  std::ifstream io("/proc/" + std::to_string(pid) + "/io");
+  for (std::string key; io >> key;) {
+    std::uint64_t value = 0;
+    io >> value;
+    if (key == "rchar:") return value;
+  }
+  return 0;
+}
+
+// GET /api/rigs loads each rig with its device files and register maps on the I/O thread; an
+// unchanged rig is not read again (a 900 KB register map was read and parsed at every request),
+// and a change to any file a rig's load read (here its register map, not the rig file) is seen.
+TEST(ServerProtocol, AnUnchangedRigIsNotReadAgainAndAChangeToItsRegisterMapIs) {
+  hil::test::TempDir base;
+  const auto configs = configs_with_padded_map(base.path(), "padded", 900'000);
+  ServerProcess server({"--configs", configs.string()});
+  const auto api = server.client();
+  const std::string first = api.get("/api/rigs").body;
+  EXPECT_EQ(first.find("\"error\""), std::string::npos) << first;
+  const std::uint64_t before = bytes_read(server.pid());
+  const std::string second = api.get("/api/rigs").body;
+  EXPECT_LT(bytes_read(server.pid()) - before, 100'000u) << "the rigs were read again";
+  EXPECT_EQ(second, first);
+
+  std::ofstream(base.path() / "drivers" / "configs" / "padded_map.yaml", std::ios::app) << "bits: {fault: 1}\n";
+  const json rigs = api.get("/api/rigs").json()["rigs"];
+  const auto padded = std::find_if(rigs.begin(), rigs.end(), [](const json& r) { return r["name"] == "padded"; });
+  ASSERT_NE(padded, rigs.end()) << rigs.dump(2);
+  EXPECT_NE(padded->value("error", "").find("duplicate key 'bits'"), std::string::npos) << padded->dump(2);
 }

@@ -260,7 +260,7 @@ int telemetry(const CtlArgs& a, const ApiClient& api) {
   long rows = 0;
   char target[64];
   std::snprintf(target, sizeof target, "/api/telemetry?rate_hz=%g", a.rate_hz);
-  api.stream(target, [&](const std::string& message) {
+  const auto on_message = [&](const std::string& message) {
     const json j = json::parse(message);
     const std::string type = j.value("type", "");
     if (type == "hello") {
@@ -281,7 +281,12 @@ int telemetry(const CtlArgs& a, const ApiClient& api) {
     }
     std::fflush(stdout);
     return a.count <= 0 || rows < a.count;
-  });
+  };
+  try {
+    api.stream(target, on_message);
+  } catch (const ApiRefused& e) {
+    fail(e.reply());  // the server's status, error and detail, as any other command says them
+  }
   return 0;
 }
 

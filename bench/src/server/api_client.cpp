@@ -172,8 +172,8 @@ void ApiClient::stream(const std::string& target, const std::function<bool(const
     req.set(http::field::user_agent, "hilbench-ctl");
     if (!token_.empty()) req.set(http::field::authorization, "Bearer " + token_);
   }));
+  websocket::response_type res;
   try {
-    websocket::response_type res;
     beast::get_lowest_layer(ws).expires_after(timeout_);
     run_op(io, [&](auto handler) { ws.async_handshake(res, host_ + ":" + port_, target, handler); });
     beast::flat_buffer buffer;
@@ -190,6 +190,14 @@ void ApiClient::stream(const std::string& target, const std::function<bool(const
     } catch (const boost::system::system_error&) {}
   } catch (const boost::system::system_error& e) {
     if (e.code() == websocket::error::closed) return;
+    if (e.code() == websocket::error::upgrade_declined) {
+      // Beast keeps the reply it declined: its status and the server's JSON error are the reason,
+      // where "the WebSocket handshake was declined" alone hid a 401 or a bad option.
+      ApiReply reply{static_cast<int>(res.result_int()), res.body(), std::string(res[http::field::content_type])};
+      const std::string what = "WebSocket " + target + " at " + host_ + ":" + port_ + ": the server answered HTTP " +
+                               std::to_string(reply.status) + " instead of the upgrade: " + printable(reply.body, 300);
+      throw ApiRefused(what, std::move(reply));
+    }
     throw ApiUnreachable("WebSocket " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());
   }
 }

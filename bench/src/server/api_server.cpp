@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdio>
 #include <map>
 #include <cmath>
 #include <deque>
 #include <fstream>
 #include <optional>
+#include <random>
 #include <sstream>
 #include <unordered_map>
 #include <variant>
@@ -28,6 +30,7 @@
 #include "jobs.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/config.hpp"
+#include "hil/config_files.hpp"
 #include "hil/plant/plant.hpp"
 #include "hil/units.hpp"
 #include "hil/json_file.hpp"
@@ -44,7 +47,8 @@ using tcp = asio::ip::tcp;
 using nlohmann::json;
 using Request = http::request<http::string_body>;
 
-constexpr std::size_t kWsQueueLimit = 1024;  // messages per client; beyond: dropped and counted
+constexpr std::size_t kWsQueueLimit = 1024;  // telemetry messages per client; beyond: dropped and counted
+constexpr std::size_t kWsRepliesLimit = 64;  // the session's own messages per client (answers to its requests)
 
 struct Reply;
 
@@ -242,6 +246,33 @@ void allow_fields(const json& j, std::initializer_list<const char*> allowed) {
   for (const auto& item : j.items()) refuse_unknown(item.key(), item.key(), names, "unknown field");
 }
 
+// A number given in the query (`key`): the whole text is the number (cfg::parse_number), so
+// "20abc" is refused rather than read as 20.
+double query_number(const Target& t, const char* key, double fallback) {
+  const auto q = t.query.find(key);
+  if (q == t.query.end()) return fallback;
+  double value = 0;
+  if (!cfg::parse_number(q->second, value)) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   std::string("'") + key + "' must be a number, got '" + printable(q->second, 40) + "'", key};
+  }
+  return value;
+}
+
+// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given). A typo in an
+// option (?rate=5000) or a half-number (?rate_hz=20abc) is refused: silently streaming at another
+// rate than asked for hides the mistake.
+double telemetry_rate_hz(const Target& t) {
+  for (const auto& item : t.query) {
+    refuse_unknown(item.first, loggable_target(item.first), {"rate_hz", "token"}, "unknown query option",
+                   "; /api/telemetry takes rate_hz (and token)");
+  }
+  const double rate_hz = query_number(t, "rate_hz", 20);
+  if (!(rate_hz > 0 && rate_hz <= 5000))
+    throw ApiError{http::status::bad_request, "bad field", "'rate_hz' must be in (0, 5000] rows per second", "rate_hz"};
+  return rate_hz;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -264,6 +295,22 @@ bool offers_foxglove(const Request& req) {
   return false;
 }
 
+// Beast refuses a handshake it cannot complete (no Sec-WebSocket-Key, a version other than 13, no
+// Host) with its message as plain text; the API's errors are JSON, so the refusal becomes the same
+// error body, naming the header at fault. The decorator sees only the response, and Beast's
+// message names the header ("The WebSocket handshake Sec-WebSocket-Key field is missing").
+void refused_handshake(websocket::response_type& res) {
+  const std::string why = res.body();
+  std::string header;
+  for (const char* name : {"Sec-WebSocket-Key", "Sec-WebSocket-Version", "Host"}) {
+    if (why.find(std::string(" ") + name + " field") != std::string::npos) header = name;
+  }
+  const Reply reply = error_reply(res.result(), "WebSocket handshake refused", why, header);
+  res.set(http::field::content_type, reply.content_type);
+  res.body() = reply.body;
+  res.prepare_payload();
+}
+
 // One open client connection, HTTP or WebSocket, counted while it lives: the server takes at
 // most kMaxConnections at once. A flood of idle sockets (20 000 from one client) took every file
 // descriptor the process had, and the next run could not write its run.json.
@@ -283,28 +330,61 @@ class ConnectionSlot {
   std::shared_ptr<std::atomic<int>> open_;
 };
 
+namespace {
+
+// The connection of a WebSocket session: what the HTTP session had read past the upgrade request
+// is read first, then the socket. A client may send its first frames in the same write as the
+// upgrade (a Foxglove subscribe, a ping); handed over as a bare socket, those bytes were lost and
+// the client waited for an answer that never came.
+class UpgradedStream : public beast::buffered_read_stream<beast::tcp_stream, beast::flat_buffer> {
+ public:
+  using buffered_read_stream::buffered_read_stream;
+};
+
+// The WebSocket close on it is the TCP stream's (Beast looks these up by argument).
+[[maybe_unused]] void teardown(beast::role_type role, UpgradedStream& stream, beast::error_code& ec) {
+  using beast::websocket::teardown;
+  teardown(role, stream.next_layer(), ec);
+}
+template <class Handler>
+void async_teardown(beast::role_type role, UpgradedStream& stream, Handler&& handler) {
+  using beast::websocket::async_teardown;
+  async_teardown(role, stream.next_layer(), std::forward<Handler>(handler));
+}
+
+}  // namespace
+
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(tcp::socket&& socket, TelemetryHub& hub, bool foxglove, ConnectionSlot slot)
-      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), slot_(std::move(slot)) {}
+  // read_ahead: the bytes the HTTP session read past the upgrade request, the client's first frames.
+  // session_id: Foxglove's serverInfo.sessionId, the server's (ApiServer::Impl::session_id).
+  WsSession(tcp::socket&& socket, beast::flat_buffer read_ahead, TelemetryHub& hub, bool foxglove, std::string session_id,
+            ConnectionSlot slot)
+      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), session_id_(std::move(session_id)), slot_(std::move(slot)) {
+    ws_.next_layer().buffer() = std::move(read_ahead);
+  }
   WsSession(const WsSession&) = delete;
   WsSession& operator=(const WsSession&) = delete;
   ~WsSession() {
     hub_.unsubscribe(this);
     if (dropped_ > 0) spdlog::info("telemetry WebSocket closed; {} messages were dropped for a slow reader", dropped_);
+    if (replies_dropped_ > 0)
+      spdlog::info("telemetry WebSocket closed; {} answers to its requests were dropped (it asked without reading)",
+                   replies_dropped_);
   }
 
   void run(Request req, double rate_hz) {
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     ws_.set_option(websocket::stream_base::decorator([foxglove = foxglove_](websocket::response_type& res) {
       res.set(http::field::server, "hilbench");
+      if (res.result() != http::status::switching_protocols) return refused_handshake(res);
       if (foxglove) res.set(http::field::sec_websocket_protocol, std::string(foxglove::kSubprotocol));
     }));
     ws_.read_message_max(kWsClientMessageMax);
     ws_.async_accept(req, [self = shared_from_this(), rate_hz](beast::error_code ec) {
       if (ec) return;
       if (self->foxglove_) {
-        self->send_text(dump_json(foxglove::server_info(std::to_string(reinterpret_cast<std::uintptr_t>(self.get())))));
+        self->send_text(dump_json(foxglove::server_info(self->session_id_)));
         self->send_text(dump_json(foxglove::advertise()));
       } else {
         json names = json::array();
@@ -324,7 +404,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     asio::post(ws_.get_executor(), [self = shared_from_this(), batch = std::move(batch)] {
       for (const auto& m : batch) {
         if (const auto* text = std::get_if<std::shared_ptr<const std::string>>(&m)) {
-          self->enqueue({*text, false});
+          self->enqueue({*text, false, true});
           continue;
         }
         const auto& frame = std::get<std::shared_ptr<const foxglove::Frame>>(m);
@@ -332,7 +412,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
           const std::string& payload = frame->payloads[channel];
           if (!payload.empty())
             self->enqueue(
-                {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true});
+                {std::make_shared<const std::string>(foxglove::message_data(subscription, frame->timestamp_ns, payload)), true,
+                 true});
         }
       }
     });
@@ -342,21 +423,35 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   struct Outgoing {
     std::shared_ptr<const std::string> bytes;
     bool binary;
+    bool telemetry;  // of the hub's stream (rows, notices), not the session's own message
   };
   static constexpr std::size_t kWsClientMessageMax = 64 * 1024;
 
-  void send_text(std::string text) { enqueue({std::make_shared<const std::string>(std::move(text)), false}); }
+  // The session's own message: the hello, Foxglove's serverInfo and advertise, an answer to the client.
+  void send_text(std::string text) { enqueue({std::make_shared<const std::string>(std::move(text)), false, false}); }
 
-  // Session thread.
+  // Session thread. What is dropped, and told to the client as dropped, is telemetry only: the
+  // session's answers to a client's requests counted as dropped rows before, so a client sending
+  // bad requests was told it had missed telemetry it had not. Those answers have their own bound
+  // (a client that asks without reading loses answers, not the server's memory).
   void enqueue(Outgoing message) {
     if (closed_) return;
-    if (queue_.size() >= kWsQueueLimit) {
+    if (message.telemetry && telemetry_queued_ >= kWsQueueLimit) {
       ++dropped_;
       ++dropped_unreported_;
       return;
     }
-    queue_.push_back(std::move(message));
+    if (!message.telemetry && queue_.size() - telemetry_queued_ >= kWsRepliesLimit) {
+      ++replies_dropped_;
+      return;
+    }
+    push(std::move(message));
     if (queue_.size() == 1) write();
+  }
+
+  void push(Outgoing message) {
+    if (message.telemetry) ++telemetry_queued_;
+    queue_.push_back(std::move(message));
   }
 
   void write() {
@@ -365,19 +460,21 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       if (ec) {
         self->closed_ = true;
         self->queue_.clear();
+        self->telemetry_queued_ = 0;
         self->hub_.unsubscribe(self.get());
         return;
       }
+      if (self->queue_.front().telemetry) --self->telemetry_queued_;
       self->queue_.pop_front();
       // The client learns in-band what it missed, once there is room to tell it.
-      if (self->dropped_unreported_ > 0 && self->queue_.size() < kWsQueueLimit / 2) {
+      if (self->dropped_unreported_ > 0 && self->telemetry_queued_ < kWsQueueLimit / 2) {
         const std::string why = "this client read slower than the telemetry was sent; telemetry.csv is the lossless record";
         const json notice =
             self->foxglove_
                 ? foxglove::status(1, std::to_string(self->dropped_unreported_) + " messages dropped (" +
                                           std::to_string(self->dropped_) + " in all): " + why)
                 : json{{"type", "dropped"}, {"messages", self->dropped_unreported_}, {"total", self->dropped_}, {"why", why}};
-        self->queue_.push_back({std::make_shared<const std::string>(dump_json(notice)), false});
+        self->push({std::make_shared<const std::string>(dump_json(notice)), false, false});
         self->dropped_unreported_ = 0;
       }
       if (!self->queue_.empty()) self->write();
@@ -423,14 +520,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     }
   }
 
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<UpgradedStream> ws_;
   TelemetryHub& hub_;
   const bool foxglove_;
+  const std::string session_id_;
   ConnectionSlot slot_;                                 // handed over from the HTTP session it was upgraded from
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
   std::deque<Outgoing> queue_;
-  std::size_t dropped_ = 0, dropped_unreported_ = 0;
+  std::size_t telemetry_queued_ = 0;  // of queue_
+  std::size_t dropped_ = 0, dropped_unreported_ = 0, replies_dropped_ = 0;
   bool closed_ = false;
 };
 
@@ -605,6 +704,23 @@ void TelemetryHub::fan_out(const std::vector<Item>& items) {
 
 class HttpSession;
 
+namespace {
+
+// This server process's Foxglove sessionId: the same for every connection to it and new at each
+// start, so that a client reconnecting can tell a restarted server from a dropped connection. The
+// start time and random bits, never an address (a heap pointer told any client the process's
+// memory layout, which address-space randomisation is there to hide).
+std::string new_session_id() {
+  std::random_device random;
+  const auto start_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  char text[64];
+  std::snprintf(text, sizeof text, "%llx-%08x%08x", static_cast<unsigned long long>(start_ns), random(), random());
+  return text;
+}
+
+}  // namespace
+
 struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
       : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_), jobs(options.max_waiting_jobs) {}
@@ -620,7 +736,15 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   // The HTTP sessions, for evicting the longest-idle one when the connections are at their cap
   // (io thread only; expired ones are pruned there).
   std::vector<std::weak_ptr<HttpSession>> http_sessions;
-  JobQueue jobs;  // submitted to on the io thread only: a check and its submit never race
+  JobQueue jobs;                                    // submitted to on the io thread only: a check and its submit never race
+  const std::string session_id = new_session_id();  // Foxglove's serverInfo.sessionId
+  // GET /api/rigs's entry of each rig, with the files its load read (the rig's, its device files,
+  // register maps): parsed again only when one of them has changed. Io thread only.
+  struct RigListing {
+    json entry;
+    std::vector<cfg::FileStamp> files;
+  };
+  std::map<std::string, RigListing> rig_listings;
 
   void accept();
   bool evict_longest_idle();
@@ -689,11 +813,16 @@ std::optional<std::string> foreign_origin(const Request& req) {
 bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
   if (options.token.empty()) return true;
   const auto field = req[http::field::authorization];
-  const std::string_view auth(field.data(), field.size());
-  constexpr std::string_view bearer = "Bearer ";
-  if (auth.size() > bearer.size() && auth.substr(0, bearer.size()) == bearer &&
-      constant_time_equal(std::string_view(auth.data() + bearer.size(), auth.size() - bearer.size()), options.token)) {
-    return true;
+  std::string_view auth(field.data(), field.size());
+  // RFC 9110 11.1: the scheme is case-insensitive ("bearer", "BEARER"), and one or more spaces
+  // part it from the credentials. The token itself is compared exactly, in constant time.
+  constexpr std::string_view bearer = "bearer";
+  if (auth.size() > bearer.size() &&
+      beast::iequals(field.substr(0, bearer.size()), beast::string_view(bearer.data(), bearer.size())) &&
+      auth[bearer.size()] == ' ') {
+    auth.remove_prefix(bearer.size());
+    while (!auth.empty() && auth.front() == ' ') auth.remove_prefix(1);
+    if (!auth.empty() && constant_time_equal(auth, options.token)) return true;
   }
   // Browsers cannot set headers on a WebSocket: the query may carry it.
   const auto q = t.query.find("token");
@@ -735,9 +864,18 @@ Reply ApiServer::Impl::campaigns() {
 }
 
 Reply ApiServer::Impl::rigs() {
+  // Loading a rig reads and checks its device files and register maps, on the io thread: an
+  // unchanged rig is not loaded again (a large register map took seconds at each request).
+  std::map<std::string, RigListing> listings;
   json list = json::array();
   for (const auto& name : yaml_stems(options.rigs_dir)) {
+    if (const auto kept = rig_listings.find(name); kept != rig_listings.end() && cfg::unchanged(kept->second.files)) {
+      list.push_back(kept->second.entry);
+      listings.insert(rig_listings.extract(kept));
+      continue;
+    }
     json j = {{"name", name}, {"file", (options.rigs_dir / (name + ".yaml")).string()}};
+    cfg::ReadFiles read;
     try {
       const RigConfig r = load_rig_config(options.rigs_dir / (name + ".yaml"));
       j["kind"] = r.kind;
@@ -748,7 +886,9 @@ Reply ApiServer::Impl::rigs() {
       j["error"] = e.what();
     }
     list.push_back(j);
+    listings.emplace(name, RigListing{std::move(j), read.files()});
   }
+  rig_listings = std::move(listings);  // rigs whose file is gone are forgotten
   return json_reply(http::status::ok, {{"rigs", list}});
 }
 
@@ -784,13 +924,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
         if (!r.empty()) s.runs.push_back(r);
       }
     }
-    if (const auto speed = option("speed")) {
-      try {
-        s.speed = std::stod(*speed);
-      } catch (const std::exception&) {
-        throw ApiError{http::status::bad_request, "bad field", "'speed' must be a number"};
-      }
-    }
+    if (option("speed")) s.speed = query_number(t, "speed", s.speed);
   } else {
     s.runs = field<std::vector<std::string>>(body, "runs", {});
     if (body.contains("speed")) s.speed = number_field(body, "speed");
@@ -1348,7 +1482,9 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   const Route* other_method = nullptr;
   for (const auto& r : kRoutes) {
     if (!match(r.path, t.path, args)) continue;
-    if (r.method == req.method()) return r.handle(*this, req, t, args);
+    // HEAD is GET without the body (RFC 9110 9.3.2): the same route, the same header fields.
+    const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
+    if (r.method == req.method() || head_of_get) return r.handle(*this, req, t, args);
     other_method = &r;
   }
   if (other_method != nullptr) {
@@ -1390,7 +1526,8 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
   Reply reply;
   if (!authorised(req, t)) {
     spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
-    if (t.path.empty() && req.method() == http::verb::get) {
+    // A page asks for the token; a WebSocket handshake to / is refused in JSON like any other.
+    if (t.path.empty() && req.method() == http::verb::get && !websocket::is_upgrade(req)) {
       Reply r{http::status::unauthorized, std::string(kTokenForm), "text/html; charset=utf-8", {}, {}};
       r.no_store = true;
       return r;
@@ -1463,9 +1600,11 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return close();
     if (ec) {
       draining_ = ec == http::error::body_limit;  // read the rest of the body after answering, so the client sees the 413
+      head_ = false;
       return send(api_->parse_failure(ec), false);
     }
     Request req = parser_->release();
+    head_ = req.method() == http::verb::head;
     // One request's failure is that request's answer, never the server's end: a handler that
     // throws anything gets a 500 for this request, and a running campaign goes on.
     try {
@@ -1480,7 +1619,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
       if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
       Reply reply = api_->answer(req, target);
-      send(std::move(reply), req.keep_alive());
+      // A refused upgrade ends the connection, as Beast's own refusals of a handshake do: the
+      // client asked for a WebSocket, not for more HTTP on this connection.
+      send(std::move(reply), req.keep_alive() && !websocket::is_upgrade(req));
     } catch (const std::exception& e) {
       spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
       send(error_reply(http::status::internal_server_error, "internal error", e.what()), false);
@@ -1494,18 +1635,16 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (target.path != std::vector<std::string>{"api", "telemetry"}) {
       return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
     }
-    double rate = 20;
-    if (const auto q = target.query.find("rate_hz"); q != target.query.end()) {
-      try {
-        rate = std::stod(q->second);
-      } catch (const std::exception&) {
-        rate = -1;
-      }
+    double rate_hz = 20;
+    try {
+      rate_hz = telemetry_rate_hz(target);
+    } catch (const ApiError& e) {
+      return send(error_reply(e.status, e.error, e.detail, e.field), false);
     }
-    if (!(rate > 0 && rate <= 5000))
-      return send(error_reply(http::status::bad_request, "bad rate_hz", "must be in (0, 5000]"), false);
     const bool foxglove = offers_foxglove(req);
-    std::make_shared<WsSession>(stream_.release_socket(), api_->hub, foxglove, std::move(slot_))->run(std::move(req), rate);
+    std::make_shared<WsSession>(stream_.release_socket(), std::move(buffer_), api_->hub, foxglove, api_->session_id,
+                                std::move(slot_))
+        ->run(std::move(req), rate_hz);
   }
 
   void send(Reply reply, bool keep_alive) {
@@ -1552,6 +1691,15 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   template <class Response>
   void write(const std::shared_ptr<Response>& res) {
+    if constexpr (!std::is_same_v<typename Response::body_type, http::empty_body>) {
+      if (head_) {
+        // The answer to HEAD is the header alone, its Content-Length that of the body not sent: a
+        // body after it would be read by the client as the start of the next answer.
+        auto header_only = std::make_shared<http::response<http::empty_body>>();
+        header_only->base() = res->base();
+        return write(header_only);
+      }
+    }
     http::async_write(stream_, *res, [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
       if (ec || !res->keep_alive()) return self->close();
       self->read();
@@ -1580,6 +1728,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   bool draining_ = false;
+  bool head_ = false;  // the request being answered is a HEAD: its answer has no body
   std::size_t drained_ = 0;
   std::optional<std::chrono::steady_clock::time_point> idle_since_;
   std::array<char, 16384> scratch_{};

@@ -26,6 +26,18 @@ class ApiUnreachable : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The server answered the request for a WebSocket with an error reply (400 for a bad option, 401
+// without the token, 403 from a foreign page) instead of the upgrade: that reply, whose error and
+// detail say why.
+class ApiRefused : public std::runtime_error {
+ public:
+  ApiRefused(const std::string& what, ApiReply reply) : std::runtime_error(what), reply_(std::move(reply)) {}
+  const ApiReply& reply() const { return reply_; }
+
+ private:
+  ApiReply reply_;
+};
+
 class ApiClient {
  public:
   // url: "http://127.0.0.1:8470" (or host:port). token: sent as "Authorization: Bearer" when set.
@@ -41,7 +53,8 @@ class ApiClient {
   ApiReply download(const std::string& target, const std::filesystem::path& to) const;
 
   // Opens the WebSocket telemetry stream and calls on_message for every message until it returns
-  // false, the server closes, or `timeout` passes without a message.
+  // false, the server closes, or `timeout` passes without a message. An error reply instead of the
+  // upgrade is ApiRefused.
   void stream(const std::string& target, const std::function<bool(const std::string&)>& on_message) const;
 
   const std::string& host() const { return host_; }
