@@ -840,7 +840,10 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
   try {
     return load_rig_config(options.rigs_dir / (name + ".yaml"));
   } catch (const cfg::Error& e) {
-    throw ApiError{http::status::internal_server_error, "invalid rig file", e.what()};
+    // The request is sound, the rig it names is not usable as its files stand: a conflict with the
+    // bench's state that the operator fixes in the file (GET /api/rigs lists the same error), not
+    // a server failure.
+    throw ApiError{http::status::conflict, "invalid rig file", e.what(), "rig"};
   }
 }
 
