@@ -35,6 +35,20 @@ std::string config_error(const std::string& yaml) {
 
 const std::string kSafety = "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 100, p_max_mpa: 2.5, p_min_mpa: 0.2}\n";
 
+// Period by period (1 ms), commanding the motor's own position plus offset_rad, until the rig's
+// status is `want` and its health text holds `text`; the bound only ends a chain that is broken (a
+// loaded machine may need many periods for the first fresh TPDO or poll).
+bool run_until(bench::DeviceRig& rig, bench::RigStatus want, double offset_rad = 0, const std::string& text = "") {
+  bench::RigReading rd;
+  for (int k = 0; k < 20000; ++k) {
+    std::this_thread::sleep_for(1ms);
+    const auto s = rig.read(Clock::now(), 1ms, rd);
+    rig.write(Clock::now(), 1ms, {rd.theta_motor_rad + offset_rad, true, bench::kNaN});
+    if (s == want && rig.health().last_error_text().find(text) != std::string_view::npos) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 TEST(RigConfig, ShippedRigFilesLoad) {
@@ -201,34 +215,21 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   const auto campaign = short_paper_campaign(2);
   drv::LoopbackBus bus;
   SimulatorSide side(campaign, bus.factory());
-  // Waits for the state, period by period; the bound only ends a chain that is broken (a loaded
-  // machine may need many periods for the first fresh TPDO or poll).
-  constexpr int kPatience = 20000;
-  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, int periods) {
-    bench::RigReading rd;
-    for (int k = 0; k < periods; ++k) {
-      std::this_thread::sleep_for(1ms);
-      const auto s = rig.read(Clock::now(), 1ms, rd);
-      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad, true, bench::kNaN});
-      if (s == want) return true;
-    }
-    return false;
-  };
   {
     TempDir dir;
     const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
     bench::DeviceRig& rig = *owned_rig;
     rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
     rig.activate();
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience));
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
     side.can.set_silent(true);
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale, kPatience));
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale));
     const long before = thread_allocations();  // the loop calls health() when it trips: the text is formatted in place
     const bench::RigHealth h = rig.health();
     EXPECT_EQ(thread_allocations() - before, 0);
     EXPECT_NE(h.last_error_text().find("drive: no TPDO since the last SYNC"), std::string_view::npos) << h.last_error_text();
     side.can.set_silent(false);
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience)) << rig.health().last_error_text();
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok)) << rig.health().last_error_text();
   }
   {
     TempDir dir;
@@ -236,14 +237,14 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
     bench::DeviceRig& rig = *owned_rig;
     rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
     rig.activate();
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience));
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
     side.transducer.set_response_delay(20ms);  // answers, but late: every reading is too old
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale, kPatience));
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::stale));
     EXPECT_NE(rig.health().last_error_text().find("transducer: newest reading"), std::string_view::npos)
         << rig.health().last_error_text();
     EXPECT_NE(rig.health().last_error_text().find("(limit 4.0 ms)"), std::string_view::npos) << rig.health().last_error_text();
     side.transducer.set_response_delay(0us);
-    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, kPatience)) << rig.health().last_error_text();
+    ASSERT_TRUE(run_until(rig, bench::RigStatus::ok)) << rig.health().last_error_text();
     rig.deactivate();
   }
 }
@@ -257,16 +258,6 @@ TEST(DeviceRig, AModbusDriveThatRefusesItsWritesIsAFaultAndAFailedSwitchOffIsSai
   const auto campaign = short_paper_campaign(2);
   drv::LoopbackBus bus;
   SimulatorSide side(campaign, bus.factory());
-  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, double offset_rad) {
-    bench::RigReading rd;
-    for (int k = 0; k < 20000; ++k) {
-      std::this_thread::sleep_for(1ms);
-      const auto s = rig.read(Clock::now(), 1ms, rd);
-      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad + offset_rad, true, bench::kNaN});
-      if (s == want) return true;
-    }
-    return false;
-  };
   TempDir dir;
   const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
   bench::DeviceRig& rig = *owned_rig;
@@ -294,18 +285,6 @@ TEST(DeviceRig, AReadRefusedWithAnExceptionIsNamedWhenTheReadingGoesStale) {
   const auto campaign = short_paper_campaign(2);
   drv::LoopbackBus bus;
   SimulatorSide side(campaign, bus.factory());
-  // Period by period until the status is `want` and the health text holds `text`; the bound only
-  // ends a chain that is broken.
-  auto run_until = [](bench::DeviceRig& rig, bench::RigStatus want, const std::string& text = "") {
-    bench::RigReading rd;
-    for (int k = 0; k < 20000; ++k) {
-      std::this_thread::sleep_for(1ms);
-      const auto s = rig.read(Clock::now(), 1ms, rd);
-      rig.write(Clock::now(), 1ms, {rd.theta_motor_rad, true, bench::kNaN});
-      if (s == want && rig.health().last_error_text().find(text) != std::string_view::npos) return true;
-    }
-    return false;
-  };
   TempDir dir;
   const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
   bench::DeviceRig& rig = *owned_rig;
@@ -313,7 +292,7 @@ TEST(DeviceRig, AReadRefusedWithAnExceptionIsNamedWhenTheReadingGoesStale) {
   rig.activate();
   ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
   side.transducer.set_exception(2);
-  EXPECT_TRUE(run_until(rig, bench::RigStatus::stale, "ILLEGAL DATA ADDRESS (exception 2)")) << rig.health().last_error_text();
+  EXPECT_TRUE(run_until(rig, bench::RigStatus::stale, 0, "ILLEGAL DATA ADDRESS (exception 2)")) << rig.health().last_error_text();
   const std::string text(rig.health().last_error_text());
   EXPECT_NE(text.find("transducer: newest reading"), std::string::npos) << text;
   EXPECT_NE(text.find("reading input registers 0..2 (pressure, status)"), std::string::npos) << text;
