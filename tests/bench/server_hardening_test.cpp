@@ -734,6 +734,7 @@ TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
   EXPECT_EQ(heads[0].rfind("HTTP/1.1 200", 0), 0u) << heads[0];
   EXPECT_NE(heads[0].find("Content-Length: " + std::to_string(get_body.size())), std::string::npos) << heads[0];
   EXPECT_EQ(heads[1].rfind("HTTP/1.1 405", 0), 0u) << heads[1];
+  EXPECT_NE(heads[1].find("\r\nAllow: POST\r\n"), std::string::npos) << heads[1];  // RFC 9110 15.5.6: a 405 says what is
   EXPECT_EQ(heads[2].rfind("HTTP/1.1 200", 0), 0u) << heads[2];
   EXPECT_NE(heads[2].find("Content-Length: 19"), std::string::npos) << heads[2];
   EXPECT_EQ(heads[3].rfind("HTTP/1.1 200", 0), 0u) << heads[3];

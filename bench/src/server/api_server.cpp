@@ -68,6 +68,7 @@ struct Reply {
   std::filesystem::path file;                     // non-empty: send this file
   std::string extra_header;                       // Content-Disposition for downloads
   bool no_store = false;                          // Cache-Control: no-store (the console: a new build is a new page)
+  std::string allow;                              // Allow, on a 405
   std::shared_ptr<const JobWait> wait = nullptr;  // set: the final answer comes when the job has finished
 };
 
@@ -106,6 +107,7 @@ struct ApiError {
   http::status status;
   std::string error, detail;
   std::string field = {};  // the body field at fault, where one is
+  std::string allow = {};  // a 405's Allow header: the methods the path takes (RFC 9110 15.5.6)
 };
 
 std::string percent_decode(std::string_view s) {
@@ -1482,18 +1484,18 @@ Reply route_index() {
 
 Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   std::vector<std::string> args;
-  const Route* other_method = nullptr;
+  std::string allow;  // the methods the path takes, for a 405
   for (const auto& r : kRoutes) {
     if (!match(r.path, t.path, args)) continue;
     // HEAD is GET without the body (RFC 9110 9.3.2): the same route, the same header fields.
     const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
     if (r.method == req.method() || head_of_get) return r.handle(*this, req, t, args);
-    other_method = &r;
+    allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(r.method));
+    if (r.method == http::verb::get) allow += ", HEAD";
   }
-  if (other_method != nullptr) {
+  if (!allow.empty()) {
     throw ApiError{http::status::method_not_allowed, "method not allowed",
-                   std::string(req.method_string()) + " " + loggable_target(req.target()) + ": use " +
-                       std::string(http::to_string(other_method->method))};
+                   std::string(req.method_string()) + " " + loggable_target(req.target()) + ": use " + allow, "", allow};
   }
   if (t.path.empty() || t.path[0] != "api")
     throw ApiError{http::status::not_found, "not found", "the API lives under /api (see GET /api)"};
@@ -1545,6 +1547,7 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
       reply = handle(req, t);
     } catch (const ApiError& e) {
       reply = error_reply(e.status, e.error, e.detail, e.field);
+      reply.allow = e.allow;
     } catch (const std::exception& e) {
       spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
       reply = error_reply(http::status::internal_server_error, "internal error", e.what());
@@ -1686,6 +1689,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     res->set(http::field::server, "hilbench");
     res->set(http::field::content_type, reply.content_type);
     if (reply.no_store) res->set(http::field::cache_control, "no-store");
+    if (!reply.allow.empty()) res->set(http::field::allow, reply.allow);
     res->keep_alive(keep_alive);
     res->body() = std::move(reply.body);
     res->prepare_payload();
