@@ -751,6 +751,10 @@ TEST(ServerProtocol, CtlTelemetrySaysWhyTheServerRefusedTheStream) {
   EXPECT_EQ(too_fast.status, 1) << too_fast.output;
   EXPECT_NE(too_fast.output.find("(field 'rate_hz')"), std::string::npos) << too_fast.output;
   EXPECT_NE(too_fast.output.find("(HTTP 400)"), std::string::npos) << too_fast.output;
+  // %g writes 1e+06, whose '+' a query reads as a space: the server must be told the number sent.
+  const auto far_too_fast = hil::test::run_command(ctl + " --token right-token-123 telemetry --rate-hz 1000000 --count 1");
+  EXPECT_EQ(far_too_fast.status, 1) << far_too_fast.output;
+  EXPECT_NE(far_too_fast.output.find("must be in (0, 5000]"), std::string::npos) << far_too_fast.output;
   const auto no_token = hil::test::run_command(ctl + " telemetry --count 1");
   EXPECT_EQ(no_token.status, 1) << no_token.output;
   EXPECT_NE(no_token.output.find("unauthorized"), std::string::npos) << no_token.output;

@@ -258,8 +258,11 @@ int analyse(const CtlArgs& a, const ApiClient& api) {
 int telemetry(const CtlArgs& a, const ApiClient& api) {
   std::vector<std::string> columns;
   long rows = 0;
-  char target[64];
-  std::snprintf(target, sizeof target, "/api/telemetry?rate_hz=%g", a.rate_hz);
+  char rate[32];
+  std::snprintf(rate, sizeof rate, "%g", a.rate_hz);
+  // %g writes 1e+06; a '+' in a query is a space (the server answered "got '1e 06'").
+  std::string target = "/api/telemetry?rate_hz=";
+  for (const char* c = rate; *c != '\0'; ++c) target += *c == '+' ? std::string("%2B") : std::string(1, *c);
   const auto on_message = [&](const std::string& message) {
     const json j = json::parse(message);
     const std::string type = j.value("type", "");
