@@ -51,13 +51,19 @@ std::string_view modbus_exception_name(int code) {
 }
 
 namespace {
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback) {
+milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long max_ms = 600000,
+                std::string_view why = "") {
   auto v = n.find(key);
   if (!v) return fallback;
   const long long x = v->integer();
-  v->require(x >= 1 && x <= 600000, "must be 1..600000 ms");
+  v->require(x >= 1 && x <= max_ms, "must be 1.." + std::to_string(max_ms) + " ms" + std::string(why));
   return milliseconds(x);
 }
+
+// libmodbus cannot be interrupted inside a transaction: a run's end, an abort's included, waits for
+// the one in flight up to this long (it was 600 s). A device that needs longer to answer is no
+// device for a control loop.
+constexpr long long kMaxResponseTimeoutMs = 10000;
 
 // An integer key within [lo, hi], checked before it is narrowed to int (a cast first would make
 // 4294967298 a 2 and pass). `why` says the range and what happens outside it.
@@ -139,7 +145,8 @@ ModbusLinkConfig ModbusLinkConfig::from_yaml(const cfg::Node& n) {
   // A client asks one device: unit 0 is a broadcast, which no device answers (and 248..255 are
   // reserved).
   c.unit_id = int_in(n, "unit_id", 1, 1, 247, "a device's unit id is 1..247 (0 is a broadcast, which no device answers)");
-  c.response_timeout = ms(n, "response_timeout_ms", c.response_timeout);
+  c.response_timeout = ms(n, "response_timeout_ms", c.response_timeout, kMaxResponseTimeoutMs,
+                          " (an abort waits for the transaction in flight, which libmodbus cannot cut short)");
   c.poll_period = ms(n, "poll_period_ms", c.poll_period);
   if (auto r = n.find("reconnect")) {
     r->allow_keys({"initial_ms", "max_ms"});

@@ -158,7 +158,9 @@ TEST(ModbusLinkConfig, ValuesAClientCannotUseAreRefused) {
   expect_error(rtu + "stop_bits: 0", "link.stop_bits: must be 1 or 2 (libmodbus makes any other 2), got '0'");
   expect_error(rtu + "parity: X", "link.parity: must be N, E or O, got 'X'");
   expect_error(rtu + "port: 502", "link.port: a rtu link has no port");
-  expect_error("port: 502, response_timeout_ms: 0", "link.response_timeout_ms: must be 1..600000 ms");
+  expect_error("port: 502, response_timeout_ms: 0", "link.response_timeout_ms: must be 1..10000 ms");
+  // libmodbus cannot cut a transaction short: an abort waited up to 600 s for one in flight.
+  expect_error("port: 502, response_timeout_ms: 600000", "must be 1..10000 ms (an abort waits for the transaction in flight");
   expect_error("port: 502, poll_period_ms: -1", "link.poll_period_ms: must be 1..600000 ms");
   // What a device takes stays accepted.
   const auto ok = ModbusLinkConfig::from_yaml(
