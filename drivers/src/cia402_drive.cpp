@@ -180,6 +180,11 @@ struct Cia402Drive::Impl {
   bool pdo_running = false;
   bool expect_heartbeat = false;
   bool rebooted = false;
+  // Set by the first heartbeat saying operational after configure(); a later heartbeat in any
+  // other state means the drive stopped processing PDOs (another master's NMT stop, a drive
+  // that fell back to pre-operational): latched as a fault until configure(), as a reboot is.
+  bool seen_operational = false;
+  bool left_operational = false;
   bool bus_off_latched = false;
   bool prev_cmd_reset = false;
   std::uint16_t last_cw = 0;
@@ -202,7 +207,7 @@ struct Cia402Drive::Impl {
   void publish() {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
-    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted;
+    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted || left_operational;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
     fb.fault = h.fault;
@@ -260,6 +265,16 @@ struct Cia402Drive::Impl {
         pdo_running = false;
         error(who + ": the drive rebooted (boot-up message); configure() again");
       }
+    } else if (pdo_running && s == static_cast<std::uint8_t>(NmtState::operational)) {
+      seen_operational = true;
+    } else if (pdo_running && seen_operational && !left_operational) {
+      // Not operational any more: its TPDOs stopped and it ignores our RPDOs. Without this the
+      // run would only see stale feedback and trip on the watchdog, for the wrong reason.
+      left_operational = true;
+      char state[8];
+      std::snprintf(state, sizeof state, "0x%02X", s);
+      error(who + ": the drive left NMT operational (heartbeat says " + std::string(to_string(static_cast<NmtState>(s))) + ", " +
+            state + "); it no longer processes PDOs; configure() again");
     }
   }
 
@@ -535,6 +550,8 @@ void Cia402Drive::configure() {
     m.pdo_running = false;
     m.expect_heartbeat = false;
     m.rebooted = false;
+    m.seen_operational = false;
+    m.left_operational = false;
     m.fb.valid = false;
     m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
     m.publish();
@@ -718,7 +735,11 @@ void Cia402Drive::sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t
 
 void Cia402Drive::nmt(NmtCommand command) {
   auto& m = *impl_;
-  asio::post(m.io, [&m, command] { m.send(canopen::nmt(command, m.n)); });
+  asio::post(m.io, [&m, command] {
+    // Our own request to leave operational is no surprise: only an unasked-for change is a fault.
+    if (command != NmtCommand::start) m.seen_operational = false;
+    m.send(canopen::nmt(command, m.n));
+  });
 }
 
 void Cia402Drive::reset_fault() { impl_->reset_request = true; }

@@ -56,6 +56,37 @@ TEST_F(Cia402Loopback, NoBootUpIsAnErrorNamingTheNode) {
   }
 }
 
+// Another master (or the drive itself) takes the drive out of operational mid-run: its
+// heartbeat keeps coming, so only the NMT state in it tells that PDOs are no longer processed.
+TEST_F(Cia402Loopback, DriveLeavingOperationalMidRunIsAFault) {
+  for (const auto command : {canopen::NmtCommand::stop, canopen::NmtCommand::enter_pre_operational}) {
+    Rig r(factory(), test_config(5));
+    r.client.configure();
+    r.client.activate();
+    ASSERT_FALSE(r.client.read(Clock::now(), 1ms).fault);
+    bus.inject(canopen::nmt(command, 5));  // not from our client
+    ASSERT_TRUE(eventually([&] { return r.client.health().fault; }, 5s)) << r.client.health().last_error_text();
+    EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
+    const std::string text(r.client.health().last_error_text());
+    EXPECT_NE(text.find("node 5 on vcan0: the drive left NMT operational (heartbeat says "), std::string::npos) << text;
+    // Latched like a reboot: back to operational is not enough, configure() is.
+    bus.inject(canopen::nmt(canopen::NmtCommand::start, 5));
+    ASSERT_TRUE(eventually([&] { return r.client.health().nmt_state == 0x05; }, 5s));
+    EXPECT_TRUE(r.client.health().fault);
+    r.client.configure();
+    EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
+  }
+}
+
+// Our own NMT stop is asked for, not a surprise: no fault.
+TEST_F(Cia402Loopback, OwnNmtStopIsNoFault) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.nmt(canopen::NmtCommand::stop);
+  ASSERT_TRUE(eventually([&] { return r.client.health().nmt_state == 0x04; }, 5s));
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;
