@@ -26,6 +26,12 @@ namespace asio = boost::asio;
 using namespace canopen;
 using std::chrono::milliseconds;
 
+namespace {
+// CiA 301: "client/server command specifier not valid or unknown", how the client refuses a
+// segmented transfer it does not implement.
+constexpr std::uint32_t kSdoAbortCommandSpecifier = 0x05040001;
+}  // namespace
+
 // ---- units and config ------------------------------------------------------------------------
 
 double DriveUnits::rad_per_count() const { return sign * 2.0 * std::numbers::pi / (counts_per_rev * gear_ratio); }
@@ -147,6 +153,10 @@ struct Cia402Drive::Impl {
     std::uint32_t value = 0;
     std::uint8_t size = 0;
     int tries = 0;
+    // Replies that did not answer this request (another object, the wrong service): a drive
+    // that answers wrongly is not a silent one, and the timeout message says so.
+    int ignored = 0;
+    std::string last_ignored;
     std::promise<std::uint32_t> done;
   };
 
@@ -351,16 +361,21 @@ struct Cia402Drive::Impl {
   void on_sdo(const CanFrame& f) {
     const auto r = parse_sdo_reply(f);
     if (r.kind == SdoReply::Kind::malformed) return malformed(f, "SDO reply");
-    if (!sdo_active || r.index != sdo_active->index || r.sub != sdo_active->sub) return;  // stray reply
+    if (!sdo_active) return;  // stray reply, e.g. late for a request that already timed out
     auto req = sdo_active;
+    const auto ignore = [&] {
+      ++req->ignored;
+      req->last_ignored = to_string(f);
+    };
+    if (r.index != req->index || r.sub != req->sub) return ignore();
     const std::string obj = object_name(req->index, req->sub);
     const std::string op = req->upload ? "SDO read " + obj : "SDO write " + obj;
     switch (r.kind) {
       case SdoReply::Kind::upload:
-        if (!req->upload) return;
+        if (!req->upload) return ignore();
         return sdo_finish(nullptr, r.value);
       case SdoReply::Kind::download:
-        if (req->upload) return;
+        if (req->upload) return ignore();
         return sdo_finish(nullptr, 0);
       case SdoReply::Kind::abort: {
         ++h.aborts_or_exceptions;
@@ -373,6 +388,8 @@ struct Cia402Drive::Impl {
       default: {
         const std::string text = who + ": " + op + ": the drive started a segmented transfer; only expedited SDO is supported";
         error(text);
+        // Tell the drive, or its SDO server stays in the transfer waiting for our segment requests.
+        send(sdo_abort(n, req->index, req->sub, kSdoAbortCommandSpecifier, false));
         return sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
       }
     }
@@ -409,9 +426,13 @@ struct Cia402Drive::Impl {
         sdo_send();
         return;
       }
-      const std::string text = who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
-                               ": no reply after " + std::to_string(req->tries) + " tries of " +
-                               std::to_string(cfg.sdo_timeout.count()) + " ms";
+      const std::string text =
+          who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
+          (req->ignored == 0 ? ": no reply after " : ": no matching reply after ") + std::to_string(req->tries) + " tries of " +
+          std::to_string(cfg.sdo_timeout.count()) + " ms" +
+          (req->ignored == 0 ? std::string()
+                             : " (" + std::to_string(req->ignored) +
+                                   " replies ignored: another object or the wrong service; last " + req->last_ignored + ")");
       error(text);
       publish();
       sdo_finish(std::make_exception_ptr(DriveError(text)), 0);

@@ -2,11 +2,56 @@
 // run on a real vcan0 in tests/drivers/vcan.
 #include <gtest/gtest.h>
 
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <optional>
+#include <mutex>
+#include <vector>
+
 #include "../cia402_scenarios.hpp"
 #include "hil/drv/can_loopback.hpp"
+#include "hil/drv/canopen.hpp"
 
 namespace hil::drv::test {
 namespace {
+
+// A misbehaving drive's SDO server at node `node`: `answer` makes the reply (or none) to each
+// request the client sends; every request is kept for the test to look at.
+class FakeSdoServer {
+ public:
+  using Answer = std::function<std::optional<CanFrame>(const CanFrame& request)>;
+  FakeSdoServer(LoopbackBus& bus, std::uint8_t node, Answer answer)
+      : answer_(std::move(answer)), tr_(bus.factory()(io_, {{canopen::kSdoRx + node, 0x7FF}})) {
+    tr_->start([this](const CanFrame& f) {
+      {
+        std::lock_guard lock(mutex_);
+        requests_.push_back(f);
+      }
+      if (auto reply = answer_(f)) tr_->send(*reply);
+    });
+    thread_ = std::thread([this] { io_.run(); });
+  }
+  ~FakeSdoServer() {
+    boost::asio::post(io_, [this] { tr_->stop(); });
+    work_.reset();
+    io_.stop();
+    thread_.join();
+  }
+  std::vector<CanFrame> requests() {
+    std::lock_guard lock(mutex_);
+    return requests_;
+  }
+
+ private:
+  boost::asio::io_context io_;
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_{io_.get_executor()};
+  Answer answer_;
+  std::unique_ptr<CanTransport> tr_;
+  std::mutex mutex_;
+  std::vector<CanFrame> requests_;
+  std::thread thread_;
+};
 
 class Cia402Loopback : public ::testing::Test {
  protected:
@@ -85,6 +130,57 @@ TEST_F(Cia402Loopback, OwnNmtStopIsNoFault) {
   r.client.nmt(canopen::NmtCommand::stop);
   ASSERT_TRUE(eventually([&] { return r.client.health().nmt_state == 0x04; }, 5s));
   EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+}
+
+// A drive that starts a segmented upload (0x1008 device name, 1000 bytes): the client refuses
+// it, and must tell the drive with an abort, or the drive's server waits in the transfer.
+TEST_F(Cia402Loopback, RefusedSegmentedUploadIsAbortedOnTheBus) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    if (req.data[0] != 0x40) return std::nullopt;  // only the upload request is answered
+    CanFrame f = canopen::sdo_upload_ok(7, 0x1008, 0, 1000, 4);
+    f.data[0] = 0x41;  // initiate upload, segmented, size indicated
+    return f;
+  });
+  Cia402Drive client(test_config(7), factory());
+  try {
+    client.sdo_read(0x1008, 0);
+    ADD_FAILURE() << "a segmented upload was accepted";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("only expedited SDO is supported"), std::string::npos) << e.what();
+  }
+  ASSERT_TRUE(eventually([&] { return drive.requests().size() >= 2; }, 5s)) << "no abort sent to the drive";
+  const CanFrame abort = drive.requests()[1];
+  EXPECT_EQ(abort.data[0], 0x80);
+  EXPECT_EQ(canopen::get_le(&abort.data[1], 2), 0x1008u);
+  EXPECT_EQ(canopen::get_le(&abort.data[4], 4), 0x05040001u);  // command specifier not valid
+}
+
+// A drive that answers every request, but for another object, or with the wrong service: the
+// error must not claim it was silent.
+TEST_F(Cia402Loopback, WrongSdoRepliesAreNamedNotCalledSilence) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    if (req.data[0] == 0x40) return canopen::sdo_upload_ok(7, 0x1009, 0, 42, 4);  // read 0x1008 -> reply for 0x1009
+    return canopen::sdo_upload_ok(7, 0x1017, 0, 42, 2);                           // write -> an upload reply
+  });
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 100ms;
+  cfg.sdo_retries = 1;
+  Cia402Drive client(cfg, factory());
+  try {
+    client.sdo_read(0x1008, 0);
+    ADD_FAILURE() << "a reply for 0x1009 answered a read of 0x1008";
+  } catch (const DriveError& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("SDO read 0x1008:00: no matching reply after 2 tries of 100 ms (2 replies ignored"), std::string::npos)
+        << text;
+    EXPECT_NE(text.find("last 587#4309100"), std::string::npos) << text;  // the last ignored frame, as received
+  }
+  try {
+    client.sdo_write(0x1017, 0, 100, 2);
+    ADD_FAILURE() << "an upload reply confirmed a write";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("no matching reply after 2 tries"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
