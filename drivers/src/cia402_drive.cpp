@@ -649,11 +649,38 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": did not enter cyclic synchronous position mode within " +
                      std::to_string(m.cfg.transition_timeout.count()) + " ms (0x6061:00 = " + std::to_string(mode) + ")");
   }
+  // 0x60C2 is a u8 value times 10^index seconds: the coarsest exact (value, index), else the
+  // nearest the u8 can hold, with a note. (It used to be us/100 cast to a byte: 1050 us was sent
+  // as 1.0 ms, and 25600 us as 0.)
   const long long us = m.cfg.sync_period.count();
-  const bool whole_ms = us % 1000 == 0 && us / 1000 <= 255;
-  if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(whole_ms ? us / 1000 : us / 100), 1,
+  long long ip_value = 0;
+  int ip_index = 0;
+  for (const auto& [unit_us, index] : {std::pair{1000LL, -3}, {100LL, -4}, {10LL, -5}, {1LL, -6}}) {
+    if (us % unit_us == 0 && us / unit_us <= 255) {
+      ip_value = us / unit_us, ip_index = index;
+      break;
+    }
+  }
+  if (ip_value == 0) {  // not exact in any unit: round in the finest unit whose value fits a byte
+    for (const auto& [unit_us, index] : {std::pair{10LL, -5}, {100LL, -4}, {1000LL, -3}}) {
+      ip_value = (us + unit_us / 2) / unit_us, ip_index = index;
+      if (ip_value <= 255) break;
+    }
+  }
+  if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(ip_value), 1,
                      "the drive takes its interpolation period from SYNC")) {
-    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(whole_ms ? -3 : -4), 1);
+    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(ip_index), 1);
+    long long written_us = ip_value;
+    for (int k = -6; k < ip_index; ++k) written_us *= 10;
+    if (written_us != us) {
+      const std::string note = "0x60C2 interpolation period " + std::to_string(ip_value) + " x 10^" + std::to_string(ip_index) +
+                               " s is the nearest to the SYNC period of " + std::to_string(us) + " us a byte can hold";
+      m.notes.push_back(note);
+      m.run_on_io([&m, note] {
+        m.error(m.who + ": " + note);
+        m.publish();
+      });
+    }
   }
   const auto& lim = m.cfg.limits;
   const double rpc = std::abs(m.cfg.units.rad_per_count());

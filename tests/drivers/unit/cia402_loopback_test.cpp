@@ -183,6 +183,30 @@ TEST_F(Cia402Loopback, WrongSdoRepliesAreNamedNotCalledSilence) {
   }
 }
 
+// 0x60C2 = value (u8) x 10^index s must say the SYNC period. 1050 us used to be sent as
+// 10 x 10^-4 s (1.0 ms) and 25600 us as 256 cast to a byte, 0; 30500 us fits no byte exactly
+// and is the nearest, 31 ms, with a configure note.
+TEST_F(Cia402Loopback, InterpolationPeriodSaysTheSyncPeriod) {
+  struct Case {
+    long long sync_us;
+    std::uint32_t value;
+    std::int8_t index;
+    bool note;
+  };
+  for (const auto& c : {Case{2000, 2, -3, false}, Case{1050, 105, -5, false}, Case{250, 25, -5, false}, Case{25600, 26, -3, true},
+                        Case{30500, 31, -3, true}, Case{150, 15, -5, false}}) {
+    auto cfg = test_config(5);
+    cfg.sync_period = std::chrono::microseconds(c.sync_us);
+    Rig r(factory(), cfg);
+    r.client.configure();
+    EXPECT_EQ(r.emulator.object(0x60C2, 1), c.value) << c.sync_us << " us";
+    EXPECT_EQ(static_cast<std::int8_t>(r.emulator.object(0x60C2, 2).value_or(0)), c.index) << c.sync_us << " us";
+    bool noted = false;
+    for (const auto& n : r.client.configure_notes()) noted |= n.find("nearest to the SYNC period") != std::string::npos;
+    EXPECT_EQ(noted, c.note) << c.sync_us << " us";
+  }
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;
