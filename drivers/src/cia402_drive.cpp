@@ -199,6 +199,8 @@ struct Cia402Drive::Impl {
   bool prev_cmd_reset = false;
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
+  std::int32_t last_target_counts = 0;  // the target in the last RPDO1
+  bool bad_target_reported = false;
   Clock::time_point last_sync{};
   std::string last_emcy_text;  // the newest EMCY decoded, kept for the fault message
   std::deque<std::shared_ptr<SdoRequest>> sdo_queue;
@@ -470,9 +472,23 @@ struct Cia402Drive::Impl {
     const std::uint16_t cw = cia402::next_controlword(st, tgt, reset);
     if (cw == cia402::kCwFaultReset) reset_request = false;
     // Until enabled, the target follows the actual position so that enabling does not jump.
-    const std::int32_t pos = st == cia402::State::operation_enabled && tgt == cia402::Target::operation_enabled
-                                 ? cfg.units.to_counts(cmd.target_position_rad)
-                                 : last_pos_counts;
+    // A NaN or infinite target holds the last one: to_counts() would make it INT32_MIN or
+    // INT32_MAX counts, a full-speed move to the end of the encoder range.
+    std::int32_t pos = last_pos_counts;
+    if (st == cia402::State::operation_enabled && tgt == cia402::Target::operation_enabled) {
+      if (std::isfinite(cmd.target_position_rad)) {
+        pos = cfg.units.to_counts(cmd.target_position_rad);
+        bad_target_reported = false;
+      } else {
+        pos = last_target_counts;
+        if (!bad_target_reported) {
+          bad_target_reported = true;
+          error(who + ": target position is not a number; the last target is held");
+          publish();
+        }
+      }
+    }
+    last_target_counts = pos;
     CanFrame rpdo;
     rpdo.id = kRpdo1 + n;
     rpdo.dlc = 6;

@@ -6,6 +6,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <optional>
+#include <limits>
 #include <mutex>
 #include <vector>
 
@@ -205,6 +206,27 @@ TEST_F(Cia402Loopback, InterpolationPeriodSaysTheSyncPeriod) {
     for (const auto& n : r.client.configure_notes()) noted |= n.find("nearest to the SYNC period") != std::string::npos;
     EXPECT_EQ(noted, c.note) << c.sync_us << " us";
   }
+}
+
+// A broken command (NaN, infinite) reaching the client holds the last target. It used to go
+// out as INT32_MIN / INT32_MAX counts: a move to the end of the encoder range.
+TEST_F(Cia402Loopback, NonFiniteTargetHoldsTheLastOne) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.activate();
+  r.client.write(Clock::now(), 1ms, {0.3, true, false});
+  ASSERT_TRUE(eventually([&] { return std::abs(r.model.target_rad() - 0.3) < 1e-3; }));
+  for (const double bad : {kNaN, std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()}) {
+    r.client.write(Clock::now(), 1ms, {bad, true, false});
+    const auto syncs = r.emulator.syncs_seen();
+    ASSERT_TRUE(eventually([&] { return r.emulator.syncs_seen() > syncs + 10; }));  // several RPDOs with it
+    EXPECT_NEAR(r.model.target_rad(), 0.3, 1e-3) << bad;
+  }
+  EXPECT_NE(r.client.health().last_error_text().find("target position is not a number; the last target is held"),
+            std::string_view::npos)
+      << r.client.health().last_error_text();
+  r.client.write(Clock::now(), 1ms, {0.1, true, false});  // a good command is followed again
+  EXPECT_TRUE(eventually([&] { return std::abs(r.model.target_rad() - 0.1) < 1e-3; }));
 }
 
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
