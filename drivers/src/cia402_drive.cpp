@@ -9,6 +9,9 @@
 #include <boost/asio/posix/stream_descriptor.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
+#include <net/if.h>
+
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -58,24 +61,42 @@ DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
 }
 
 namespace {
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1) {
+// Every wait is bounded: a setup call blocks for (a few of) these, and a huge one would overflow
+// the clock arithmetic (the SDO budget multiplies sdo_ms by the tries) instead of waiting.
+constexpr long long kMaxWaitMs = 600000;
+
+milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1, long long max = 0) {
   auto v = n.find(key);
   if (!v) return fallback;
   const long long x = v->integer();
   v->require(x >= min, "must be >= " + std::to_string(min) + " ms");
+  if (max > 0) v->require(x <= max, "must be <= " + std::to_string(max) + " ms");
   return milliseconds(x);
 }
 }  // namespace
+
+void check_can_interface_name(const cfg::Node& n) {
+  // What the kernel takes as a network interface name (dev_valid_name()): 1..15 bytes (IFNAMSIZ
+  // with its NUL), no '/', ':' or white space, not "." or "..". Anything else would only fail
+  // later as "no such network interface", without the file and line.
+  const std::string name = n.text();
+  bool ok = !name.empty() && name.size() < IFNAMSIZ && name != "." && name != "..";
+  for (const char ch : name) ok = ok && ch != '/' && ch != ':' && !std::isspace(static_cast<unsigned char>(ch));
+  n.require(ok, "a network interface name is 1..15 characters without '/', ':' or spaces");
+}
 
 Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units", "timeouts", "bus_off",
                 "disable_unused_pdos", "limits"});
   Cia402Config c;
+  check_can_interface_name(n.at("interface"));
   c.interface = n.text("interface");
   const long long node = n.at("node_id").integer();
   n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");
   c.node_id = static_cast<std::uint8_t>(node);
   c.bitrate = static_cast<long>(n.integer("bitrate", c.bitrate));
+  // Classic CAN (CiA 301 bit timing table): 10 kbit/s .. 1 Mbit/s.
+  if (auto b = n.find("bitrate")) b->require(c.bitrate >= 10000 && c.bitrate <= 1000000, "must be 10000..1000000 bit/s");
   const long long sync_us = n.integer("sync_period_us", c.sync_period.count());
   if (auto s = n.find("sync_period_us")) s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
   c.sync_period = std::chrono::microseconds(sync_us);
@@ -86,8 +107,9 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     n.at("sync_source").fail("must be 'timer' or 'loop', got '" + src + "'");
   if (auto hb = n.find("heartbeat")) {
     hb->allow_keys({"producer_ms", "timeout_ms"});
-    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer);
-    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout);
+    // 0x1017 is 16 bit: 65536 ms would be written as 0, which turns the heartbeat off.
+    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer, 1, 65535);
+    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout, 1, kMaxWaitMs);
     if (c.heartbeat_timeout <= c.heartbeat_producer) {
       hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
     }
@@ -95,11 +117,11 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
   if (auto t = n.find("timeouts")) {
     t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
-    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout);
-    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout);
+    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout, 1, kMaxWaitMs);
+    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout, 1, kMaxWaitMs);
     c.sdo_retries = static_cast<int>(t->integer("sdo_retries", c.sdo_retries));
     if (auto r = t->find("sdo_retries")) r->require(c.sdo_retries >= 0 && c.sdo_retries <= 10, "must be 0..10");
-    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout);
+    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout, 1, kMaxWaitMs);
   }
   if (auto b = n.find("bus_off")) {
     b->allow_keys({"policy", "recover_after_ms"});
@@ -112,7 +134,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
       c.bus_off_policy = BusOffPolicy::recover;
     else
       b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
-    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after);
+    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after, 1, kMaxWaitMs);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {

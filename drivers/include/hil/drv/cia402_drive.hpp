@@ -44,6 +44,9 @@ enum class BusOffPolicy {
   recover,  // after recover_after, reopen the channel and resume
 };
 
+// Throws cfg::Error naming the key unless `n` is a name the kernel takes for a network interface.
+void check_can_interface_name(const cfg::Node& n);
+
 struct Cia402Config {
   std::string interface = "vcan0";
   std::uint8_t node_id = 1;
