@@ -98,8 +98,13 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   // Classic CAN (CiA 301 bit timing table): 10 kbit/s .. 1 Mbit/s.
   if (auto b = n.find("bitrate")) b->require(c.bitrate >= 10000 && c.bitrate <= 1000000, "must be 10000..1000000 bit/s");
   const long long sync_us = n.integer("sync_period_us", c.sync_period.count());
-  if (auto s = n.find("sync_period_us")) s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
   c.sync_period = std::chrono::microseconds(sync_us);
+  if (auto s = n.find("sync_period_us")) {
+    s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
+    const auto bus_us = c.min_sync_period().count();
+    s->require(sync_us >= bus_us, "must be >= " + std::to_string(bus_us) + " us, the time RPDO1 + SYNC + TPDO1 take at " +
+                                      std::to_string(c.bitrate) + " bit/s");
+  }
   const std::string src = n.text("sync_source", "timer");
   if (src == "loop")
     c.sync_source = SyncSource::loop;
@@ -163,6 +168,15 @@ Cia402Config Cia402Config::load(const std::filesystem::path& file) {
   const auto root = cfg::Node::load_file(file);
   if (auto d = root.find("cia402_drive")) return from_yaml(*d);
   return from_yaml(root);
+}
+
+std::chrono::microseconds Cia402Config::min_sync_period() const {
+  // Worst-case bits of a classic base frame with `bytes` data bytes: 47 framing bits (with the
+  // 3 of interframe space) + the data + a stuff bit per 4 of the 34 + 8n bits SOF..CRC.
+  const auto frame_bits = [](long bytes) { return 47 + 8 * bytes + (34 + 8 * bytes - 1) / 4; };
+  const long bits = 2 * frame_bits(6) + frame_bits(0);  // RPDO1, TPDO1 (6 bytes each), SYNC
+  const long rate = bitrate > 0 ? bitrate : 1000000;
+  return std::chrono::microseconds((bits * 1000000 + rate - 1) / rate);
 }
 
 // ---- the client ------------------------------------------------------------------------------
@@ -572,6 +586,13 @@ struct Cia402Drive::Impl {
 
 Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : impl_(std::make_unique<Impl>(std::move(config))) {
   auto& m = *impl_;
+  // A period the bus cannot carry would only show as stale feedback every period (or, before,
+  // a period bent into 100 us..100 ms by the rig): refused here, before anything is opened.
+  if (m.cfg.sync_period < m.cfg.min_sync_period()) {
+    throw DriveError(m.who + ": a SYNC period of " + std::to_string(m.cfg.sync_period.count()) + " us is shorter than the " +
+                     std::to_string(m.cfg.min_sync_period().count()) + " us RPDO1 + SYNC + TPDO1 take at " +
+                     std::to_string(m.cfg.bitrate) + " bit/s");
+  }
   if (!transport) transport = SocketCanTransport::factory(m.cfg.interface);
   const std::uint32_t n = m.n;
   m.tr = transport(m.io, {{kHeartbeat + n, 0x7FF}, {kTpdo1 + n, 0x7FF}, {kSdoTx + n, 0x7FF}, {kEmcy + n, 0x7FF}});
@@ -693,18 +714,20 @@ void Cia402Drive::configure() {
   const long long us = m.cfg.sync_period.count();
   long long ip_value = 0;
   int ip_index = 0;
-  for (const auto& [unit_us, index] : {std::pair{1000LL, -3}, {100LL, -4}, {10LL, -5}, {1LL, -6}}) {
+  for (const auto& [unit_us, index] :
+       {std::pair{1000000LL, 0}, {100000LL, -1}, {10000LL, -2}, {1000LL, -3}, {100LL, -4}, {10LL, -5}, {1LL, -6}}) {
     if (us % unit_us == 0 && us / unit_us <= 255) {
       ip_value = us / unit_us, ip_index = index;
       break;
     }
   }
   if (ip_value == 0) {  // not exact in any unit: round in the finest unit whose value fits a byte
-    for (const auto& [unit_us, index] : {std::pair{10LL, -5}, {100LL, -4}, {1000LL, -3}}) {
+    for (const auto& [unit_us, index] : {std::pair{10LL, -5}, {100LL, -4}, {1000LL, -3}, {10000LL, -2}, {100000LL, -1}}) {
       ip_value = (us + unit_us / 2) / unit_us, ip_index = index;
       if (ip_value <= 255) break;
     }
   }
+  ip_value = std::min(ip_value, 255LL);  // over 25.5 s: the longest the byte holds, with the note
   if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(ip_value), 1,
                      "the drive takes its interpolation period from SYNC")) {
     sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(ip_index), 1);

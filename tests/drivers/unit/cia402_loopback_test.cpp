@@ -185,8 +185,8 @@ TEST_F(Cia402Loopback, WrongSdoRepliesAreNamedNotCalledSilence) {
 }
 
 // 0x60C2 = value (u8) x 10^index s must say the SYNC period. 1050 us used to be sent as
-// 10 x 10^-4 s (1.0 ms) and 25600 us as 256 cast to a byte, 0; 30500 us fits no byte exactly
-// and is the nearest, 31 ms, with a configure note.
+// 10 x 10^-4 s (1.0 ms), 350 us as 300 us and 25600 us as 256 cast to a byte, 0; 30500 us fits
+// no byte exactly and is the nearest, 31 ms, with a configure note; 200 ms is 2 x 10^-1 s.
 TEST_F(Cia402Loopback, InterpolationPeriodSaysTheSyncPeriod) {
   struct Case {
     long long sync_us;
@@ -194,8 +194,8 @@ TEST_F(Cia402Loopback, InterpolationPeriodSaysTheSyncPeriod) {
     std::int8_t index;
     bool note;
   };
-  for (const auto& c : {Case{2000, 2, -3, false}, Case{1050, 105, -5, false}, Case{250, 25, -5, false}, Case{25600, 26, -3, true},
-                        Case{30500, 31, -3, true}, Case{150, 15, -5, false}}) {
+  for (const auto& c : {Case{2000, 2, -3, false}, Case{1050, 105, -5, false}, Case{350, 35, -5, false}, Case{25600, 26, -3, true},
+                        Case{30500, 31, -3, true}, Case{200000, 2, -1, false}}) {
     auto cfg = test_config(5);
     cfg.sync_period = std::chrono::microseconds(c.sync_us);
     Rig r(factory(), cfg);
@@ -227,6 +227,25 @@ TEST_F(Cia402Loopback, NonFiniteTargetHoldsTheLastOne) {
       << r.client.health().last_error_text();
   r.client.write(Clock::now(), 1ms, {0.1, true, false});  // a good command is followed again
   EXPECT_TRUE(eventually([&] { return std::abs(r.model.target_rad() - 0.1) < 1e-3; }));
+}
+
+// RPDO1 + SYNC + TPDO1 need 285 us of a 1 Mbit/s bus (worst-case stuffing): a shorter SYNC
+// period would be stale every period on a real bus. Refused before anything is opened.
+TEST_F(Cia402Loopback, SyncPeriodTheBusCannotCarryIsRefused) {
+  auto cfg = test_config(5);
+  EXPECT_EQ(cfg.min_sync_period(), std::chrono::microseconds(285));
+  cfg.sync_period = std::chrono::microseconds(200);
+  try {
+    Cia402Drive client(cfg, factory());
+    ADD_FAILURE() << "a 200 us SYNC period on a 1 Mbit/s bus was accepted";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("node 5 on vcan0: a SYNC period of 200 us is shorter than the 285 us"),
+              std::string::npos)
+        << e.what();
+  }
+  cfg.bitrate = 125000;
+  cfg.sync_period = std::chrono::microseconds(2000);
+  EXPECT_THROW(Cia402Drive(cfg, factory()), DriveError);  // 2280 us at 125 kbit/s
 }
 
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {

@@ -95,6 +95,9 @@ TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
            {"interface: can/0\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
            {"interface: 'can 0'\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
            {"interface: vcan0\nnode_id: 2\nbitrate: 0", "d.yaml:3:1: bitrate: must be 10000..1000000 bit/s"},
+           {"interface: vcan0\nnode_id: 2\nsync_period_us: 200",
+            "d.yaml:3:1: sync_period_us: must be >= 285 us, the time RPDO1 + SYNC + TPDO1 take at 1000000 bit/s"},
+           {"interface: vcan0\nnode_id: 2\nbitrate: 125000\nsync_period_us: 1000", "sync_period_us: must be >= 2280 us"},
            {"interface: vcan0\nnode_id: 2\nbitrate: -500000", "d.yaml:3:1: bitrate: must be 10000..1000000 bit/s"},
            {"interface: vcan0\nnode_id: 2\ntimeouts: {sdo_ms: 100000000000000000}", "timeouts.sdo_ms: must be <= 600000 ms"},
            {"interface: vcan0\nnode_id: 2\ntimeouts: {boot_ms: 100000000000000000}", "timeouts.boot_ms: must be <= 600000 ms"}}) {

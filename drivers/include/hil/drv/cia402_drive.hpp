@@ -52,6 +52,9 @@ struct Cia402Config {
   std::uint8_t node_id = 1;
   long bitrate = 1000000;  // informational: a real interface is set up with `ip link`; vcan ignores it
   std::chrono::microseconds sync_period{1000};
+  // The shortest SYNC period the bus carries at `bitrate`: RPDO1 + SYNC + TPDO1 with worst-case
+  // bit stuffing (285 us at 1 Mbit/s). Shorter is refused by the config and the constructor.
+  std::chrono::microseconds min_sync_period() const;
   enum class SyncSource { timer, loop } sync_source = SyncSource::timer;  // loop: write() triggers SYNC
   std::chrono::milliseconds heartbeat_producer{100};                      // written to the drive's 0x1017
   std::chrono::milliseconds heartbeat_timeout{350};
