@@ -217,6 +217,9 @@ struct Cia402Drive::Impl {
   std::atomic<bool> reset_request{false};
   std::atomic<std::uint64_t> bootups{0};
   std::atomic<std::uint8_t> nmt_now{0xFF};
+  // The newest TPDO1 was too short to use: the feedback is stale although TPDOs arrive, and the
+  // stale reason must say so rather than "no TPDO".
+  std::atomic<bool> tpdo_malformed{false};
   std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
 
   // I/O thread only.
@@ -327,7 +330,11 @@ struct Cia402Drive::Impl {
   }
 
   void on_tpdo(const CanFrame& f) {
-    if (f.dlc < 6 || f.rtr) return malformed(f, "TPDO1 (expected 6 bytes: statusword, position actual)");
+    if (f.dlc < 6 || f.rtr) {
+      tpdo_malformed = true;
+      return malformed(f, "TPDO1 (expected 6 bytes: statusword, position actual)");
+    }
+    tpdo_malformed = false;
     ++h.pdo_received;
     fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
     last_pos_counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
@@ -824,6 +831,12 @@ void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& 
     const std::uint64_t one = 1;
     [[maybe_unused]] auto r = ::write(impl_->kick_fd, &one, sizeof one);  // non-blocking eventfd
   }
+}
+
+std::string_view Cia402Drive::missing_reply_text() const noexcept {
+  return impl_->tpdo_malformed ? "no usable TPDO since the last SYNC: TPDO1 arrives too short (expected 6 bytes: statusword, "
+                                 "position actual)"
+                               : "no TPDO since the last SYNC";
 }
 
 DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }

@@ -248,6 +248,22 @@ TEST_F(Cia402Loopback, SyncPeriodTheBusCannotCarryIsRefused) {
   EXPECT_THROW(Cia402Drive(cfg, factory()), DriveError);  // 2280 us at 125 kbit/s
 }
 
+// A drive whose TPDO1 arrives too short (here remapped to the statusword alone): the feedback is
+// stale although TPDOs flow; the stale reason used to say "no TPDO since the last SYNC".
+TEST_F(Cia402Loopback, ShortTpdoIsNamedAsTheStaleReason) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  EXPECT_EQ(r.client.missing_reply_text(), "no TPDO since the last SYNC");
+  r.client.sdo_write(0x1800, 1, canopen::kCobIdInvalid | 0x185, 4);
+  r.client.sdo_write(0x1A00, 0, 0, 1);
+  r.client.sdo_write(0x1A00, 1, 0x60410010, 4);  // statusword only: 2 bytes
+  r.client.sdo_write(0x1A00, 0, 1, 1);
+  r.client.sdo_write(0x1800, 1, 0x185, 4);
+  ASSERT_TRUE(eventually([&] { return r.client.health().malformed > 2; }, 5s));
+  EXPECT_NE(r.client.missing_reply_text().find("TPDO1 arrives too short (expected 6 bytes"), std::string_view::npos)
+      << r.client.missing_reply_text();
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;

@@ -135,8 +135,8 @@ class Cia402Drive final : public PositionDrive {
   // Real-time safe. sync_source loop: each write sends the SYNC the drive answers with a TPDO,
   // so a TPDO since the last write is fresh; timer: the SYNC runs on its own clock (polled).
   FeedbackFreshness freshness() const noexcept override;
-  std::string_view missing_reply_text() const noexcept override { return "no TPDO since the last SYNC"; }
-  cia402::State state() const noexcept;  // real-time safe
+  std::string_view missing_reply_text() const noexcept override;  // names a TPDO1 that arrives too short
+  cia402::State state() const noexcept;                           // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
   std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);
