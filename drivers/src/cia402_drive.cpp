@@ -652,6 +652,16 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT reset communication");
   }
+  // A boot-up from here on means the drive reset while we set it up: its PDO mapping, 0x1017 and
+  // mode are back at their defaults, so what configure() wrote is gone (it used to carry on and
+  // fail later, or run on the drive's default mapping).
+  const auto booted = m.bootups.load();
+  const auto no_reboot = [&](const char* when) {
+    if (m.bootups.load() != booted) {
+      throw DriveError(m.who + ": the drive rebooted during configure() (boot-up message " + when +
+                       "); what was written is lost; configure() again");
+    }
+  };
   const std::uint32_t device_type = sdo_read(0x1000, 0);
   if ((device_type & 0xFFFF) != 402) {
     char buf[32];
@@ -769,6 +779,7 @@ void Cia402Drive::configure() {
                    "no quick stop deceleration to set");
   }
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
+  no_reboot("while the objects were written");
   m.command.store({m.cfg.units.to_rad(pos), false, false});
   m.run_on_io([&m, pos] {
     m.last_pos_counts = pos;
@@ -779,8 +790,10 @@ void Cia402Drive::configure() {
   });
   nmt(NmtCommand::start);
   const bool up = detail::wait_for(m.cfg.boot_timeout, [&] {
-    return m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid;
+    return (m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid) ||
+           m.bootups.load() != booted;
   });
+  no_reboot("after NMT start");
   if (!up) {
     throw DriveError(m.who + ": not operational with TPDOs flowing within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT start (last heartbeat state " + std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) +

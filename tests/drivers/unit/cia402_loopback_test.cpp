@@ -264,6 +264,33 @@ TEST_F(Cia402Loopback, ShortTpdoIsNamedAsTheStaleReason) {
       << r.client.missing_reply_text();
 }
 
+// The drive resets while configure() writes its mapping (a brown-out, a watchdog): the mapping,
+// 0x1017 and the mode are back at their defaults. configure() must fail saying so, not carry on.
+TEST_F(Cia402Loopback, RebootDuringConfigureFailsSayingSo) {
+  auto cfg = test_config(5);
+  cfg.boot_timeout = 2s;
+  Rig r(factory(), cfg);
+  std::atomic<bool> rebooted{false};
+  bus.set_tap([&](const CanFrame& f) {
+    // The client validates TPDO1 (0x1800:01 = 0x185): the mapping is written; now the drive resets.
+    if (f.id == canopen::kSdoRx + 5 && f.data[0] == 0x23 && canopen::get_le(&f.data[1], 2) == 0x1800 && f.data[3] == 1 &&
+        canopen::get_le(&f.data[4], 4) == 0x185 && !rebooted.exchange(true)) {
+      r.emulator.reboot();  // posted to the emulator's thread: safe under the bus lock
+    }
+  });
+  try {
+    r.client.configure();
+    ADD_FAILURE() << "configure() went through a reboot";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("node 5 on vcan0: the drive rebooted during configure()"), std::string::npos)
+        << e.what();
+  }
+  bus.set_tap({});
+  EXPECT_TRUE(rebooted);
+  r.client.configure();  // once more, undisturbed: it comes up
+  EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;
