@@ -33,6 +33,7 @@ namespace {
 // CiA 301: "client/server command specifier not valid or unknown", how the client refuses a
 // segmented transfer it does not implement.
 constexpr std::uint32_t kSdoAbortCommandSpecifier = 0x05040001;
+constexpr std::uint32_t kSdoAbortTimedOut = 0x05040000;  // "SDO protocol timed out"
 }  // namespace
 
 // ---- units and config ------------------------------------------------------------------------
@@ -479,6 +480,9 @@ struct Cia402Drive::Impl {
                              : " (" + std::to_string(req->ignored) +
                                    " replies ignored: another object or the wrong service; last " + req->last_ignored + ")");
       error(text);
+      // CiA 301: the client aborts a transfer it gave up on, so a drive that was merely slow
+      // drops it rather than answering it into the next request.
+      send(sdo_abort(n, req->index, req->sub, kSdoAbortTimedOut, false));
       publish();
       sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
     });

@@ -291,6 +291,24 @@ TEST_F(Cia402Loopback, RebootDuringConfigureFailsSayingSo) {
   EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
 }
 
+// A request given up on is aborted on the bus (CiA 301 "SDO protocol timed out"), so a drive
+// that was only slow drops it instead of answering it into the next request.
+TEST_F(Cia402Loopback, SdoGivenUpOnIsAbortedOnTheBus) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame&) { return std::optional<CanFrame>(); });  // never answers
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 50ms;
+  cfg.sdo_retries = 1;
+  Cia402Drive client(cfg, factory());
+  EXPECT_THROW(client.sdo_read(0x6064, 0), DriveError);
+  ASSERT_TRUE(eventually([&] { return drive.requests().size() >= 3; }, 5s)) << drive.requests().size();
+  const auto requests = drive.requests();
+  EXPECT_EQ(requests[0].data[0], 0x40);  // the try and its retry
+  EXPECT_EQ(requests[1].data[0], 0x40);
+  EXPECT_EQ(requests[2].data[0], 0x80);  // then the abort, for that object
+  EXPECT_EQ(canopen::get_le(&requests[2].data[1], 2), 0x6064u);
+  EXPECT_EQ(canopen::get_le(&requests[2].data[4], 4), 0x05040000u);
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;
