@@ -309,6 +309,28 @@ TEST_F(Cia402Loopback, SdoGivenUpOnIsAbortedOnTheBus) {
   EXPECT_EQ(canopen::get_le(&requests[2].data[4], 4), 0x05040000u);
 }
 
+// A drive that answers neither value nor abort for one object (here 0x6502) is reported for
+// that object; the probe used to end there with the SDO timeout, reporting nothing else.
+TEST_F(Cia402Loopback, ProbeReportsAnObjectTheDriveDoesNotAnswer) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    const auto index = static_cast<std::uint16_t>(canopen::get_le(&req.data[1], 2));
+    if (req.data[0] != 0x40 || index == 0x6502) return std::nullopt;
+    if (index == 0x1000) return canopen::sdo_upload_ok(7, 0x1000, 0, 0x00020192, 4);
+    return canopen::sdo_abort(7, index, req.data[3], 0x06020000, true);
+  });
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 50ms;
+  cfg.sdo_retries = 0;
+  Cia402Drive client(cfg, factory());
+  const Cia402Probe p = probe(client);
+  ASSERT_NE(p.find(0x6502, 0), nullptr);
+  EXPECT_NE(p.find(0x6502, 0)->no_answer.find("SDO read 0x6502:00: no reply"), std::string::npos) << p.find(0x6502, 0)->no_answer;
+  ASSERT_NE(p.find(0x6064, 0), nullptr);  // the probe went on past it
+  EXPECT_EQ(p.find(0x6064, 0)->abort_code, 0x06020000u);
+  EXPECT_FALSE(p.usable);
+  EXPECT_NE(p.report().find("no answer: CiA 402 drive node 7 on vcan0: SDO read 0x6502:00"), std::string::npos) << p.report();
+}
+
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   auto cfg = test_config(6);
   cfg.sync_source = Cia402Config::SyncSource::loop;
