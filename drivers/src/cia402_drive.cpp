@@ -58,6 +58,11 @@ DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
   if (auto g = n.find("gear_ratio")) g->require(u.gear_ratio > 0, "must be > 0");
   u.sign = static_cast<int>(n.integer("sign", 1));
   if (auto s = n.find("sign")) s->require(u.sign == 1 || u.sign == -1, "must be 1 or -1");
+  // Each finite and > 0 is not enough: 1e200 x 1e200 overflows to inf (every position would read
+  // 0 rad), 1e-200 x 1e-200 underflows to 0 (every position inf).
+  const double rpc = std::abs(u.rad_per_count());
+  const cfg::Node at = n.find("gear_ratio") ? n.at("gear_ratio") : n.at("counts_per_rev");
+  at.require(std::isfinite(rpc) && rpc > 0, "counts_per_rev x gear_ratio must be a finite, non-zero count per valve revolution");
   return u;
 }
 
