@@ -9,6 +9,9 @@
 #include <boost/asio/posix/stream_descriptor.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
+#include <net/if.h>
+
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -25,6 +28,13 @@ namespace hil::drv {
 namespace asio = boost::asio;
 using namespace canopen;
 using std::chrono::milliseconds;
+
+namespace {
+// CiA 301: "client/server command specifier not valid or unknown", how the client refuses a
+// segmented transfer it does not implement.
+constexpr std::uint32_t kSdoAbortCommandSpecifier = 0x05040001;
+constexpr std::uint32_t kSdoAbortTimedOut = 0x05040000;  // "SDO protocol timed out"
+}  // namespace
 
 // ---- units and config ------------------------------------------------------------------------
 
@@ -48,31 +58,59 @@ DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
   if (auto g = n.find("gear_ratio")) g->require(u.gear_ratio > 0, "must be > 0");
   u.sign = static_cast<int>(n.integer("sign", 1));
   if (auto s = n.find("sign")) s->require(u.sign == 1 || u.sign == -1, "must be 1 or -1");
+  // Each finite and > 0 is not enough: 1e200 x 1e200 overflows to inf (every position would read
+  // 0 rad), 1e-200 x 1e-200 underflows to 0 (every position inf).
+  const double rpc = std::abs(u.rad_per_count());
+  const cfg::Node at = n.find("gear_ratio") ? n.at("gear_ratio") : n.at("counts_per_rev");
+  at.require(std::isfinite(rpc) && rpc > 0, "counts_per_rev x gear_ratio must be a finite, non-zero count per valve revolution");
   return u;
 }
 
 namespace {
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1) {
+// Every wait is bounded: a setup call blocks for (a few of) these, and a huge one would overflow
+// the clock arithmetic (the SDO budget multiplies sdo_ms by the tries) instead of waiting.
+constexpr long long kMaxWaitMs = 600000;
+
+milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1, long long max = 0) {
   auto v = n.find(key);
   if (!v) return fallback;
   const long long x = v->integer();
   v->require(x >= min, "must be >= " + std::to_string(min) + " ms");
+  if (max > 0) v->require(x <= max, "must be <= " + std::to_string(max) + " ms");
   return milliseconds(x);
 }
 }  // namespace
+
+void check_can_interface_name(const cfg::Node& n) {
+  // What the kernel takes as a network interface name (dev_valid_name()): 1..15 bytes (IFNAMSIZ
+  // with its NUL), no '/', ':' or white space, not "." or "..". Anything else would only fail
+  // later as "no such network interface", without the file and line.
+  const std::string name = n.text();
+  bool ok = !name.empty() && name.size() < IFNAMSIZ && name != "." && name != "..";
+  for (const char ch : name) ok = ok && ch != '/' && ch != ':' && !std::isspace(static_cast<unsigned char>(ch));
+  n.require(ok, "a network interface name is 1..15 characters without '/', ':' or spaces");
+}
 
 Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units", "timeouts", "bus_off",
                 "disable_unused_pdos", "limits"});
   Cia402Config c;
+  check_can_interface_name(n.at("interface"));
   c.interface = n.text("interface");
   const long long node = n.at("node_id").integer();
   n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");
   c.node_id = static_cast<std::uint8_t>(node);
   c.bitrate = static_cast<long>(n.integer("bitrate", c.bitrate));
+  // Classic CAN (CiA 301 bit timing table): 10 kbit/s .. 1 Mbit/s.
+  if (auto b = n.find("bitrate")) b->require(c.bitrate >= 10000 && c.bitrate <= 1000000, "must be 10000..1000000 bit/s");
   const long long sync_us = n.integer("sync_period_us", c.sync_period.count());
-  if (auto s = n.find("sync_period_us")) s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
   c.sync_period = std::chrono::microseconds(sync_us);
+  if (auto s = n.find("sync_period_us")) {
+    s->require(sync_us >= 100 && sync_us <= 100000, "must be 100..100000 us");
+    const auto bus_us = c.min_sync_period().count();
+    s->require(sync_us >= bus_us, "must be >= " + std::to_string(bus_us) + " us, the time RPDO1 + SYNC + TPDO1 take at " +
+                                      std::to_string(c.bitrate) + " bit/s");
+  }
   const std::string src = n.text("sync_source", "timer");
   if (src == "loop")
     c.sync_source = SyncSource::loop;
@@ -80,8 +118,9 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     n.at("sync_source").fail("must be 'timer' or 'loop', got '" + src + "'");
   if (auto hb = n.find("heartbeat")) {
     hb->allow_keys({"producer_ms", "timeout_ms"});
-    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer);
-    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout);
+    // 0x1017 is 16 bit: 65536 ms would be written as 0, which turns the heartbeat off.
+    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer, 1, 65535);
+    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout, 1, kMaxWaitMs);
     if (c.heartbeat_timeout <= c.heartbeat_producer) {
       hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
     }
@@ -89,11 +128,11 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
   if (auto t = n.find("timeouts")) {
     t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
-    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout);
-    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout);
+    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout, 1, kMaxWaitMs);
+    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout, 1, kMaxWaitMs);
     c.sdo_retries = static_cast<int>(t->integer("sdo_retries", c.sdo_retries));
     if (auto r = t->find("sdo_retries")) r->require(c.sdo_retries >= 0 && c.sdo_retries <= 10, "must be 0..10");
-    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout);
+    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout, 1, kMaxWaitMs);
   }
   if (auto b = n.find("bus_off")) {
     b->allow_keys({"policy", "recover_after_ms"});
@@ -106,7 +145,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
       c.bus_off_policy = BusOffPolicy::recover;
     else
       b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
-    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after);
+    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after, 1, kMaxWaitMs);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {
@@ -137,6 +176,15 @@ Cia402Config Cia402Config::load(const std::filesystem::path& file) {
   return from_yaml(root);
 }
 
+std::chrono::microseconds Cia402Config::min_sync_period() const {
+  // Worst-case bits of a classic base frame with `bytes` data bytes: 47 framing bits (with the
+  // 3 of interframe space) + the data + a stuff bit per 4 of the 34 + 8n bits SOF..CRC.
+  const auto frame_bits = [](long bytes) { return 47 + 8 * bytes + (34 + 8 * bytes - 1) / 4; };
+  const long bits = 2 * frame_bits(6) + frame_bits(0);  // RPDO1, TPDO1 (6 bytes each), SYNC
+  const long rate = bitrate > 0 ? bitrate : 1000000;
+  return std::chrono::microseconds((bits * 1000000 + rate - 1) / rate);
+}
+
 // ---- the client ------------------------------------------------------------------------------
 
 struct Cia402Drive::Impl {
@@ -147,6 +195,10 @@ struct Cia402Drive::Impl {
     std::uint32_t value = 0;
     std::uint8_t size = 0;
     int tries = 0;
+    // Replies that did not answer this request (another object, the wrong service): a drive
+    // that answers wrongly is not a silent one, and the timeout message says so.
+    int ignored = 0;
+    std::string last_ignored;
     std::promise<std::uint32_t> done;
   };
 
@@ -171,6 +223,9 @@ struct Cia402Drive::Impl {
   std::atomic<bool> reset_request{false};
   std::atomic<std::uint64_t> bootups{0};
   std::atomic<std::uint8_t> nmt_now{0xFF};
+  // The newest TPDO1 was too short to use: the feedback is stale although TPDOs arrive, and the
+  // stale reason must say so rather than "no TPDO".
+  std::atomic<bool> tpdo_malformed{false};
   std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
 
   // I/O thread only.
@@ -180,10 +235,17 @@ struct Cia402Drive::Impl {
   bool pdo_running = false;
   bool expect_heartbeat = false;
   bool rebooted = false;
+  // Set by the first heartbeat saying operational after configure(); a later heartbeat in any
+  // other state means the drive stopped processing PDOs (another master's NMT stop, a drive
+  // that fell back to pre-operational): latched as a fault until configure(), as a reboot is.
+  bool seen_operational = false;
+  bool left_operational = false;
   bool bus_off_latched = false;
   bool prev_cmd_reset = false;
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
+  std::int32_t last_target_counts = 0;  // the target in the last RPDO1
+  bool bad_target_reported = false;
   Clock::time_point last_sync{};
   std::string last_emcy_text;  // the newest EMCY decoded, kept for the fault message
   std::deque<std::shared_ptr<SdoRequest>> sdo_queue;
@@ -202,7 +264,7 @@ struct Cia402Drive::Impl {
   void publish() {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
-    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted;
+    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted || left_operational;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
     fb.fault = h.fault;
@@ -260,11 +322,25 @@ struct Cia402Drive::Impl {
         pdo_running = false;
         error(who + ": the drive rebooted (boot-up message); configure() again");
       }
+    } else if (pdo_running && s == static_cast<std::uint8_t>(NmtState::operational)) {
+      seen_operational = true;
+    } else if (pdo_running && seen_operational && !left_operational) {
+      // Not operational any more: its TPDOs stopped and it ignores our RPDOs. Without this the
+      // run would only see stale feedback and trip on the watchdog, for the wrong reason.
+      left_operational = true;
+      char state[8];
+      std::snprintf(state, sizeof state, "0x%02X", s);
+      error(who + ": the drive left NMT operational (heartbeat says " + std::string(to_string(static_cast<NmtState>(s))) + ", " +
+            state + "); it no longer processes PDOs; configure() again");
     }
   }
 
   void on_tpdo(const CanFrame& f) {
-    if (f.dlc < 6 || f.rtr) return malformed(f, "TPDO1 (expected 6 bytes: statusword, position actual)");
+    if (f.dlc < 6 || f.rtr) {
+      tpdo_malformed = true;
+      return malformed(f, "TPDO1 (expected 6 bytes: statusword, position actual)");
+    }
+    tpdo_malformed = false;
     ++h.pdo_received;
     fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
     last_pos_counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
@@ -336,16 +412,21 @@ struct Cia402Drive::Impl {
   void on_sdo(const CanFrame& f) {
     const auto r = parse_sdo_reply(f);
     if (r.kind == SdoReply::Kind::malformed) return malformed(f, "SDO reply");
-    if (!sdo_active || r.index != sdo_active->index || r.sub != sdo_active->sub) return;  // stray reply
+    if (!sdo_active) return;  // stray reply, e.g. late for a request that already timed out
     auto req = sdo_active;
+    const auto ignore = [&] {
+      ++req->ignored;
+      req->last_ignored = to_string(f);
+    };
+    if (r.index != req->index || r.sub != req->sub) return ignore();
     const std::string obj = object_name(req->index, req->sub);
     const std::string op = req->upload ? "SDO read " + obj : "SDO write " + obj;
     switch (r.kind) {
       case SdoReply::Kind::upload:
-        if (!req->upload) return;
+        if (!req->upload) return ignore();
         return sdo_finish(nullptr, r.value);
       case SdoReply::Kind::download:
-        if (req->upload) return;
+        if (req->upload) return ignore();
         return sdo_finish(nullptr, 0);
       case SdoReply::Kind::abort: {
         ++h.aborts_or_exceptions;
@@ -358,6 +439,8 @@ struct Cia402Drive::Impl {
       default: {
         const std::string text = who + ": " + op + ": the drive started a segmented transfer; only expedited SDO is supported";
         error(text);
+        // Tell the drive, or its SDO server stays in the transfer waiting for our segment requests.
+        send(sdo_abort(n, req->index, req->sub, kSdoAbortCommandSpecifier, false));
         return sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
       }
     }
@@ -394,10 +477,17 @@ struct Cia402Drive::Impl {
         sdo_send();
         return;
       }
-      const std::string text = who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
-                               ": no reply after " + std::to_string(req->tries) + " tries of " +
-                               std::to_string(cfg.sdo_timeout.count()) + " ms";
+      const std::string text =
+          who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
+          (req->ignored == 0 ? ": no reply after " : ": no matching reply after ") + std::to_string(req->tries) + " tries of " +
+          std::to_string(cfg.sdo_timeout.count()) + " ms" +
+          (req->ignored == 0 ? std::string()
+                             : " (" + std::to_string(req->ignored) +
+                                   " replies ignored: another object or the wrong service; last " + req->last_ignored + ")");
       error(text);
+      // CiA 301: the client aborts a transfer it gave up on, so a drive that was merely slow
+      // drops it rather than answering it into the next request.
+      send(sdo_abort(n, req->index, req->sub, kSdoAbortTimedOut, false));
       publish();
       sdo_finish(std::make_exception_ptr(DriveError(text)), 0);
     });
@@ -434,9 +524,23 @@ struct Cia402Drive::Impl {
     const std::uint16_t cw = cia402::next_controlword(st, tgt, reset);
     if (cw == cia402::kCwFaultReset) reset_request = false;
     // Until enabled, the target follows the actual position so that enabling does not jump.
-    const std::int32_t pos = st == cia402::State::operation_enabled && tgt == cia402::Target::operation_enabled
-                                 ? cfg.units.to_counts(cmd.target_position_rad)
-                                 : last_pos_counts;
+    // A NaN or infinite target holds the last one: to_counts() would make it INT32_MIN or
+    // INT32_MAX counts, a full-speed move to the end of the encoder range.
+    std::int32_t pos = last_pos_counts;
+    if (st == cia402::State::operation_enabled && tgt == cia402::Target::operation_enabled) {
+      if (std::isfinite(cmd.target_position_rad)) {
+        pos = cfg.units.to_counts(cmd.target_position_rad);
+        bad_target_reported = false;
+      } else {
+        pos = last_target_counts;
+        if (!bad_target_reported) {
+          bad_target_reported = true;
+          error(who + ": target position is not a number; the last target is held");
+          publish();
+        }
+      }
+    }
+    last_target_counts = pos;
     CanFrame rpdo;
     rpdo.id = kRpdo1 + n;
     rpdo.dlc = 6;
@@ -498,6 +602,13 @@ struct Cia402Drive::Impl {
 
 Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : impl_(std::make_unique<Impl>(std::move(config))) {
   auto& m = *impl_;
+  // A period the bus cannot carry would only show as stale feedback every period (or, before,
+  // a period bent into 100 us..100 ms by the rig): refused here, before anything is opened.
+  if (m.cfg.sync_period < m.cfg.min_sync_period()) {
+    throw DriveError(m.who + ": a SYNC period of " + std::to_string(m.cfg.sync_period.count()) + " us is shorter than the " +
+                     std::to_string(m.cfg.min_sync_period().count()) + " us RPDO1 + SYNC + TPDO1 take at " +
+                     std::to_string(m.cfg.bitrate) + " bit/s");
+  }
   if (!transport) transport = SocketCanTransport::factory(m.cfg.interface);
   const std::uint32_t n = m.n;
   m.tr = transport(m.io, {{kHeartbeat + n, 0x7FF}, {kTpdo1 + n, 0x7FF}, {kSdoTx + n, 0x7FF}, {kEmcy + n, 0x7FF}});
@@ -535,6 +646,8 @@ void Cia402Drive::configure() {
     m.pdo_running = false;
     m.expect_heartbeat = false;
     m.rebooted = false;
+    m.seen_operational = false;
+    m.left_operational = false;
     m.fb.valid = false;
     m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
     m.publish();
@@ -548,6 +661,16 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT reset communication");
   }
+  // A boot-up from here on means the drive reset while we set it up: its PDO mapping, 0x1017 and
+  // mode are back at their defaults, so what configure() wrote is gone (it used to carry on and
+  // fail later, or run on the drive's default mapping).
+  const auto booted = m.bootups.load();
+  const auto no_reboot = [&](const char* when) {
+    if (m.bootups.load() != booted) {
+      throw DriveError(m.who + ": the drive rebooted during configure() (boot-up message " + when +
+                       "); what was written is lost; configure() again");
+    }
+  };
   const std::uint32_t device_type = sdo_read(0x1000, 0);
   if ((device_type & 0xFFFF) != 402) {
     char buf[32];
@@ -611,11 +734,40 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": did not enter cyclic synchronous position mode within " +
                      std::to_string(m.cfg.transition_timeout.count()) + " ms (0x6061:00 = " + std::to_string(mode) + ")");
   }
+  // 0x60C2 is a u8 value times 10^index seconds: the coarsest exact (value, index), else the
+  // nearest the u8 can hold, with a note. (It used to be us/100 cast to a byte: 1050 us was sent
+  // as 1.0 ms, and 25600 us as 0.)
   const long long us = m.cfg.sync_period.count();
-  const bool whole_ms = us % 1000 == 0 && us / 1000 <= 255;
-  if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(whole_ms ? us / 1000 : us / 100), 1,
+  long long ip_value = 0;
+  int ip_index = 0;
+  for (const auto& [unit_us, index] :
+       {std::pair{1000000LL, 0}, {100000LL, -1}, {10000LL, -2}, {1000LL, -3}, {100LL, -4}, {10LL, -5}, {1LL, -6}}) {
+    if (us % unit_us == 0 && us / unit_us <= 255) {
+      ip_value = us / unit_us, ip_index = index;
+      break;
+    }
+  }
+  if (ip_value == 0) {  // not exact in any unit: round in the finest unit whose value fits a byte
+    for (const auto& [unit_us, index] : {std::pair{10LL, -5}, {100LL, -4}, {1000LL, -3}, {10000LL, -2}, {100000LL, -1}}) {
+      ip_value = (us + unit_us / 2) / unit_us, ip_index = index;
+      if (ip_value <= 255) break;
+    }
+  }
+  ip_value = std::min(ip_value, 255LL);  // over 25.5 s: the longest the byte holds, with the note
+  if (optional_write(cia402::kInterpolationPeriod, 1, static_cast<std::uint32_t>(ip_value), 1,
                      "the drive takes its interpolation period from SYNC")) {
-    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(whole_ms ? -3 : -4), 1);
+    sdo_write(cia402::kInterpolationPeriod, 2, static_cast<std::uint8_t>(ip_index), 1);
+    long long written_us = ip_value;
+    for (int k = -6; k < ip_index; ++k) written_us *= 10;
+    if (written_us != us) {
+      const std::string note = "0x60C2 interpolation period " + std::to_string(ip_value) + " x 10^" + std::to_string(ip_index) +
+                               " s is the nearest to the SYNC period of " + std::to_string(us) + " us a byte can hold";
+      m.notes.push_back(note);
+      m.run_on_io([&m, note] {
+        m.error(m.who + ": " + note);
+        m.publish();
+      });
+    }
   }
   const auto& lim = m.cfg.limits;
   const double rpc = std::abs(m.cfg.units.rad_per_count());
@@ -636,6 +788,7 @@ void Cia402Drive::configure() {
                    "no quick stop deceleration to set");
   }
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
+  no_reboot("while the objects were written");
   m.command.store({m.cfg.units.to_rad(pos), false, false});
   m.run_on_io([&m, pos] {
     m.last_pos_counts = pos;
@@ -646,8 +799,10 @@ void Cia402Drive::configure() {
   });
   nmt(NmtCommand::start);
   const bool up = detail::wait_for(m.cfg.boot_timeout, [&] {
-    return m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid;
+    return (m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid) ||
+           m.bootups.load() != booted;
   });
+  no_reboot("after NMT start");
   if (!up) {
     throw DriveError(m.who + ": not operational with TPDOs flowing within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT start (last heartbeat state " + std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) +
@@ -700,6 +855,12 @@ void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& 
   }
 }
 
+std::string_view Cia402Drive::missing_reply_text() const noexcept {
+  return impl_->tpdo_malformed ? "no usable TPDO since the last SYNC: TPDO1 arrives too short (expected 6 bytes: statusword, "
+                                 "position actual)"
+                               : "no TPDO since the last SYNC";
+}
+
 DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }
 
 FeedbackFreshness Cia402Drive::freshness() const noexcept {
@@ -718,7 +879,11 @@ void Cia402Drive::sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t
 
 void Cia402Drive::nmt(NmtCommand command) {
   auto& m = *impl_;
-  asio::post(m.io, [&m, command] { m.send(canopen::nmt(command, m.n)); });
+  asio::post(m.io, [&m, command] {
+    // Our own request to leave operational is no surprise: only an unasked-for change is a fault.
+    if (command != NmtCommand::start) m.seen_operational = false;
+    m.send(canopen::nmt(command, m.n));
+  });
 }
 
 void Cia402Drive::reset_fault() { impl_->reset_request = true; }

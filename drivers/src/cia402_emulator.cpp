@@ -23,6 +23,7 @@ Cia402EmulatorConfig Cia402EmulatorConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"interface", "node_id", "units", "pdos", "interpolation_period", "mode_display_delay_ms", "following_error",
                 "quick_stop_ramp"});
   Cia402EmulatorConfig c;
+  if (auto i = n.find("interface")) check_can_interface_name(*i);
   c.interface = n.text("interface", c.interface);
   const long long node = n.at("node_id").integer();
   n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");

@@ -29,12 +29,21 @@ Cia402Probe probe(Cia402Drive& client) {
     throw DriveError("CiA 402 drive node " + std::to_string(cfg.node_id) + " on " + cfg.interface +
                      ": not a CiA 402 device (0x1000:00 device type = " + hex(p.device_type, 8) + ")");
   }
+  // A drive that does not answer one object (no abort: a timeout, or a segmented reply) is
+  // reported for it, and the probe goes on: it used to end the whole probe with that one
+  // object's error. Three in a row mean the drive stopped answering: that does end it.
+  int unanswered_in_a_row = 0;
   const auto read = [&](std::uint16_t index, std::uint8_t sub, const std::string& name, bool required) -> Cia402Probe::Object& {
-    Cia402Probe::Object o{index, sub, name, required, std::nullopt, 0};
+    Cia402Probe::Object o{index, sub, name, required, std::nullopt, 0, {}};
     try {
       o.value = client.sdo_read(index, sub);
+      unanswered_in_a_row = 0;
     } catch (const SdoAbortError& e) {
       o.abort_code = e.code;
+      unanswered_in_a_row = 0;
+    } catch (const DriveError& e) {
+      if (++unanswered_in_a_row >= 3) throw;
+      o.no_answer = e.what();
     }
     p.objects.push_back(o);
     return p.objects.back();
@@ -137,6 +146,12 @@ std::string Cia402Probe::report() const {
   for (const auto& o : objects) {
     if (o.value) {
       std::snprintf(line, sizeof line, "  0x%04X:%02X %-32s 0x%08X (%u)\n", o.index, o.sub, o.name.c_str(), *o.value, *o.value);
+    } else if (!o.no_answer.empty()) {
+      std::snprintf(line, sizeof line, "  0x%04X:%02X %-32s no answer%s: ", o.index, o.sub, o.name.c_str(),
+                    o.required ? " REQUIRED" : "");
+      s += line;
+      s += o.no_answer + "\n";
+      continue;
     } else {
       std::snprintf(line, sizeof line, "  0x%04X:%02X %-32s absent (abort 0x%08X)%s\n", o.index, o.sub, o.name.c_str(),
                     o.abort_code, o.required ? " REQUIRED" : "");

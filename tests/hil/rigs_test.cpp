@@ -249,6 +249,27 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   }
 }
 
+// The CAN rig's SYNC period is the campaign's period. Campaigns allow 0.01..1000 ms; the rig used
+// to bend that into 100 us..100 ms without a word, so a 50 us campaign ran a 100 us SYNC (which a
+// 1 Mbit/s bus cannot carry either) and a 200 ms one told the drive 100 ms. Now a period the bus
+// cannot carry fails configure() naming why, and a long one reaches the drive as it is.
+TEST(DeviceRig, CanRigTakesTheCampaignPeriodOrRefusesItByName) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  TempDir dir;
+  const auto rig = make_device_rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
+  try {
+    rig->configure({&campaign, 50e-6, 1e6, bench::kNaN});
+    ADD_FAILURE() << "a 50 us SYNC period was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("a SYNC period of 50 us is shorter than the 285 us"), std::string::npos) << e.what();
+  }
+  rig->configure({&campaign, 0.2, 1e6, bench::kNaN});
+  EXPECT_EQ(side.can.object(0x60C2, 1), 2u);  // 2 x 10^-1 s
+  EXPECT_EQ(static_cast<std::int8_t>(side.can.object(0x60C2, 2).value_or(0)), -1);
+}
+
 // A Modbus drive that answers its reads but refuses its writes (exception replies) no longer
 // does what the loop asks: a fault naming the register and the exception (it used to pass as a
 // healthy drive, and the run completed with the motor parked). One that refuses to be switched

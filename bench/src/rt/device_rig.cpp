@@ -275,7 +275,9 @@ DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTranspo
       // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
       drv::Cia402Config run = c;
       run.sync_source = drv::Cia402Config::SyncSource::loop;
-      run.sync_period = std::chrono::microseconds(std::clamp<long>(std::lround(setup.period_s * 1e6), 100, 100000));
+      // The campaign's period as it is (it used to be bent into 100 us..100 ms without a word, and
+      // the drive told a wrong interpolation period): one the bus cannot carry fails here, named.
+      run.sync_period = std::chrono::microseconds(std::lround(setup.period_s * 1e6));
       return std::make_unique<drv::Cia402Drive>(std::move(run), can_transport);
     };
   }

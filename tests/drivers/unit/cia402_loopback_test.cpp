@@ -2,11 +2,57 @@
 // run on a real vcan0 in tests/drivers/vcan.
 #include <gtest/gtest.h>
 
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/post.hpp>
+#include <optional>
+#include <limits>
+#include <mutex>
+#include <vector>
+
 #include "../cia402_scenarios.hpp"
 #include "hil/drv/can_loopback.hpp"
+#include "hil/drv/canopen.hpp"
 
 namespace hil::drv::test {
 namespace {
+
+// A misbehaving drive's SDO server at node `node`: `answer` makes the reply (or none) to each
+// request the client sends; every request is kept for the test to look at.
+class FakeSdoServer {
+ public:
+  using Answer = std::function<std::optional<CanFrame>(const CanFrame& request)>;
+  FakeSdoServer(LoopbackBus& bus, std::uint8_t node, Answer answer)
+      : answer_(std::move(answer)), tr_(bus.factory()(io_, {{canopen::kSdoRx + node, 0x7FF}})) {
+    tr_->start([this](const CanFrame& f) {
+      {
+        std::lock_guard lock(mutex_);
+        requests_.push_back(f);
+      }
+      if (auto reply = answer_(f)) tr_->send(*reply);
+    });
+    thread_ = std::thread([this] { io_.run(); });
+  }
+  ~FakeSdoServer() {
+    boost::asio::post(io_, [this] { tr_->stop(); });
+    work_.reset();
+    io_.stop();
+    thread_.join();
+  }
+  std::vector<CanFrame> requests() {
+    std::lock_guard lock(mutex_);
+    return requests_;
+  }
+
+ private:
+  boost::asio::io_context io_;
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_{io_.get_executor()};
+  Answer answer_;
+  std::unique_ptr<CanTransport> tr_;
+  std::mutex mutex_;
+  std::vector<CanFrame> requests_;
+  std::thread thread_;
+};
 
 class Cia402Loopback : public ::testing::Test {
  protected:
@@ -54,6 +100,235 @@ TEST_F(Cia402Loopback, NoBootUpIsAnErrorNamingTheNode) {
   } catch (const DriveError& e) {
     EXPECT_NE(std::string(e.what()).find("node 9 on vcan0: no boot-up message (0x709)"), std::string::npos) << e.what();
   }
+}
+
+// Another master (or the drive itself) takes the drive out of operational mid-run: its
+// heartbeat keeps coming, so only the NMT state in it tells that PDOs are no longer processed.
+TEST_F(Cia402Loopback, DriveLeavingOperationalMidRunIsAFault) {
+  for (const auto command : {canopen::NmtCommand::stop, canopen::NmtCommand::enter_pre_operational}) {
+    Rig r(factory(), test_config(5));
+    r.client.configure();
+    r.client.activate();
+    ASSERT_FALSE(r.client.read(Clock::now(), 1ms).fault);
+    bus.inject(canopen::nmt(command, 5));  // not from our client
+    ASSERT_TRUE(eventually([&] { return r.client.health().fault; }, 5s)) << r.client.health().last_error_text();
+    EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
+    const std::string text(r.client.health().last_error_text());
+    EXPECT_NE(text.find("node 5 on vcan0: the drive left NMT operational (heartbeat says "), std::string::npos) << text;
+    // Latched like a reboot: back to operational is not enough, configure() is.
+    bus.inject(canopen::nmt(canopen::NmtCommand::start, 5));
+    ASSERT_TRUE(eventually([&] { return r.client.health().nmt_state == 0x05; }, 5s));
+    EXPECT_TRUE(r.client.health().fault);
+    r.client.configure();
+    EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
+  }
+}
+
+// Our own NMT stop is asked for, not a surprise: no fault.
+TEST_F(Cia402Loopback, OwnNmtStopIsNoFault) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.nmt(canopen::NmtCommand::stop);
+  ASSERT_TRUE(eventually([&] { return r.client.health().nmt_state == 0x04; }, 5s));
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+}
+
+// A drive that starts a segmented upload (0x1008 device name, 1000 bytes): the client refuses
+// it, and must tell the drive with an abort, or the drive's server waits in the transfer.
+TEST_F(Cia402Loopback, RefusedSegmentedUploadIsAbortedOnTheBus) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    if (req.data[0] != 0x40) return std::nullopt;  // only the upload request is answered
+    CanFrame f = canopen::sdo_upload_ok(7, 0x1008, 0, 1000, 4);
+    f.data[0] = 0x41;  // initiate upload, segmented, size indicated
+    return f;
+  });
+  Cia402Drive client(test_config(7), factory());
+  try {
+    client.sdo_read(0x1008, 0);
+    ADD_FAILURE() << "a segmented upload was accepted";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("only expedited SDO is supported"), std::string::npos) << e.what();
+  }
+  ASSERT_TRUE(eventually([&] { return drive.requests().size() >= 2; }, 5s)) << "no abort sent to the drive";
+  const CanFrame abort = drive.requests()[1];
+  EXPECT_EQ(abort.data[0], 0x80);
+  EXPECT_EQ(canopen::get_le(&abort.data[1], 2), 0x1008u);
+  EXPECT_EQ(canopen::get_le(&abort.data[4], 4), 0x05040001u);  // command specifier not valid
+}
+
+// A drive that answers every request, but for another object, or with the wrong service: the
+// error must not claim it was silent.
+TEST_F(Cia402Loopback, WrongSdoRepliesAreNamedNotCalledSilence) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    if (req.data[0] == 0x40) return canopen::sdo_upload_ok(7, 0x1009, 0, 42, 4);  // read 0x1008 -> reply for 0x1009
+    return canopen::sdo_upload_ok(7, 0x1017, 0, 42, 2);                           // write -> an upload reply
+  });
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 100ms;
+  cfg.sdo_retries = 1;
+  Cia402Drive client(cfg, factory());
+  try {
+    client.sdo_read(0x1008, 0);
+    ADD_FAILURE() << "a reply for 0x1009 answered a read of 0x1008";
+  } catch (const DriveError& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("SDO read 0x1008:00: no matching reply after 2 tries of 100 ms (2 replies ignored"), std::string::npos)
+        << text;
+    EXPECT_NE(text.find("last 587#4309100"), std::string::npos) << text;  // the last ignored frame, as received
+  }
+  try {
+    client.sdo_write(0x1017, 0, 100, 2);
+    ADD_FAILURE() << "an upload reply confirmed a write";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("no matching reply after 2 tries"), std::string::npos) << e.what();
+  }
+}
+
+// 0x60C2 = value (u8) x 10^index s must say the SYNC period. 1050 us used to be sent as
+// 10 x 10^-4 s (1.0 ms), 350 us as 300 us and 25600 us as 256 cast to a byte, 0; 30500 us fits
+// no byte exactly and is the nearest, 31 ms, with a configure note; 200 ms is 2 x 10^-1 s.
+TEST_F(Cia402Loopback, InterpolationPeriodSaysTheSyncPeriod) {
+  struct Case {
+    long long sync_us;
+    std::uint32_t value;
+    std::int8_t index;
+    bool note;
+  };
+  for (const auto& c : {Case{2000, 2, -3, false}, Case{1050, 105, -5, false}, Case{350, 35, -5, false}, Case{25600, 26, -3, true},
+                        Case{30500, 31, -3, true}, Case{200000, 2, -1, false}}) {
+    auto cfg = test_config(5);
+    cfg.sync_period = std::chrono::microseconds(c.sync_us);
+    Rig r(factory(), cfg);
+    r.client.configure();
+    EXPECT_EQ(r.emulator.object(0x60C2, 1), c.value) << c.sync_us << " us";
+    EXPECT_EQ(static_cast<std::int8_t>(r.emulator.object(0x60C2, 2).value_or(0)), c.index) << c.sync_us << " us";
+    bool noted = false;
+    for (const auto& n : r.client.configure_notes()) noted |= n.find("nearest to the SYNC period") != std::string::npos;
+    EXPECT_EQ(noted, c.note) << c.sync_us << " us";
+  }
+}
+
+// A broken command (NaN, infinite) reaching the client holds the last target. It used to go
+// out as INT32_MIN / INT32_MAX counts: a move to the end of the encoder range.
+TEST_F(Cia402Loopback, NonFiniteTargetHoldsTheLastOne) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.activate();
+  r.client.write(Clock::now(), 1ms, {0.3, true, false});
+  ASSERT_TRUE(eventually([&] { return std::abs(r.model.target_rad() - 0.3) < 1e-3; }));
+  for (const double bad : {kNaN, std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()}) {
+    r.client.write(Clock::now(), 1ms, {bad, true, false});
+    const auto syncs = r.emulator.syncs_seen();
+    ASSERT_TRUE(eventually([&] { return r.emulator.syncs_seen() > syncs + 10; }));  // several RPDOs with it
+    EXPECT_NEAR(r.model.target_rad(), 0.3, 1e-3) << bad;
+  }
+  EXPECT_NE(r.client.health().last_error_text().find("target position is not a number; the last target is held"),
+            std::string_view::npos)
+      << r.client.health().last_error_text();
+  r.client.write(Clock::now(), 1ms, {0.1, true, false});  // a good command is followed again
+  EXPECT_TRUE(eventually([&] { return std::abs(r.model.target_rad() - 0.1) < 1e-3; }));
+}
+
+// RPDO1 + SYNC + TPDO1 need 285 us of a 1 Mbit/s bus (worst-case stuffing): a shorter SYNC
+// period would be stale every period on a real bus. Refused before anything is opened.
+TEST_F(Cia402Loopback, SyncPeriodTheBusCannotCarryIsRefused) {
+  auto cfg = test_config(5);
+  EXPECT_EQ(cfg.min_sync_period(), std::chrono::microseconds(285));
+  cfg.sync_period = std::chrono::microseconds(200);
+  try {
+    Cia402Drive client(cfg, factory());
+    ADD_FAILURE() << "a 200 us SYNC period on a 1 Mbit/s bus was accepted";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("node 5 on vcan0: a SYNC period of 200 us is shorter than the 285 us"),
+              std::string::npos)
+        << e.what();
+  }
+  cfg.bitrate = 125000;
+  cfg.sync_period = std::chrono::microseconds(2000);
+  EXPECT_THROW(Cia402Drive(cfg, factory()), DriveError);  // 2280 us at 125 kbit/s
+}
+
+// A drive whose TPDO1 arrives too short (here remapped to the statusword alone): the feedback is
+// stale although TPDOs flow; the stale reason used to say "no TPDO since the last SYNC".
+TEST_F(Cia402Loopback, ShortTpdoIsNamedAsTheStaleReason) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  EXPECT_EQ(r.client.missing_reply_text(), "no TPDO since the last SYNC");
+  r.client.sdo_write(0x1800, 1, canopen::kCobIdInvalid | 0x185, 4);
+  r.client.sdo_write(0x1A00, 0, 0, 1);
+  r.client.sdo_write(0x1A00, 1, 0x60410010, 4);  // statusword only: 2 bytes
+  r.client.sdo_write(0x1A00, 0, 1, 1);
+  r.client.sdo_write(0x1800, 1, 0x185, 4);
+  ASSERT_TRUE(eventually([&] { return r.client.health().malformed > 2; }, 5s));
+  EXPECT_NE(r.client.missing_reply_text().find("TPDO1 arrives too short (expected 6 bytes"), std::string_view::npos)
+      << r.client.missing_reply_text();
+}
+
+// The drive resets while configure() writes its mapping (a brown-out, a watchdog): the mapping,
+// 0x1017 and the mode are back at their defaults. configure() must fail saying so, not carry on.
+TEST_F(Cia402Loopback, RebootDuringConfigureFailsSayingSo) {
+  auto cfg = test_config(5);
+  cfg.boot_timeout = 2s;
+  Rig r(factory(), cfg);
+  std::atomic<bool> rebooted{false};
+  bus.set_tap([&](const CanFrame& f) {
+    // The client validates TPDO1 (0x1800:01 = 0x185): the mapping is written; now the drive resets.
+    if (f.id == canopen::kSdoRx + 5 && f.data[0] == 0x23 && canopen::get_le(&f.data[1], 2) == 0x1800 && f.data[3] == 1 &&
+        canopen::get_le(&f.data[4], 4) == 0x185 && !rebooted.exchange(true)) {
+      r.emulator.reboot();  // posted to the emulator's thread: safe under the bus lock
+    }
+  });
+  try {
+    r.client.configure();
+    ADD_FAILURE() << "configure() went through a reboot";
+  } catch (const DriveError& e) {
+    EXPECT_NE(std::string(e.what()).find("node 5 on vcan0: the drive rebooted during configure()"), std::string::npos)
+        << e.what();
+  }
+  bus.set_tap({});
+  EXPECT_TRUE(rebooted);
+  r.client.configure();  // once more, undisturbed: it comes up
+  EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
+}
+
+// A request given up on is aborted on the bus (CiA 301 "SDO protocol timed out"), so a drive
+// that was only slow drops it instead of answering it into the next request.
+TEST_F(Cia402Loopback, SdoGivenUpOnIsAbortedOnTheBus) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame&) { return std::optional<CanFrame>(); });  // never answers
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 50ms;
+  cfg.sdo_retries = 1;
+  Cia402Drive client(cfg, factory());
+  EXPECT_THROW(client.sdo_read(0x6064, 0), DriveError);
+  ASSERT_TRUE(eventually([&] { return drive.requests().size() >= 3; }, 5s)) << drive.requests().size();
+  const auto requests = drive.requests();
+  EXPECT_EQ(requests[0].data[0], 0x40);  // the try and its retry
+  EXPECT_EQ(requests[1].data[0], 0x40);
+  EXPECT_EQ(requests[2].data[0], 0x80);  // then the abort, for that object
+  EXPECT_EQ(canopen::get_le(&requests[2].data[1], 2), 0x6064u);
+  EXPECT_EQ(canopen::get_le(&requests[2].data[4], 4), 0x05040000u);
+}
+
+// A drive that answers neither value nor abort for one object (here 0x6502) is reported for
+// that object; the probe used to end there with the SDO timeout, reporting nothing else.
+TEST_F(Cia402Loopback, ProbeReportsAnObjectTheDriveDoesNotAnswer) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    const auto index = static_cast<std::uint16_t>(canopen::get_le(&req.data[1], 2));
+    if (req.data[0] != 0x40 || index == 0x6502) return std::nullopt;
+    if (index == 0x1000) return canopen::sdo_upload_ok(7, 0x1000, 0, 0x00020192, 4);
+    return canopen::sdo_abort(7, index, req.data[3], 0x06020000, true);
+  });
+  auto cfg = test_config(7);
+  cfg.sdo_timeout = 50ms;
+  cfg.sdo_retries = 0;
+  Cia402Drive client(cfg, factory());
+  const Cia402Probe p = probe(client);
+  ASSERT_NE(p.find(0x6502, 0), nullptr);
+  EXPECT_NE(p.find(0x6502, 0)->no_answer.find("SDO read 0x6502:00: no reply"), std::string::npos) << p.find(0x6502, 0)->no_answer;
+  ASSERT_NE(p.find(0x6064, 0), nullptr);  // the probe went on past it
+  EXPECT_EQ(p.find(0x6064, 0)->abort_code, 0x06020000u);
+  EXPECT_FALSE(p.usable);
+  EXPECT_NE(p.report().find("no answer: CiA 402 drive node 7 on vcan0: SDO read 0x6502:00"), std::string::npos) << p.report();
 }
 
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {

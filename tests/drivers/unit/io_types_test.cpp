@@ -8,6 +8,7 @@
 
 #include "hil/config.hpp"
 #include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/cia402_emulator.hpp"
 #include "hil/drv/io_types.hpp"
 
 namespace hil::drv {
@@ -80,6 +81,48 @@ TEST(Cia402Config, ErrorsNameFileLineAndKey) {
   } catch (const cfg::Error& e) {
     EXPECT_NE(std::string(e.what()).find("did you mean 'timeout_ms'"), std::string::npos) << e.what();
   }
+}
+
+// Values the client used to accept and then bend: a producer time 0x1017 (16 bit) cannot hold
+// (65536 was written as 0: heartbeat off), interface names the kernel refuses (found only at
+// open, without the file), a bitrate no CAN controller runs, waits that overflow the clock.
+TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
+  for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
+           {"interface: vcan0\nnode_id: 2\nheartbeat: {producer_ms: 65536, timeout_ms: 70000}",
+            "d.yaml:3:13: heartbeat.producer_ms: must be <= 65535 ms"},
+           {"interface: averyveryverylongcan0\nnode_id: 2", "d.yaml:1:1: interface: a network interface name is 1..15"},
+           {"interface: ''\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
+           {"interface: can/0\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
+           {"interface: 'can 0'\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
+           {"interface: vcan0\nnode_id: 2\nbitrate: 0", "d.yaml:3:1: bitrate: must be 10000..1000000 bit/s"},
+           {"interface: vcan0\nnode_id: 2\nunits: {counts_per_rev: 1.0e200, gear_ratio: 1.0e200}",
+            "units.gear_ratio: counts_per_rev x gear_ratio must be a finite, non-zero count"},
+           {"interface: vcan0\nnode_id: 2\nunits: {counts_per_rev: 1.0e-200, gear_ratio: 1.0e-200}",
+            "units.gear_ratio: counts_per_rev x gear_ratio must be a finite, non-zero count"},
+           {"interface: vcan0\nnode_id: 2\nsync_period_us: 200",
+            "d.yaml:3:1: sync_period_us: must be >= 285 us, the time RPDO1 + SYNC + TPDO1 take at 1000000 bit/s"},
+           {"interface: vcan0\nnode_id: 2\nbitrate: 125000\nsync_period_us: 1000", "sync_period_us: must be >= 2280 us"},
+           {"interface: vcan0\nnode_id: 2\nbitrate: -500000", "d.yaml:3:1: bitrate: must be 10000..1000000 bit/s"},
+           {"interface: vcan0\nnode_id: 2\ntimeouts: {sdo_ms: 100000000000000000}", "timeouts.sdo_ms: must be <= 600000 ms"},
+           {"interface: vcan0\nnode_id: 2\ntimeouts: {boot_ms: 100000000000000000}", "timeouts.boot_ms: must be <= 600000 ms"}}) {
+    try {
+      Cia402Config::from_yaml(cfg::Node::load_string(text + "\n", "d.yaml"));
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+  }
+  try {
+    Cia402EmulatorConfig::from_yaml(cfg::Node::load_string("interface: averyveryverylongcan0\nnode_id: 2\n", "e.yaml"));
+    ADD_FAILURE() << "the emulator accepted a 21 character interface name";
+  } catch (const cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("e.yaml:1:1: interface: a network interface name"), std::string::npos) << e.what();
+  }
+  // The largest values that fit are taken.
+  const auto ok = Cia402Config::from_yaml(cfg::Node::load_string(
+      "interface: can-fifteen-chr\nnode_id: 2\nbitrate: 10000\nheartbeat: {producer_ms: 65535, timeout_ms: 600000}\n", "d.yaml"));
+  EXPECT_EQ(ok.interface, "can-fifteen-chr");
+  EXPECT_EQ(ok.heartbeat_producer.count(), 65535);
 }
 
 TEST(Cia402Config, LimitsInDegreesAndTheirErrors) {

@@ -44,11 +44,17 @@ enum class BusOffPolicy {
   recover,  // after recover_after, reopen the channel and resume
 };
 
+// Throws cfg::Error naming the key unless `n` is a name the kernel takes for a network interface.
+void check_can_interface_name(const cfg::Node& n);
+
 struct Cia402Config {
   std::string interface = "vcan0";
   std::uint8_t node_id = 1;
   long bitrate = 1000000;  // informational: a real interface is set up with `ip link`; vcan ignores it
   std::chrono::microseconds sync_period{1000};
+  // The shortest SYNC period the bus carries at `bitrate`: RPDO1 + SYNC + TPDO1 with worst-case
+  // bit stuffing (285 us at 1 Mbit/s). Shorter is refused by the config and the constructor.
+  std::chrono::microseconds min_sync_period() const;
   enum class SyncSource { timer, loop } sync_source = SyncSource::timer;  // loop: write() triggers SYNC
   std::chrono::milliseconds heartbeat_producer{100};                      // written to the drive's 0x1017
   std::chrono::milliseconds heartbeat_timeout{350};
@@ -129,8 +135,8 @@ class Cia402Drive final : public PositionDrive {
   // Real-time safe. sync_source loop: each write sends the SYNC the drive answers with a TPDO,
   // so a TPDO since the last write is fresh; timer: the SYNC runs on its own clock (polled).
   FeedbackFreshness freshness() const noexcept override;
-  std::string_view missing_reply_text() const noexcept override { return "no TPDO since the last SYNC"; }
-  cia402::State state() const noexcept;  // real-time safe
+  std::string_view missing_reply_text() const noexcept override;  // names a TPDO1 that arrives too short
+  cia402::State state() const noexcept;                           // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
   std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);

@@ -21,6 +21,7 @@ struct Cia402Probe {
     bool required = false;               // configure() fails without it
     std::optional<std::uint32_t> value;  // nullopt: the drive aborted the read
     std::uint32_t abort_code = 0;
+    std::string no_answer;  // not empty: neither a value nor an abort came (timeout, segmented reply)
   };
   std::uint32_t device_type = 0;
   std::vector<Object> objects;     // identity, modes, the client's objects, the limits
