@@ -49,6 +49,16 @@ bool run_until(bench::DeviceRig& rig, bench::RigStatus want, double offset_rad =
   return false;
 }
 
+// A device rig made from `yaml` (written to DIR/rigs/NAME.yaml), configured for `campaign` at
+// 1 MPa and switched on: where each DeviceRig test below starts.
+std::unique_ptr<bench::DeviceRig> active_rig(const TempDir& dir, const std::string& name, const std::string& yaml,
+                                             const bench::Campaign& campaign, const drv::CanTransportFactory& can = {}) {
+  auto rig = make_device_rig(bench::load_rig_config(dir.write("rigs/" + name + ".yaml", yaml)), can);
+  rig->configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
+  rig->activate();
+  return rig;
+}
+
 }  // namespace
 
 TEST(RigConfig, ShippedRigFilesLoad) {
@@ -217,10 +227,8 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   SimulatorSide side(campaign, bus.factory());
   {
     TempDir dir;
-    const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/can.yaml", can_rig_yaml(side))), bus.factory());
+    const auto owned_rig = active_rig(dir, "can", can_rig_yaml(side), campaign, bus.factory());
     bench::DeviceRig& rig = *owned_rig;
-    rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
-    rig.activate();
     ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
     side.can.set_silent(true);
     ASSERT_TRUE(run_until(rig, bench::RigStatus::stale));
@@ -233,10 +241,8 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   }
   {
     TempDir dir;
-    const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+    const auto owned_rig = active_rig(dir, "modbus", modbus_rig_yaml(side), campaign);
     bench::DeviceRig& rig = *owned_rig;
-    rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
-    rig.activate();
     ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
     side.transducer.set_response_delay(20ms);  // answers, but late: every reading is too old
     ASSERT_TRUE(run_until(rig, bench::RigStatus::stale));
@@ -280,10 +286,8 @@ TEST(DeviceRig, AModbusDriveThatRefusesItsWritesIsAFaultAndAFailedSwitchOffIsSai
   drv::LoopbackBus bus;
   SimulatorSide side(campaign, bus.factory());
   TempDir dir;
-  const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+  const auto owned_rig = active_rig(dir, "modbus", modbus_rig_yaml(side), campaign);
   bench::DeviceRig& rig = *owned_rig;
-  rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
-  rig.activate();
   ASSERT_TRUE(run_until(rig, bench::RigStatus::ok, 0));
   side.drive.set_write_exception(3);
   ASSERT_TRUE(run_until(rig, bench::RigStatus::fault, 0.01)) << rig.health().last_error_text();
@@ -307,10 +311,8 @@ TEST(DeviceRig, AReadRefusedWithAnExceptionIsNamedWhenTheReadingGoesStale) {
   drv::LoopbackBus bus;
   SimulatorSide side(campaign, bus.factory());
   TempDir dir;
-  const auto owned_rig = make_device_rig(bench::load_rig_config(dir.write("rigs/modbus.yaml", modbus_rig_yaml(side))));
+  const auto owned_rig = active_rig(dir, "modbus", modbus_rig_yaml(side), campaign);
   bench::DeviceRig& rig = *owned_rig;
-  rig.configure({&campaign, campaign.period_s, 1e6, bench::kNaN});
-  rig.activate();
   ASSERT_TRUE(run_until(rig, bench::RigStatus::ok));
   side.transducer.set_exception(2);
   EXPECT_TRUE(run_until(rig, bench::RigStatus::stale, 0, "ILLEGAL DATA ADDRESS (exception 2)")) << rig.health().last_error_text();
