@@ -661,9 +661,13 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT reset communication");
   }
+  const std::uint32_t device_type = sdo_read(0x1000, 0);
   // A boot-up from here on means the drive reset while we set it up: its PDO mapping, 0x1017 and
   // mode are back at their defaults, so what configure() wrote is gone (it used to carry on and
-  // fail later, or run on the drive's default mapping).
+  // fail later, or run on the drive's default mapping). Counted from the first SDO reply, not from
+  // the reset's boot-up: a drive just powered on sends its own boot-up too, and on a real bus
+  // (vcan) that one can be the boot-up waited for above, the reset's coming just after. The bus
+  // keeps a node's frames in order, so both come before the reply to a request sent after them.
   const auto booted = m.bootups.load();
   const auto no_reboot = [&](const char* when) {
     if (m.bootups.load() != booted) {
@@ -671,7 +675,6 @@ void Cia402Drive::configure() {
                        "); what was written is lost; configure() again");
     }
   };
-  const std::uint32_t device_type = sdo_read(0x1000, 0);
   if ((device_type & 0xFFFF) != 402) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "0x%08X", device_type);
