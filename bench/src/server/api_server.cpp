@@ -110,6 +110,14 @@ struct ApiError {
   std::string allow = {};  // a 405's Allow header: the methods the path takes (RFC 9110 15.5.6)
 };
 
+// The answer an ApiError stands for, its Allow header included: one conversion for every place
+// that catches one.
+Reply error_reply(const ApiError& e) {
+  Reply r = error_reply(e.status, e.error, e.detail, e.field);
+  r.allow = e.allow;
+  return r;
+}
+
 std::string percent_decode(std::string_view s) {
   std::string out;
   for (std::size_t i = 0; i < s.size(); ++i) {
@@ -1546,8 +1554,7 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
     try {
       reply = handle(req, t);
     } catch (const ApiError& e) {
-      reply = error_reply(e.status, e.error, e.detail, e.field);
-      reply.allow = e.allow;
+      reply = error_reply(e);
     } catch (const std::exception& e) {
       spdlog::error("{} {}: {}", std::string(req.method_string()), loggable_target(req.target()), e.what());
       reply = error_reply(http::status::internal_server_error, "internal error", e.what());
@@ -1645,7 +1652,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     try {
       rate_hz = telemetry_rate_hz(target);
     } catch (const ApiError& e) {
-      return send(error_reply(e.status, e.error, e.detail, e.field), false);
+      return send(error_reply(e), false);
     }
     const bool foxglove = offers_foxglove(req);
     std::make_shared<WsSession>(stream_.release_socket(), std::move(buffer_), api_->hub, foxglove, api_->session_id,
