@@ -68,26 +68,45 @@ fs::path write_grid_sweep(const TempDir& dir, const std::string& name, int gaps,
                 "}\n  - path: campaign.sensor_noise_kpa\n    range: {from: 0, to: 8, count: " + std::to_string(noises) + "}\n");
 }
 
-// Starts hilbench sweep in the background, waits for its rows file to hold a whole line, then
-// sends `sig`; returns the exit status (or 128 + the signal it died of).
-int interrupt_after_first_row(const fs::path& sweep, const fs::path& out, int sig) {
+// Starts `hilbench ARGS...` in the background (its stderr into `err`), waits until `ready()` holds
+// (at most 60 s), then sends `sig`; returns the exit status (or 128 + the signal it died of). A
+// process still there 30 s after the signal is killed: a failure, not a hang.
+int interrupt_when(const std::vector<std::string>& args, const fs::path& err, const std::function<bool()>& ready, int sig) {
   const pid_t pid = ::fork();
   if (pid == 0) {
+    const int fd = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd >= 0) ::dup2(fd, 2);
     const std::string exe = hilbench();
-    ::execl(exe.c_str(), exe.c_str(), "sweep", sweep.c_str(), "--out", out.c_str(), "--jobs", "1", "--quiet",
-            static_cast<char*>(nullptr));
+    std::vector<char*> argv{const_cast<char*>(exe.c_str())};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(exe.c_str(), argv.data());
     ::_exit(127);
   }
-  const auto rows = out / "rows" / "local.jsonl";
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (fs::exists(rows) && lines_in(rows) >= 1) break;
+  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+       std::chrono::steady_clock::now() < deadline && !ready();)
     std::this_thread::sleep_for(std::chrono::microseconds(200));
-  }
   ::kill(pid, sig);
   int status = 0;
-  ::waitpid(pid, &status, 0);
+  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);;) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) break;
+    if (std::chrono::steady_clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      ADD_FAILURE() << "still running 30 s after signal " << sig;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// hilbench sweep SWEEP --out OUT --jobs 1 --quiet, signalled once its rows file holds a whole line.
+int interrupt_after_first_row(const fs::path& sweep, const fs::path& out, int sig) {
+  const auto rows = out / "rows" / "local.jsonl";
+  return interrupt_when(
+      {"sweep", sweep.string(), "--out", out.string(), "--jobs", "1", "--quiet"}, out.string() + ".err",
+      [&] { return fs::exists(rows) && lines_in(rows) >= 1; }, sig);
 }
 
 TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
@@ -130,6 +149,25 @@ TEST(Sweep, SameCsvWithOneAndTwoJobsAndAfterInterruptAndResume) {
 
 // The disk fills up part way: whole rows only, an error that says how many points are kept and
 // that the same command goes on; once there is room, it runs only the rest, to the same sweep.csv.
+// Before a sweep runs, every point's campaign is loaded once to check it (about a millisecond
+// each): 200 000 points are minutes. That check shows its progress, and Ctrl-C stops it at once,
+// writing nothing. It used to run silent, and past a first Ctrl-C (whose handler came later).
+TEST(Sweep, ALargeSweepsCheckShowsProgressAndAnInterruptStopsItWritingNothing) {
+  TempDir dir;
+  const auto sweep = dir.write("mc.yaml", "name: mc\ncampaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() +
+                                              "\nseed: 5\nsamples: 200000\naxes:\n  - path: campaign.gap.initial_deg\n"
+                                              "    uniform: {low: 0.2, high: 4}\n");
+  const auto out = dir.path() / "out", err = dir.path() / "stderr.txt";
+  const int status = interrupt_when(
+      {"sweep", sweep.string(), "--out", out.string()}, err,
+      [&] { return slurp(err).find("sweep mc: checking each point's campaign:") != std::string::npos; }, SIGINT);
+  const std::string said = slurp(err);
+  EXPECT_NE(said.find("sweep mc: checking each point's campaign:"), std::string::npos) << said;
+  EXPECT_EQ(status, 128 + SIGINT) << said;
+  EXPECT_NE(said.find("stopped by SIGINT while its points were checked; nothing was written"), std::string::npos) << said;
+  EXPECT_FALSE(fs::exists(out)) << said;
+}
+
 TEST(Sweep, AFullDiskKeepsWholeRowsAndTheSameCommandGoesOn) {
   TempDir dir;
   const auto sweep = write_grid_sweep(dir, "grid.yaml", 10, 12);  // 120 points

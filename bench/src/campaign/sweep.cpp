@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -19,6 +20,7 @@
 #include "hil/bench/rt/safety.hpp"
 #include "hil/config.hpp"
 #include "hil/plant/rng.hpp"
+#include "hil/progress_line.hpp"
 #include "hil/text_file.hpp"
 
 namespace hil::bench {
@@ -422,7 +424,7 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
 }
 
 SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
-                     const std::function<std::string(const std::string& name)>& checked_hash) {
+                     const std::function<std::string(const std::string& name)>& checked_hash, const PlanCheckOptions& options) {
   std::string sweep_text;  // the file as parsed, for the plan's hash
   const Node root = Node::load_file(sweep_file, &sweep_text);
   root.allow_keys({"name", "description", "campaign", "runs", "seed", "samples", "axes", "thresholds", "maps", "worst_by"});
@@ -596,16 +598,28 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   // On every hardware thread, each point once; the refused point of the lowest index is reported
   // (not the first one found), so the message is the same on every machine.
   // The files the points read are gathered on the way (an axis may name another csv reference).
-  std::atomic<long> next{0}, first_bad{plan.size()};
+  std::atomic<long> next{0}, first_bad{plan.size()}, checked{0};
+  std::atomic<bool> cancelled{false};
   std::vector<std::string> why(static_cast<std::size_t>(plan.size()));
-  std::mutex files_mutex;
+  std::mutex mutex;  // guards files and the progress line
   std::set<std::filesystem::path> files(base.data_files.begin(), base.data_files.end());
+  std::optional<ProgressLine> progress_line;
+  if (options.progress) {
+    ProgressLine::Options po;
+    po.delay_s = 1;  // a sweep of a few hundred points is checked in well under a second: no line
+    progress_line.emplace("sweep " + plan.name + ": checking each point's campaign", po);
+  }
   auto check = [&] {
+    const PointMaker maker(plan);
     for (long p = next.fetch_add(1); p < plan.size() && p < first_bad.load(); p = next.fetch_add(1)) {
+      if (options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed)) {
+        cancelled.store(true);
+        return;
+      }
       try {
-        const Campaign c = point_campaign(plan, p);
+        const Campaign c = maker.campaign(p);
         if (!c.data_files.empty()) {
-          std::lock_guard lock(files_mutex);
+          std::lock_guard lock(mutex);
           files.insert(c.data_files.begin(), c.data_files.end());
         }
         std::vector<std::string> names;
@@ -615,12 +629,20 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
         why[static_cast<std::size_t>(p)] = e.what();
         for (long seen = first_bad.load(); p < seen && !first_bad.compare_exchange_weak(seen, p);) {}
       }
+      const long n = checked.fetch_add(1) + 1;
+      if (progress_line) {
+        std::lock_guard lock(mutex);
+        progress_line->update(static_cast<double>(n) / static_cast<double>(plan.size()),
+                              [&] { return "(" + std::to_string(n) + "/" + std::to_string(plan.size()) + " points)"; });
+      }
     }
   };
   std::vector<std::thread> threads;
   for (unsigned t = 1; t < std::max(1u, std::thread::hardware_concurrency()); ++t) threads.emplace_back(check);
   check();
   for (auto& t : threads) t.join();
+  if (progress_line) progress_line->end();
+  if (cancelled.load()) throw Cancelled("sweep " + plan.name + ": stopped while its points were checked");
   if (const long p = first_bad.load(); p < plan.size()) {
     std::string values;
     for (std::size_t i = 0; i < plan.axes.size(); ++i)
@@ -648,10 +670,16 @@ void check_input_files(const SweepPlan& plan, const std::filesystem::path& dir) 
   }
 }
 
-PointYaml point_yaml(const SweepPlan& plan, long p) {
+PointMaker::PointMaker(const SweepPlan& plan)
+    : plan_(plan),
+      campaign_(load_yaml(plan.campaign_yaml, "the sweep's base campaign")),
+      plant_(load_yaml(plan.plant_yaml, "the sweep's base plant")) {}
+
+PointYaml PointMaker::yaml(long p) const {
+  const SweepPlan& plan = plan_;
   if (p < 0 || p >= plan.size()) throw std::out_of_range("sweep " + plan.name + " has no point " + std::to_string(p));
-  YAML::Node campaign = load_yaml(plan.campaign_yaml, "the sweep's base campaign");
-  YAML::Node plant = load_yaml(plan.plant_yaml, "the sweep's base plant");
+  YAML::Node campaign = YAML::Clone(campaign_);
+  YAML::Node plant = YAML::Clone(plant_);
   const auto& values = plan.points[static_cast<std::size_t>(p)];
   // Values first, then the increments onto what the values made.
   for (const bool relative : {false, true}) {
@@ -711,14 +739,21 @@ PointYaml point_yaml(const SweepPlan& plan, long p) {
   return {std::string(c.c_str()) + "\n", std::string(pl.c_str()) + "\n"};
 }
 
-Campaign point_campaign(const SweepPlan& plan, long p) {
-  const PointYaml y = point_yaml(plan, p);
+Campaign PointMaker::campaign(long p) const {
+  const PointYaml y = yaml(p);
   const std::string where = "sweep point " + std::to_string(p);
-  return load_campaign_text(y.campaign, where + " campaign.yaml", plan.campaign_dir, y.plant, where + " plant.yaml");
+  return load_campaign_text(y.campaign, where + " campaign.yaml", plan_.campaign_dir, y.plant, where + " plant.yaml");
 }
 
+PointYaml point_yaml(const SweepPlan& plan, long p) { return PointMaker(plan).yaml(p); }
+Campaign point_campaign(const SweepPlan& plan, long p) { return PointMaker(plan).campaign(p); }
 std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel) {
-  const Campaign c = point_campaign(plan, p);
+  return PointMaker(plan).run(p, cancel);
+}
+
+std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) const {
+  const SweepPlan& plan = plan_;
+  const Campaign c = campaign(p);
   std::vector<std::string> names;
   for (const auto& r : c.runs) names.push_back(r.name);
   if (names != plan.runs)

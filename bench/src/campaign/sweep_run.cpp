@@ -157,11 +157,13 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
     });
   };
   auto worker = [&] {
+    std::optional<PointMaker> maker;
     while (!failed.load() && !(options.cancel != nullptr && options.cancel->load())) {
       const std::size_t i = next.fetch_add(1);
       if (i >= todo.size()) return;
       try {
-        const std::string line = row_line(todo[i], run_point(plan, todo[i], options.cancel));
+        if (!maker) maker.emplace(plan);  // in the try: a plan whose base does not parse is this sweep's error
+        const std::string line = row_line(todo[i], maker->run(todo[i], options.cancel));
         std::lock_guard lock(mutex);
         rows.append(line);
         ++ran;

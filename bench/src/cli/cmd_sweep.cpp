@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "hil/bench/campaign/sim.hpp"  // Cancelled
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
@@ -69,7 +70,10 @@ SweepPlan prepare(const SweepArgs& args, std::filesystem::path& dir) {
     if (std::filesystem::exists(dir_of(name) / "plan.json")) old = read_plan(dir_of(name));
     return old ? old->hash : std::string();
   };
-  SweepPlan plan = plan_sweep(args.sweep_file, kMaxSweepPoints, checked_hash);
+  PlanCheckOptions check;
+  check.progress = !args.quiet;
+  check.cancel = &StopSignal::install();  // a large sweep's check takes minutes: Ctrl-C stops it, nothing written
+  SweepPlan plan = plan_sweep(args.sweep_file, kMaxSweepPoints, checked_hash, check);
   dir = dir_of(plan.name);
   if (old) {
     if (old->hash != plan.hash) {
@@ -350,7 +354,19 @@ int run_status(const SweepArgs& args) {
   return 0;
 }
 
+int run_sweep_mode(const SweepArgs& args);
+
 int run_sweep_command(const SweepArgs& args) {
+  try {
+    return run_sweep_mode(args);
+  } catch (const Cancelled&) {  // only the plan's check ends so (a run's points end in their result)
+    std::fprintf(stderr, "sweep %s: stopped by %s while its points were checked; nothing was written\n", args.sweep_file.c_str(),
+                 StopSignal::name());
+    return StopSignal::exit_code();
+  }
+}
+
+int run_sweep_mode(const SweepArgs& args) {
   if (!args.status_dir.empty()) {
     if (!args.sweep_file.empty() || args.aggregate || args.slurm || !args.shard.empty())
       throw UsageError("--status DIR goes alone");

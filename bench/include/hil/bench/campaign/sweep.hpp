@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
+#include <yaml-cpp/yaml.h>
 
 #include "hil/bench/campaign/campaign.hpp"
 
@@ -87,24 +88,47 @@ struct SweepPlan {
 // points were checked already (the plan.json of a sweep being resumed): a plan with that hash is
 // returned without loading its points again.
 inline constexpr long kMaxSweepPoints = 1'000'000;
+struct PlanCheckOptions {
+  // A progress line while the points are checked (a load each, about 1 ms: minutes for a large
+  // sweep); shown only once the check has taken a second.
+  bool progress = false;
+  // Set (by a signal handler, say) to stop the check at its next point: plan_sweep throws Cancelled.
+  const std::atomic<bool>* cancel = nullptr;
+};
 SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points = kMaxSweepPoints,
-                     const std::function<std::string(const std::string& name)>& checked_hash = {});
+                     const std::function<std::string(const std::string& name)>& checked_hash = {},
+                     const PlanCheckOptions& check = {});
 
 // Point p's campaign and plant as YAML, as `hilbench sim` reads them from DIR/points/<p>/ (the
 // campaign names its plant `plant.yaml`, beside it).
 struct PointYaml {
   std::string campaign, plant;
 };
+// Makes the points of one plan from its base campaign and plant, parsed once here: a parse was a
+// third of each point's load, and a sweep loads every point twice (the plan's check, the run).
+// The trees are copied for each point, never changed; one maker per thread (yaml-cpp's nodes are
+// not safe to share between threads).
+class PointMaker {
+ public:
+  explicit PointMaker(const SweepPlan& plan);
+  PointYaml yaml(long p) const;
+  Campaign campaign(long p) const;
+  // Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
+  // per reversal without reversals). Throws Cancelled (sim.hpp) within about a simulated second
+  // once `cancel` is set: the point is abandoned.
+  std::vector<double> run(long p, const std::atomic<bool>* cancel = nullptr) const;
+
+ private:
+  const SweepPlan& plan_;
+  YAML::Node campaign_, plant_;
+};
+// One point with a maker of its own (a few points: the report's worst ones, tests).
 PointYaml point_yaml(const SweepPlan& plan, long p);
+Campaign point_campaign(const SweepPlan& plan, long p);
+std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel = nullptr);
 // Throws std::runtime_error naming the first of plan.input_files whose contents are no longer
 // those the sweep was planned with (or that cannot be read), and what to do.
 void check_input_files(const SweepPlan& plan, const std::filesystem::path& dir);
-Campaign point_campaign(const SweepPlan& plan, long p);
-
-// Runs point p: its metrics in metric_names() order (NaN where one is undefined, e.g. a stall
-// per reversal without reversals). Throws Cancelled (sim.hpp) within about a simulated second
-// once `cancel` is set: the point is abandoned.
-std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel = nullptr);
 
 // Whether every threshold holds (a NaN metric fails its bound).
 bool point_passes(const SweepPlan& plan, const std::vector<double>& metrics);
