@@ -44,6 +44,17 @@ void MeasurementRows::clear() {
   for (auto* v : {&t_s, &theta_cmd_rad, &p_meas_pa, &theta_motor_rad, &p_ref_pa}) v->clear();
 }
 
+void MeasurementRows::reserve_like(const MeasurementRows& o, std::size_t rows) {
+  auto re = [rows](std::vector<double>& a, const std::vector<double>& b) {
+    if (!b.empty()) a.reserve(rows);
+  };
+  re(t_s, o.t_s);
+  re(theta_cmd_rad, o.theta_cmd_rad);
+  re(p_meas_pa, o.p_meas_pa);
+  re(theta_motor_rad, o.theta_motor_rad);
+  re(p_ref_pa, o.p_ref_pa);
+}
+
 void MeasurementRows::append(const MeasurementRows& o) {
   auto cat = [](std::vector<double>& a, const std::vector<double>& b) { a.insert(a.end(), b.begin(), b.end()); };
   cat(t_s, o.t_s);
@@ -174,6 +185,15 @@ Measurement load_measurement(const std::filesystem::path& file) {
   MeasurementRows chunk;
   std::size_t last_line = 0;
   while (reader.next(chunk)) {
+    const std::size_t need = m.rows.size() + chunk.size();
+    if (need > m.rows.t_s.capacity() && reader.progress() > 0) {
+      // Room for the whole file's rows, estimated from the bytes read so far (+1 % while rows
+      // remain: later rows may be shorter). Grown chunk by chunk, the columns doubled: a
+      // diagnosis held up to twice the rows' memory to its end.
+      const double f = reader.progress();
+      const double rows = f < 1 ? static_cast<double>(need) / f * 1.01 + 1024 : static_cast<double>(need);
+      m.rows.reserve_like(chunk, static_cast<std::size_t>(rows));
+    }
     m.rows.append(chunk);
     last_line = reader.first_line() + chunk.size() - 1;  // blank or comment lines in between shift it, rarely
   }

@@ -139,6 +139,23 @@ std::string rows_with(int n, double period_s, int at = -1, const std::string& ce
   return s;
 }
 
+// A long file's columns are sized from its first chunk, not doubled chunk by chunk: 300 000 rows
+// (five chunks) held capacity for 524 288 (1.75 x) to the end of a diagnosis.
+TEST(MeasurementFile, ALongFileIsHeldWithoutGrowthSlack) {
+  hil::test::TempDir dir;
+  const std::size_t n = 300000;
+  const auto f = dir.write("long.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows_with(static_cast<int>(n), 0.001));
+  const auto m = hil::analysis::load_measurement(f);
+  ASSERT_EQ(m.rows.size(), n);
+  for (const auto* column : {&m.rows.t_s, &m.rows.theta_cmd_rad, &m.rows.p_meas_pa}) {
+    EXPECT_GE(column->capacity(), n);
+    EXPECT_LE(column->capacity(), n + n / 20) << "more than 5 % slack";
+  }
+  EXPECT_EQ(m.rows.theta_motor_rad.capacity(), 0u);  // absent columns take nothing
+  EXPECT_EQ(m.rows.p_ref_pa.capacity(), 0u);
+  EXPECT_DOUBLE_EQ(m.rows.t_s.back(), 299.999);  // every row, in order
+}
+
 // A time column that jumps or crawls: refused at the row where it happens, before any replay (a
 // 1e9 s jump overflowed the replay's step count and was then accepted with a 96 % fit; a 1e6 s
 // jump or a 10 s period ran diagnose for minutes).

@@ -26,6 +26,8 @@ struct MeasurementRows {
   std::size_t size() const { return t_s.size(); }
   void clear();
   void append(const MeasurementRows& other);
+  // Room for `rows` rows in each column `other` has (the optional ones may be absent).
+  void reserve_like(const MeasurementRows& other, std::size_t rows);
 };
 
 // What a measurement file must satisfy beyond being numeric and in time order. Every bound is a
