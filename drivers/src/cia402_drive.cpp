@@ -66,21 +66,6 @@ DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
   return u;
 }
 
-namespace {
-// Every wait is bounded: a setup call blocks for (a few of) these, and a huge one would overflow
-// the clock arithmetic (the SDO budget multiplies sdo_ms by the tries) instead of waiting.
-constexpr long long kMaxWaitMs = 600000;
-
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1, long long max = 0) {
-  auto v = n.find(key);
-  if (!v) return fallback;
-  const long long x = v->integer();
-  v->require(x >= min, "must be >= " + std::to_string(min) + " ms");
-  if (max > 0) v->require(x <= max, "must be <= " + std::to_string(max) + " ms");
-  return milliseconds(x);
-}
-}  // namespace
-
 void check_can_interface_name(const cfg::Node& n) {
   // What the kernel takes as a network interface name (dev_valid_name()): 1..15 bytes (IFNAMSIZ
   // with its NUL), no '/', ':' or white space, not "." or "..". Anything else would only fail
@@ -119,8 +104,9 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto hb = n.find("heartbeat")) {
     hb->allow_keys({"producer_ms", "timeout_ms"});
     // 0x1017 is 16 bit: 65536 ms would be written as 0, which turns the heartbeat off.
-    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer, 1, 65535);
-    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout, 1, kMaxWaitMs);
+    c.heartbeat_producer = hb->milliseconds_in("producer_ms", c.heartbeat_producer, 1, 65535,
+                                               "0x1017 is 16 bit: 65536 would be written as 0, which turns the heartbeat off");
+    c.heartbeat_timeout = hb->milliseconds_in("timeout_ms", c.heartbeat_timeout, 1, detail::kMaxWaitMs);
     if (c.heartbeat_timeout <= c.heartbeat_producer) {
       hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
     }
@@ -128,11 +114,10 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
   if (auto t = n.find("timeouts")) {
     t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
-    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout, 1, kMaxWaitMs);
-    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout, 1, kMaxWaitMs);
-    c.sdo_retries = static_cast<int>(t->integer("sdo_retries", c.sdo_retries));
-    if (auto r = t->find("sdo_retries")) r->require(c.sdo_retries >= 0 && c.sdo_retries <= 10, "must be 0..10");
-    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout, 1, kMaxWaitMs);
+    c.boot_timeout = t->milliseconds_in("boot_ms", c.boot_timeout, 1, detail::kMaxWaitMs);
+    c.sdo_timeout = t->milliseconds_in("sdo_ms", c.sdo_timeout, 1, detail::kMaxWaitMs);
+    c.sdo_retries = static_cast<int>(t->integer_in("sdo_retries", c.sdo_retries, 0, 10));
+    c.transition_timeout = t->milliseconds_in("transition_ms", c.transition_timeout, 1, detail::kMaxWaitMs);
   }
   if (auto b = n.find("bus_off")) {
     b->allow_keys({"policy", "recover_after_ms"});
@@ -145,7 +130,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
       c.bus_off_policy = BusOffPolicy::recover;
     else
       b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
-    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after, 1, kMaxWaitMs);
+    c.bus_off_recover_after = b->milliseconds_in("recover_after_ms", c.bus_off_recover_after, 1, detail::kMaxWaitMs);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {
@@ -161,11 +146,8 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     positive("following_error_window_deg", c.limits.following_error_window_rad);
     positive("max_profile_velocity_deg_s", c.limits.max_profile_velocity_rad_s);
     positive("quick_stop_deceleration_deg_s2", c.limits.quick_stop_deceleration_rad_s2);
-    if (auto t = l->find("following_error_timeout_ms")) {
-      const long long x = t->integer();
-      t->require(x >= 0 && x <= 65535, "must be 0..65535 ms (0x6066 is 16 bit)");
-      c.limits.following_error_timeout = milliseconds(x);
-    }
+    c.limits.following_error_timeout =
+        l->milliseconds_in("following_error_timeout_ms", c.limits.following_error_timeout, 0, 65535, "0x6066 is 16 bit");
   }
   return c;
 }
