@@ -11,6 +11,7 @@
 #include <boost/asio/steady_timer.hpp>
 #include <net/if.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -202,7 +203,15 @@ struct Cia402Drive::Impl {
   Mailbox<DeviceHealth> health_box;
   std::atomic<std::uint8_t> target{static_cast<std::uint8_t>(cia402::Target::disabled)};
   std::atomic<std::uint8_t> state_now{static_cast<std::uint8_t>(cia402::State::not_ready_to_switch_on)};
+  // An explicit request (activate(), reset_fault(), a fault_reset edge in the command): it
+  // acknowledges the fault latched now and resets the drive's if it is in fault, once.
   std::atomic<bool> reset_request{false};
+  // Set when the drive enters fault or the client latches one (heartbeat lost, rebooted, left NMT
+  // operational, position jump); cleared only by a reset request or configure(). While set the
+  // enable sequence stops: quick stop from operation enabled, disable voltage elsewhere. Without
+  // it a drive that left fault by any other way (a reset from another master, a drive clearing
+  // its own fault) was walked straight back to operation enabled.
+  std::atomic<bool> fault_hold{false};
   std::atomic<std::uint64_t> bootups{0};
   std::atomic<std::uint8_t> nmt_now{0xFF};
   // The newest TPDO1 was too short to use: the feedback is stale although TPDOs arrive, and the
@@ -224,6 +233,11 @@ struct Cia402Drive::Impl {
   bool left_operational = false;
   bool bus_off_latched = false;
   bool prev_cmd_reset = false;
+  bool was_drive_fault = false;  // the drive's fault as of the last publish(): fault_hold latches on its rising edge
+  bool reset_pending = false;    // a reset request found the drive in fault: send the 0 -> 1 edge of bit 7
+  // 0x6064 moved further in one TPDO than the drive can (an int32 wrap of the count, a corrupt
+  // frame): latched, with the last trusted position kept, until configure().
+  bool position_jump = false;
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
   std::int32_t last_target_counts = 0;  // the target in the last RPDO1
@@ -246,7 +260,13 @@ struct Cia402Drive::Impl {
   void publish() {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
-    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted || left_operational;
+    const bool client_fault = h.heartbeat_lost || rebooted || left_operational || position_jump;
+    h.fault = drive_fault || client_fault || bus_off_latched;
+    // The drive's fault latches on its edge only: after a requested reset the drive still shows
+    // fault for a SYNC or two, which must not latch the hold again. Bus-off is left to its
+    // policy: `wait` and `recover` resume by configuration, and the drive never saw a fault.
+    if ((drive_fault && !was_drive_fault) || client_fault) fault_hold = true;
+    was_drive_fault = drive_fault;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
     fb.fault = h.fault;
@@ -325,8 +345,12 @@ struct Cia402Drive::Impl {
     tpdo_malformed = false;
     ++h.pdo_received;
     fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
-    last_pos_counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
-    fb.position_rad = cfg.units.to_rad(last_pos_counts);
+    const auto counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
+    if (fb.valid && !position_jump) check_position_step(counts, f.rx_time);
+    if (!position_jump) {
+      last_pos_counts = counts;
+      fb.position_rad = cfg.units.to_rad(counts);
+    }
     fb.valid = true;
     fb.rx_time = f.rx_time;
     ++fb.sequence;
@@ -338,6 +362,35 @@ struct Cia402Drive::Impl {
       }
       state_now = static_cast<std::uint8_t>(st);
     }
+  }
+
+  static constexpr std::int64_t kHalfInt32Range = std::int64_t{1} << 31;
+
+  // The most 0x6064 may move between two TPDOs arriving `gap` apart: twice what the configured
+  // max profile velocity covers in that gap plus one SYNC period of jitter; without that limit,
+  // half the int32 range, beyond which the step can only be a wrap of the count.
+  std::int64_t max_position_step_counts(Clock::duration gap) const {
+    const double v_rad_s = cfg.limits.max_profile_velocity_rad_s;
+    if (v_rad_s <= 0) return kHalfInt32Range;
+    const double span_s =
+        std::chrono::duration<double>(std::max<Clock::duration>(gap, cfg.sync_period) + cfg.sync_period).count();
+    const double counts = 2.0 * v_rad_s * span_s / std::abs(cfg.units.rad_per_count()) + 1.0;
+    return counts >= static_cast<double>(kHalfInt32Range) ? kHalfInt32Range : static_cast<std::int64_t>(counts);
+  }
+
+  void check_position_step(std::int32_t counts, Clock::time_point rx_time) {
+    const Clock::duration gap = rx_time - fb.rx_time;
+    const std::int64_t step = std::int64_t{counts} - last_pos_counts;
+    const std::int64_t limit = max_position_step_counts(gap);
+    if (step <= limit && -step <= limit) return;
+    position_jump = true;
+    // Kept short: last_error holds 191 characters, the drive's name included.
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  ": position jump: 0x6064 from %d to %d counts in %.1f ms, over the %lld it can move%s; configure()",
+                  last_pos_counts, counts, std::chrono::duration<double, std::milli>(gap).count(), static_cast<long long>(limit),
+                  step > kHalfInt32Range || -step > kHalfInt32Range ? " (int32 wrap)" : "");
+    error(who + text);
   }
 
   void on_emcy(const CanFrame& f) {
@@ -498,13 +551,20 @@ struct Cia402Drive::Impl {
     const DriveCommand cmd = command.load();
     if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
     prev_cmd_reset = cmd.fault_reset;
+    const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
+    // A request is used now or dropped: one made while the drive was healthy used to stay armed
+    // and reset the next fault the moment it came, unasked.
+    if (reset_request.exchange(false)) {
+      fault_hold = false;
+      reset_pending = st == cia402::State::fault;
+    }
     auto tgt = static_cast<cia402::Target>(target.load());
     if (tgt == cia402::Target::operation_enabled && !cmd.enable) tgt = cia402::Target::switched_on;
-    const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
+    if (fault_hold) tgt = cia402::Target::quick_stop;
     // A fault reset is the 0 -> 1 edge of bit 7, so only after a controlword with bit 7 low.
-    const bool reset = reset_request && st == cia402::State::fault && !(last_cw & cia402::kCwFaultReset);
+    const bool reset = reset_pending && st == cia402::State::fault && !(last_cw & cia402::kCwFaultReset);
     const std::uint16_t cw = cia402::next_controlword(st, tgt, reset);
-    if (cw == cia402::kCwFaultReset) reset_request = false;
+    if (cw == cia402::kCwFaultReset || st != cia402::State::fault) reset_pending = false;
     // Until enabled, the target follows the actual position so that enabling does not jump.
     // A NaN or infinite target holds the last one: to_counts() would make it INT32_MIN or
     // INT32_MAX counts, a full-speed move to the end of the encoder range.
@@ -630,6 +690,9 @@ void Cia402Drive::configure() {
     m.rebooted = false;
     m.seen_operational = false;
     m.left_operational = false;
+    m.position_jump = false;
+    m.reset_pending = false;
+    m.fault_hold = false;
     m.fb.valid = false;
     m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
     m.publish();
@@ -800,7 +863,7 @@ void Cia402Drive::activate() {
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
   m.command.store({fb.position_rad, true, false});
-  if (state() == cia402::State::fault) m.reset_request = true;
+  m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
   if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
     throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
@@ -812,7 +875,13 @@ void Cia402Drive::activate() {
 void Cia402Drive::deactivate() {
   auto& m = *impl_;
   m.target = static_cast<std::uint8_t>(cia402::Target::switched_on);
-  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switched_on; })) {
+  // Under a latched fault the client holds the drive below switched on: off is off enough.
+  const auto off = [&] {
+    const auto s = state();
+    return s == cia402::State::switched_on ||
+           (m.fault_hold && (s == cia402::State::switch_on_disabled || s == cia402::State::fault));
+  };
+  if (!detail::wait_for(m.cfg.transition_timeout, off)) {
     throw DriveError(m.who + ": did not reach switched on within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) + ")");
   }
