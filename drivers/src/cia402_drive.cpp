@@ -218,6 +218,9 @@ struct Cia402Drive::Impl {
   // stale reason must say so rather than "no TPDO".
   std::atomic<bool> tpdo_malformed{false};
   std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
+  // Set by cancel_setup(), for good: a client whose setup was cancelled is being given up.
+  std::atomic<bool> setup_cancelled{false};
+  const char* setup_call = nullptr;  // the setup call in progress (setup thread only)
 
   // I/O thread only.
   DeviceHealth h;
@@ -252,6 +255,36 @@ struct Cia402Drive::Impl {
     std::snprintf(buf, sizeof buf, "CiA 402 drive node %u on %s", n, cfg.interface.c_str());
     who = buf;
     h.heartbeat_timeout = cfg.heartbeat_timeout;
+  }
+
+  // -- setup calls (the calling thread) --
+  // Marks configure() or activate() as in progress for as long as it lives: cancel_setup() ends it,
+  // or refuses it from the start.
+  class SetupCall {
+   public:
+    SetupCall(Impl& m, const char* name) : m_(m) {
+      m_.setup_call = name;
+      m_.throw_if_cancelled();
+    }
+    ~SetupCall() { m_.setup_call = nullptr; }
+    SetupCall(const SetupCall&) = delete;
+    SetupCall& operator=(const SetupCall&) = delete;
+
+   private:
+    Impl& m_;
+  };
+
+  void throw_if_cancelled() const {
+    if (setup_call != nullptr && setup_cancelled) throw DriveError(who + ": " + setup_call + " cancelled");
+  }
+
+  // detail::wait_for, ended by cancel_setup() within one poll.
+  template <class Pred>
+  bool wait_for(milliseconds timeout, Pred pred) const {
+    return detail::wait_for(timeout, [&] {
+      throw_if_cancelled();
+      return pred();
+    });
   }
 
   // -- publishing (I/O thread) --
@@ -538,8 +571,12 @@ struct Cia402Drive::Impl {
       sdo_next();
     });
     const auto budget = (cfg.sdo_timeout + milliseconds(50)) * (cfg.sdo_retries + 1) * 4 + std::chrono::seconds(2);
-    if (fut.wait_for(budget) != std::future_status::ready) {
-      throw DriveError(who + ": SDO " + object_name(index, sub) + ": the I/O thread did not answer");
+    // In slices, so that a cancelled setup call does not wait out the request's tries. The
+    // request stays with the I/O thread, which ends it by its own timeout.
+    const auto until = Clock::now() + budget;
+    while (fut.wait_for(milliseconds(2)) != std::future_status::ready) {
+      throw_if_cancelled();
+      if (Clock::now() > until) throw DriveError(who + ": SDO " + object_name(index, sub) + ": the I/O thread did not answer");
     }
     return fut.get();
   }
@@ -683,6 +720,7 @@ Cia402Drive::~Cia402Drive() {
 
 void Cia402Drive::configure() {
   auto& m = *impl_;
+  const Impl::SetupCall call(m, "configure()");
   const auto n = m.n;
   m.run_on_io([&m] {
     m.pdo_running = false;
@@ -700,7 +738,7 @@ void Cia402Drive::configure() {
   const auto boots = m.bootups.load();
   m.notes.clear();
   nmt(NmtCommand::reset_communication);
-  if (!detail::wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
+  if (!m.wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
     char id[8];
     std::snprintf(id, sizeof id, "0x%03X", kHeartbeat + n);
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
@@ -846,7 +884,7 @@ void Cia402Drive::configure() {
     m.publish();
   });
   nmt(NmtCommand::start);
-  const bool up = detail::wait_for(m.cfg.boot_timeout, [&] {
+  const bool up = m.wait_for(m.cfg.boot_timeout, [&] {
     return (m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid) ||
            m.bootups.load() != booted;
   });
@@ -860,12 +898,23 @@ void Cia402Drive::configure() {
 
 void Cia402Drive::activate() {
   auto& m = *impl_;
+  const Impl::SetupCall call(m, "activate()");
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
   m.command.store({fb.position_rad, true, false});
   m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
-  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
+  bool enabled = false;
+  try {
+    enabled = m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; });
+  } catch (const DriveError&) {
+    // Cancelled: the enable sequence must not go on with nobody to run the drive (the rig
+    // deactivates only a drive whose activate() returned).
+    m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
+    throw;
+  }
+  if (!enabled) {
+    m.target = static_cast<std::uint8_t>(cia402::Target::disabled);  // the same after a timeout
     throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) +
                      "; last error: " + std::string(health().last_error_text()) + ")");
@@ -941,6 +990,8 @@ void Cia402Drive::nmt(NmtCommand command) {
 }
 
 void Cia402Drive::reset_fault() { impl_->reset_request = true; }
+
+void Cia402Drive::cancel_setup() noexcept { impl_->setup_cancelled = true; }
 
 void Cia402Drive::clear_bus_off() {
   auto& m = *impl_;

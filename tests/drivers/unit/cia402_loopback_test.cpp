@@ -487,5 +487,47 @@ TEST_F(Cia402Loopback, PositionStepBeyondTheVelocityLimitIsAFault) {
   EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, fb.position_rad, 1e-2);
 }
 
+// configure() and activate() each wait up to their timeouts (here 600 s) for a drive that does
+// not answer; an operator's abort could not cut them short. cancel_setup() from another thread
+// ends the one in progress within a poll, and the enable sequence does not go on behind it.
+TEST_F(Cia402Loopback, CancelEndsASetupCallWithinAPoll) {
+  const auto cancelled_within = [](Cia402Drive& client, auto&& setup_call, const std::string& want) {
+    std::thread canceller([&] {
+      std::this_thread::sleep_for(200ms);
+      client.cancel_setup();
+    });
+    const auto t0 = Clock::now();
+    try {
+      setup_call();
+      ADD_FAILURE() << "not cancelled";
+    } catch (const DriveError& e) {
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+    canceller.join();
+    return Clock::now() - t0;
+  };
+  auto cfg = test_config(9);
+  cfg.boot_timeout = 600s;
+  {
+    Cia402Drive client(cfg, factory());  // nobody at node 9: configure() waits for a boot-up
+    const auto took = cancelled_within(
+        client, [&] { client.configure(); }, "node 9 on vcan0: configure() cancelled");
+    EXPECT_LT(took, 2s);                           // 200 ms, and a loaded machine's slack; not 600 s
+    EXPECT_THROW(client.configure(), DriveError);  // given up: no later setup call waits either
+  }
+  cfg = test_config(5);
+  cfg.transition_timeout = 600s;
+  ControlwordLog log(bus, 5);
+  Rig r(factory(), cfg);
+  r.client.configure();
+  r.emulator.set_silent(true);  // activate() waits for a statusword that never comes
+  const auto took = cancelled_within(
+      r.client, [&] { r.client.activate(); }, "node 5 on vcan0: activate() cancelled");
+  EXPECT_LT(took, 2s);
+  r.emulator.set_silent(false);
+  ASSERT_TRUE(eventually([&] { return r.client.read(Clock::now(), 1ms).statusword != 0; }));
+  expect_only_controlword(log, cia402::kCwDisableVoltage, 200ms);
+}
+
 }  // namespace
 }  // namespace hil::drv::test
