@@ -264,7 +264,12 @@ struct Cia402Drive::Impl {
    public:
     SetupCall(Impl& m, const char* name) : m_(m) {
       m_.setup_call = name;
-      m_.throw_if_cancelled();
+      try {
+        m_.throw_if_cancelled();
+      } catch (...) {
+        m_.setup_call = nullptr;  // no destructor runs for a constructor that throws
+        throw;
+      }
     }
     ~SetupCall() { m_.setup_call = nullptr; }
     SetupCall(const SetupCall&) = delete;
