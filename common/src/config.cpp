@@ -296,6 +296,26 @@ bool Node::boolean(std::string_view key, bool fallback) const {
   return n ? n->boolean() : fallback;
 }
 
+namespace {
+long long integer_within(const Node& n, long long lo, long long hi, std::string_view unit, std::string_view reason) {
+  const long long x = n.integer();
+  n.require(x >= lo && x <= hi, "must be " + std::to_string(lo) + ".." + std::to_string(hi) + std::string(unit) +
+                                    (reason.empty() ? std::string() : " (" + std::string(reason) + ")"));
+  return x;
+}
+}  // namespace
+
+long long Node::integer_in(std::string_view key, long long fallback, long long lo, long long hi, std::string_view reason) const {
+  const auto n = find(key);
+  return n ? integer_within(*n, lo, hi, "", reason) : fallback;
+}
+
+std::chrono::milliseconds Node::milliseconds_in(std::string_view key, std::chrono::milliseconds fallback, long long lo_ms,
+                                                long long hi_ms, std::string_view reason) const {
+  const auto n = find(key);
+  return n ? std::chrono::milliseconds(integer_within(*n, lo_ms, hi_ms, " ms", reason)) : fallback;
+}
+
 std::string Node::text(std::string_view key, std::string_view fallback) const {
   auto n = find(key);
   return n ? n->text() : std::string(fallback);

@@ -11,6 +11,7 @@
 #include <boost/asio/steady_timer.hpp>
 #include <net/if.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -66,21 +67,6 @@ DriveUnits DriveUnits::from_yaml(const cfg::Node& n) {
   return u;
 }
 
-namespace {
-// Every wait is bounded: a setup call blocks for (a few of) these, and a huge one would overflow
-// the clock arithmetic (the SDO budget multiplies sdo_ms by the tries) instead of waiting.
-constexpr long long kMaxWaitMs = 600000;
-
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long min = 1, long long max = 0) {
-  auto v = n.find(key);
-  if (!v) return fallback;
-  const long long x = v->integer();
-  v->require(x >= min, "must be >= " + std::to_string(min) + " ms");
-  if (max > 0) v->require(x <= max, "must be <= " + std::to_string(max) + " ms");
-  return milliseconds(x);
-}
-}  // namespace
-
 void check_can_interface_name(const cfg::Node& n) {
   // What the kernel takes as a network interface name (dev_valid_name()): 1..15 bytes (IFNAMSIZ
   // with its NUL), no '/', ':' or white space, not "." or "..". Anything else would only fail
@@ -119,8 +105,9 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto hb = n.find("heartbeat")) {
     hb->allow_keys({"producer_ms", "timeout_ms"});
     // 0x1017 is 16 bit: 65536 ms would be written as 0, which turns the heartbeat off.
-    c.heartbeat_producer = ms(*hb, "producer_ms", c.heartbeat_producer, 1, 65535);
-    c.heartbeat_timeout = ms(*hb, "timeout_ms", c.heartbeat_timeout, 1, kMaxWaitMs);
+    c.heartbeat_producer = hb->milliseconds_in("producer_ms", c.heartbeat_producer, 1, 65535,
+                                               "0x1017 is 16 bit: 65536 would be written as 0, which turns the heartbeat off");
+    c.heartbeat_timeout = hb->milliseconds_in("timeout_ms", c.heartbeat_timeout, 1, detail::kMaxWaitMs);
     if (c.heartbeat_timeout <= c.heartbeat_producer) {
       hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
     }
@@ -128,11 +115,10 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
   if (auto t = n.find("timeouts")) {
     t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
-    c.boot_timeout = ms(*t, "boot_ms", c.boot_timeout, 1, kMaxWaitMs);
-    c.sdo_timeout = ms(*t, "sdo_ms", c.sdo_timeout, 1, kMaxWaitMs);
-    c.sdo_retries = static_cast<int>(t->integer("sdo_retries", c.sdo_retries));
-    if (auto r = t->find("sdo_retries")) r->require(c.sdo_retries >= 0 && c.sdo_retries <= 10, "must be 0..10");
-    c.transition_timeout = ms(*t, "transition_ms", c.transition_timeout, 1, kMaxWaitMs);
+    c.boot_timeout = t->milliseconds_in("boot_ms", c.boot_timeout, 1, detail::kMaxWaitMs);
+    c.sdo_timeout = t->milliseconds_in("sdo_ms", c.sdo_timeout, 1, detail::kMaxWaitMs);
+    c.sdo_retries = static_cast<int>(t->integer_in("sdo_retries", c.sdo_retries, 0, 10));
+    c.transition_timeout = t->milliseconds_in("transition_ms", c.transition_timeout, 1, detail::kMaxWaitMs);
   }
   if (auto b = n.find("bus_off")) {
     b->allow_keys({"policy", "recover_after_ms"});
@@ -145,7 +131,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
       c.bus_off_policy = BusOffPolicy::recover;
     else
       b->at("policy").fail("must be report, wait or recover, got '" + p + "'");
-    c.bus_off_recover_after = ms(*b, "recover_after_ms", c.bus_off_recover_after, 1, kMaxWaitMs);
+    c.bus_off_recover_after = b->milliseconds_in("recover_after_ms", c.bus_off_recover_after, 1, detail::kMaxWaitMs);
   }
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {
@@ -161,11 +147,8 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     positive("following_error_window_deg", c.limits.following_error_window_rad);
     positive("max_profile_velocity_deg_s", c.limits.max_profile_velocity_rad_s);
     positive("quick_stop_deceleration_deg_s2", c.limits.quick_stop_deceleration_rad_s2);
-    if (auto t = l->find("following_error_timeout_ms")) {
-      const long long x = t->integer();
-      t->require(x >= 0 && x <= 65535, "must be 0..65535 ms (0x6066 is 16 bit)");
-      c.limits.following_error_timeout = milliseconds(x);
-    }
+    c.limits.following_error_timeout =
+        l->milliseconds_in("following_error_timeout_ms", c.limits.following_error_timeout, 0, 65535, "0x6066 is 16 bit");
   }
   return c;
 }
@@ -220,13 +203,24 @@ struct Cia402Drive::Impl {
   Mailbox<DeviceHealth> health_box;
   std::atomic<std::uint8_t> target{static_cast<std::uint8_t>(cia402::Target::disabled)};
   std::atomic<std::uint8_t> state_now{static_cast<std::uint8_t>(cia402::State::not_ready_to_switch_on)};
+  // An explicit request (activate(), reset_fault(), a fault_reset edge in the command): it
+  // acknowledges the fault latched now and resets the drive's if it is in fault, once.
   std::atomic<bool> reset_request{false};
+  // Set when the drive enters fault or the client latches one (heartbeat lost, rebooted, left NMT
+  // operational, position jump); cleared only by a reset request or configure(). While set the
+  // enable sequence stops: quick stop from operation enabled, disable voltage elsewhere. Without
+  // it a drive that left fault by any other way (a reset from another master, a drive clearing
+  // its own fault) was walked straight back to operation enabled.
+  std::atomic<bool> fault_hold{false};
   std::atomic<std::uint64_t> bootups{0};
   std::atomic<std::uint8_t> nmt_now{0xFF};
   // The newest TPDO1 was too short to use: the feedback is stale although TPDOs arrive, and the
   // stale reason must say so rather than "no TPDO".
   std::atomic<bool> tpdo_malformed{false};
   std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
+  // Set by cancel_setup(), for good: a client whose setup was cancelled is being given up.
+  std::atomic<bool> setup_cancelled{false};
+  const char* setup_call = nullptr;  // the setup call in progress (setup thread only)
 
   // I/O thread only.
   DeviceHealth h;
@@ -242,6 +236,11 @@ struct Cia402Drive::Impl {
   bool left_operational = false;
   bool bus_off_latched = false;
   bool prev_cmd_reset = false;
+  bool was_drive_fault = false;  // the drive's fault as of the last publish(): fault_hold latches on its rising edge
+  bool reset_pending = false;    // a reset request found the drive in fault: send the 0 -> 1 edge of bit 7
+  // 0x6064 moved further in one TPDO than the drive can (an int32 wrap of the count, a corrupt
+  // frame): latched, with the last trusted position kept, until configure().
+  bool position_jump = false;
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
   std::int32_t last_target_counts = 0;  // the target in the last RPDO1
@@ -258,13 +257,54 @@ struct Cia402Drive::Impl {
     h.heartbeat_timeout = cfg.heartbeat_timeout;
   }
 
+  // -- setup calls (the calling thread) --
+  // Marks configure() or activate() as in progress for as long as it lives: cancel_setup() ends it,
+  // or refuses it from the start.
+  class SetupCall {
+   public:
+    SetupCall(Impl& m, const char* name) : m_(m) {
+      m_.setup_call = name;
+      try {
+        m_.throw_if_cancelled();
+      } catch (...) {
+        m_.setup_call = nullptr;  // no destructor runs for a constructor that throws
+        throw;
+      }
+    }
+    ~SetupCall() { m_.setup_call = nullptr; }
+    SetupCall(const SetupCall&) = delete;
+    SetupCall& operator=(const SetupCall&) = delete;
+
+   private:
+    Impl& m_;
+  };
+
+  void throw_if_cancelled() const {
+    if (setup_call != nullptr && setup_cancelled) throw DriveError(who + ": " + setup_call + " cancelled");
+  }
+
+  // detail::wait_for, ended by cancel_setup() within one poll.
+  template <class Pred>
+  bool wait_for(milliseconds timeout, Pred pred) const {
+    return detail::wait_for(timeout, [&] {
+      throw_if_cancelled();
+      return pred();
+    });
+  }
+
   // -- publishing (I/O thread) --
   void error(const std::string& text) { h.set_last_error(text); }
 
   void publish() {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
-    h.fault = drive_fault || h.heartbeat_lost || bus_off_latched || rebooted || left_operational;
+    const bool client_fault = h.heartbeat_lost || rebooted || left_operational || position_jump;
+    h.fault = drive_fault || client_fault || bus_off_latched;
+    // The drive's fault latches on its edge only: after a requested reset the drive still shows
+    // fault for a SYNC or two, which must not latch the hold again. Bus-off is left to its
+    // policy: `wait` and `recover` resume by configuration, and the drive never saw a fault.
+    if ((drive_fault && !was_drive_fault) || client_fault) fault_hold = true;
+    was_drive_fault = drive_fault;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
     fb.fault = h.fault;
@@ -343,8 +383,12 @@ struct Cia402Drive::Impl {
     tpdo_malformed = false;
     ++h.pdo_received;
     fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
-    last_pos_counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
-    fb.position_rad = cfg.units.to_rad(last_pos_counts);
+    const auto counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
+    if (fb.valid && !position_jump) check_position_step(counts, f.rx_time);
+    if (!position_jump) {
+      last_pos_counts = counts;
+      fb.position_rad = cfg.units.to_rad(counts);
+    }
     fb.valid = true;
     fb.rx_time = f.rx_time;
     ++fb.sequence;
@@ -356,6 +400,35 @@ struct Cia402Drive::Impl {
       }
       state_now = static_cast<std::uint8_t>(st);
     }
+  }
+
+  static constexpr std::int64_t kHalfInt32Range = std::int64_t{1} << 31;
+
+  // The most 0x6064 may move between two TPDOs arriving `gap` apart: twice what the configured
+  // max profile velocity covers in that gap plus one SYNC period of jitter; without that limit,
+  // half the int32 range, beyond which the step can only be a wrap of the count.
+  std::int64_t max_position_step_counts(Clock::duration gap) const {
+    const double v_rad_s = cfg.limits.max_profile_velocity_rad_s;
+    if (v_rad_s <= 0) return kHalfInt32Range;
+    const double span_s =
+        std::chrono::duration<double>(std::max<Clock::duration>(gap, cfg.sync_period) + cfg.sync_period).count();
+    const double counts = 2.0 * v_rad_s * span_s / std::abs(cfg.units.rad_per_count()) + 1.0;
+    return counts >= static_cast<double>(kHalfInt32Range) ? kHalfInt32Range : static_cast<std::int64_t>(counts);
+  }
+
+  void check_position_step(std::int32_t counts, Clock::time_point rx_time) {
+    const Clock::duration gap = rx_time - fb.rx_time;
+    const std::int64_t step = std::int64_t{counts} - last_pos_counts;
+    const std::int64_t limit = max_position_step_counts(gap);
+    if (step <= limit && -step <= limit) return;
+    position_jump = true;
+    // Kept short: last_error holds 191 characters, the drive's name included.
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  ": position jump: 0x6064 from %d to %d counts in %.1f ms, over the %lld it can move%s; configure()",
+                  last_pos_counts, counts, std::chrono::duration<double, std::milli>(gap).count(), static_cast<long long>(limit),
+                  step > kHalfInt32Range || -step > kHalfInt32Range ? " (int32 wrap)" : "");
+    error(who + text);
   }
 
   void on_emcy(const CanFrame& f) {
@@ -503,8 +576,12 @@ struct Cia402Drive::Impl {
       sdo_next();
     });
     const auto budget = (cfg.sdo_timeout + milliseconds(50)) * (cfg.sdo_retries + 1) * 4 + std::chrono::seconds(2);
-    if (fut.wait_for(budget) != std::future_status::ready) {
-      throw DriveError(who + ": SDO " + object_name(index, sub) + ": the I/O thread did not answer");
+    // In slices, so that a cancelled setup call does not wait out the request's tries. The
+    // request stays with the I/O thread, which ends it by its own timeout.
+    const auto until = Clock::now() + budget;
+    while (fut.wait_for(milliseconds(2)) != std::future_status::ready) {
+      throw_if_cancelled();
+      if (Clock::now() > until) throw DriveError(who + ": SDO " + object_name(index, sub) + ": the I/O thread did not answer");
     }
     return fut.get();
   }
@@ -516,13 +593,20 @@ struct Cia402Drive::Impl {
     const DriveCommand cmd = command.load();
     if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
     prev_cmd_reset = cmd.fault_reset;
+    const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
+    // A request is used now or dropped: one made while the drive was healthy used to stay armed
+    // and reset the next fault the moment it came, unasked.
+    if (reset_request.exchange(false)) {
+      fault_hold = false;
+      reset_pending = st == cia402::State::fault;
+    }
     auto tgt = static_cast<cia402::Target>(target.load());
     if (tgt == cia402::Target::operation_enabled && !cmd.enable) tgt = cia402::Target::switched_on;
-    const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
+    if (fault_hold) tgt = cia402::Target::quick_stop;
     // A fault reset is the 0 -> 1 edge of bit 7, so only after a controlword with bit 7 low.
-    const bool reset = reset_request && st == cia402::State::fault && !(last_cw & cia402::kCwFaultReset);
+    const bool reset = reset_pending && st == cia402::State::fault && !(last_cw & cia402::kCwFaultReset);
     const std::uint16_t cw = cia402::next_controlword(st, tgt, reset);
-    if (cw == cia402::kCwFaultReset) reset_request = false;
+    if (cw == cia402::kCwFaultReset || st != cia402::State::fault) reset_pending = false;
     // Until enabled, the target follows the actual position so that enabling does not jump.
     // A NaN or infinite target holds the last one: to_counts() would make it INT32_MIN or
     // INT32_MAX counts, a full-speed move to the end of the encoder range.
@@ -641,6 +725,7 @@ Cia402Drive::~Cia402Drive() {
 
 void Cia402Drive::configure() {
   auto& m = *impl_;
+  const Impl::SetupCall call(m, "configure()");
   const auto n = m.n;
   m.run_on_io([&m] {
     m.pdo_running = false;
@@ -648,6 +733,9 @@ void Cia402Drive::configure() {
     m.rebooted = false;
     m.seen_operational = false;
     m.left_operational = false;
+    m.position_jump = false;
+    m.reset_pending = false;
+    m.fault_hold = false;
     m.fb.valid = false;
     m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
     m.publish();
@@ -655,7 +743,7 @@ void Cia402Drive::configure() {
   const auto boots = m.bootups.load();
   m.notes.clear();
   nmt(NmtCommand::reset_communication);
-  if (!detail::wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
+  if (!m.wait_for(m.cfg.boot_timeout, [&] { return m.bootups.load() > boots; })) {
     char id[8];
     std::snprintf(id, sizeof id, "0x%03X", kHeartbeat + n);
     throw DriveError(m.who + ": no boot-up message (" + id + ") within " + std::to_string(m.cfg.boot_timeout.count()) +
@@ -801,7 +889,7 @@ void Cia402Drive::configure() {
     m.publish();
   });
   nmt(NmtCommand::start);
-  const bool up = detail::wait_for(m.cfg.boot_timeout, [&] {
+  const bool up = m.wait_for(m.cfg.boot_timeout, [&] {
     return (m.nmt_now.load() == static_cast<std::uint8_t>(NmtState::operational) && m.feedback.load().valid) ||
            m.bootups.load() != booted;
   });
@@ -815,12 +903,23 @@ void Cia402Drive::configure() {
 
 void Cia402Drive::activate() {
   auto& m = *impl_;
+  const Impl::SetupCall call(m, "activate()");
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
   m.command.store({fb.position_rad, true, false});
-  if (state() == cia402::State::fault) m.reset_request = true;
+  m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
-  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; })) {
+  bool enabled = false;
+  try {
+    enabled = m.wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::operation_enabled; });
+  } catch (const DriveError&) {
+    // Cancelled: the enable sequence must not go on with nobody to run the drive (the rig
+    // deactivates only a drive whose activate() returned).
+    m.target = static_cast<std::uint8_t>(cia402::Target::disabled);
+    throw;
+  }
+  if (!enabled) {
+    m.target = static_cast<std::uint8_t>(cia402::Target::disabled);  // the same after a timeout
     throw DriveError(m.who + ": did not reach operation enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) +
                      "; last error: " + std::string(health().last_error_text()) + ")");
@@ -830,7 +929,13 @@ void Cia402Drive::activate() {
 void Cia402Drive::deactivate() {
   auto& m = *impl_;
   m.target = static_cast<std::uint8_t>(cia402::Target::switched_on);
-  if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switched_on; })) {
+  // Under a latched fault the client holds the drive below switched on: off is off enough.
+  const auto off = [&] {
+    const auto s = state();
+    return s == cia402::State::switched_on ||
+           (m.fault_hold && (s == cia402::State::switch_on_disabled || s == cia402::State::fault));
+  };
+  if (!detail::wait_for(m.cfg.transition_timeout, off)) {
     throw DriveError(m.who + ": did not reach switched on within " + std::to_string(m.cfg.transition_timeout.count()) +
                      " ms (state: " + std::string(cia402::to_string(state())) + ")");
   }
@@ -890,6 +995,8 @@ void Cia402Drive::nmt(NmtCommand command) {
 }
 
 void Cia402Drive::reset_fault() { impl_->reset_request = true; }
+
+void Cia402Drive::cancel_setup() noexcept { impl_->setup_cancelled = true; }
 
 void Cia402Drive::clear_bus_off() {
   auto& m = *impl_;

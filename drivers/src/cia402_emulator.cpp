@@ -29,12 +29,9 @@ Cia402EmulatorConfig Cia402EmulatorConfig::from_yaml(const cfg::Node& n) {
   n.at("node_id").require(node >= 1 && node <= 127, "a CANopen node id is 1..127");
   c.node_id = static_cast<std::uint8_t>(node);
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
-  c.pdos = static_cast<int>(n.integer("pdos", c.pdos));
-  if (auto p = n.find("pdos")) p->require(c.pdos >= 1 && c.pdos <= 4, "must be 1..4");
+  c.pdos = static_cast<int>(n.integer_in("pdos", c.pdos, 1, 4));
   c.interpolation_period = n.boolean("interpolation_period", c.interpolation_period);
-  const long long delay = n.integer("mode_display_delay_ms", 0);
-  if (auto d = n.find("mode_display_delay_ms")) d->require(delay >= 0 && delay <= 10000, "must be 0..10000 ms");
-  c.mode_display_delay = std::chrono::milliseconds(delay);
+  c.mode_display_delay = n.milliseconds_in("mode_display_delay_ms", c.mode_display_delay, 0, 10000);
   c.following_error = n.boolean("following_error", c.following_error);
   c.quick_stop_ramp = n.boolean("quick_stop_ramp", c.quick_stop_ramp);
   return c;

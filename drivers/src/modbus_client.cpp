@@ -51,29 +51,10 @@ std::string_view modbus_exception_name(int code) {
 }
 
 namespace {
-milliseconds ms(const cfg::Node& n, std::string_view key, milliseconds fallback, long long max_ms = 600000,
-                std::string_view why = "") {
-  auto v = n.find(key);
-  if (!v) return fallback;
-  const long long x = v->integer();
-  v->require(x >= 1 && x <= max_ms, "must be 1.." + std::to_string(max_ms) + " ms" + std::string(why));
-  return milliseconds(x);
-}
-
 // libmodbus cannot be interrupted inside a transaction: a run's end, an abort's included, waits for
 // the one in flight up to this long (it was 600 s). A device that needs longer to answer is no
 // device for a control loop.
 constexpr long long kMaxResponseTimeoutMs = 10000;
-
-// An integer key within [lo, hi], checked before it is narrowed to int (a cast first would make
-// 4294967298 a 2 and pass). `why` says the range and what happens outside it.
-int int_in(const cfg::Node& n, std::string_view key, long long fallback, long long lo, long long hi, std::string_view why) {
-  const auto v = n.find(key);
-  if (!v) return static_cast<int>(fallback);
-  const long long x = v->integer();
-  v->require(x >= lo && x <= hi, why);
-  return static_cast<int>(x);
-}
 
 // The serial rates libmodbus 3.1 sets on Linux (modbus-rtu.c): it makes any other rate 9600 baud
 // without a word ("Unknown baud rate ... (B9600 used)" only in its debug mode).
@@ -139,19 +120,20 @@ ModbusLinkConfig ModbusLinkConfig::from_yaml(const cfg::Node& n) {
     const std::string p = n.text("parity", "N");
     if (p != "N" && p != "E" && p != "O") n.at("parity").fail("must be N, E or O, got '" + p + "'");
     c.parity = p[0];
-    c.data_bits = int_in(n, "data_bits", 8, 5, 8, "must be 5..8 (libmodbus makes any other 8)");
-    c.stop_bits = int_in(n, "stop_bits", 1, 1, 2, "must be 1 or 2 (libmodbus makes any other 2)");
+    c.data_bits = static_cast<int>(n.integer_in("data_bits", 8, 5, 8, "libmodbus makes any other 8"));
+    c.stop_bits = static_cast<int>(n.integer_in("stop_bits", 1, 1, 2, "libmodbus makes any other 2"));
   }
   // A client asks one device: unit 0 is a broadcast, which no device answers (and 248..255 are
   // reserved).
-  c.unit_id = int_in(n, "unit_id", 1, 1, 247, "a device's unit id is 1..247 (0 is a broadcast, which no device answers)");
-  c.response_timeout = ms(n, "response_timeout_ms", c.response_timeout, kMaxResponseTimeoutMs,
-                          " (an abort waits for the transaction in flight, which libmodbus cannot cut short)");
-  c.poll_period = ms(n, "poll_period_ms", c.poll_period);
+  c.unit_id =
+      static_cast<int>(n.integer_in("unit_id", 1, 1, 247, "a device's unit id; 0 is a broadcast, which no device answers"));
+  c.response_timeout = n.milliseconds_in("response_timeout_ms", c.response_timeout, 1, kMaxResponseTimeoutMs,
+                                         "an abort waits for the transaction in flight, which libmodbus cannot cut short");
+  c.poll_period = n.milliseconds_in("poll_period_ms", c.poll_period, 1, detail::kMaxWaitMs);
   if (auto r = n.find("reconnect")) {
     r->allow_keys({"initial_ms", "max_ms"});
-    c.reconnect_initial = ms(*r, "initial_ms", c.reconnect_initial);
-    c.reconnect_max = ms(*r, "max_ms", c.reconnect_max);
+    c.reconnect_initial = r->milliseconds_in("initial_ms", c.reconnect_initial, 1, detail::kMaxWaitMs);
+    c.reconnect_max = r->milliseconds_in("max_ms", c.reconnect_max, 1, detail::kMaxWaitMs);
     if (c.reconnect_max < c.reconnect_initial) r->at("max_ms").fail("must be >= initial_ms");
   }
   return c;
@@ -166,7 +148,7 @@ std::string ModbusLinkConfig::describe() const {
 ModbusDriveConfig ModbusDriveConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"link", "register_map", "transition_ms"});
   ModbusDriveConfig c{ModbusLinkConfig::from_yaml(n.at("link")), map_from(n, map_names())};
-  c.transition_timeout = ms(n, "transition_ms", c.transition_timeout);
+  c.transition_timeout = n.milliseconds_in("transition_ms", c.transition_timeout, 1, detail::kMaxWaitMs);
   return c;
 }
 

@@ -8,6 +8,11 @@
 
 namespace hil::drv::detail {
 
+// The longest any configured wait may be, in ms: a setup call blocks for (a few of) these, and a
+// huge one would overflow the clock arithmetic (the SDO budget multiplies sdo_ms by the tries)
+// instead of waiting.
+inline constexpr long long kMaxWaitMs = 600000;
+
 // Polls `pred` every 2 ms until it holds (true) or `timeout` passes (false).
 template <class Pred>
 bool wait_for(std::chrono::milliseconds timeout, Pred pred) {

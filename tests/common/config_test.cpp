@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <string>
 
@@ -47,6 +48,24 @@ TEST(Config, RequireReportsTheOffendingValue) {
     v.require(v.number() < 1, "must be < 1");
   });
   EXPECT_NE(msg.find("plant.yaml:1:1: n: must be < 1, got '1.2'"), std::string::npos) << msg;
+}
+
+// The one ranged integer read the drivers use: the range (and its unit and reason) in the
+// message at file:line:key, a number checked before anyone narrows it, the fallback when absent.
+TEST(Config, IntegerInRangeNamesTheRangeAndTheReason) {
+  const Node n = Node::load_string("link:\n  bits: 9\n  huge: 4294967298\n  wait_ms: 0\n  ok: 7\n", "link.yaml");
+  const Node link = n.at("link");
+  EXPECT_EQ(link.integer_in("ok", 8, 5, 8), 7);
+  EXPECT_EQ(link.integer_in("absent", 8, 5, 8), 8);
+  EXPECT_EQ(link.milliseconds_in("absent_ms", std::chrono::milliseconds(250), 1, 1000), std::chrono::milliseconds(250));
+  const auto msg = [&](auto&& read) { return error_of("", [&](const Node&) { read(); }); };
+  EXPECT_EQ(msg([&] { (void)link.integer_in("bits", 8, 5, 8, "libmodbus makes any other 8"); }),
+            "link.yaml:2:3: link.bits: must be 5..8 (libmodbus makes any other 8), got '9'");
+  // 4294967298 is 2 once cast to 32 bits: it must fail as the number written.
+  EXPECT_EQ(msg([&] { (void)link.integer_in("huge", 1, 1, 4); }), "link.yaml:3:3: link.huge: must be 1..4, got '4294967298'");
+  EXPECT_EQ(msg([&] { (void)link.milliseconds_in("wait_ms", std::chrono::milliseconds(1), 1, 600000); }),
+            "link.yaml:4:3: link.wait_ms: must be 1..600000 ms, got '0'");
+  EXPECT_EQ(msg([&] { (void)link.integer_in("ok", 1, 1, 8); }), "no error");
 }
 
 TEST(Config, SyntaxErrorHasLineAndColumn) {

@@ -204,6 +204,32 @@ inline void bus_off(const FaultSetup& s) {
   expect_next_campaign_completes(b, s, can_rig_yaml(side, {}, s.can_interface, "recover", kRelaxedTimeouts));
 }
 
+// An operator's abort while the rig is being set up: the drive answers nothing, so configure()
+// waits for its boot-up up to boot_ms (600 s here). The abort used to wait that out; now it cuts
+// the setup short and the run ends "aborted", naming the setup it cut.
+inline void abort_during_setup(const FaultSetup& s) {
+  const auto c = short_paper_campaign(4, 0, s.period_ms);
+  SimulatorSide side(c, s.can_transport, s.can_interface);
+  Bench b(s.can_transport);
+  std::string rig = can_rig_yaml(side, fault_rig(), s.can_interface);
+  const std::string boot = "boot_ms: 10000";
+  ASSERT_NE(rig.find(boot), std::string::npos);
+  rig.replace(rig.find(boot), boot.size(), "boot_ms: 600000");
+  side.can.set_silent(true);
+  b.start(c, rig);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // configure() is waiting by now
+  b.runner().abort("operator abort: at once");                  // as the server words it
+  const json last = b.finish(std::chrono::seconds(10));         // not 600 s
+  EXPECT_EQ(last["outcome"], "aborted") << last.dump();
+  const std::string reason = last.value("reason", "");
+  EXPECT_NE(reason.find("operator abort: at once during the setup of rig 'test_rig_1' (CiA 402 drive node 5 on " +
+                        s.can_interface + ": configure() cancelled)"),
+            std::string::npos)
+      << reason;
+  side.can.set_silent(false);
+  expect_next_campaign_completes(b, s, can_rig_yaml(side, {}, s.can_interface, "recover", kRelaxedTimeouts));
+}
+
 // An SDO abort while the rig configures the drive: the run ends in error with a message naming
 // the object; nothing ran, the telemetry file holds its header; once the drive stops refusing,
 // the next campaign completes.

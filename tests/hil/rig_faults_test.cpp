@@ -22,5 +22,6 @@ TEST_F(RigFaults, SilentDriveTripsTheWatchdog) { drive_silent(setup); }
 TEST_F(RigFaults, EmcyFaultTripsAndIsNamed) { emcy_fault(setup); }
 TEST_F(RigFaults, BusOffIsDetectedReportedAndRecovered) { bus_off(setup); }
 TEST_F(RigFaults, SdoAbortAtConfigureNamesTheObject) { sdo_abort(setup); }
+TEST_F(RigFaults, AnAbortCutsTheRigSetupShort) { abort_during_setup(setup); }
 TEST_F(RigFaults, ModbusTimeoutTripsThenReconnectsAndResumes) { modbus_timeout(setup); }
 TEST_F(RigFaults, ModbusReadExceptionTripsTheWatchdogNamingTheException) { modbus_read_exception(setup); }

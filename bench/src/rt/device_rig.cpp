@@ -39,7 +39,10 @@ void DeviceRig::configure(const RigSetup& setup) {
   if (!(setup.period_s > 0)) throw std::invalid_argument(kind_ + " rig: the period must be > 0");
   active_ = false;
   configured_ = false;
-  drive_.reset();
+  {
+    std::lock_guard lock(cancel_mutex_);
+    drive_.reset();
+  }
   sensor_.reset();
   period_s_ = setup.period_s;
   {
@@ -47,7 +50,11 @@ void DeviceRig::configure(const RigSetup& setup) {
     // runner thread's affinity, which keeps off the loop's CPU).
     const ScopedRealtime io_sched(config_.loop.io_priority);
     if (!io_sched.warning().empty()) spdlog::warn("{} rig '{}': {}", kind_, config_.name, io_sched.warning());
-    drive_ = parts_.drive(setup);
+    {
+      std::lock_guard lock(cancel_mutex_);
+      drive_ = parts_.drive(setup);
+      if (setup_cancelled_) drive_->cancel_setup();
+    }
     drive_->configure();
     if (parts_.pressure_sensor) {
       sensor_ = parts_.pressure_sensor(setup);
@@ -114,6 +121,12 @@ void DeviceRig::activate() {
     }
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
+}
+
+void DeviceRig::cancel_setup() noexcept {
+  std::lock_guard lock(cancel_mutex_);
+  setup_cancelled_ = true;
+  if (drive_) drive_->cancel_setup();
 }
 
 void DeviceRig::deactivate() noexcept {

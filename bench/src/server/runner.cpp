@@ -183,6 +183,7 @@ struct CampaignRunner::Active {
   std::filesystem::path dir;
   const RunLoop* loop = nullptr;
   SpscRing<LoopRequest>* requests = nullptr;
+  Rig* rig_in_setup = nullptr;  // while its configure() and activate() run: an abort cancels them
   Recorder* recorder = nullptr;
   RtSetup rt;
   std::int64_t periods_done = 0;  // in finished runs
@@ -297,6 +298,7 @@ std::string CampaignRunner::abort(const std::string& reason) {
     active_->recorder->log(e);
   }
   if (active_->requests) active_->requests->try_push({.kind = LoopRequest::Kind::abort});
+  if (active_->rig_in_setup) active_->rig_in_setup->cancel_setup();
   return active_->abort_reason;
 }
 
@@ -440,6 +442,12 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   std::unique_ptr<RunLoop> loop;
   Outcome outcome = Outcome::error;
   std::string reason;
+  {
+    // From here an abort cuts the setup short; one that came before is passed on at once.
+    std::lock_guard lock(mutex_);
+    a.rig_in_setup = rig.get();
+    if (a.abort) rig->cancel_setup();
+  }
   try {
     Schedule::Cursor rc0, gc0;
     rig->configure({&c, c.period_s, c.reference_pa.at(0.0, rc0), c.gap_rad.at(0.0, gc0)});
@@ -452,9 +460,20 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     outcome = Outcome::error;
     reason = std::string("rig '") + rc.name + "' setup: " + e.what();
     rec.log({{"kind", "rig_error"}, {"source", "bench"}, {"detail", reason}});
+    {
+      std::lock_guard lock(mutex_);
+      if (a.abort) {  // the setup ended because of it (or would have been cut short by it)
+        outcome = Outcome::aborted;
+        reason = a.abort_text() + " during the setup of rig '" + rc.name + "' (" + e.what() + ")";
+      }
+    }
     rig->deactivate();
     say_drive_not_disabled(*rig, rec, reason);
     loop.reset();
+  }
+  {
+    std::lock_guard lock(mutex_);
+    a.rig_in_setup = nullptr;
   }
 
   RtSetup rt;

@@ -3,6 +3,7 @@
 // e.g. "configs/plant/x.yaml:12:5: effects.gas_generator.pressure_exponent: must be < 1".
 #pragma once
 
+#include <chrono>
 #include <filesystem>
 #include <initializer_list>
 #include <memory>
@@ -65,6 +66,14 @@ class Node {
   bool boolean(std::string_view key, bool fallback) const;
   std::string text(std::string_view key) const { return at(key).text(); }
   std::string text(std::string_view key, std::string_view fallback) const;
+  // A whole number within lo..hi (both included), or `fallback` when the key is absent. Checked
+  // before the caller narrows it (a cast first made 4294967298 a 2 and passed). The error names
+  // file:line:key and the range: "must be <lo>..<hi>[ (<reason>)], got '<value>'"; `reason` says
+  // why the range is what it is or what a device would do outside it.
+  long long integer_in(std::string_view key, long long fallback, long long lo, long long hi, std::string_view reason = "") const;
+  // The same for a key in milliseconds (its name ends in _ms): the range reads "<lo>..<hi> ms".
+  std::chrono::milliseconds milliseconds_in(std::string_view key, std::chrono::milliseconds fallback, long long lo_ms,
+                                            long long hi_ms, std::string_view reason = "") const;
 
   // Range checks that name this node: fail unless `ok`, with "<why>, got <value>".
   void require(bool ok, std::string_view why) const;

@@ -6,6 +6,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
 #include <optional>
+#include <algorithm>
 #include <limits>
 #include <mutex>
 #include <vector>
@@ -345,6 +346,187 @@ TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {
   }
   // 200 loop writes give far more SYNCs than the 50 ms timer could have.
   EXPECT_TRUE(eventually([&] { return r.emulator.syncs_seen() - before > 60; })) << r.emulator.syncs_seen() - before;
+}
+
+// Every controlword the client sends `node` in RPDO1, in bus order (the bus's tap, as candump
+// would show them). Made before the Rig, so it outlives the client that feeds it.
+class ControlwordLog {
+ public:
+  ControlwordLog(LoopbackBus& bus, std::uint8_t node) : bus_(bus) {
+    bus_.set_tap([this, node](const CanFrame& f) {
+      if (f.id != canopen::kRpdo1 + node || f.dlc < 2) return;
+      std::lock_guard lock(mutex_);
+      words_.push_back(static_cast<std::uint16_t>(canopen::get_le(&f.data[0], 2)));
+    });
+  }
+  ~ControlwordLog() { bus_.set_tap({}); }
+  std::size_t size() {
+    std::lock_guard lock(mutex_);
+    return words_.size();
+  }
+  std::vector<std::uint16_t> since(std::size_t from) {
+    std::lock_guard lock(mutex_);
+    return {words_.begin() + static_cast<std::ptrdiff_t>(std::min(from, words_.size())), words_.end()};
+  }
+
+ private:
+  LoopbackBus& bus_;
+  std::mutex mutex_;
+  std::vector<std::uint16_t> words_;
+};
+
+// The controlwords sent in the next `window`, which must all be `want` (and there must be some).
+void expect_only_controlword(ControlwordLog& log, std::uint16_t want, std::chrono::milliseconds window) {
+  const std::size_t from = log.size();
+  std::this_thread::sleep_for(window);
+  const auto words = log.since(from);
+  ASSERT_GT(words.size(), 10u);
+  for (const std::uint16_t cw : words) ASSERT_EQ(cw, want) << "controlword 0x" << std::hex << cw;
+}
+
+// A fault reset asked for while the drive was healthy stayed armed and reset the next fault the
+// moment it came: the drive was walked back to operation enabled (0x80, 0x06, 0x07, 0x0F) with
+// nobody asking. Once the drive reports a fault the client sends disable voltage only, until an
+// explicit request (here activate()).
+TEST_F(Cia402Loopback, DriveFaultHoldsDisableVoltageUntilAnExplicitReset) {
+  ControlwordLog log(bus, 5);
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.activate();
+  r.client.reset_fault();  // nothing to reset: must not stay armed
+  std::this_thread::sleep_for(50ms);
+  r.emulator.raise_emcy(0x2310, 0x02);
+  ASSERT_TRUE(eventually([&] { return r.client.state() == cia402::State::fault; }));
+  expect_only_controlword(log, cia402::kCwDisableVoltage, 300ms);
+  EXPECT_EQ(r.emulator.state(), cia402::State::fault);
+  r.client.activate();  // the explicit request: one reset, then enabled again
+  EXPECT_EQ(r.client.state(), cia402::State::operation_enabled);
+  EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault) << r.client.health().last_error_text();
+}
+
+// The client latches a fault of its own (here the heartbeat lost; the drive still answers
+// every SYNC): it used to keep sending enable operation, and after the heartbeat came back the
+// drive ran on as if nothing had happened. Now it quick-stops the drive and holds it disabled
+// after the heartbeat resumes, until activate().
+TEST_F(Cia402Loopback, HeartbeatLossStopsTheEnableSequenceUntilActivate) {
+  ControlwordLog log(bus, 5);
+  auto cfg = test_config(5);
+  cfg.heartbeat_timeout = 300ms;
+  Rig r(factory(), cfg);
+  r.client.configure();
+  r.client.activate();
+  r.emulator.stop_heartbeat(true);
+  ASSERT_TRUE(eventually([&] { return r.client.health().heartbeat_lost; }));
+  EXPECT_TRUE(eventually([&] { return r.emulator.state() == cia402::State::switch_on_disabled; }, 5s))
+      << cia402::to_string(r.emulator.state());
+  r.emulator.stop_heartbeat(false);
+  ASSERT_TRUE(eventually([&] { return !r.client.health().heartbeat_lost; }));
+  expect_only_controlword(log, cia402::kCwDisableVoltage, 300ms);
+  EXPECT_EQ(r.emulator.state(), cia402::State::switch_on_disabled);
+  r.client.activate();
+  EXPECT_EQ(r.client.state(), cia402::State::operation_enabled);
+}
+
+// A TPDO1 as the drive sends it, with `counts` as the position actual value.
+CanFrame tpdo1(std::uint8_t node, std::uint16_t statusword, std::int32_t counts) {
+  CanFrame f;
+  f.id = canopen::kTpdo1 + node;
+  f.dlc = 6;
+  canopen::put_le(&f.data[0], statusword, 2);
+  canopen::put_le(&f.data[2], static_cast<std::uint32_t>(counts), 4);
+  return f;
+}
+
+// 0x6064 wrapping from near INT32_MAX to near INT32_MIN (or any step no drive makes in one
+// period) was taken as a real move of thousands of revolutions. Now it is a fault naming the
+// jump, the position keeps its last trusted value, the drive is quick-stopped, and only
+// configure() (which reads the position afresh) clears it.
+TEST_F(Cia402Loopback, PositionWrapIsAFaultNotAMove) {
+  Rig r(factory(), test_config(5));
+  r.client.configure();
+  r.client.activate();
+  const double before_rad = r.client.read(Clock::now(), 1ms).position_rad;
+  // Near the top of the range: a legal step without a velocity limit (less than half the range).
+  const std::uint16_t enabled = r.client.read(Clock::now(), 1ms).statusword;
+  bus.inject(tpdo1(5, enabled, INT32_MAX - 100));
+  bus.inject(tpdo1(5, enabled, INT32_MIN + 100));  // the wrap
+  ASSERT_TRUE(eventually([&] { return r.client.health().fault; }, 5s));
+  const std::string text(r.client.health().last_error_text());
+  EXPECT_NE(text.find("node 5 on vcan0: position jump: 0x6064 from "), std::string::npos) << text;
+  EXPECT_NE(text.find("(int32 wrap)"), std::string::npos) << text;
+  const auto fb = r.client.read(Clock::now(), 1ms);
+  EXPECT_TRUE(fb.fault);
+  EXPECT_GT(fb.position_rad, 0.0) << "the wrapped count (about -3.3e5 rad) was published as the position";
+  EXPECT_TRUE(eventually([&] { return r.emulator.state() == cia402::State::switch_on_disabled; }, 5s));
+  r.client.configure();
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+  EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, before_rad, 1e-2);
+}
+
+// With max_profile_velocity configured, a step far beyond what that speed covers in a period is
+// caught even when it is no wrap; ordinary motion at that speed is not.
+TEST_F(Cia402Loopback, PositionStepBeyondTheVelocityLimitIsAFault) {
+  auto cfg = test_config(5);
+  cfg.limits.max_profile_velocity_rad_s = 40.0;  // the drive's limit; the test model runs at most 20 rad/s
+  Rig r(factory(), cfg);
+  r.client.configure();
+  r.client.activate();
+  {
+    TestLoop loop(r.client);
+    loop.target_rad = 2.0;  // 1.75 rad, mostly at the model's full 20 rad/s
+    ASSERT_TRUE(eventually([&] { return std::abs(loop.position_rad.load() - 2.0) < 1e-2; }, 5s));
+  }
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+  const auto fb = r.client.read(Clock::now(), 1ms);
+  // One revolution of the valve (40960 counts) between two TPDOs: 6.3 rad where 0.3 is the most.
+  bus.inject(tpdo1(5, fb.statusword, cfg.units.to_counts(fb.position_rad) + 40960));
+  ASSERT_TRUE(eventually([&] { return r.client.health().fault; }, 5s));
+  const std::string text(r.client.health().last_error_text());
+  EXPECT_NE(text.find("position jump"), std::string::npos) << text;
+  EXPECT_EQ(text.find("int32 wrap"), std::string::npos) << text;
+  EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, fb.position_rad, 1e-2);
+}
+
+// configure() and activate() each wait up to their timeouts (here 600 s) for a drive that does
+// not answer; an operator's abort could not cut them short. cancel_setup() from another thread
+// ends the one in progress within a poll, and the enable sequence does not go on behind it.
+TEST_F(Cia402Loopback, CancelEndsASetupCallWithinAPoll) {
+  const auto cancelled_within = [](Cia402Drive& client, auto&& setup_call, const std::string& want) {
+    std::thread canceller([&] {
+      std::this_thread::sleep_for(200ms);
+      client.cancel_setup();
+    });
+    const auto t0 = Clock::now();
+    try {
+      setup_call();
+      ADD_FAILURE() << "not cancelled";
+    } catch (const DriveError& e) {
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+    canceller.join();
+    return Clock::now() - t0;
+  };
+  auto cfg = test_config(9);
+  cfg.boot_timeout = 600s;
+  {
+    Cia402Drive client(cfg, factory());  // nobody at node 9: configure() waits for a boot-up
+    const auto took = cancelled_within(
+        client, [&] { client.configure(); }, "node 9 on vcan0: configure() cancelled");
+    EXPECT_LT(took, 2s);                           // 200 ms, and a loaded machine's slack; not 600 s
+    EXPECT_THROW(client.configure(), DriveError);  // given up: no later setup call waits either
+  }
+  cfg = test_config(5);
+  cfg.transition_timeout = 600s;
+  ControlwordLog log(bus, 5);
+  Rig r(factory(), cfg);
+  r.client.configure();
+  r.emulator.set_silent(true);  // activate() waits for a statusword that never comes
+  const auto took = cancelled_within(
+      r.client, [&] { r.client.activate(); }, "node 5 on vcan0: activate() cancelled");
+  EXPECT_LT(took, 2s);
+  r.emulator.set_silent(false);
+  ASSERT_TRUE(eventually([&] { return r.client.read(Clock::now(), 1ms).statusword != 0; }));
+  expect_only_controlword(log, cia402::kCwDisableVoltage, 200ms);
 }
 
 }  // namespace

@@ -89,7 +89,9 @@ TEST(Cia402Config, ErrorsNameFileLineAndKey) {
 TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
   for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
            {"interface: vcan0\nnode_id: 2\nheartbeat: {producer_ms: 65536, timeout_ms: 70000}",
-            "d.yaml:3:13: heartbeat.producer_ms: must be <= 65535 ms"},
+            "d.yaml:3:13: heartbeat.producer_ms: must be 1..65535 ms (0x1017 is 16 bit: 65536 would be written as 0, which turns "
+            "the "
+            "heartbeat off), got '65536'"},
            {"interface: averyveryverylongcan0\nnode_id: 2", "d.yaml:1:1: interface: a network interface name is 1..15"},
            {"interface: ''\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
            {"interface: can/0\nnode_id: 2", "d.yaml:1:1: interface: a network interface name"},
@@ -103,8 +105,10 @@ TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
             "d.yaml:3:1: sync_period_us: must be >= 285 us, the time RPDO1 + SYNC + TPDO1 take at 1000000 bit/s"},
            {"interface: vcan0\nnode_id: 2\nbitrate: 125000\nsync_period_us: 1000", "sync_period_us: must be >= 2280 us"},
            {"interface: vcan0\nnode_id: 2\nbitrate: -500000", "d.yaml:3:1: bitrate: must be 10000..1000000 bit/s"},
-           {"interface: vcan0\nnode_id: 2\ntimeouts: {sdo_ms: 100000000000000000}", "timeouts.sdo_ms: must be <= 600000 ms"},
-           {"interface: vcan0\nnode_id: 2\ntimeouts: {boot_ms: 100000000000000000}", "timeouts.boot_ms: must be <= 600000 ms"}}) {
+           {"interface: vcan0\nnode_id: 2\ntimeouts: {sdo_ms: 100000000000000000}",
+            "d.yaml:3:12: timeouts.sdo_ms: must be 1..600000 ms, got '100000000000000000'"},
+           {"interface: vcan0\nnode_id: 2\ntimeouts: {boot_ms: 100000000000000000}",
+            "d.yaml:3:12: timeouts.boot_ms: must be 1..600000 ms, got '100000000000000000'"}}) {
     try {
       Cia402Config::from_yaml(cfg::Node::load_string(text + "\n", "d.yaml"));
       ADD_FAILURE() << "accepted: " << text;
@@ -117,6 +121,13 @@ TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
     ADD_FAILURE() << "the emulator accepted a 21 character interface name";
   } catch (const cfg::Error& e) {
     EXPECT_NE(std::string(e.what()).find("e.yaml:1:1: interface: a network interface name"), std::string::npos) << e.what();
+  }
+  // pdos was cast to int before its range check: 4294967297 became 1 and passed.
+  try {
+    Cia402EmulatorConfig::from_yaml(cfg::Node::load_string("node_id: 2\npdos: 4294967297\n", "e.yaml"));
+    ADD_FAILURE() << "the emulator accepted 4294967297 PDOs";
+  } catch (const cfg::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("e.yaml:2:1: pdos: must be 1..4, got '4294967297'"), std::string::npos) << e.what();
   }
   // The largest values that fit are taken.
   const auto ok = Cia402Config::from_yaml(cfg::Node::load_string(

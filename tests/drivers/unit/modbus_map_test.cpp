@@ -148,20 +148,26 @@ TEST(ModbusLinkConfig, ValuesAClientCannotUseAreRefused) {
   expect_error("port: 4294967298", "link.port: a device's TCP port is 1..65535, got '4294967298'");
   expect_error("host: localhost, port: 502", "link.host: must be the device's numeric IPv4 address");
   expect_error("host: 0.0.0.0, port: 502", "link.host: must be the device's numeric IPv4 address");
-  expect_error("port: 502, unit_id: 0", "link.unit_id: a device's unit id is 1..247 (0 is a broadcast");
-  expect_error("port: 502, unit_id: 4294967297", "link.unit_id: a device's unit id is 1..247");
+  expect_error(
+      "port: 502, unit_id: 0",
+      "link.yaml:1:19: link.unit_id: must be 1..247 (a device's unit id; 0 is a broadcast, which no device answers), got '0'");
+  expect_error("port: 502, unit_id: 4294967297",
+               "link.unit_id: must be 1..247 (a device's unit id; 0 is a broadcast, which no device answers), got '4294967297'");
   expect_error("port: 502, baud: 9600", "link.baud: a tcp link has no baud");
   expect_error(rtu + "baud: 12345", "link.baud: must be one of 110, 300,");
   expect_error(rtu + "baud: 12345", "(libmodbus makes any other 9600), got '12345'");
   expect_error(rtu + "baud: -9600", "link.baud: must be one of");
   expect_error(rtu + "data_bits: 9", "link.data_bits: must be 5..8 (libmodbus makes any other 8), got '9'");
-  expect_error(rtu + "stop_bits: 0", "link.stop_bits: must be 1 or 2 (libmodbus makes any other 2), got '0'");
+  expect_error(rtu + "stop_bits: 0", "link.stop_bits: must be 1..2 (libmodbus makes any other 2), got '0'");
   expect_error(rtu + "parity: X", "link.parity: must be N, E or O, got 'X'");
   expect_error(rtu + "port: 502", "link.port: a rtu link has no port");
-  expect_error("port: 502, response_timeout_ms: 0", "link.response_timeout_ms: must be 1..10000 ms");
+  expect_error(
+      "port: 502, response_timeout_ms: 0",
+      "link.yaml:1:19: link.response_timeout_ms: must be 1..10000 ms (an abort waits for the transaction in flight, which "
+      "libmodbus cannot cut short), got '0'");
   // libmodbus cannot cut a transaction short: an abort waited up to 600 s for one in flight.
   expect_error("port: 502, response_timeout_ms: 600000", "must be 1..10000 ms (an abort waits for the transaction in flight");
-  expect_error("port: 502, poll_period_ms: -1", "link.poll_period_ms: must be 1..600000 ms");
+  expect_error("port: 502, poll_period_ms: -1", "link.poll_period_ms: must be 1..600000 ms, got '-1'");
   // What a device takes stays accepted.
   const auto ok = ModbusLinkConfig::from_yaml(
       cfg::Node::load_string("{" + rtu + "baud: 19200, parity: E, data_bits: 7, stop_bits: 2, unit_id: 247}", "ok.yaml"));

@@ -118,7 +118,8 @@ class Cia402Drive final : public PositionDrive {
   // What configure() skipped because the drive lacks an optional object, one line each.
   std::vector<std::string> configure_notes() const;
   // Shutdown -> switch on -> enable operation (one fault reset first if in fault); the target
-  // starts at the actual position.
+  // starts at the actual position. Acknowledges a latched fault (see reset_fault()). When it
+  // fails (timeout, cancel) the client goes back to disable voltage.
   void activate() override;
   // Enable operation -> switched on (power stage idle, drive keeps its position).
   void deactivate() override;
@@ -142,7 +143,16 @@ class Cia402Drive final : public PositionDrive {
   std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);
   void sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size);
   void nmt(canopen::NmtCommand command);
-  void reset_fault();    // one fault-reset edge at the next SYNC
+  // After a fault (the drive's, or one the client latched: heartbeat lost, left operational,
+  // position jump) the client sends quick stop / disable voltage only, until this request (or
+  // activate(), or a fault_reset edge in the command): one fault-reset edge at the next SYNC if the
+  // drive is in fault. A request with no fault to reset is dropped, not kept for the next one.
+  void reset_fault();
+  // Any thread: the configure() or activate() in progress throws DriveError "... cancelled"
+  // within one poll (2 ms) instead of waiting out its timeouts (up to 600 s each), and so does
+  // every later one: a client whose setup was cancelled is being given up (an operator's abort).
+  // deactivate() and quick_stop() are not cancelled: they are how a drive is made safe.
+  void cancel_setup() noexcept override;
   void clear_bus_off();  // with BusOffPolicy::report: the operator says the bus is fine again
 
   const Cia402Config& config() const;

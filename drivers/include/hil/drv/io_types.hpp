@@ -19,8 +19,10 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // What the loop asks of a position drive. Positions are load-side (valve) radians.
 struct DriveCommand {
   double target_position_rad = 0.0;
-  bool enable = false;       // false: hold switched on, power stage idle
-  bool fault_reset = false;  // a rising edge requests one fault reset
+  bool enable = false;  // false: hold switched on, power stage idle
+  // A rising edge acknowledges a latched fault: one fault reset if the drive is in fault (a CiA 402
+  // drive is held disabled after a fault until then, or until activate()).
+  bool fault_reset = false;
 };
 
 struct DriveFeedback {

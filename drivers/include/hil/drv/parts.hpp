@@ -46,6 +46,10 @@ class PositionDrive {
   virtual void activate() = 0;
   // Setup, blocking, throws: power stage off, the drive keeps its position.
   virtual void deactivate() = 0;
+  // Any thread: a configure() or activate() in progress or to come throws instead of waiting, for
+  // an operator's abort of a run being set up. A client whose setup waits are short may leave it
+  // a no-op.
+  virtual void cancel_setup() noexcept {}
 
   // Real-time safe: the newest feedback from the client's mailbox (position in load-side
   // radians, rx_time when it arrived, sequence counting replies), never waiting for a new one.

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <mutex>
 
 #include "hil/bench/rt/rig.hpp"
 #include "hil/bench/rt/rig_config.hpp"
@@ -57,8 +58,9 @@ class DeviceRig final : public Rig {
   // go out with it added, readings come back with it removed). Throws the parts' errors (they
   // name the device, the object or register, and the cause).
   void configure(const RigSetup& setup) override;
-  void activate() override;             // enables the drive; waits for a fresh reading of every part
-  void deactivate() noexcept override;  // disables it; errors are kept in health() and deactivate_failure()
+  void activate() override;               // enables the drive; waits for a fresh reading of every part
+  void deactivate() noexcept override;    // disables it; errors are kept in health() and deactivate_failure()
+  void cancel_setup() noexcept override;  // passed on to the drive, the one made now or later
   std::string deactivate_failure() const override { return deactivate_error_.data(); }
 
   // Real-time safe. Stale: the drive's feedback or the pressure is not fresh (a drive answering
@@ -87,6 +89,10 @@ class DeviceRig final : public Rig {
   const std::string kind_;
   const RigCapabilities capabilities_;
   const Parts parts_;
+  // Guards drive_ being replaced (configure(), the setup thread) against cancel_setup() (another
+  // thread); the loop's calls never take it.
+  std::mutex cancel_mutex_;
+  bool setup_cancelled_ = false;
   std::unique_ptr<drv::PositionDrive> drive_;
   std::unique_ptr<drv::PressureSensor> sensor_;
   drv::FeedbackFreshness drive_freshness_ = drv::FeedbackFreshness::polled;

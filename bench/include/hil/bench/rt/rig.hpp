@@ -111,6 +111,10 @@ class Rig {
   virtual void configure(const RigSetup& setup) = 0;
   virtual void activate() = 0;
   virtual void deactivate() noexcept = 0;
+  // Any thread: configure() and activate(), in progress or to come, throw instead of waiting out
+  // their timeouts (a drive's are up to 600 s each): an operator's abort of a run being set up.
+  // For good: the rig is being given up. A rig whose setup does not wait may leave it a no-op.
+  virtual void cancel_setup() noexcept {}
   // Why the last deactivate() could not switch the drive off (it may still be enabled); empty
   // when it did, or when there is nothing to switch off.
   virtual std::string deactivate_failure() const { return {}; }
