@@ -151,6 +151,39 @@ TEST(RigConfig, ErrorsNameFileLineAndKey) {
   has(e, "sync_source");
 }
 
+// The loop's and the interlocks' whole numbers are checked before they become an int: a cast
+// first made 'priority: 4294967376' a priority of 80, 'ring_rows: 4294967360' a ring of 64 rows and
+// 'watchdog_misses: 4294967299' a watchdog of 3 misses, each accepted.
+TEST(RigConfig, WholeNumbersBeyondAnIntAreRefusedNotWrapped) {
+  auto has = [](const std::string& what, const std::string& part) { EXPECT_NE(what.find(part), std::string::npos) << what; };
+  const std::string safety_wide =
+      "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 100, p_max_mpa: 2.5, "
+      "p_min_mpa: 0.2, watchdog_misses: 4294967299}\n";
+  std::string e = config_error("kind: sim\nloop: {priority: 4294967376}\n" + kSafety);
+  has(e, "bad.yaml:2:");
+  has(e, "priority: must be 0..99 (0 = normal scheduling), got '4294967376'");
+  e = config_error("kind: sim\nloop: {ring_rows: 4294967360}\n" + kSafety);
+  has(e, "ring_rows: must be 64..16777216, got '4294967360'");
+  e = config_error("kind: sim\nloop: {overrun: {policy: abort, abort_after: 4294967297}}\n" + kSafety);
+  has(e, "abort_after: must be 1..1000000 (overruns in a row), got '4294967297'");
+  e = config_error("kind: sim\nloop: {cpu_dma_latency_us: -2}\n" + kSafety);
+  has(e, "cpu_dma_latency_us: must be -1..1000000");
+  e = config_error("kind: sim\n" + safety_wide);
+  has(e, "bad.yaml:2:");
+  has(e, "watchdog_misses: must be 1..1000000 (missed reads in a row), got '4294967299'");
+  // In range, the values are taken as written.
+  TempDir dir;
+  const auto ok =
+      bench::load_rig_config(dir.write("rigs/ok.yaml",
+                                       "kind: sim\nloop: {priority: 0, cpu: -1, ring_rows: 64}\nsafety: {cmd_min_deg: -5, "
+                                       "cmd_max_deg: 35, rate_limit_deg_s: 100, p_max_mpa: 2.5, p_min_mpa: 0.2, watchdog_misses: "
+                                       "1000000, pressure_debounce: 1}\n"));
+  EXPECT_EQ(ok.loop.priority, 0);
+  EXPECT_EQ(ok.loop.ring_rows, 64);
+  EXPECT_EQ(ok.safety.watchdog_misses, 1000000);
+  EXPECT_EQ(ok.safety.pressure_debounce, 1);
+}
+
 // The capabilities each rig kind has, and what the runner refuses because of them.
 TEST(RigCapabilities, SplitByWhatTheRigHas) {
   bench::SimRig sim;

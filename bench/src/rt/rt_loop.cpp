@@ -22,13 +22,10 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys(
       {"priority", "cpu", "overrun", "ring_rows", "cpu_dma_latency_us", "io_priority", "recording_fault", "target_shaping"});
   LoopConfig c;
-  c.priority = static_cast<int>(n.integer("priority", 80));
-  if (n.has("priority")) n.at("priority").require(c.priority >= 0 && c.priority <= 99, "must be 0..99 (0 = normal scheduling)");
-  c.io_priority = static_cast<int>(n.integer("io_priority", 0));
-  if (n.has("io_priority"))
-    n.at("io_priority").require(c.io_priority >= 0 && c.io_priority <= 99, "must be 0..99 (0 = normal scheduling)");
-  c.cpu = static_cast<int>(n.integer("cpu", -1));
-  if (n.has("cpu")) n.at("cpu").require(c.cpu >= -1 && c.cpu < 1024, "must be a CPU number, or -1 for no pinning");
+  // Each checked before it is narrowed to int (a cast first took 'priority: 4294967376' as 80).
+  c.priority = static_cast<int>(n.integer_in("priority", 80, 0, 99, "0 = normal scheduling"));
+  c.io_priority = static_cast<int>(n.integer_in("io_priority", 0, 0, 99, "0 = normal scheduling"));
+  c.cpu = static_cast<int>(n.integer_in("cpu", -1, -1, 1023, "a CPU number, or -1 for no pinning"));
   if (const auto o = n.find("overrun")) {
     o->allow_keys({"policy", "abort_after"});
     const std::string policy = o->text("policy", "count");
@@ -39,11 +36,10 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
     } else {
       o->at("policy").fail("must be 'count' or 'abort', got '" + policy + "'");
     }
-    c.overrun_abort_after = static_cast<int>(o->integer("abort_after", 10));
-    if (o->has("abort_after")) o->at("abort_after").require(c.overrun_abort_after >= 1, "must be >= 1");
+    c.overrun_abort_after = static_cast<int>(o->integer_in("abort_after", 10, 1, 1'000'000, "overruns in a row"));
   }
-  c.cpu_dma_latency_us = static_cast<int>(n.integer("cpu_dma_latency_us", 0));
-  if (n.has("cpu_dma_latency_us")) n.at("cpu_dma_latency_us").require(c.cpu_dma_latency_us >= -1, "must be >= 0, or -1 for none");
+  c.cpu_dma_latency_us = static_cast<int>(
+      n.integer_in("cpu_dma_latency_us", 0, -1, 1'000'000, "microseconds; -1 leaves the CPUs' idle states alone"));
   const std::string recording = n.text("recording_fault", "safe_state");
   if (recording == "safe_state") {
     c.recording_fault = RecordingFaultPolicy::safe_state;
@@ -59,8 +55,7 @@ LoopConfig LoopConfig::from_yaml(const cfg::Node& n) {
     s->at("max_acceleration_deg_s2").require(a > 0 && a <= 1e7, "must be in (0, 1e7] deg/s^2");
     c.target_shaping = {units::deg_to_rad(v), units::deg_to_rad(a)};
   }
-  c.ring_rows = static_cast<int>(n.integer("ring_rows", 65536));
-  if (n.has("ring_rows")) n.at("ring_rows").require(c.ring_rows >= 64 && c.ring_rows <= (1 << 24), "must be 64..16777216");
+  c.ring_rows = static_cast<int>(n.integer_in("ring_rows", 65536, 64, 1 << 24));
   return c;
 }
 

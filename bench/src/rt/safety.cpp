@@ -51,10 +51,9 @@ SafetyConfig SafetyConfig::from_yaml(const cfg::Node& n) {
   c.p_min_pa = n.number("p_min_mpa") * kPaPerMpa;
   n.at("p_min_mpa").require(c.p_min_pa >= 0, "must be >= 0");
   n.at("p_max_mpa").require(c.p_max_pa > c.p_min_pa, "must be above p_min_mpa");
-  c.pressure_debounce = static_cast<int>(n.integer("pressure_debounce", 3));
-  if (n.has("pressure_debounce")) n.at("pressure_debounce").require(c.pressure_debounce >= 1, "must be >= 1");
-  c.watchdog_misses = static_cast<int>(n.integer("watchdog_misses", 3));
-  if (n.has("watchdog_misses")) n.at("watchdog_misses").require(c.watchdog_misses >= 1, "must be >= 1");
+  // Checked before narrowing to int (a cast first took 'watchdog_misses: 4294967299' as 3).
+  c.pressure_debounce = static_cast<int>(n.integer_in("pressure_debounce", 3, 1, 1'000'000, "readings in a row"));
+  c.watchdog_misses = static_cast<int>(n.integer_in("watchdog_misses", 3, 1, 1'000'000, "missed reads in a row"));
   const std::string mode = n.text("safe_state", "hold");
   if (mode == "hold") {
     c.safe_mode = SafeMode::hold;
