@@ -64,7 +64,7 @@ TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
       {"POST", "/api/start", "{\"campaign\": \"\xff\xfe\"}", 400},  // invalid UTF-8 in a string value
       {"POST", "/api/start", "{\"\xff\": 1}", 400},                 // ... in a key
       {"POST", "/api/start", "{\"campaign\": \"x\", \"speed\": 1e400}", 400},
-      {"GET", "/api/runs?runs=%ff", "", 200},  // an unknown query key is ignored
+      {"GET", "/api/runs?runs=%ff", "", 400},  // an unknown query key is refused, naming it
       {"GET", "/api/runs/%ff", "", 404},
       {"GET", "/api/runs/%ff/%fe", "", 404},
       {"GET", "/api/\xff\xfe", "", 404},                      // raw bytes in the path
@@ -660,6 +660,51 @@ TEST(ServerProtocol, TelemetryQueryOptionsAreWholeNumbersAndKnownNames) {
   EXPECT_EQ(start.status, 400) << start.body;
   EXPECT_EQ(start.json().value("field", ""), "speed") << start.body;
   EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
+// Every endpoint but the telemetry WebSocket ignored a query option it does not take: a typo
+// (?wiat=0) got the report built and waited for, a JSON start's ?rig=hybrid started on sim, a
+// cache-buster hid nothing. Each is refused by name before the handler runs (POST /api/stop?now=1
+// while idle is 400, not stop's 409); token is every endpoint's.
+TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
+  ServerProcess server({}, "right-token-123");
+  const auto api = server.client("right-token-123");
+  struct Bad {
+    std::string method, target, field, hint;
+  };
+  for (const Bad& b :
+       {Bad{"GET", "/api/runs?runs=1", "runs", ""}, Bad{"GET", "/api/status?x%ff=1", "x%FF", ""},
+        Bad{"GET", "/api/health?_=1700000000", "_", ""}, Bad{"GET", "/api/campaigns?name=paper_fig6", "name", ""},
+        Bad{"GET", "/?console=1", "console", ""}, Bad{"GET", "/api/runs/nope/report.html?wiat=0", "wiat", "did you mean 'wait'"},
+        Bad{"GET", "/api/runs/nope/telemetry.csv?wait=0", "wait", ""}, Bad{"POST", "/api/stop?now=1", "now", ""},
+        Bad{"POST", "/api/inject/clear?all=1", "all", ""}}) {
+    const auto reply = api.request(b.method, b.target, b.method == "POST" ? "{}" : "", "application/json");
+    EXPECT_EQ(reply.status, 400) << b.method << " " << b.target << ": " << reply.body;
+    const json body = json::parse(reply.body, nullptr, false);
+    ASSERT_TRUE(body.is_object()) << reply.body;
+    EXPECT_EQ(body.value("error", ""), "unknown query option") << reply.body;
+    EXPECT_EQ(body.value("field", ""), b.field) << b.target << ": " << reply.body;
+    EXPECT_NE(body.value("detail", "").find(b.hint), std::string::npos) << reply.body;
+  }
+  // The token in the query is no unknown option, and is not echoed in a refusal of another one.
+  const auto anonymous = server.client("");
+  EXPECT_EQ(anonymous.get("/api/status?token=right-token-123").status, 200);
+  const auto with_token = anonymous.get("/api/status?token=right-token-123&verbose=1");
+  EXPECT_EQ(with_token.status, 400) << with_token.body;
+  EXPECT_EQ(with_token.body.find("right-token-123"), std::string::npos) << with_token.body;
+
+  // A JSON start takes its options in the body; the query's are a YAML body's.
+  const auto json_start = api.request("POST", "/api/start?rig=hybrid", campaign_request(1), "application/json");
+  EXPECT_EQ(json_start.status, 400) << json_start.body;
+  EXPECT_EQ(json_start.json().value("field", ""), "rig") << json_start.body;
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+
+  // GET /api says which options each endpoint takes.
+  const json index = api.get("/api").json();
+  for (const auto& e : index["endpoints"]) {
+    if (e["path"] == "/api/runs/{id}/report.html") EXPECT_EQ(e["query"], json::array({"wait"})) << e.dump();
+    if (e["path"] == "/api/runs") EXPECT_EQ(e["query"], json::array()) << e.dump();
+  }
 }
 
 // What Beast refuses in a handshake (no Sec-WebSocket-Key, another version) was answered as plain

@@ -269,14 +269,10 @@ double query_number(const Target& t, const char* key, double fallback) {
   return value;
 }
 
-// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given). A typo in an
-// option (?rate=5000) or a half-number (?rate_hz=20abc) is refused: silently streaming at another
-// rate than asked for hides the mistake.
+// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given), once its
+// options are checked against its route's (refuse_unknown_query). A half-number (?rate_hz=20abc)
+// is refused: silently streaming at another rate than asked for hides the mistake.
 double telemetry_rate_hz(const Target& t) {
-  for (const auto& item : t.query) {
-    refuse_unknown(item.first, loggable_target(item.first), {"rate_hz", "token"}, "unknown query option",
-                   "; /api/telemetry takes rate_hz (and token)");
-  }
   const double rate_hz = query_number(t, "rate_hz", 20);
   if (!(rate_hz > 0 && rate_hz <= 5000))
     throw ApiError{http::status::bad_request, "bad field", "'rate_hz' must be in (0, 5000] rows per second", "rate_hz"};
@@ -910,12 +906,16 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   const std::string content_type(req[http::field::content_type]);
   const bool yaml_body = content_type.find("yaml") != std::string::npos;
   json body = yaml_body ? json::object() : parse_json_body(req);
-  if (!yaml_body) allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
-  if (yaml_body) {  // the query carries the options: a typo (?run=) must not start every run
-    const std::vector<std::string> names{"rig", "runs", "speed", "token"};
+  if (!yaml_body) {
+    allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
+    // The query's options (the route's) are a YAML body's: beside a JSON body they were ignored,
+    // and ?rig=hybrid started on sim.
     for (const auto& item : t.query) {
-      refuse_unknown(item.first, loggable_target(item.first), names, "unknown query option",
-                     "; a YAML body takes rig, runs and speed in the query");
+      if (item.first == "token") continue;
+      const std::string shown = loggable_target(item.first);
+      throw ApiError{http::status::bad_request, "unknown query option",
+                     "'" + shown + "': a JSON body carries its options in the body; the query carries them for a YAML body",
+                     shown};
     }
   }
   // Options come from the JSON body, or from the query when the body is the YAML itself.
@@ -1374,6 +1374,7 @@ struct Route {
   std::string_view path;
   std::string_view summary;
   Reply (*handle)(ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>& args);
+  std::vector<std::string> query = {};  // the query options it takes; `token` (authorised()) is every route's
 };
 
 const Route kRoutes[] = {
@@ -1403,10 +1404,11 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) {
        return json_reply(http::status::ok, api.runner.status());
      }},
-    {http::verb::post, "/api/start", "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
-     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) {
-       return api.start(req, t);
-     }},
+    {http::verb::post,
+     "/api/start",
+     "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) { return api.start(req, t); },
+     {"rig", "runs", "speed"}},
     {http::verb::post, "/api/stop", "end the campaign after the run's current period",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.stop(); }},
     {http::verb::post, "/api/abort", "safe state now, then end the campaign: {reason}",
@@ -1419,12 +1421,14 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.runs(); }},
     {http::verb::get, "/api/runs/{id}", "a run's record and its files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
-    {http::verb::get, "/api/runs/{id}/report.html",
+    {http::verb::get,
+     "/api/runs/{id}/report.html",
      "a run's paper-style report (HTML, made on the job worker once the run has ended; ?wait=0: 202 and the job's state until "
      "made)",
      [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {
        return api.run_report(a[0], t);
-     }},
+     },
+     {"wait"}},
     {http::verb::get, "/api/runs/{id}/analyses", "a run's analyses against plant models: queued, running, done or failed",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.analyses(a[0]); }},
     {http::verb::post, "/api/runs/{id}/analyses", "analyse an ended run against a plant model: {kind: compare | diagnose, model}",
@@ -1444,10 +1448,13 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.run_file(a[0], a[1]);
      }},
-    {http::verb::get, "/api/telemetry", "live telemetry: a WebSocket, ?rate_hz=N",
+    {http::verb::get,
+     "/api/telemetry",
+     "live telemetry: a WebSocket, ?rate_hz=N",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) -> Reply {
        throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
-     }},
+     },
+     {"rate_hz"}},
 };
 
 // The route's path segments, or nothing when `path` is not its shape; "{name}" segments are
@@ -1482,10 +1489,33 @@ std::string route_list() {
 Reply route_index() {
   json list = json::array();
   for (const auto& r : kRoutes) {
-    list.push_back(
-        {{"method", std::string(http::to_string(r.method))}, {"path", std::string(r.path)}, {"summary", std::string(r.summary)}});
+    list.push_back({{"method", std::string(http::to_string(r.method))},
+                    {"path", std::string(r.path)},
+                    {"summary", std::string(r.summary)},
+                    {"query", r.query}});
   }
   return json_reply(http::status::ok, {{"endpoints", list}});
+}
+
+// The kRoutes row of `pattern` (one that is there: a programming error otherwise).
+const Route& route_of(std::string_view pattern) {
+  for (const auto& r : kRoutes) {
+    if (r.path == pattern) return r;
+  }
+  throw std::logic_error("no route " + std::string(pattern));
+}
+
+// A query option the route does not take is refused by name, as an unknown body field is: ignored,
+// a typo (?wiat=0, ?rate=5000, ?run=) did what was not asked without a word. One check for every
+// route, the telemetry WebSocket's included.
+void refuse_unknown_query(const Target& t, const Route& r) {
+  std::vector<std::string> names = r.query;
+  names.emplace_back("token");
+  std::string takes;
+  for (const auto& name : r.query) takes += name + ", ";
+  const std::string after = "; " + std::string(r.path) + " takes " +
+                            (takes.empty() ? "no query option" : takes.substr(0, takes.size() - 2)) + " (and token)";
+  for (const auto& item : t.query) refuse_unknown(item.first, loggable_target(item.first), names, "unknown query option", after);
 }
 
 }  // namespace
@@ -1497,7 +1527,10 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
     if (!match(r.path, t.path, args)) continue;
     // HEAD is GET without the body (RFC 9110 9.3.2): the same route, the same header fields.
     const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
-    if (r.method == req.method() || head_of_get) return r.handle(*this, req, t, args);
+    if (r.method == req.method() || head_of_get) {
+      refuse_unknown_query(t, r);
+      return r.handle(*this, req, t, args);
+    }
     allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(r.method));
     if (r.method == http::verb::get) allow += ", HEAD";
   }
@@ -1650,6 +1683,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     double rate_hz = 20;
     try {
+      refuse_unknown_query(target, route_of("/api/telemetry"));
       rate_hz = telemetry_rate_hz(target);
     } catch (const ApiError& e) {
       return send(error_reply(e), false);
