@@ -1035,3 +1035,50 @@ TEST(ServerProtocol, AnUnchangedRigIsNotReadAgainAndAChangeToItsRegisterMapIs) {
   ASSERT_NE(padded, rigs.end()) << rigs.dump(2);
   EXPECT_NE(padded->value("error", "").find("duplicate key 'bits'"), std::string::npos) << padded->dump(2);
 }
+
+// GET /api/campaigns and GET /api/models parsed every file at each request, on the I/O thread.
+// They keep each entry as GET /api/rigs does: an unchanged campaign or model is not read again,
+// and a change to any file its load read is seen: the plant a campaign names (not the campaign
+// file), by both; a campaign's reference CSV (read by the CSV reader, not as YAML).
+TEST(ServerProtocol, UnchangedCampaignsAndModelsAreNotReadAgainAndAChangeToThePlantIs) {
+  hil::test::TempDir base;
+  const auto configs = configs_with_padded_map(base.path(), "padded", 0);
+  const std::string padding = [] {
+    std::string p;
+    for (int i = 0; i < 9000; ++i) p += "# " + std::string(98, '-') + "\n";  // 900 KB of comment
+    return p;
+  }();
+  std::ofstream(configs / "plant" / "padded.yaml") << hil::test::slurp(configs / "plant" / "nominal.yaml") << padding;
+  std::string campaign = hil::test::slurp(configs / "campaigns" / "paper_adaptive.yaml");
+  campaign.replace(campaign.find("../plant/nominal.yaml"), std::string("../plant/nominal.yaml").size(), "../plant/padded.yaml");
+  std::ofstream(configs / "campaigns" / "padded.yaml") << campaign << padding;
+  std::string from_csv = hil::test::short_campaign_yaml(2, "from_csv");
+  const std::string square = "    - square: {from_s: 0.5, half_period_s: 1.0, low_mpa: 1.0, high_mpa: 1.5}\n";
+  from_csv.replace(from_csv.find(square), square.size(), "    - csv: {file: reference.csv}\n");
+  std::ofstream(configs / "campaigns" / "from_csv.yaml") << from_csv;
+  std::ofstream(configs / "campaigns" / "reference.csv") << "t_s,p_ref_mpa\n0,1.0\n1,1.5\n";
+  ServerProcess server({"--configs", configs.string()});
+  const auto api = server.client();
+
+  const std::string campaigns = api.get("/api/campaigns").body, models = api.get("/api/models").body;
+  EXPECT_EQ(campaigns.find("\"error\""), std::string::npos) << campaigns;
+  EXPECT_EQ(models.find("\"error\""), std::string::npos) << models;
+  const std::uint64_t before = bytes_read(server.pid());
+  EXPECT_EQ(api.get("/api/campaigns").body, campaigns);
+  EXPECT_EQ(api.get("/api/models").body, models);
+  EXPECT_LT(bytes_read(server.pid()) - before, 100'000u) << "the campaigns or models were read again";
+
+  std::ofstream(configs / "plant" / "padded.yaml", std::ios::app) << "description: twice\n";
+  std::ofstream(configs / "campaigns" / "reference.csv") << "t_s,p_ref_mpa\n";
+  for (const auto& [path, key] : {std::pair{"/api/campaigns", "campaigns"}, std::pair{"/api/models", "models"}}) {
+    const json list = api.get(path).json()[key];
+    const auto padded = std::find_if(list.begin(), list.end(), [](const json& e) { return e["name"] == "padded"; });
+    ASSERT_NE(padded, list.end()) << list.dump(2);
+    EXPECT_NE(padded->value("error", "").find("duplicate key 'description'"), std::string::npos) << path << padded->dump(2);
+  }
+  const json campaigns_now = api.get("/api/campaigns").json()["campaigns"];
+  const auto csv =
+      std::find_if(campaigns_now.begin(), campaigns_now.end(), [](const json& e) { return e["name"] == "from_csv"; });
+  ASSERT_NE(csv, campaigns_now.end()) << campaigns_now.dump(2);
+  EXPECT_NE(csv->value("error", "").find("the file has no rows"), std::string::npos) << csv->dump(2);
+}

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <deque>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -744,13 +745,20 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::vector<std::weak_ptr<HttpSession>> http_sessions;
   JobQueue jobs;                                    // submitted to on the io thread only: a check and its submit never race
   const std::string session_id = new_session_id();  // Foxglove's serverInfo.sessionId
-  // GET /api/rigs's entry of each rig, with the files its load read (the rig's, its device files,
-  // register maps): parsed again only when one of them has changed. Io thread only.
-  struct RigListing {
+  // The entry of each config file in GET /api/campaigns, /api/rigs and /api/models, with the files
+  // its load read (a rig's device files and register maps, a campaign's plant and CSV reference):
+  // parsed again only when one of them has changed. Io thread only.
+  struct Listing {
     json entry;
     std::vector<cfg::FileStamp> files;
   };
-  std::map<std::string, RigListing> rig_listings;
+  using Listings = std::map<std::string, Listing>;  // by the file's stem
+  Listings campaign_listings, rig_listings, model_listings;
+  // The entries of dir/*.yaml, each {"name", "file"} and what `describe` adds (or its "error"),
+  // from `kept` while every file read for it is unchanged. `kept` becomes this listing: files
+  // gone are forgotten.
+  json listing(Listings& kept, const std::filesystem::path& dir,
+               const std::function<void(const std::filesystem::path& file, json& entry)>& describe);
 
   void accept();
   bool evict_longest_idle();
@@ -853,51 +861,55 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
   }
 }
 
-Reply ApiServer::Impl::campaigns() {
+// Loading a config file runs on the io thread, which serves every request: an unchanged one is not
+// loaded again (a large register map took seconds at each GET /api/rigs; every campaign, its plant
+// and its reference CSV were parsed at each GET /api/campaigns, every plant model at each GET
+// /api/models).
+json ApiServer::Impl::listing(Listings& kept, const std::filesystem::path& dir,
+                              const std::function<void(const std::filesystem::path& file, json& entry)>& describe) {
+  Listings now;
   json list = json::array();
-  for (const auto& name : yaml_stems(options.campaigns_dir)) {
-    json j = {{"name", name}, {"file", (options.campaigns_dir / (name + ".yaml")).string()}};
+  for (const auto& name : yaml_stems(dir)) {
+    if (const auto old = kept.find(name); old != kept.end() && cfg::unchanged(old->second.files)) {
+      list.push_back(old->second.entry);
+      now.insert(kept.extract(old));
+      continue;
+    }
+    const auto file = dir / (name + ".yaml");
+    json j = {{"name", name}, {"file", file.string()}};
+    cfg::ReadFiles read;
     try {
-      const Campaign c = load_campaign(options.campaigns_dir / (name + ".yaml"));
-      j["description"] = c.description;
-      j["duration_s"] = c.duration_s;
-      j["period_ms"] = c.period_s * 1e3;
-      j["runs"] = json::array();
-      for (const auto& r : c.runs) j["runs"].push_back(r.name);
+      describe(file, j);
     } catch (const std::exception& e) {
       j["error"] = e.what();
     }
     list.push_back(j);
+    now.emplace(name, Listing{std::move(j), read.files()});
   }
+  kept = std::move(now);
+  return list;
+}
+
+Reply ApiServer::Impl::campaigns() {
+  const json list = listing(campaign_listings, options.campaigns_dir, [](const std::filesystem::path& file, json& j) {
+    const Campaign c = load_campaign(file);
+    j["description"] = c.description;
+    j["duration_s"] = c.duration_s;
+    j["period_ms"] = c.period_s * 1e3;
+    j["runs"] = json::array();
+    for (const auto& r : c.runs) j["runs"].push_back(r.name);
+  });
   return json_reply(http::status::ok, {{"campaigns", list}});
 }
 
 Reply ApiServer::Impl::rigs() {
-  // Loading a rig reads and checks its device files and register maps, on the io thread: an
-  // unchanged rig is not loaded again (a large register map took seconds at each request).
-  std::map<std::string, RigListing> listings;
-  json list = json::array();
-  for (const auto& name : yaml_stems(options.rigs_dir)) {
-    if (const auto kept = rig_listings.find(name); kept != rig_listings.end() && cfg::unchanged(kept->second.files)) {
-      list.push_back(kept->second.entry);
-      listings.insert(rig_listings.extract(kept));
-      continue;
-    }
-    json j = {{"name", name}, {"file", (options.rigs_dir / (name + ".yaml")).string()}};
-    cfg::ReadFiles read;
-    try {
-      const RigConfig r = load_rig_config(options.rigs_dir / (name + ".yaml"));
-      j["kind"] = r.kind;
-      j["description"] = r.description;
-      j["priority"] = r.loop.priority;
-      j["cpu"] = r.loop.cpu;
-    } catch (const std::exception& e) {
-      j["error"] = e.what();
-    }
-    list.push_back(j);
-    listings.emplace(name, RigListing{std::move(j), read.files()});
-  }
-  rig_listings = std::move(listings);  // rigs whose file is gone are forgotten
+  const json list = listing(rig_listings, options.rigs_dir, [](const std::filesystem::path& file, json& j) {
+    const RigConfig r = load_rig_config(file);
+    j["kind"] = r.kind;
+    j["description"] = r.description;
+    j["priority"] = r.loop.priority;
+    j["cpu"] = r.loop.cpu;
+  });
   return json_reply(http::status::ok, {{"rigs", list}});
 }
 
@@ -1201,18 +1213,11 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
 }
 
 Reply ApiServer::Impl::models() {
-  json list = json::array();
-  for (const auto& name : yaml_stems(options.plant_dir)) {
-    const auto file = options.plant_dir / (name + ".yaml");
-    json j = {{"name", name}, {"file", file.string()}};
-    try {
-      plant::Plant::load(file);
-      j["description"] = cfg::Node::load_file(file).text("description", "");
-    } catch (const std::exception& e) {
-      j["error"] = e.what();
-    }
-    list.push_back(j);
-  }
+  const json list = listing(model_listings, options.plant_dir, [](const std::filesystem::path& file, json& j) {
+    const cfg::Node root = cfg::Node::load_file(file);  // read once: checked as a plant, then its description
+    (void)plant::Plant::from_yaml(root);
+    j["description"] = root.text("description", "");
+  });
   return json_reply(http::status::ok, {{"models", list}, {"kinds", {kAnalysisKinds[0], kAnalysisKinds[1]}}});
 }
 
