@@ -786,6 +786,47 @@ TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
   EXPECT_EQ(json::parse(reply.substr(at)).value("ok", false), true) << reply;
 }
 
+// A HEAD of a run's report.html made the report (queued on the job worker, waited for, written
+// into the run folder) only to drop its body. HEAD answers the header of what GET would send and
+// makes nothing: no report.html appears; once GET has made it, HEAD gives its exact length.
+TEST(ServerProtocol, HeadOfAReportNotMadeYetDoesNotMakeIt) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(1), "application/json").status, 202);
+  hil::test::wait_status(
+      api, [](const json& s) { return s["state"] == "idle" && s["last"].is_object(); }, 30s);
+  const auto run = hil::test::only_run(server.runs_dir());
+  const std::string target = "/api/runs/" + run.filename().string() + "/report.html";
+  const auto head = [&](const std::string& t) {
+    const std::string reply =
+        raw_exchange(server.port(), "HEAD " + t + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+    const auto end = reply.find("\r\n\r\n");
+    EXPECT_EQ(end + 4, reply.size()) << "a body after the header:\n" << reply;
+    return reply.substr(0, end + 2);
+  };
+
+  for (const std::string& t : {target, target + "?wait=0"}) {
+    const std::string not_made = head(t);
+    EXPECT_EQ(not_made.rfind("HTTP/1.1 200", 0), 0u) << not_made;
+    EXPECT_NE(not_made.find("Content-Type: text/html; charset=utf-8\r\n"), std::string::npos) << not_made;
+    EXPECT_EQ(not_made.find("Content-Length"), std::string::npos) << "the length of a report not made is not known:\n"
+                                                                  << not_made;
+  }
+  std::this_thread::sleep_for(1s);  // a report of a 1 s run takes a tenth of that
+  EXPECT_FALSE(std::filesystem::exists(run / "report.html")) << "HEAD made the report";
+  EXPECT_FALSE(std::filesystem::exists(run / "report.html.tmp")) << "HEAD is making the report";
+
+  const auto made = api.get(target);
+  ASSERT_EQ(made.status, 200) << made.body.substr(0, 300);
+  ASSERT_TRUE(std::filesystem::exists(run / "report.html"));
+  const std::string kept = head(target);
+  EXPECT_EQ(kept.rfind("HTTP/1.1 200", 0), 0u) << kept;
+  EXPECT_NE(kept.find("Content-Length: " + std::to_string(made.body.size()) + "\r\n"), std::string::npos) << kept;
+  EXPECT_NE(kept.find("Content-Type: text/html; charset=utf-8\r\n"), std::string::npos) << kept;
+
+  EXPECT_EQ(head("/api/runs/20261127T050000Z_nope_adaptive/report.html").rfind("HTTP/1.1 404", 0), 0u);
+}
+
 // ctl telemetry said only "the WebSocket handshake was declined"; it says the server's status and
 // error now, as every other ctl command does.
 TEST(ServerProtocol, CtlTelemetrySaysWhyTheServerRefusedTheStream) {

@@ -70,6 +70,7 @@ struct Reply {
   std::string extra_header;                       // Content-Disposition for downloads
   bool no_store = false;                          // Cache-Control: no-store (the console: a new build is a new page)
   std::string allow;                              // Allow, on a 405
+  bool length_unknown = false;                    // a HEAD's answer for a body not made: no Content-Length at all
   std::shared_ptr<const JobWait> wait = nullptr;  // set: the final answer comes when the job has finished
 };
 
@@ -777,7 +778,8 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply runs();
   Reply run(const std::string& id);
   Reply run_file(const std::string& id, const std::string& file);
-  Reply run_report(const std::string& id, const Target& t);
+  // head: a HEAD request, answered without making the report.
+  Reply run_report(const std::string& id, const Target& t, bool head);
   Reply models();
   Reply analyses(const std::string& id);
   Reply start_analysis(const std::string& id, const Request& req);
@@ -1173,10 +1175,20 @@ Reply html_file(const std::filesystem::path& file) {
 
 }  // namespace
 
-Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
+Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool head) {
   const auto dir = ended_run(id);
   // Made once per run, on the job worker, and kept in its folder (analyses.hpp run_report_current).
   if (run_report_current(dir)) return html_file(dir / "report.html");
+  if (head) {
+    // HEAD asks for the header fields, not for the report: making one (seconds for an hour's run,
+    // a place in the job queue, a file written) only to drop its body is work nobody asked for.
+    // Its length is not known before it is made, and HEAD may leave Content-Length out (RFC 9110
+    // 9.3.2); a wrong one (0) would tell the client the report is empty. ?wait=0 changes nothing:
+    // no job is queued, so there is none to answer with.
+    Reply r = html_file({});
+    r.length_unknown = true;
+    return r;
+  }
   std::optional<JobStatus> job = jobs.find(id, "report");
   if (job && (job->state == JobState::done || job->state == JobState::failed)) {
     jobs.forget(id, "report");  // a failure is answered once; the next request tries again
@@ -1430,8 +1442,8 @@ const Route kRoutes[] = {
      "/api/runs/{id}/report.html",
      "a run's paper-style report (HTML, made on the job worker once the run has ended; ?wait=0: 202 and the job's state until "
      "made)",
-     [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {
-       return api.run_report(a[0], t);
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>& a) {
+       return api.run_report(a[0], t, req.method() == http::verb::head);
      },
      {"wait"}},
     {http::verb::get, "/api/runs/{id}/analyses", "a run's analyses against plant models: queued, running, done or failed",
@@ -1736,9 +1748,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     res->set(http::field::content_type, reply.content_type);
     if (reply.no_store) res->set(http::field::cache_control, "no-store");
     if (!reply.allow.empty()) res->set(http::field::allow, reply.allow);
+    if (!reply.extra_header.empty()) res->set(http::field::content_disposition, reply.extra_header);
     res->keep_alive(keep_alive);
     res->body() = std::move(reply.body);
-    res->prepare_payload();
+    if (!reply.length_unknown) res->prepare_payload();
     write(res);
   }
 
