@@ -707,6 +707,27 @@ TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
   }
 }
 
+// An option given twice was read as its last value (?rate_hz=1&rate_hz=5000 streamed at 5000 rows
+// a second), and report.html's ?wait= waited for any value but 0 (wait=false waited). Both are
+// refused, naming the option, before the run is looked up; an empty part of a query ("?&") is no
+// option.
+TEST(ServerProtocol, AnOptionGivenTwiceOrAWaitOtherThan0Or1IsRefused) {
+  ServerProcess server;
+  const std::string twice = raw_exchange(server.port(), upgrade_request("/api/telemetry?rate_hz=1&rate_hz=5000"));
+  EXPECT_EQ(twice.rfind("HTTP/1.1 400", 0), 0u) << twice;
+  EXPECT_EQ(error_body(twice).value("field", ""), "rate_hz") << twice;
+  EXPECT_EQ(error_body(twice).value("error", ""), "query option given twice") << twice;
+
+  const auto api = server.client();
+  for (const std::string& query : {"wait=0&wait=1", "wait=false", "wait=", "wait=01"}) {
+    const auto reply = api.get("/api/runs/20261127T050000Z_nope_adaptive/report.html?" + query);
+    EXPECT_EQ(reply.status, 400) << query << ": " << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), "wait") << query << ": " << reply.body;
+  }
+  EXPECT_EQ(api.get("/api/runs/20261127T050000Z_nope_adaptive/report.html?wait=1").status, 404);
+  EXPECT_EQ(api.get("/api/health?&").status, 200);
+}
+
 // What Beast refuses in a handshake (no Sec-WebSocket-Key, another version) was answered as plain
 // text; every error of the API is a JSON body naming the field at fault.
 TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {

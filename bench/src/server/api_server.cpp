@@ -137,6 +137,7 @@ std::string percent_decode(std::string_view s) {
 struct Target {
   std::vector<std::string> path;  // "/api/runs/x" -> {"api", "runs", "x"}
   std::map<std::string, std::string> query;
+  std::vector<std::string> repeated;  // query options given more than once (refused: which one was meant?)
 };
 
 Target parse_target(std::string_view target) {
@@ -150,12 +151,11 @@ Target parse_target(std::string_view target) {
   if (q != std::string_view::npos) {
     std::stringstream qs{std::string(target.substr(q + 1))};
     for (std::string kv; std::getline(qs, kv, '&');) {
+      if (kv.empty()) continue;  // "?&a=1", "a=1&&b=2": no option, as in a browser's URLSearchParams
       const auto eq = kv.find('=');
-      if (eq == std::string::npos) {
-        t.query[percent_decode(kv)] = "";
-      } else {
-        t.query[percent_decode(kv.substr(0, eq))] = percent_decode(kv.substr(eq + 1));
-      }
+      std::string key = percent_decode(kv.substr(0, eq));
+      std::string value = eq == std::string::npos ? "" : percent_decode(kv.substr(eq + 1));
+      if (!t.query.emplace(key, std::move(value)).second) t.repeated.push_back(std::move(key));
     }
   }
   return t;
@@ -1176,6 +1176,13 @@ Reply html_file(const std::filesystem::path& file) {
 }  // namespace
 
 Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool head) {
+  // ?wait= is 0 or 1: any other value (wait=false, wait=no) waited, the opposite of what it says.
+  const auto wait = t.query.find("wait");
+  if (wait != t.query.end() && wait->second != "0" && wait->second != "1") {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'wait' must be 0 (answer 202 at once) or 1 (wait for the report), got '" + printable(wait->second, 40) + "'",
+                   "wait"};
+  }
   const auto dir = ended_run(id);
   // Made once per run, on the job worker, and kept in its folder (analyses.hpp run_report_current).
   if (run_report_current(dir)) return html_file(dir / "report.html");
@@ -1210,7 +1217,6 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool h
     }
   }
   Reply reply = json_reply(http::status::accepted, {{"report", job->to_json()}});
-  const auto wait = t.query.find("wait");
   if (wait != t.query.end() && wait->second == "0") return reply;
   auto w = std::make_shared<JobWait>();
   w->run = id;
@@ -1523,9 +1529,14 @@ const Route& route_of(std::string_view pattern) {
 }
 
 // A query option the route does not take is refused by name, as an unknown body field is: ignored,
-// a typo (?wiat=0, ?rate=5000, ?run=) did what was not asked without a word. One check for every
-// route, the telemetry WebSocket's included.
+// a typo (?wiat=0, ?rate=5000, ?run=) did what was not asked without a word. So is one given twice
+// (?rate_hz=1&rate_hz=5000 streamed at the last one). One check for every route, the telemetry
+// WebSocket's included.
 void refuse_unknown_query(const Target& t, const Route& r) {
+  if (!t.repeated.empty()) {
+    const std::string shown = loggable_target(t.repeated.front());
+    throw ApiError{http::status::bad_request, "query option given twice", "'" + shown + "' is given more than once", shown};
+  }
   std::vector<std::string> names = r.query;
   names.emplace_back("token");
   std::string takes;
