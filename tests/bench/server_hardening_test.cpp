@@ -517,6 +517,35 @@ TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   EXPECT_EQ(s["last"]["reason"], "operator abort: first");
 }
 
+// An abort's reason went as it was into the server log: a newline in it forged a log line of its
+// own, an escape sequence drove the terminal of whoever read the log. A reason with a control
+// character, or longer than 500 bytes, is refused naming 'reason', and the run goes on until a
+// sound abort ends it with that one's reason.
+TEST(ServerHardening, AnAbortReasonThatWouldForgeLogLinesIsRefused) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
+  hil::test::wait_status(
+      api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  for (const std::string& reason :
+       {std::string("x\n[2026-11-28 01:00:00.000] [info] FORGED campaign started"), std::string("red \x1b[31m"),
+        std::string("csi \xc2\x9b"
+                    "31m"),
+        std::string(501, 'r')}) {
+    const auto refused = api.post("/api/abort", {{"reason", reason}});
+    EXPECT_EQ(refused.status, 400) << refused.body;
+    EXPECT_EQ(refused.json().value("field", ""), "reason") << refused.body;
+  }
+  EXPECT_EQ(api.get("/api/status").json()["state"], "running");
+  ASSERT_EQ(api.post("/api/abort", {{"reason", "a plain reason, d\u00e9j\u00e0 vu"}}).status, 202);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  EXPECT_EQ(s["last"]["reason"], "operator abort: a plain reason, d\u00e9j\u00e0 vu");
+  const std::string log = server.log();
+  EXPECT_EQ(log.find("\n[2026-11-28 01:00:00.000] [info] FORGED"), std::string::npos) << log;
+  EXPECT_EQ(log.find('\x1b'), std::string::npos) << log;
+}
+
 // A stop or abort sent right after the start (before the first run began, or between runs) is
 // answered 202, so the campaign must end stopped or aborted with the reason, never "completed"
 // with its runs skipped. Which window a request hits depends on timing; each try must hold.

@@ -1584,7 +1584,24 @@ Reply ApiServer::Impl::stop() {
 Reply ApiServer::Impl::abort(const Request& req) {
   const json body = parse_json_body(req);
   allow_fields(body, {"reason"});
-  const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
+  const std::string given = field<std::string>(body, "reason", "no reason given");
+  // The reason goes as it is into the server log, run.json and the console: a newline or an escape
+  // sequence in it forged whole log lines ("[info] campaign ... started") and drove the terminal
+  // of whoever read the log. C1 controls (U+0080..U+009F: 0xC2 0x80..0x9F in UTF-8) included.
+  constexpr std::size_t kMaxReasonBytes = 500;
+  bool control = false;
+  for (std::size_t i = 0; i < given.size(); ++i) {
+    const auto c = static_cast<unsigned char>(given[i]);
+    const auto next = i + 1 < given.size() ? static_cast<unsigned char>(given[i + 1]) : 0;
+    control = control || c < 0x20 || c == 0x7f || (c == 0xc2 && next >= 0x80 && next <= 0x9f);
+  }
+  if (control || given.size() > kMaxReasonBytes) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'reason' must be one line of at most " + std::to_string(kMaxReasonBytes) +
+                       " bytes without control characters, got '" + printable(given, 60) + "'",
+                   "reason"};
+  }
+  const std::string reason = "operator abort: " + given;
   std::string ends_with;
   try {
     ends_with = runner.abort(reason);
