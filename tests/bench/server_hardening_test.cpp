@@ -29,6 +29,15 @@ std::string campaign_request(double duration_s, const std::string& name = "short
   return json{{"campaign_yaml", hil::test::short_campaign_yaml(duration_s, name)}, {"runs", {runs}}, {"speed", speed}}.dump();
 }
 
+// Starts campaign_request(duration_s) and waits until its run is past t_s simulated seconds;
+// false when it did not start or did not get there within `timeout`.
+bool start_and_reach(const hil::bench::ApiClient& api, double duration_s, double t_s, std::chrono::seconds timeout) {
+  if (api.request("POST", "/api/start", campaign_request(duration_s), "application/json").status != 202) return false;
+  const json s = hil::test::wait_status(
+      api, [t_s](const json& x) { return hil::test::status_t(x) > t_s; }, timeout);
+  return hil::test::status_t(s) > t_s;
+}
+
 bool ends_with_newline(const std::filesystem::path& file) {
   const std::string text = hil::test::slurp(file);
   return !text.empty() && text.back() == '\n';
@@ -52,9 +61,7 @@ std::size_t data_rows(const std::filesystem::path& csv) {
 TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
   ServerProcess server;
   const auto api = server.client();
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 0.3; }, 20s);
+  ASSERT_TRUE(start_and_reach(api, 3, 0.3, 20s));
 
   struct Bad {
     std::string method, target, body;
@@ -120,9 +127,7 @@ TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
   EXPECT_NE(too_big.body.find("MB free"), std::string::npos) << too_big.body;
 
   // The disk fills up while a run is under way: the loop trips to its safe state and ends.
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(20), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+  ASSERT_TRUE(start_and_reach(api, 20, 1.0, 30s));
   disk.fill();
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 30s);
@@ -169,9 +174,7 @@ TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDi
   {
     ServerProcess first({"--runs-dir", runs.string()});
     const auto api = first.client();
-    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(60), "application/json").status, 202);
-    hil::test::wait_status(
-        api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+    ASSERT_TRUE(start_and_reach(api, 60, 1.0, 30s));
     ASSERT_EQ(::kill(first.pid(), SIGKILL), 0);
     ASSERT_TRUE(hil::test::wait_exit(first.pid(), 10s).has_value());
   }
@@ -504,9 +507,7 @@ TEST(ServerHardening, CtlAgainstAPeerThatIsNoHilbenchServer) {
 TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   ServerProcess server;
   const auto api = server.client();
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  ASSERT_TRUE(start_and_reach(api, 30, 0.2, 20s));
   const auto first = api.post("/api/abort", {{"reason", "first"}}).json();
   const auto second = api.post("/api/abort", {{"reason", "second"}}).json();
   EXPECT_EQ(first["reason"], "operator abort: first");
@@ -524,9 +525,7 @@ TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
 TEST(ServerHardening, AnAbortReasonThatWouldForgeLogLinesIsRefused) {
   ServerProcess server;
   const auto api = server.client();
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  ASSERT_TRUE(start_and_reach(api, 30, 0.2, 20s));
   for (const std::string& reason :
        {std::string("x\n[2026-11-28 01:00:00.000] [info] FORGED campaign started"), std::string("red \x1b[31m"),
         std::string("csi \xc2\x9b"
