@@ -735,6 +735,19 @@ TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
   }
 }
 
+// A report being made is written as RUN_DIR/report.html.tmp and renamed into place, so that half
+// of one is never served; GET /api/runs/ID/report.html.tmp served it all the same.
+TEST(ServerProtocol, AHalfMadeOutputIsNotServed) {
+  ServerProcess server;
+  const auto run = server.runs_dir() / "20261127T050000Z_tmp_adaptive";
+  std::filesystem::create_directories(run);
+  std::ofstream(run / "run.json") << "{}\n";
+  std::ofstream(run / "report.html.tmp") << "<html><body>half a rep";
+  const auto reply = server.client().get("/api/runs/20261127T050000Z_tmp_adaptive/report.html.tmp");
+  EXPECT_EQ(reply.status, 404) << reply.body;
+  EXPECT_EQ(reply.body.find("half a rep"), std::string::npos) << reply.body;
+}
+
 // An option given twice was read as its last value (?rate_hz=1&rate_hz=5000 streamed at 5000 rows
 // a second), and report.html's ?wait= waited for any value but 0 (wait=false waited). Both are
 // refused, naming the option, before the run is looked up; an empty part of a query ("?&") is no

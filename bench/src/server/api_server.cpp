@@ -1121,7 +1121,9 @@ Reply ApiServer::Impl::run(const std::string& id) {
 
 Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) {
   const auto path = options.runs_dir / id / file;
-  if (!cfg::plain_name(id) || !cfg::plain_name(file) || !std::filesystem::is_regular_file(path)) {
+  // A .tmp is an output being made (report.html.tmp): half of one is never served, as the run's
+  // file list (run()) never shows one.
+  if (!cfg::plain_name(id) || !cfg::plain_name(file) || path.extension() == ".tmp" || !std::filesystem::is_regular_file(path)) {
     throw ApiError{http::status::not_found, "unknown file", "run '" + id + "' has no file '" + file + "'"};
   }
   Reply r;
