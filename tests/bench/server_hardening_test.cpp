@@ -735,6 +735,23 @@ TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
   }
 }
 
+// A start's subset of runs given empty ("runs": [], ?runs=) ran every run of the campaign, and one
+// given twice was taken; both are refused naming 'runs', and nothing starts.
+TEST(ServerProtocol, AnEmptyOrRepeatedSubsetOfRunsIsRefused) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string yaml = hil::test::short_campaign_yaml(2);
+  for (const auto& reply : {api.post("/api/start", {{"campaign_yaml", yaml}, {"runs", json::array()}}),
+                            api.post("/api/start", {{"campaign_yaml", yaml}, {"runs", {"adaptive", "adaptive"}}}),
+                            api.request("POST", "/api/start?runs=", yaml, "application/yaml"),
+                            api.request("POST", "/api/start?runs=,", yaml, "application/yaml"),
+                            api.request("POST", "/api/start?runs=none,none", yaml, "application/yaml")}) {
+    EXPECT_EQ(reply.status, 400) << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), "runs") << reply.body;
+    EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+  }
+}
+
 // A report being made is written as RUN_DIR/report.html.tmp and renamed into place, so that half
 // of one is never served; GET /api/runs/ID/report.html.tmp served it all the same.
 TEST(ServerProtocol, AHalfMadeOutputIsNotServed) {

@@ -956,6 +956,17 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     s.runs = field<std::vector<std::string>>(body, "runs", {});
     if (body.contains("speed")) s.speed = number_field(body, "speed");
   }
+  // No subset means every run. A subset given empty ([], ?runs=, a name lost to a bug in a script)
+  // ran them all, the opposite of a choice; a name given twice is a mistake too.
+  const bool runs_given = yaml_body ? option("runs").has_value() : body.contains("runs") && !body["runs"].is_null();
+  if (runs_given && s.runs.empty()) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'runs' names no run: name at least one, or leave 'runs' out to run them all", "runs"};
+  }
+  for (auto r = s.runs.begin(); r != s.runs.end(); ++r) {
+    if (std::find(s.runs.begin(), r, *r) != r)
+      throw ApiError{http::status::bad_request, "bad field", "'runs' names '" + *r + "' twice", "runs"};
+  }
 
   std::string yaml;
   if (yaml_body) {
