@@ -730,8 +730,12 @@ TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
   // GET /api says which options each endpoint takes.
   const json index = api.get("/api").json();
   for (const auto& e : index["endpoints"]) {
-    if (e["path"] == "/api/runs/{id}/report.html") EXPECT_EQ(e["query"], json::array({"wait"})) << e.dump();
-    if (e["path"] == "/api/runs") EXPECT_EQ(e["query"], json::array()) << e.dump();
+    if (e["path"] == "/api/runs/{id}/report.html") {
+      EXPECT_EQ(e["query"], json::array({"wait"})) << e.dump();
+    }
+    if (e["path"] == "/api/runs") {
+      EXPECT_EQ(e["query"], json::array()) << e.dump();
+    }
   }
 }
 
@@ -777,8 +781,8 @@ TEST(ServerProtocol, AnOptionGivenTwiceOrAWaitOtherThan0Or1IsRefused) {
   EXPECT_EQ(error_body(twice).value("error", ""), "query option given twice") << twice;
 
   const auto api = server.client();
-  for (const std::string& query : {"wait=0&wait=1", "wait=false", "wait=", "wait=01"}) {
-    const auto reply = api.get("/api/runs/20261127T050000Z_nope_adaptive/report.html?" + query);
+  for (const char* query : {"wait=0&wait=1", "wait=false", "wait=", "wait=01"}) {
+    const auto reply = api.get(std::string("/api/runs/20261127T050000Z_nope_adaptive/report.html?") + query);
     EXPECT_EQ(reply.status, 400) << query << ": " << reply.body;
     EXPECT_EQ(reply.json().value("field", ""), "wait") << query << ": " << reply.body;
   }
