@@ -756,6 +756,27 @@ TEST(ServerProtocol, AnEmptyOrRepeatedSubsetOfRunsIsRefused) {
   }
 }
 
+// What the runner refuses in a start (a speed out of range or on a rig with hardware, a run the
+// campaign does not have) was a 400 without "field"; every 400 names the field at fault.
+TEST(ServerProtocol, AStartTheRunnerRefusesNamesTheField) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string yaml = hil::test::short_campaign_yaml(2);
+  struct Bad {
+    json body;
+    std::string field;
+  };
+  for (const Bad& b :
+       {Bad{{{"campaign_yaml", yaml}, {"speed", 0}}, "speed"}, Bad{{{"campaign_yaml", yaml}, {"speed", 101}}, "speed"},
+        Bad{{{"campaign_yaml", yaml}, {"speed", 2}, {"rig", "hybrid"}}, "speed"},
+        Bad{{{"campaign_yaml", yaml}, {"runs", {"adaptiv"}}}, "runs"}}) {
+    const auto reply = api.post("/api/start", b.body);
+    EXPECT_EQ(reply.status, 400) << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), b.field) << b.body.dump() << ": " << reply.body;
+  }
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
 // A report being made is written as RUN_DIR/report.html.tmp and renamed into place, so that half
 // of one is never served; GET /api/runs/ID/report.html.tmp served it all the same.
 TEST(ServerProtocol, AHalfMadeOutputIsNotServed) {

@@ -1009,6 +1009,8 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     throw ApiError{http::status::conflict, "a campaign is running", e.what()};
   } catch (const InsufficientStorage& e) {
     throw ApiError{http::status::insufficient_storage, "no room for the record", e.what()};
+  } catch (const BadField& e) {
+    throw ApiError{http::status::bad_request, "cannot start", e.what(), e.field};
   } catch (const std::invalid_argument& e) {
     throw ApiError{http::status::bad_request, "cannot start", e.what()};
   }
