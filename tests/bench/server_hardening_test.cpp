@@ -29,6 +29,15 @@ std::string campaign_request(double duration_s, const std::string& name = "short
   return json{{"campaign_yaml", hil::test::short_campaign_yaml(duration_s, name)}, {"runs", {runs}}, {"speed", speed}}.dump();
 }
 
+// Starts campaign_request(duration_s) and waits until its run is past t_s simulated seconds;
+// false when it did not start or did not get there within `timeout`.
+bool start_and_reach(const hil::bench::ApiClient& api, double duration_s, double t_s, std::chrono::seconds timeout) {
+  if (api.request("POST", "/api/start", campaign_request(duration_s), "application/json").status != 202) return false;
+  const json s = hil::test::wait_status(
+      api, [t_s](const json& x) { return hil::test::status_t(x) > t_s; }, timeout);
+  return hil::test::status_t(s) > t_s;
+}
+
 bool ends_with_newline(const std::filesystem::path& file) {
   const std::string text = hil::test::slurp(file);
   return !text.empty() && text.back() == '\n';
@@ -52,9 +61,7 @@ std::size_t data_rows(const std::filesystem::path& csv) {
 TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
   ServerProcess server;
   const auto api = server.client();
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(3), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 0.3; }, 20s);
+  ASSERT_TRUE(start_and_reach(api, 3, 0.3, 20s));
 
   struct Bad {
     std::string method, target, body;
@@ -64,7 +71,7 @@ TEST(ServerHardening, MalformedRequestsMidRunGetAnAnswerAndTheRunGoesOn) {
       {"POST", "/api/start", "{\"campaign\": \"\xff\xfe\"}", 400},  // invalid UTF-8 in a string value
       {"POST", "/api/start", "{\"\xff\": 1}", 400},                 // ... in a key
       {"POST", "/api/start", "{\"campaign\": \"x\", \"speed\": 1e400}", 400},
-      {"GET", "/api/runs?runs=%ff", "", 200},  // an unknown query key is ignored
+      {"GET", "/api/runs?runs=%ff", "", 400},  // an unknown query key is refused, naming it
       {"GET", "/api/runs/%ff", "", 404},
       {"GET", "/api/runs/%ff/%fe", "", 404},
       {"GET", "/api/\xff\xfe", "", 404},                      // raw bytes in the path
@@ -120,9 +127,7 @@ TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
   EXPECT_NE(too_big.body.find("MB free"), std::string::npos) << too_big.body;
 
   // The disk fills up while a run is under way: the loop trips to its safe state and ends.
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(20), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+  ASSERT_TRUE(start_and_reach(api, 20, 1.0, 30s));
   disk.fill();
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 30s);
@@ -169,9 +174,7 @@ TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDi
   {
     ServerProcess first({"--runs-dir", runs.string()});
     const auto api = first.client();
-    ASSERT_EQ(api.request("POST", "/api/start", campaign_request(60), "application/json").status, 202);
-    hil::test::wait_status(
-        api, [](const json& s) { return hil::test::status_t(s) > 1.0; }, 30s);
+    ASSERT_TRUE(start_and_reach(api, 60, 1.0, 30s));
     ASSERT_EQ(::kill(first.pid(), SIGKILL), 0);
     ASSERT_TRUE(hil::test::wait_exit(first.pid(), 10s).has_value());
   }
@@ -504,9 +507,7 @@ TEST(ServerHardening, CtlAgainstAPeerThatIsNoHilbenchServer) {
 TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   ServerProcess server;
   const auto api = server.client();
-  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(30), "application/json").status, 202);
-  hil::test::wait_status(
-      api, [](const json& s) { return hil::test::status_t(s) > 0.2; }, 20s);
+  ASSERT_TRUE(start_and_reach(api, 30, 0.2, 20s));
   const auto first = api.post("/api/abort", {{"reason", "first"}}).json();
   const auto second = api.post("/api/abort", {{"reason", "second"}}).json();
   EXPECT_EQ(first["reason"], "operator abort: first");
@@ -515,6 +516,33 @@ TEST(ServerHardening, ASecondAbortAnswersWithTheReasonTheRunEndsWith) {
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 20s);
   EXPECT_EQ(s["last"]["reason"], "operator abort: first");
+}
+
+// An abort's reason went as it was into the server log: a newline in it forged a log line of its
+// own, an escape sequence drove the terminal of whoever read the log. A reason with a control
+// character, or longer than 500 bytes, is refused naming 'reason', and the run goes on until a
+// sound abort ends it with that one's reason.
+TEST(ServerHardening, AnAbortReasonThatWouldForgeLogLinesIsRefused) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_TRUE(start_and_reach(api, 30, 0.2, 20s));
+  for (const std::string& reason :
+       {std::string("x\n[2026-11-28 01:00:00.000] [info] FORGED campaign started"), std::string("red \x1b[31m"),
+        std::string("csi \xc2\x9b"
+                    "31m"),
+        std::string(501, 'r')}) {
+    const auto refused = api.post("/api/abort", {{"reason", reason}});
+    EXPECT_EQ(refused.status, 400) << refused.body;
+    EXPECT_EQ(refused.json().value("field", ""), "reason") << refused.body;
+  }
+  EXPECT_EQ(api.get("/api/status").json()["state"], "running");
+  ASSERT_EQ(api.post("/api/abort", {{"reason", "a plain reason, d\u00e9j\u00e0 vu"}}).status, 202);
+  const json s = hil::test::wait_status(
+      api, [](const json& x) { return x["state"] == "idle"; }, 20s);
+  EXPECT_EQ(s["last"]["reason"], "operator abort: a plain reason, d\u00e9j\u00e0 vu");
+  const std::string log = server.log();
+  EXPECT_EQ(log.find("\n[2026-11-28 01:00:00.000] [info] FORGED"), std::string::npos) << log;
+  EXPECT_EQ(log.find('\x1b'), std::string::npos) << log;
 }
 
 // A stop or abort sent right after the start (before the first run began, or between runs) is
@@ -662,6 +690,127 @@ TEST(ServerProtocol, TelemetryQueryOptionsAreWholeNumbersAndKnownNames) {
   EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
 }
 
+// Every endpoint but the telemetry WebSocket ignored a query option it does not take: a typo
+// (?wiat=0) got the report built and waited for, a JSON start's ?rig=hybrid started on sim, a
+// cache-buster hid nothing. Each is refused by name before the handler runs (POST /api/stop?now=1
+// while idle is 400, not stop's 409); token is every endpoint's.
+TEST(ServerProtocol, EveryEndpointRefusesAQueryOptionItDoesNotTake) {
+  ServerProcess server({}, "right-token-123");
+  const auto api = server.client("right-token-123");
+  struct Bad {
+    std::string method, target, field, hint;
+  };
+  for (const Bad& b :
+       {Bad{"GET", "/api/runs?runs=1", "runs", ""}, Bad{"GET", "/api/status?x%ff=1", "x%FF", ""},
+        Bad{"GET", "/api/health?_=1700000000", "_", ""}, Bad{"GET", "/api/campaigns?name=paper_fig6", "name", ""},
+        Bad{"GET", "/?console=1", "console", ""}, Bad{"GET", "/api/runs/nope/report.html?wiat=0", "wiat", "did you mean 'wait'"},
+        Bad{"GET", "/api/runs/nope/telemetry.csv?wait=0", "wait", ""}, Bad{"POST", "/api/stop?now=1", "now", ""},
+        Bad{"POST", "/api/inject/clear?all=1", "all", ""}}) {
+    const auto reply = api.request(b.method, b.target, b.method == "POST" ? "{}" : "", "application/json");
+    EXPECT_EQ(reply.status, 400) << b.method << " " << b.target << ": " << reply.body;
+    const json body = json::parse(reply.body, nullptr, false);
+    ASSERT_TRUE(body.is_object()) << reply.body;
+    EXPECT_EQ(body.value("error", ""), "unknown query option") << reply.body;
+    EXPECT_EQ(body.value("field", ""), b.field) << b.target << ": " << reply.body;
+    EXPECT_NE(body.value("detail", "").find(b.hint), std::string::npos) << reply.body;
+  }
+  // The token in the query is no unknown option, and is not echoed in a refusal of another one.
+  const auto anonymous = server.client("");
+  EXPECT_EQ(anonymous.get("/api/status?token=right-token-123").status, 200);
+  const auto with_token = anonymous.get("/api/status?token=right-token-123&verbose=1");
+  EXPECT_EQ(with_token.status, 400) << with_token.body;
+  EXPECT_EQ(with_token.body.find("right-token-123"), std::string::npos) << with_token.body;
+
+  // A JSON start takes its options in the body; the query's are a YAML body's.
+  const auto json_start = api.request("POST", "/api/start?rig=hybrid", campaign_request(1), "application/json");
+  EXPECT_EQ(json_start.status, 400) << json_start.body;
+  EXPECT_EQ(json_start.json().value("field", ""), "rig") << json_start.body;
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+
+  // GET /api says which options each endpoint takes.
+  const json index = api.get("/api").json();
+  for (const auto& e : index["endpoints"]) {
+    if (e["path"] == "/api/runs/{id}/report.html") {
+      EXPECT_EQ(e["query"], json::array({"wait"})) << e.dump();
+    }
+    if (e["path"] == "/api/runs") {
+      EXPECT_EQ(e["query"], json::array()) << e.dump();
+    }
+  }
+}
+
+// A start's subset of runs given empty ("runs": [], ?runs=) ran every run of the campaign, and one
+// given twice was taken; both are refused naming 'runs', and nothing starts.
+TEST(ServerProtocol, AnEmptyOrRepeatedSubsetOfRunsIsRefused) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string yaml = hil::test::short_campaign_yaml(2);
+  for (const auto& reply : {api.post("/api/start", {{"campaign_yaml", yaml}, {"runs", json::array()}}),
+                            api.post("/api/start", {{"campaign_yaml", yaml}, {"runs", {"adaptive", "adaptive"}}}),
+                            api.request("POST", "/api/start?runs=", yaml, "application/yaml"),
+                            api.request("POST", "/api/start?runs=,", yaml, "application/yaml"),
+                            api.request("POST", "/api/start?runs=none,none", yaml, "application/yaml")}) {
+    EXPECT_EQ(reply.status, 400) << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), "runs") << reply.body;
+    EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+  }
+}
+
+// What the runner refuses in a start (a speed out of range or on a rig with hardware, a run the
+// campaign does not have) was a 400 without "field"; every 400 names the field at fault.
+TEST(ServerProtocol, AStartTheRunnerRefusesNamesTheField) {
+  ServerProcess server;
+  const auto api = server.client();
+  const std::string yaml = hil::test::short_campaign_yaml(2);
+  struct Bad {
+    json body;
+    std::string field;
+  };
+  for (const Bad& b :
+       {Bad{{{"campaign_yaml", yaml}, {"speed", 0}}, "speed"}, Bad{{{"campaign_yaml", yaml}, {"speed", 101}}, "speed"},
+        Bad{{{"campaign_yaml", yaml}, {"speed", 2}, {"rig", "hybrid"}}, "speed"},
+        Bad{{{"campaign_yaml", yaml}, {"runs", {"adaptiv"}}}, "runs"}}) {
+    const auto reply = api.post("/api/start", b.body);
+    EXPECT_EQ(reply.status, 400) << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), b.field) << b.body.dump() << ": " << reply.body;
+  }
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
+}
+
+// A report being made is written as RUN_DIR/report.html.tmp and renamed into place, so that half
+// of one is never served; GET /api/runs/ID/report.html.tmp served it all the same.
+TEST(ServerProtocol, AHalfMadeOutputIsNotServed) {
+  ServerProcess server;
+  const auto run = server.runs_dir() / "20261127T050000Z_tmp_adaptive";
+  std::filesystem::create_directories(run);
+  std::ofstream(run / "run.json") << "{}\n";
+  std::ofstream(run / "report.html.tmp") << "<html><body>half a rep";
+  const auto reply = server.client().get("/api/runs/20261127T050000Z_tmp_adaptive/report.html.tmp");
+  EXPECT_EQ(reply.status, 404) << reply.body;
+  EXPECT_EQ(reply.body.find("half a rep"), std::string::npos) << reply.body;
+}
+
+// An option given twice was read as its last value (?rate_hz=1&rate_hz=5000 streamed at 5000 rows
+// a second), and report.html's ?wait= waited for any value but 0 (wait=false waited). Both are
+// refused, naming the option, before the run is looked up; an empty part of a query ("?&") is no
+// option.
+TEST(ServerProtocol, AnOptionGivenTwiceOrAWaitOtherThan0Or1IsRefused) {
+  ServerProcess server;
+  const std::string twice = raw_exchange(server.port(), upgrade_request("/api/telemetry?rate_hz=1&rate_hz=5000"));
+  EXPECT_EQ(twice.rfind("HTTP/1.1 400", 0), 0u) << twice;
+  EXPECT_EQ(error_body(twice).value("field", ""), "rate_hz") << twice;
+  EXPECT_EQ(error_body(twice).value("error", ""), "query option given twice") << twice;
+
+  const auto api = server.client();
+  for (const char* query : {"wait=0&wait=1", "wait=false", "wait=", "wait=01"}) {
+    const auto reply = api.get(std::string("/api/runs/20261127T050000Z_nope_adaptive/report.html?") + query);
+    EXPECT_EQ(reply.status, 400) << query << ": " << reply.body;
+    EXPECT_EQ(reply.json().value("field", ""), "wait") << query << ": " << reply.body;
+  }
+  EXPECT_EQ(api.get("/api/runs/20261127T050000Z_nope_adaptive/report.html?wait=1").status, 404);
+  EXPECT_EQ(api.get("/api/health?&").status, 200);
+}
+
 // What Beast refuses in a handshake (no Sec-WebSocket-Key, another version) was answered as plain
 // text; every error of the API is a JSON body naming the field at fault.
 TEST(ServerProtocol, WebSocketHandshakeRefusalsAreJsonErrorsNamingTheHeader) {
@@ -739,6 +888,47 @@ TEST(ServerProtocol, HeadIsAnsweredWithoutABodyAndTheConnectionStaysInStep) {
   EXPECT_NE(heads[2].find("Content-Length: 19"), std::string::npos) << heads[2];
   EXPECT_EQ(heads[3].rfind("HTTP/1.1 200", 0), 0u) << heads[3];
   EXPECT_EQ(json::parse(reply.substr(at)).value("ok", false), true) << reply;
+}
+
+// A HEAD of a run's report.html made the report (queued on the job worker, waited for, written
+// into the run folder) only to drop its body. HEAD answers the header of what GET would send and
+// makes nothing: no report.html appears; once GET has made it, HEAD gives its exact length.
+TEST(ServerProtocol, HeadOfAReportNotMadeYetDoesNotMakeIt) {
+  ServerProcess server;
+  const auto api = server.client();
+  ASSERT_EQ(api.request("POST", "/api/start", campaign_request(1), "application/json").status, 202);
+  hil::test::wait_status(
+      api, [](const json& s) { return s["state"] == "idle" && s["last"].is_object(); }, 30s);
+  const auto run = hil::test::only_run(server.runs_dir());
+  const std::string target = "/api/runs/" + run.filename().string() + "/report.html";
+  const auto head = [&](const std::string& t) {
+    const std::string reply =
+        raw_exchange(server.port(), "HEAD " + t + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+    const auto end = reply.find("\r\n\r\n");
+    EXPECT_EQ(end + 4, reply.size()) << "a body after the header:\n" << reply;
+    return reply.substr(0, end + 2);
+  };
+
+  for (const std::string& t : {target, target + "?wait=0"}) {
+    const std::string not_made = head(t);
+    EXPECT_EQ(not_made.rfind("HTTP/1.1 200", 0), 0u) << not_made;
+    EXPECT_NE(not_made.find("Content-Type: text/html; charset=utf-8\r\n"), std::string::npos) << not_made;
+    EXPECT_EQ(not_made.find("Content-Length"), std::string::npos) << "the length of a report not made is not known:\n"
+                                                                  << not_made;
+  }
+  std::this_thread::sleep_for(1s);  // a report of a 1 s run takes a tenth of that
+  EXPECT_FALSE(std::filesystem::exists(run / "report.html")) << "HEAD made the report";
+  EXPECT_FALSE(std::filesystem::exists(run / "report.html.tmp")) << "HEAD is making the report";
+
+  const auto made = api.get(target);
+  ASSERT_EQ(made.status, 200) << made.body.substr(0, 300);
+  ASSERT_TRUE(std::filesystem::exists(run / "report.html"));
+  const std::string kept = head(target);
+  EXPECT_EQ(kept.rfind("HTTP/1.1 200", 0), 0u) << kept;
+  EXPECT_NE(kept.find("Content-Length: " + std::to_string(made.body.size()) + "\r\n"), std::string::npos) << kept;
+  EXPECT_NE(kept.find("Content-Type: text/html; charset=utf-8\r\n"), std::string::npos) << kept;
+
+  EXPECT_EQ(head("/api/runs/20261127T050000Z_nope_adaptive/report.html").rfind("HTTP/1.1 404", 0), 0u);
 }
 
 // ctl telemetry said only "the WebSocket handshake was declined"; it says the server's status and
@@ -989,4 +1179,51 @@ TEST(ServerProtocol, AnUnchangedRigIsNotReadAgainAndAChangeToItsRegisterMapIs) {
   const auto padded = std::find_if(rigs.begin(), rigs.end(), [](const json& r) { return r["name"] == "padded"; });
   ASSERT_NE(padded, rigs.end()) << rigs.dump(2);
   EXPECT_NE(padded->value("error", "").find("duplicate key 'bits'"), std::string::npos) << padded->dump(2);
+}
+
+// GET /api/campaigns and GET /api/models parsed every file at each request, on the I/O thread.
+// They keep each entry as GET /api/rigs does: an unchanged campaign or model is not read again,
+// and a change to any file its load read is seen: the plant a campaign names (not the campaign
+// file), by both; a campaign's reference CSV (read by the CSV reader, not as YAML).
+TEST(ServerProtocol, UnchangedCampaignsAndModelsAreNotReadAgainAndAChangeToThePlantIs) {
+  hil::test::TempDir base;
+  const auto configs = configs_with_padded_map(base.path(), "padded", 0);
+  const std::string padding = [] {
+    std::string p;
+    for (int i = 0; i < 9000; ++i) p += "# " + std::string(98, '-') + "\n";  // 900 KB of comment
+    return p;
+  }();
+  std::ofstream(configs / "plant" / "padded.yaml") << hil::test::slurp(configs / "plant" / "nominal.yaml") << padding;
+  std::string campaign = hil::test::slurp(configs / "campaigns" / "paper_adaptive.yaml");
+  campaign.replace(campaign.find("../plant/nominal.yaml"), std::string("../plant/nominal.yaml").size(), "../plant/padded.yaml");
+  std::ofstream(configs / "campaigns" / "padded.yaml") << campaign << padding;
+  std::string from_csv = hil::test::short_campaign_yaml(2, "from_csv");
+  const std::string square = "    - square: {from_s: 0.5, half_period_s: 1.0, low_mpa: 1.0, high_mpa: 1.5}\n";
+  from_csv.replace(from_csv.find(square), square.size(), "    - csv: {file: reference.csv}\n");
+  std::ofstream(configs / "campaigns" / "from_csv.yaml") << from_csv;
+  std::ofstream(configs / "campaigns" / "reference.csv") << "t_s,p_ref_mpa\n0,1.0\n1,1.5\n";
+  ServerProcess server({"--configs", configs.string()});
+  const auto api = server.client();
+
+  const std::string campaigns = api.get("/api/campaigns").body, models = api.get("/api/models").body;
+  EXPECT_EQ(campaigns.find("\"error\""), std::string::npos) << campaigns;
+  EXPECT_EQ(models.find("\"error\""), std::string::npos) << models;
+  const std::uint64_t before = bytes_read(server.pid());
+  EXPECT_EQ(api.get("/api/campaigns").body, campaigns);
+  EXPECT_EQ(api.get("/api/models").body, models);
+  EXPECT_LT(bytes_read(server.pid()) - before, 100'000u) << "the campaigns or models were read again";
+
+  std::ofstream(configs / "plant" / "padded.yaml", std::ios::app) << "description: twice\n";
+  std::ofstream(configs / "campaigns" / "reference.csv") << "t_s,p_ref_mpa\n";
+  for (const auto& [path, key] : {std::pair{"/api/campaigns", "campaigns"}, std::pair{"/api/models", "models"}}) {
+    const json list = api.get(path).json()[key];
+    const auto padded = std::find_if(list.begin(), list.end(), [](const json& e) { return e["name"] == "padded"; });
+    ASSERT_NE(padded, list.end()) << list.dump(2);
+    EXPECT_NE(padded->value("error", "").find("duplicate key 'description'"), std::string::npos) << path << padded->dump(2);
+  }
+  const json campaigns_now = api.get("/api/campaigns").json()["campaigns"];
+  const auto csv =
+      std::find_if(campaigns_now.begin(), campaigns_now.end(), [](const json& e) { return e["name"] == "from_csv"; });
+  ASSERT_NE(csv, campaigns_now.end()) << campaigns_now.dump(2);
+  EXPECT_NE(csv->value("error", "").find("the file has no rows"), std::string::npos) << csv->dump(2);
 }

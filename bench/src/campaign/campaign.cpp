@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "hil/config.hpp"
+#include "hil/config_files.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/plant/rng.hpp"
@@ -133,6 +134,8 @@ void add_reference_item(ScheduleBuilder& b, std::vector<std::filesystem::path>& 
     const std::string col = body.text("column", telemetry::name(telemetry::Col::p_ref_mpa)),
                       tcol = body.text("time_column", telemetry::name(telemetry::Col::t_s));
     CsvChunk data;
+    // The campaign is made of this file too: a cache of it (GET /api/campaigns) must see it change.
+    cfg::ReadFiles::note(file);
     try {
       data = read_csv(file, {{tcol, col}, {}, tcol});
     } catch (const CsvError& e) {

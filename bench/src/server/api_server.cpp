@@ -10,6 +10,7 @@
 #include <cmath>
 #include <deque>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -69,6 +70,7 @@ struct Reply {
   std::string extra_header;                       // Content-Disposition for downloads
   bool no_store = false;                          // Cache-Control: no-store (the console: a new build is a new page)
   std::string allow;                              // Allow, on a 405
+  bool length_unknown = false;                    // a HEAD's answer for a body not made: no Content-Length at all
   std::shared_ptr<const JobWait> wait = nullptr;  // set: the final answer comes when the job has finished
 };
 
@@ -135,6 +137,7 @@ std::string percent_decode(std::string_view s) {
 struct Target {
   std::vector<std::string> path;  // "/api/runs/x" -> {"api", "runs", "x"}
   std::map<std::string, std::string> query;
+  std::vector<std::string> repeated;  // query options given more than once (refused: which one was meant?)
 };
 
 Target parse_target(std::string_view target) {
@@ -148,12 +151,11 @@ Target parse_target(std::string_view target) {
   if (q != std::string_view::npos) {
     std::stringstream qs{std::string(target.substr(q + 1))};
     for (std::string kv; std::getline(qs, kv, '&');) {
+      if (kv.empty()) continue;  // "?&a=1", "a=1&&b=2": no option, as in a browser's URLSearchParams
       const auto eq = kv.find('=');
-      if (eq == std::string::npos) {
-        t.query[percent_decode(kv)] = "";
-      } else {
-        t.query[percent_decode(kv.substr(0, eq))] = percent_decode(kv.substr(eq + 1));
-      }
+      std::string key = percent_decode(kv.substr(0, eq));
+      std::string value = eq == std::string::npos ? "" : percent_decode(kv.substr(eq + 1));
+      if (!t.query.emplace(key, std::move(value)).second) t.repeated.push_back(std::move(key));
     }
   }
   return t;
@@ -269,14 +271,10 @@ double query_number(const Target& t, const char* key, double fallback) {
   return value;
 }
 
-// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given). A typo in an
-// option (?rate=5000) or a half-number (?rate_hz=20abc) is refused: silently streaming at another
-// rate than asked for hides the mistake.
+// The rows per second a telemetry WebSocket asks for (?rate_hz=N, 20 when not given), once its
+// options are checked against its route's (refuse_unknown_query). A half-number (?rate_hz=20abc)
+// is refused: silently streaming at another rate than asked for hides the mistake.
 double telemetry_rate_hz(const Target& t) {
-  for (const auto& item : t.query) {
-    refuse_unknown(item.first, loggable_target(item.first), {"rate_hz", "token"}, "unknown query option",
-                   "; /api/telemetry takes rate_hz (and token)");
-  }
   const double rate_hz = query_number(t, "rate_hz", 20);
   if (!(rate_hz > 0 && rate_hz <= 5000))
     throw ApiError{http::status::bad_request, "bad field", "'rate_hz' must be in (0, 5000] rows per second", "rate_hz"};
@@ -748,13 +746,20 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::vector<std::weak_ptr<HttpSession>> http_sessions;
   JobQueue jobs;                                    // submitted to on the io thread only: a check and its submit never race
   const std::string session_id = new_session_id();  // Foxglove's serverInfo.sessionId
-  // GET /api/rigs's entry of each rig, with the files its load read (the rig's, its device files,
-  // register maps): parsed again only when one of them has changed. Io thread only.
-  struct RigListing {
+  // The entry of each config file in GET /api/campaigns, /api/rigs and /api/models, with the files
+  // its load read (a rig's device files and register maps, a campaign's plant and CSV reference):
+  // parsed again only when one of them has changed. Io thread only.
+  struct Listing {
     json entry;
     std::vector<cfg::FileStamp> files;
   };
-  std::map<std::string, RigListing> rig_listings;
+  using Listings = std::map<std::string, Listing>;  // by the file's stem
+  Listings campaign_listings, rig_listings, model_listings;
+  // The entries of dir/*.yaml, each {"name", "file"} and what `describe` adds (or its "error"),
+  // from `kept` while every file read for it is unchanged. `kept` becomes this listing: files
+  // gone are forgotten.
+  json listing(Listings& kept, const std::filesystem::path& dir,
+               const std::function<void(const std::filesystem::path& file, json& entry)>& describe);
 
   void accept();
   bool evict_longest_idle();
@@ -773,7 +778,8 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply runs();
   Reply run(const std::string& id);
   Reply run_file(const std::string& id, const std::string& file);
-  Reply run_report(const std::string& id, const Target& t);
+  // head: a HEAD request, answered without making the report.
+  Reply run_report(const std::string& id, const Target& t, bool head);
   Reply models();
   Reply analyses(const std::string& id);
   Reply start_analysis(const std::string& id, const Request& req);
@@ -857,51 +863,55 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
   }
 }
 
-Reply ApiServer::Impl::campaigns() {
+// Loading a config file runs on the io thread, which serves every request: an unchanged one is not
+// loaded again (a large register map took seconds at each GET /api/rigs; every campaign, its plant
+// and its reference CSV were parsed at each GET /api/campaigns, every plant model at each GET
+// /api/models).
+json ApiServer::Impl::listing(Listings& kept, const std::filesystem::path& dir,
+                              const std::function<void(const std::filesystem::path& file, json& entry)>& describe) {
+  Listings now;
   json list = json::array();
-  for (const auto& name : yaml_stems(options.campaigns_dir)) {
-    json j = {{"name", name}, {"file", (options.campaigns_dir / (name + ".yaml")).string()}};
+  for (const auto& name : yaml_stems(dir)) {
+    if (const auto old = kept.find(name); old != kept.end() && cfg::unchanged(old->second.files)) {
+      list.push_back(old->second.entry);
+      now.insert(kept.extract(old));
+      continue;
+    }
+    const auto file = dir / (name + ".yaml");
+    json j = {{"name", name}, {"file", file.string()}};
+    cfg::ReadFiles read;
     try {
-      const Campaign c = load_campaign(options.campaigns_dir / (name + ".yaml"));
-      j["description"] = c.description;
-      j["duration_s"] = c.duration_s;
-      j["period_ms"] = c.period_s * 1e3;
-      j["runs"] = json::array();
-      for (const auto& r : c.runs) j["runs"].push_back(r.name);
+      describe(file, j);
     } catch (const std::exception& e) {
       j["error"] = e.what();
     }
     list.push_back(j);
+    now.emplace(name, Listing{std::move(j), read.files()});
   }
+  kept = std::move(now);
+  return list;
+}
+
+Reply ApiServer::Impl::campaigns() {
+  const json list = listing(campaign_listings, options.campaigns_dir, [](const std::filesystem::path& file, json& j) {
+    const Campaign c = load_campaign(file);
+    j["description"] = c.description;
+    j["duration_s"] = c.duration_s;
+    j["period_ms"] = c.period_s * 1e3;
+    j["runs"] = json::array();
+    for (const auto& r : c.runs) j["runs"].push_back(r.name);
+  });
   return json_reply(http::status::ok, {{"campaigns", list}});
 }
 
 Reply ApiServer::Impl::rigs() {
-  // Loading a rig reads and checks its device files and register maps, on the io thread: an
-  // unchanged rig is not loaded again (a large register map took seconds at each request).
-  std::map<std::string, RigListing> listings;
-  json list = json::array();
-  for (const auto& name : yaml_stems(options.rigs_dir)) {
-    if (const auto kept = rig_listings.find(name); kept != rig_listings.end() && cfg::unchanged(kept->second.files)) {
-      list.push_back(kept->second.entry);
-      listings.insert(rig_listings.extract(kept));
-      continue;
-    }
-    json j = {{"name", name}, {"file", (options.rigs_dir / (name + ".yaml")).string()}};
-    cfg::ReadFiles read;
-    try {
-      const RigConfig r = load_rig_config(options.rigs_dir / (name + ".yaml"));
-      j["kind"] = r.kind;
-      j["description"] = r.description;
-      j["priority"] = r.loop.priority;
-      j["cpu"] = r.loop.cpu;
-    } catch (const std::exception& e) {
-      j["error"] = e.what();
-    }
-    list.push_back(j);
-    listings.emplace(name, RigListing{std::move(j), read.files()});
-  }
-  rig_listings = std::move(listings);  // rigs whose file is gone are forgotten
+  const json list = listing(rig_listings, options.rigs_dir, [](const std::filesystem::path& file, json& j) {
+    const RigConfig r = load_rig_config(file);
+    j["kind"] = r.kind;
+    j["description"] = r.description;
+    j["priority"] = r.loop.priority;
+    j["cpu"] = r.loop.cpu;
+  });
   return json_reply(http::status::ok, {{"rigs", list}});
 }
 
@@ -910,12 +920,16 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   const std::string content_type(req[http::field::content_type]);
   const bool yaml_body = content_type.find("yaml") != std::string::npos;
   json body = yaml_body ? json::object() : parse_json_body(req);
-  if (!yaml_body) allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
-  if (yaml_body) {  // the query carries the options: a typo (?run=) must not start every run
-    const std::vector<std::string> names{"rig", "runs", "speed", "token"};
+  if (!yaml_body) {
+    allow_fields(body, {"campaign", "campaign_yaml", "rig", "runs", "speed"});
+    // The query's options (the route's) are a YAML body's: beside a JSON body they were ignored,
+    // and ?rig=hybrid started on sim.
     for (const auto& item : t.query) {
-      refuse_unknown(item.first, loggable_target(item.first), names, "unknown query option",
-                     "; a YAML body takes rig, runs and speed in the query");
+      if (item.first == "token") continue;
+      const std::string shown = loggable_target(item.first);
+      throw ApiError{http::status::bad_request, "unknown query option",
+                     "'" + shown + "': a JSON body carries its options in the body; the query carries them for a YAML body",
+                     shown};
     }
   }
   // Options come from the JSON body, or from the query when the body is the YAML itself.
@@ -941,6 +955,17 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   } else {
     s.runs = field<std::vector<std::string>>(body, "runs", {});
     if (body.contains("speed")) s.speed = number_field(body, "speed");
+  }
+  // No subset means every run. A subset given empty ([], ?runs=, a name lost to a bug in a script)
+  // ran them all, the opposite of a choice; a name given twice is a mistake too.
+  const bool runs_given = yaml_body ? option("runs").has_value() : body.contains("runs") && !body["runs"].is_null();
+  if (runs_given && s.runs.empty()) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'runs' names no run: name at least one, or leave 'runs' out to run them all", "runs"};
+  }
+  for (auto r = s.runs.begin(); r != s.runs.end(); ++r) {
+    if (std::find(s.runs.begin(), r, *r) != r)
+      throw ApiError{http::status::bad_request, "bad field", "'runs' names '" + *r + "' twice", "runs"};
   }
 
   std::string yaml;
@@ -984,6 +1009,8 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     throw ApiError{http::status::conflict, "a campaign is running", e.what()};
   } catch (const InsufficientStorage& e) {
     throw ApiError{http::status::insufficient_storage, "no room for the record", e.what()};
+  } catch (const BadField& e) {
+    throw ApiError{http::status::bad_request, "cannot start", e.what(), e.field};
   } catch (const std::invalid_argument& e) {
     throw ApiError{http::status::bad_request, "cannot start", e.what()};
   }
@@ -1107,7 +1134,9 @@ Reply ApiServer::Impl::run(const std::string& id) {
 
 Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) {
   const auto path = options.runs_dir / id / file;
-  if (!cfg::plain_name(id) || !cfg::plain_name(file) || !std::filesystem::is_regular_file(path)) {
+  // A .tmp is an output being made (report.html.tmp): half of one is never served, as the run's
+  // file list (run()) never shows one.
+  if (!cfg::plain_name(id) || !cfg::plain_name(file) || path.extension() == ".tmp" || !std::filesystem::is_regular_file(path)) {
     throw ApiError{http::status::not_found, "unknown file", "run '" + id + "' has no file '" + file + "'"};
   }
   Reply r;
@@ -1161,10 +1190,27 @@ Reply html_file(const std::filesystem::path& file) {
 
 }  // namespace
 
-Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
+Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool head) {
+  // ?wait= is 0 or 1: any other value (wait=false, wait=no) waited, the opposite of what it says.
+  const auto wait = t.query.find("wait");
+  if (wait != t.query.end() && wait->second != "0" && wait->second != "1") {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'wait' must be 0 (answer 202 at once) or 1 (wait for the report), got '" + printable(wait->second, 40) + "'",
+                   "wait"};
+  }
   const auto dir = ended_run(id);
   // Made once per run, on the job worker, and kept in its folder (analyses.hpp run_report_current).
   if (run_report_current(dir)) return html_file(dir / "report.html");
+  if (head) {
+    // HEAD asks for the header fields, not for the report: making one (seconds for an hour's run,
+    // a place in the job queue, a file written) only to drop its body is work nobody asked for.
+    // Its length is not known before it is made, and HEAD may leave Content-Length out (RFC 9110
+    // 9.3.2); a wrong one (0) would tell the client the report is empty. ?wait=0 changes nothing:
+    // no job is queued, so there is none to answer with.
+    Reply r = html_file({});
+    r.length_unknown = true;
+    return r;
+  }
   std::optional<JobStatus> job = jobs.find(id, "report");
   if (job && (job->state == JobState::done || job->state == JobState::failed)) {
     jobs.forget(id, "report");  // a failure is answered once; the next request tries again
@@ -1186,7 +1232,6 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
     }
   }
   Reply reply = json_reply(http::status::accepted, {{"report", job->to_json()}});
-  const auto wait = t.query.find("wait");
   if (wait != t.query.end() && wait->second == "0") return reply;
   auto w = std::make_shared<JobWait>();
   w->run = id;
@@ -1201,18 +1246,11 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t) {
 }
 
 Reply ApiServer::Impl::models() {
-  json list = json::array();
-  for (const auto& name : yaml_stems(options.plant_dir)) {
-    const auto file = options.plant_dir / (name + ".yaml");
-    json j = {{"name", name}, {"file", file.string()}};
-    try {
-      plant::Plant::load(file);
-      j["description"] = cfg::Node::load_file(file).text("description", "");
-    } catch (const std::exception& e) {
-      j["error"] = e.what();
-    }
-    list.push_back(j);
-  }
+  const json list = listing(model_listings, options.plant_dir, [](const std::filesystem::path& file, json& j) {
+    const cfg::Node root = cfg::Node::load_file(file);  // read once: checked as a plant, then its description
+    (void)plant::Plant::from_yaml(root);
+    j["description"] = root.text("description", "");
+  });
   return json_reply(http::status::ok, {{"models", list}, {"kinds", {kAnalysisKinds[0], kAnalysisKinds[1]}}});
 }
 
@@ -1374,6 +1412,7 @@ struct Route {
   std::string_view path;
   std::string_view summary;
   Reply (*handle)(ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>& args);
+  std::vector<std::string> query = {};  // the query options it takes; `token` (authorised()) is every route's
 };
 
 const Route kRoutes[] = {
@@ -1403,10 +1442,11 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) {
        return json_reply(http::status::ok, api.runner.status());
      }},
-    {http::verb::post, "/api/start", "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
-     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) {
-       return api.start(req, t);
-     }},
+    {http::verb::post,
+     "/api/start",
+     "start a campaign: {campaign | campaign_yaml, rig, runs, speed}",
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>&) { return api.start(req, t); },
+     {"rig", "runs", "speed"}},
     {http::verb::post, "/api/stop", "end the campaign after the run's current period",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.stop(); }},
     {http::verb::post, "/api/abort", "safe state now, then end the campaign: {reason}",
@@ -1419,12 +1459,14 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>&) { return api.runs(); }},
     {http::verb::get, "/api/runs/{id}", "a run's record and its files",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.run(a[0]); }},
-    {http::verb::get, "/api/runs/{id}/report.html",
+    {http::verb::get,
+     "/api/runs/{id}/report.html",
      "a run's paper-style report (HTML, made on the job worker once the run has ended; ?wait=0: 202 and the job's state until "
      "made)",
-     [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {
-       return api.run_report(a[0], t);
-     }},
+     [](ApiServer::Impl& api, const Request& req, const Target& t, const std::vector<std::string>& a) {
+       return api.run_report(a[0], t, req.method() == http::verb::head);
+     },
+     {"wait"}},
     {http::verb::get, "/api/runs/{id}/analyses", "a run's analyses against plant models: queued, running, done or failed",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) { return api.analyses(a[0]); }},
     {http::verb::post, "/api/runs/{id}/analyses", "analyse an ended run against a plant model: {kind: compare | diagnose, model}",
@@ -1444,10 +1486,13 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.run_file(a[0], a[1]);
      }},
-    {http::verb::get, "/api/telemetry", "live telemetry: a WebSocket, ?rate_hz=N",
+    {http::verb::get,
+     "/api/telemetry",
+     "live telemetry: a WebSocket, ?rate_hz=N",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) -> Reply {
        throw ApiError{http::status::upgrade_required, "WebSocket only", "GET /api/telemetry?rate_hz=N with a WebSocket upgrade"};
-     }},
+     },
+     {"rate_hz"}},
 };
 
 // The route's path segments, or nothing when `path` is not its shape; "{name}" segments are
@@ -1482,10 +1527,38 @@ std::string route_list() {
 Reply route_index() {
   json list = json::array();
   for (const auto& r : kRoutes) {
-    list.push_back(
-        {{"method", std::string(http::to_string(r.method))}, {"path", std::string(r.path)}, {"summary", std::string(r.summary)}});
+    list.push_back({{"method", std::string(http::to_string(r.method))},
+                    {"path", std::string(r.path)},
+                    {"summary", std::string(r.summary)},
+                    {"query", r.query}});
   }
   return json_reply(http::status::ok, {{"endpoints", list}});
+}
+
+// The kRoutes row of `pattern` (one that is there: a programming error otherwise).
+const Route& route_of(std::string_view pattern) {
+  for (const auto& r : kRoutes) {
+    if (r.path == pattern) return r;
+  }
+  throw std::logic_error("no route " + std::string(pattern));
+}
+
+// A query option the route does not take is refused by name, as an unknown body field is: ignored,
+// a typo (?wiat=0, ?rate=5000, ?run=) did what was not asked without a word. So is one given twice
+// (?rate_hz=1&rate_hz=5000 streamed at the last one). One check for every route, the telemetry
+// WebSocket's included.
+void refuse_unknown_query(const Target& t, const Route& r) {
+  if (!t.repeated.empty()) {
+    const std::string shown = loggable_target(t.repeated.front());
+    throw ApiError{http::status::bad_request, "query option given twice", "'" + shown + "' is given more than once", shown};
+  }
+  std::vector<std::string> names = r.query;
+  names.emplace_back("token");
+  std::string takes;
+  for (const auto& name : r.query) takes += name + ", ";
+  const std::string after = "; " + std::string(r.path) + " takes " +
+                            (takes.empty() ? "no query option" : takes.substr(0, takes.size() - 2)) + " (and token)";
+  for (const auto& item : t.query) refuse_unknown(item.first, loggable_target(item.first), names, "unknown query option", after);
 }
 
 }  // namespace
@@ -1497,7 +1570,10 @@ Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
     if (!match(r.path, t.path, args)) continue;
     // HEAD is GET without the body (RFC 9110 9.3.2): the same route, the same header fields.
     const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
-    if (r.method == req.method() || head_of_get) return r.handle(*this, req, t, args);
+    if (r.method == req.method() || head_of_get) {
+      refuse_unknown_query(t, r);
+      return r.handle(*this, req, t, args);
+    }
     allow += (allow.empty() ? "" : ", ") + std::string(http::to_string(r.method));
     if (r.method == http::verb::get) allow += ", HEAD";
   }
@@ -1523,7 +1599,24 @@ Reply ApiServer::Impl::stop() {
 Reply ApiServer::Impl::abort(const Request& req) {
   const json body = parse_json_body(req);
   allow_fields(body, {"reason"});
-  const std::string reason = "operator abort: " + field<std::string>(body, "reason", "no reason given");
+  const std::string given = field<std::string>(body, "reason", "no reason given");
+  // The reason goes as it is into the server log, run.json and the console: a newline or an escape
+  // sequence in it forged whole log lines ("[info] campaign ... started") and drove the terminal
+  // of whoever read the log. C1 controls (U+0080..U+009F: 0xC2 0x80..0x9F in UTF-8) included.
+  constexpr std::size_t kMaxReasonBytes = 500;
+  bool control = false;
+  for (std::size_t i = 0; i < given.size(); ++i) {
+    const auto c = static_cast<unsigned char>(given[i]);
+    const auto next = i + 1 < given.size() ? static_cast<unsigned char>(given[i + 1]) : 0;
+    control = control || c < 0x20 || c == 0x7f || (c == 0xc2 && next >= 0x80 && next <= 0x9f);
+  }
+  if (control || given.size() > kMaxReasonBytes) {
+    throw ApiError{http::status::bad_request, "bad field",
+                   "'reason' must be one line of at most " + std::to_string(kMaxReasonBytes) +
+                       " bytes without control characters, got '" + printable(given, 60) + "'",
+                   "reason"};
+  }
+  const std::string reason = "operator abort: " + given;
   std::string ends_with;
   try {
     ends_with = runner.abort(reason);
@@ -1650,6 +1743,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     double rate_hz = 20;
     try {
+      refuse_unknown_query(target, route_of("/api/telemetry"));
       rate_hz = telemetry_rate_hz(target);
     } catch (const ApiError& e) {
       return send(error_reply(e), false);
@@ -1697,9 +1791,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     res->set(http::field::content_type, reply.content_type);
     if (reply.no_store) res->set(http::field::cache_control, "no-store");
     if (!reply.allow.empty()) res->set(http::field::allow, reply.allow);
+    if (!reply.extra_header.empty()) res->set(http::field::content_disposition, reply.extra_header);
     res->keep_alive(keep_alive);
     res->body() = std::move(reply.body);
-    res->prepare_payload();
+    if (!reply.length_unknown) res->prepare_payload();
     write(res);
   }
 

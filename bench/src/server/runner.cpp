@@ -227,17 +227,16 @@ void CampaignRunner::start(StartRequest request) {
   for (const auto& want : request.runs) {
     if (std::find(names.begin(), names.end(), want) == names.end()) {
       const std::string hint = cfg::closest(want, names);
-      throw std::invalid_argument("campaign '" + request.campaign.name + "' has no run '" + want + "'" +
-                                  (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+      throw BadField("runs", "campaign '" + request.campaign.name + "' has no run '" + want + "'" +
+                                 (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
     }
   }
-  if (!(request.speed > 0 && request.speed <= 100)) throw std::invalid_argument("speed must be in (0, 100]");
+  if (!(request.speed > 0 && request.speed <= 100)) throw BadField("speed", "speed must be in (0, 100]");
   // What the rig can do, as its kind declares it (no rig is made, nothing opened).
   const RigCapabilities& can = kind_of(request.rig).capabilities;
   const bool simulated = can.simulated, programmable_gap = can.programmable_gap;
   if (!simulated && request.speed != 1.0) {
-    throw std::invalid_argument("speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind +
-                                ")");
+    throw BadField("speed", "speed other than 1 needs a simulated rig ('" + request.rig.name + "' is " + request.rig.kind + ")");
   }
   {
     std::lock_guard lock(mutex_);

@@ -1,6 +1,7 @@
 // Which files a result made from YAML configs depends on: the files cfg::Node::load_file read, each
 // with what identifies its content on disk, so that a cache of the result can tell whether any of
-// them has changed since (the server's GET /api/rigs does not parse an unchanged rig again).
+// them has changed since (the server's GET /api/campaigns, /api/rigs and /api/models do not parse
+// an unchanged file again).
 #pragma once
 
 #include <cstdint>
@@ -33,7 +34,8 @@ class ReadFiles {
   ReadFiles& operator=(const ReadFiles&) = delete;
 
   const std::vector<FileStamp>& files() const { return files_; }
-  // Node::load_file's: `file` is about to be read.
+  // `file` is about to be read: Node::load_file's, and a loader's that reads a file a config names
+  // by other means (a campaign's reference CSV).
   static void note(const std::filesystem::path& file);
 
  private:

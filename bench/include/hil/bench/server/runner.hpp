@@ -34,6 +34,13 @@ class Conflict : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+// A start request's field that cannot run as given ("runs", "speed"): the API's 400 names it, so
+// a client can point at it (every 400 of the API carries the field at fault).
+class BadField : public std::invalid_argument {
+ public:
+  BadField(std::string field_name, const std::string& what) : std::invalid_argument(what), field(std::move(field_name)) {}
+  std::string field;
+};
 // The runs folder has no room for the run's record (API: 507).
 class InsufficientStorage : public std::runtime_error {
  public:
@@ -73,7 +80,7 @@ class CampaignRunner {
   CampaignRunner(const CampaignRunner&) = delete;
   CampaignRunner& operator=(const CampaignRunner&) = delete;
 
-  // Validates and starts; returns at once. Throws Conflict when a campaign runs, std::invalid_argument
+  // Validates and starts; returns at once. Throws Conflict when a campaign runs, BadField
   // for a request that cannot run (unknown run name, speed on a hardware rig), InsufficientStorage
   // when the runs folder cannot hold the campaign's telemetry.
   void start(StartRequest request);
