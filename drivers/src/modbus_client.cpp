@@ -455,6 +455,9 @@ struct ModbusDrive::Impl {
   Mailbox<DriveFeedback> feedback;
   std::atomic<bool> enable_requested{false};
   std::atomic<bool> reset_requested{false};
+  // Set by cancel_setup(), for good: activate() stops waiting for the enabled bit (up to
+  // transition_timeout_ms, 600 s at most) and configure() refuses to start.
+  std::atomic<bool> setup_cancelled{false};
   // I/O thread
   DriveFeedback fb;
   bool prev_cmd_reset = false;
@@ -550,6 +553,7 @@ ModbusDrive::~ModbusDrive() { impl_->poller.stop(); }
 
 void ModbusDrive::configure() {
   auto& m = *impl_;
+  if (m.setup_cancelled) throw ModbusError(m.poller.who() + ": configure() cancelled");
   m.poller.first_cycle([&m] { return m.cycle(); });
   m.command.store({m.fb.position_rad, false, false});
   m.publish();
@@ -563,12 +567,19 @@ void ModbusDrive::activate() {
   m.command.store({fb.position_rad, true, false});
   if (fb.fault) m.reset_requested = true;
   m.enable_requested = true;
-  if (!wait_for(m.cfg.transition_timeout, [&] { return m.feedback.load().enabled; })) {
+  const bool enabled = wait_for(m.cfg.transition_timeout, [&] { return m.setup_cancelled || m.feedback.load().enabled; });
+  if (m.setup_cancelled) {
+    m.enable_requested = false;  // nothing will run the drive: do not leave it to enable later
+    throw ModbusError(m.poller.who() + ": activate() cancelled");
+  }
+  if (!enabled) {
     throw ModbusError(m.poller.who() + ": status register " + std::to_string(m.cfg.map.at("status").address) +
                       " did not report enabled within " + std::to_string(m.cfg.transition_timeout.count()) +
                       " ms (last error: " + std::string(health().last_error_text()) + ")");
   }
 }
+
+void ModbusDrive::cancel_setup() noexcept { impl_->setup_cancelled = true; }
 
 void ModbusDrive::deactivate() {
   auto& m = *impl_;

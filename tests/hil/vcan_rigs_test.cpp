@@ -185,6 +185,7 @@ TEST_F(VcanRigFaults, SilentDriveTripsTheWatchdog) { drive_silent(setup); }
 TEST_F(VcanRigFaults, EmcyFaultTripsAndIsNamed) { emcy_fault(setup); }
 TEST_F(VcanRigFaults, BusOffIsDetectedReportedAndRecovered) { bus_off(setup); }
 TEST_F(VcanRigFaults, SdoAbortAtConfigureNamesTheObject) { sdo_abort(setup); }
+TEST_F(VcanRigFaults, AnAbortCutsTheRigSetupShort) { abort_during_setup(setup); }
 
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);

@@ -173,6 +173,42 @@ TEST(ModbusTcp, DriveFaultIsReportedAndReset) {
   EXPECT_FALSE(d.client.read(Clock::now(), 1ms).fault);
 }
 
+// An operator's abort while a drive is being enabled: cancel_setup() ends activate() at its next
+// poll instead of the 600 s it may wait for the enabled bit, and the enable request is taken back.
+// Before, only the CiA 402 client could be cancelled; a Modbus rig's setup waited it out.
+TEST(ModbusTcp, CancelEndsAnActivateThatWaitsForTheEnabledBit) {
+  FirstOrderServoTestModel model{0.01, 20.0, 0.25};
+  ModbusDriveEmulator emulator{tcp_link(0), drive_map(), model};
+  ModbusDrive client{{tcp_link(emulator.port()), drive_map(), 600000ms}};
+  client.configure();
+  emulator.set_write_exception(4);  // every write refused: the drive never reports enabled
+  const auto t0 = Clock::now();
+  std::thread operator_abort([&] {
+    std::this_thread::sleep_for(200ms);
+    client.cancel_setup();
+  });
+  std::string what = "(activate() returned)";
+  try {
+    client.activate();
+  } catch (const ModbusError& e) {
+    what = e.what();
+  }
+  operator_abort.join();
+  EXPECT_NE(what.find(": activate() cancelled"), std::string::npos) << what;
+  EXPECT_LT(Clock::now() - t0, 60s) << "waited as if not cancelled";
+  // Writes go through again: the enable asked for before the cancel is not carried out later.
+  emulator.set_write_exception(0);
+  std::this_thread::sleep_for(300ms);  // 150 polls
+  EXPECT_FALSE(model.enabled());
+  // The client is given up: a configure() after the cancel refuses to start.
+  try {
+    client.configure();
+    ADD_FAILURE() << "configure() after cancel_setup() went on";
+  } catch (const ModbusError& e) {
+    EXPECT_NE(std::string(e.what()).find(": configure() cancelled"), std::string::npos) << e.what();
+  }
+}
+
 // More masters than a device takes, and descriptors past FD_SETSIZE: the emulator closes the
 // connections past its cap of 64 and those it could not watch with select(), and goes on serving.
 // It used to abort the whole process ("bit out of range 0 - FD_SETSIZE on fd_set") once a

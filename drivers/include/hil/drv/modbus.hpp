@@ -91,6 +91,9 @@ class ModbusDrive final : public PositionDrive {
   void configure() override;
   void activate() override;    // enable; waits for the status register's enabled bit
   void deactivate() override;  // disable; waits for it to clear
+  // Any thread, for good: activate() stops waiting (throws "activate() cancelled") within a poll
+  // (2 ms), configure() refuses to start.
+  void cancel_setup() noexcept override;
 
   DriveFeedback read(Clock::time_point now, Clock::duration period) noexcept override;                       // real-time safe
   void write(Clock::time_point now, Clock::duration period, const DriveCommand& command) noexcept override;  // real-time safe
