@@ -746,10 +746,6 @@ Campaign PointMaker::campaign(long p) const {
 }
 
 PointYaml point_yaml(const SweepPlan& plan, long p) { return PointMaker(plan).yaml(p); }
-Campaign point_campaign(const SweepPlan& plan, long p) { return PointMaker(plan).campaign(p); }
-std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel) {
-  return PointMaker(plan).run(p, cancel);
-}
 
 std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) const {
   const SweepPlan& plan = plan_;

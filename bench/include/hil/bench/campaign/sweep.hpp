@@ -122,10 +122,8 @@ class PointMaker {
   const SweepPlan& plan_;
   YAML::Node campaign_, plant_;
 };
-// One point with a maker of its own (a few points: the report's worst ones, tests).
+// One point's YAML with a maker of its own (a few points: the report's worst ones, the fuzz target).
 PointYaml point_yaml(const SweepPlan& plan, long p);
-Campaign point_campaign(const SweepPlan& plan, long p);
-std::vector<double> run_point(const SweepPlan& plan, long p, const std::atomic<bool>* cancel = nullptr);
 // Throws std::runtime_error naming the first of plan.input_files whose contents are no longer
 // those the sweep was planned with (or that cannot be read), and what to do.
 void check_input_files(const SweepPlan& plan, const std::filesystem::path& dir);
