@@ -8,6 +8,7 @@
 #include <future>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "hil/config.hpp"
@@ -86,6 +87,8 @@ struct Cia402DriveEmulator::Impl {
   std::atomic<std::uint8_t> state_now{static_cast<std::uint8_t>(State::not_ready_to_switch_on)};
   std::atomic<std::uint64_t> syncs{0};
   std::atomic<bool> hb_stopped{false}, silent{false};
+  std::atomic<bool> freeze_position{false};   // the fault API's frozen encoder
+  std::optional<std::int32_t> frozen_counts;  // what it reports while frozen (I/O thread)
   std::atomic<long long> delay_us{0};
 
   // I/O thread only.
@@ -379,11 +382,20 @@ struct Cia402DriveEmulator::Impl {
       model.command(following ? cfg.units.to_rad(target) : s.position_rad, following);
     }
     s = model.sample();
+    // What the encoder reports: the motor's position, or while frozen the one it had.
+    std::int32_t actual = cfg.units.to_counts(s.position_rad);
+    if (!freeze_position) {
+      frozen_counts.reset();
+    } else {
+      if (!frozen_counts) frozen_counts = actual;
+      actual = *frozen_counts;
+      s.velocity_rad_s = 0;
+    }
     if (following && cfg.following_error)
-      check_following_error(target, cfg.units.to_counts(s.position_rad));
+      check_following_error(target, actual);
     else
       following_out = false;
-    set(cia402::kPositionActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.position_rad)));
+    set(cia402::kPositionActual, 0, static_cast<std::uint32_t>(actual));
     set(cia402::kVelocityActual, 0, static_cast<std::uint32_t>(cfg.units.to_counts(s.velocity_rad_s)));
     std::uint16_t sw = statusword_for(state) | 0x0200;  // remote
     if (following) sw |= 0x1000;                        // CSP: drive follows the command value
@@ -552,6 +564,7 @@ std::optional<Cia402DriveEmulator::RampStart> Cia402DriveEmulator::quick_stop_ra
 
 void Cia402DriveEmulator::stop_heartbeat(bool stopped) { impl_->hb_stopped = stopped; }
 void Cia402DriveEmulator::set_silent(bool silent) { impl_->silent = silent; }
+void Cia402DriveEmulator::freeze_position(bool frozen) { impl_->freeze_position = frozen; }
 void Cia402DriveEmulator::set_response_delay(std::chrono::microseconds delay) { impl_->delay_us = delay.count(); }
 
 void Cia402DriveEmulator::raise_emcy(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> mfr) {

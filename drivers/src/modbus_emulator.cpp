@@ -13,6 +13,7 @@
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -257,6 +258,8 @@ struct ModbusDriveEmulator::Impl {
   const Register *velocity, *fault_code;
   int bit_enable, bit_reset, bit_enabled, bit_fault;
   std::atomic<std::uint16_t> injected_fault{0};
+  std::atomic<bool> freeze_position{false};  // the fault API's frozen encoder
+  std::optional<double> frozen_rad;          // what it reports while frozen (server thread)
   std::uint16_t last_control = 0;
   std::unique_ptr<detail::ModbusServer> server;
 
@@ -287,8 +290,13 @@ struct ModbusDriveEmulator::Impl {
     const std::uint16_t code = injected_fault ? injected_fault.load() : (s.fault ? s.fault_code : 0);
     const bool fault = code != 0 || s.fault;
     const bool enabled = enabled_bit(m) && !fault;
-    put(m, &position, s.position_rad);
-    put(m, velocity, s.velocity_rad_s);
+    if (!freeze_position) {
+      frozen_rad.reset();
+    } else if (!frozen_rad) {
+      frozen_rad = s.position_rad;
+    }
+    put(m, &position, frozen_rad.value_or(s.position_rad));
+    put(m, velocity, frozen_rad ? 0.0 : s.velocity_rad_s);
     put(m, fault_code, code);
     put(m, &status, (enabled ? 1u << bit_enabled : 0u) | (fault ? 1u << bit_fault : 0u));
   }
@@ -318,6 +326,7 @@ void ModbusDriveEmulator::raise_fault(std::uint16_t code) {
   impl_->model.command(impl_->model.sample().position_rad, false);
 }
 void ModbusDriveEmulator::set_silent(bool s) { impl_->server->silent = s; }
+void ModbusDriveEmulator::freeze_position(bool frozen) { impl_->freeze_position = frozen; }
 void ModbusDriveEmulator::set_response_delay(std::chrono::microseconds d) { impl_->server->delay_us = d.count(); }
 void ModbusDriveEmulator::set_exception(int code) { impl_->server->exception = code; }
 void ModbusDriveEmulator::set_write_exception(int code) { impl_->server->write_exception = code; }

@@ -13,7 +13,9 @@ TEST(RunLoopRealtime, PeriodDoesNotAllocate) {
   safety.safe_mode = SafeMode::angle;
   safety.safe_angle_rad = 0.1;
   safety.safe_hold_s = 0.5;
-  safety.rate_limit_rad_s = 2.0;  // so the limiter works too
+  safety.rate_limit_rad_s = 2.0;     // so the limiter works too
+  safety.following_error_rad = 0.5;  // watched, never beyond (the rate limit keeps the drive close)
+  safety.following_error_s = 0.1;
   LoopConfig cfg;
   cfg.overrun_policy = OverrunPolicy::abort;
   hil::test::LoopHarness h(hil::test::short_campaign(8.0), "adaptive", safety, cfg, 1024);

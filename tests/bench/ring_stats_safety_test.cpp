@@ -1,6 +1,7 @@
 // The lock-free ring, the latency histogram and the interlocks' arithmetic.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <thread>
 #include <vector>
@@ -181,6 +182,61 @@ TEST(Safety, ConfigErrorsNameTheKey) {
   const auto typo = hil::cfg::Node::load_string(
       "cmd_min_deg: -5\ncmd_max_deg: 35\nrate_limit_deg_s: 100\np_max_mpa: 2\np_min_mpa: 0.2\nwatchdog_mises: 3\n", "rig.yaml");
   EXPECT_THROW(SafetyConfig::from_yaml(typo), hil::cfg::Error);
+}
+
+// The following error trips once it has been beyond its limit for the configured time in a row
+// (50 periods of 1 ms here: the 50th, not the 49th), with the signed error and the limit; a
+// period back within the limit starts the count again; a position the rig does not measure is
+// not checked; and it is off unless set (the default and none()).
+TEST(Safety, FollowingErrorTripsAfterItsTimeBeyondTheLimit) {
+  SafetyConfig c;
+  EXPECT_FALSE(c.watches_following());
+  EXPECT_FALSE(SafetyConfig::none().watches_following());
+  c.following_error_rad = 0.015625;  // binary fractions: "on the limit" is exactly on it
+  c.following_error_s = 0.050;
+  ASSERT_TRUE(c.watches_following());
+  Safety s(c);
+  double v = 0, l = 0;
+  for (int k = 1; k <= 30; ++k) ASSERT_EQ(s.follow(0.5, 0.5 - 0.016, 1e-3, v, l), Trip::none) << k;
+  EXPECT_EQ(s.follow(0.5, 0.5 + 0.015625, 1e-3, v, l), Trip::none);  // on the limit is within: the count starts again
+  EXPECT_EQ(s.follow(0.5, std::nan(""), 1e-3, v, l), Trip::none);
+  for (int k = 1; k <= 49; ++k) ASSERT_EQ(s.follow(0.5, 0.546875, 1e-3, v, l), Trip::none) << k;
+  EXPECT_EQ(s.follow(0.5, 0.546875, 1e-3, v, l), Trip::following_error);
+  EXPECT_EQ(v, 0.046875);
+  EXPECT_EQ(l, 0.015625);
+  EXPECT_EQ(to_string(Trip::following_error), "following error");
+  // A time of 0: the first period beyond trips.
+  c.following_error_s = 0;
+  Safety at_once(c);
+  EXPECT_EQ(at_once.follow(0.5, 0.5, 1e-3, v, l), Trip::none);
+  EXPECT_EQ(at_once.follow(0.5, 0.453125, 1e-3, v, l), Trip::following_error);
+  EXPECT_EQ(v, -0.046875);
+}
+
+TEST(Safety, FollowingErrorFromTheRigFileAndItsErrors) {
+  const std::string base = "cmd_min_deg: -5\ncmd_max_deg: 35\nrate_limit_deg_s: 100\np_max_mpa: 2\np_min_mpa: 0.2\n";
+  const SafetyConfig c =
+      SafetyConfig::from_yaml(hil::cfg::Node::load_string(base + "following_error: {max_deg: 2, time_ms: 50}\n", "rig.yaml"));
+  EXPECT_DOUBLE_EQ(c.following_error_rad, 2 * 0.017453292519943295);
+  EXPECT_DOUBLE_EQ(c.following_error_s, 0.05);
+  EXPECT_FALSE(SafetyConfig::from_yaml(hil::cfg::Node::load_string(base, "rig.yaml")).watches_following());
+  const std::pair<std::string, std::string> bad[] = {
+      {"following_error: {max_deg: 0, time_ms: 50}", "rig.yaml:6:19: following_error.max_deg"},
+      {"following_error: {max_deg: .nan, time_ms: 50}", "rig.yaml:6:19: following_error.max_deg"},
+      {"following_error: {max_deg: 2, time_ms: -1}", "rig.yaml:6:"},
+      {"following_error: {max_deg: 2, time_ms: 4294967346}", "rig.yaml:6:"},
+      {"following_error: {max_deg: 2}", "time_ms"},
+      {"following_error: {max_deg: 2, time_ms: 50, window: 3}", "window"},
+      {"following_error: 2", "rig.yaml:6"},
+  };
+  for (const auto& [text, where] : bad) {
+    try {
+      SafetyConfig::from_yaml(hil::cfg::Node::load_string(base + text + "\n", "rig.yaml"));
+      ADD_FAILURE() << text;
+    } catch (const hil::cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(where), std::string::npos) << text << ": " << e.what();
+    }
+  }
 }
 
 TEST(Pacer, SkipsPassedDeadlinesLikeCyclictest) {

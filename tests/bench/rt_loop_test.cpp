@@ -240,6 +240,41 @@ TEST(RunLoop, LimitsClampTheCommand) {
   EXPECT_NE(find_event<event::CmdLimited>(h.take_events()).first, nullptr);
 }
 
+// The following error on the simulated drive, unshaped: paper_adaptive's compensator jumps the
+// command by up to 4 deg in one period on purpose, and the drive (60 deg/s) is up to 40 periods
+// beyond 2 deg behind. With a 2 deg, 20 ms limit the loop trips in the 20th period in a row whose
+// reading of the drive's position is beyond 2 deg from the target sent the period before (the
+// reading answers that target), not in the 19th; with 5 deg it completes.
+TEST(RunLoop, FollowingErrorTripsAfterItsTimeAgainstThePreviousTarget) {
+  SafetyConfig safety;
+  safety.following_error_rad = deg_to_rad(2.0);
+  safety.following_error_s = 0.020;
+  LoopHarness h(short_campaign(18.0), "adaptive", safety);
+  while (h.step()) {}
+  ASSERT_EQ(h.loop->trip(), Trip::following_error);
+  const auto rows = h.rows();
+  std::size_t trip = 0;
+  while (trip < rows.size() && !(rows[trip].flags & kFlagSafeState)) ++trip;
+  ASSERT_LT(trip, rows.size());
+  ASSERT_GT(trip, 21u);
+  const auto error = [&](std::size_t i) { return rows[i].step.theta_motor_rad - rows[i - 1].theta_target_rad; };
+  for (std::size_t i = trip - 19; i <= trip; ++i) EXPECT_GT(std::abs(error(i)), deg_to_rad(2.0)) << i;
+  EXPECT_LE(std::abs(error(trip - 20)), deg_to_rad(2.0));
+  EXPECT_EQ(h.loop->trip_value(), error(trip));
+  EXPECT_EQ(h.loop->trip_limit(), deg_to_rad(2.0));
+  const auto events = h.take_events();
+  const auto [e, tripped] = find_event<event::Tripped>(events);
+  ASSERT_NE(tripped, nullptr);
+  EXPECT_EQ(tripped->reason, Trip::following_error);
+  EXPECT_EQ(e->period, static_cast<std::int64_t>(trip));
+
+  safety.following_error_rad = deg_to_rad(5.0);
+  LoopHarness loose(short_campaign(18.0), "adaptive", safety);
+  while (loose.step()) {}
+  EXPECT_EQ(loose.loop->trip(), Trip::none);
+  EXPECT_EQ(loose.loop->end(), LoopEnd::completed);
+}
+
 TEST(RunLoop, OverrunPolicyAbortTripsAfterNInARow) {
   LoopConfig cfg;
   cfg.overrun_policy = OverrunPolicy::abort;

@@ -144,7 +144,8 @@ inline std::string modbus_device_yaml(int port, const std::string& map, double m
 // builds running the loop wakes up to 90 ms late in the VM: a few periods' watchdog would trip on
 // that alone. The fault tests set the watchdog where it is their subject (rig_fault_scenarios.hpp).
 struct RigOptions {
-  std::string loop_extra;  // more keys of the loop block, e.g. "target_shaping: {...}"
+  std::string loop_extra;    // more keys of the loop block, e.g. "target_shaping: {...}"
+  std::string safety_extra;  // more keys of the safety block, e.g. "following_error: {...}"
   int watchdog_misses = 500;
   int safe_hold_ms = 200;
   int priority = 80;  // SCHED_FIFO as the shipped rigs (a warning where refused)
@@ -161,7 +162,8 @@ inline std::string rig_yaml(const std::string& kind, const std::string& drive, c
        "}\n"
        "safety: {cmd_min_deg: -5, cmd_max_deg: 35, rate_limit_deg_s: 10000, p_max_mpa: 2.5, p_min_mpa: 0.2,\n"
        "         watchdog_misses: " +
-       std::to_string(o.watchdog_misses) + ", safe_state: hold, safe_hold_ms: " + std::to_string(o.safe_hold_ms) + "}\n";
+       std::to_string(o.watchdog_misses) + ", safe_state: hold, safe_hold_ms: " + std::to_string(o.safe_hold_ms) +
+       (o.safety_extra.empty() ? "" : ", " + o.safety_extra) + "}\n";
   return y;
 }
 // Client timeouts of a rig file: the defaults of the device entries above (a heartbeat of 1 s, a

@@ -302,4 +302,69 @@ inline void modbus_read_exception(const FaultSetup& s) {
   EXPECT_NE(f.run["reason"].get<std::string>().find("transducer: newest reading"), std::string::npos) << f.run["reason"];
 }
 
+// A frozen encoder: the drive reports the position it had while the motor moves on. Nothing
+// the drive or the link reports, and readings keep arriving: no other interlock sees it. The
+// following error does. The reference steps at 2.5 s and the command moves about 6 deg; the
+// reported position stays, and the loop trips after exactly time_ms / dT periods in a row with
+// the position beyond max_deg from the target sent the period before, counted in the telemetry
+// (so it holds on a loaded machine). With the same limit a run without the fault completes.
+inline void frozen_encoder(const FaultSetup& s, bool modbus_drive) {
+  const auto c = short_paper_campaign(4, 0, s.period_ms);
+  SimulatorSide side(c, s.can_transport, s.can_interface);
+  Bench b(s.can_transport);
+  constexpr double kMaxDeg = 2;
+  constexpr int kTimeMs = 50;
+  RigOptions o = fault_rig();
+  o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";  // as the shipped rigs
+  o.safety_extra = "following_error: {max_deg: 2, time_ms: 50}";
+  const std::string rig = modbus_drive ? modbus_rig_yaml(side, o) : can_rig_yaml(side, o, s.can_interface);
+  const auto freeze = [&](bool on) { modbus_drive ? side.drive.freeze_position(on) : side.can.freeze_position(on); };
+  const RunFiles f = run_with_fault(
+      b, c, rig, "following error", [&] { freeze(true); }, [&] { freeze(false); });
+  EXPECT_EQ(f.run["outcome"], "aborted") << f.run.dump(2);
+  ASSERT_EQ(f.run["trip"]["reason"], "following error") << f.run.dump(2);
+  const std::string reason = f.run["reason"];
+  EXPECT_NE(reason.find("following error: the drive's position"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("beyond the 2.000 deg limit for 50 ms in a row"), std::string::npos) << reason;
+  const json* trip = f.event("trip");
+  ASSERT_NE(trip, nullptr);
+  EXPECT_EQ((*trip)["limit_deg"], kMaxDeg);
+  EXPECT_GT(std::abs((*trip)["error_deg"].get<double>()), kMaxDeg) << trip->dump();
+  EXPECT_GT((*trip)["t_s"].get<double>(), 2.5) << "tripped before the reference step moved the command";
+
+  // The periods before the trip, from the telemetry: the last kTimeMs readings (missed ones do
+  // not count) beyond the limit, the one before them within it, and the reported position frozen.
+  CsvHeader header;
+  const CsvChunk t =
+      read_csv(f.dir / "telemetry.csv", {{"t_s", "theta_target_deg", "theta_motor_deg", "loop_flags"}, {}, "t_s"}, &header);
+  const long trip_row = (*trip)["period"].get<long>();
+  ASSERT_GT(trip_row, kTimeMs + 1);
+  const auto error_deg = [&](long k) {
+    return t.values[2][static_cast<std::size_t>(k)] - t.values[1][static_cast<std::size_t>(k - 1)];
+  };
+  const auto missed = [&](long k) {
+    return (static_cast<std::uint32_t>(t.values[3][static_cast<std::size_t>(k)]) & kFlagReadMissed) != 0;
+  };
+  constexpr double kRoundingDeg = 1e-4;  // the file's decimals
+  const int periods = static_cast<int>(std::lround(kTimeMs / s.period_ms));
+  long k = trip_row;
+  for (int n = 0; n < periods; --k) {
+    ASSERT_GT(k, 1);
+    if (missed(k)) continue;
+    EXPECT_GT(std::abs(error_deg(k)), kMaxDeg - kRoundingDeg) << "row " << k;
+    EXPECT_EQ(t.values[2][static_cast<std::size_t>(k)], t.values[2][static_cast<std::size_t>(trip_row)]) << "row " << k;
+    ++n;
+  }
+  while (k > 1 && missed(k)) --k;
+  EXPECT_LT(std::abs(error_deg(k)), kMaxDeg + kRoundingDeg) << "row " << k << ": more than " << periods << " periods beyond";
+  std::printf("following error: %.3f deg at the trip in period %ld, %d readings beyond %.1f deg before it\n",
+              (*trip)["error_deg"].get<double>(), trip_row, periods, kMaxDeg);
+  RigOptions same = {};
+  same.loop_extra = o.loop_extra;
+  same.safety_extra = o.safety_extra;
+  expect_next_campaign_completes(b, s,
+                                 modbus_drive ? modbus_rig_yaml(side, same, kRelaxedTimeouts)
+                                              : can_rig_yaml(side, same, s.can_interface, "recover", kRelaxedTimeouts));
+}
+
 }  // namespace hil::test

@@ -25,3 +25,5 @@ TEST_F(RigFaults, SdoAbortAtConfigureNamesTheObject) { sdo_abort(setup); }
 TEST_F(RigFaults, AnAbortCutsTheRigSetupShort) { abort_during_setup(setup); }
 TEST_F(RigFaults, ModbusTimeoutTripsThenReconnectsAndResumes) { modbus_timeout(setup); }
 TEST_F(RigFaults, ModbusReadExceptionTripsTheWatchdogNamingTheException) { modbus_read_exception(setup); }
+TEST_F(RigFaults, AFrozenCanEncoderTripsTheFollowingError) { frozen_encoder(setup, false); }
+TEST_F(RigFaults, AFrozenModbusEncoderTripsTheFollowingError) { frozen_encoder(setup, true); }

@@ -77,6 +77,13 @@ TEST(RigConfig, ShippedRigFilesLoad) {
   EXPECT_EQ(modbus.devices.modbus_drive->link.port, 1502);
   const auto hybrid = bench::load_rig_config(source_path("configs/rigs/hybrid.yaml"));
   EXPECT_TRUE(hybrid.devices.can_drive && !hybrid.devices.transducer);
+  // The rigs with a real drive watch its following error; the simulated one does not.
+  for (const auto* rc : {&can, &modbus, &hybrid}) {
+    EXPECT_TRUE(rc->safety.watches_following()) << rc->kind;
+    EXPECT_NEAR(hil::units::rad_to_deg(rc->safety.following_error_rad), 3, 1e-12) << rc->kind;
+    EXPECT_DOUBLE_EQ(rc->safety.following_error_s, 0.1) << rc->kind;
+  }
+  EXPECT_FALSE(bench::load_rig_config(source_path("configs/rigs/sim.yaml")).safety.watches_following());
 }
 
 TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
@@ -519,6 +526,7 @@ TEST(HybridRig, ShapedTargetsKeepAFollowingErrorDriveOutOfFault) {
   drv::Cia402DriveEmulator drive(ecfg, motor, bus.factory());
   RigOptions o = lockstep_rig_options();
   o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";
+  o.safety_extra = "following_error: {max_deg: 1, time_ms: 0}";  // the bench's own check, as tight: no trip either
   const std::string limits = "{following_error_window_deg: 1, following_error_timeout_ms: 0}";
   const LockstepResult r = run_lockstep_hybrid(
       campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },

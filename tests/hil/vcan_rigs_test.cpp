@@ -186,6 +186,7 @@ TEST_F(VcanRigFaults, EmcyFaultTripsAndIsNamed) { emcy_fault(setup); }
 TEST_F(VcanRigFaults, BusOffIsDetectedReportedAndRecovered) { bus_off(setup); }
 TEST_F(VcanRigFaults, SdoAbortAtConfigureNamesTheObject) { sdo_abort(setup); }
 TEST_F(VcanRigFaults, AnAbortCutsTheRigSetupShort) { abort_during_setup(setup); }
+TEST_F(VcanRigFaults, AFrozenEncoderTripsTheFollowingError) { frozen_encoder(setup, false); }
 
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);

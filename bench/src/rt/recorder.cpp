@@ -64,6 +64,8 @@ nlohmann::json event_json(const LoopEvent& e) {
               j["missed_in_a_row"] = num(v.value), j["limit"] = num(v.limit);
             } else if (v.reason == Trip::overruns) {
               j["overruns_in_a_row"] = num(v.value), j["limit"] = num(v.limit);
+            } else if (v.reason == Trip::following_error) {
+              j["error_deg"] = num(rad_to_deg(v.value)), j["limit_deg"] = num(rad_to_deg(v.limit));
             }
             if (v.detail[0] != '\0') j["detail"] = std::string(v.detail.data(), strnlen(v.detail.data(), v.detail.size()));
           },

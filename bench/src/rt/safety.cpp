@@ -22,6 +22,7 @@ std::string_view to_string(Trip trip) noexcept {
     case Trip::overruns: return "overruns";
     case Trip::operator_abort: return "operator abort";
     case Trip::recording: return "recording";
+    case Trip::following_error: return "following error";
   }
   return "?";
 }
@@ -40,7 +41,7 @@ SafetyConfig SafetyConfig::none() noexcept {
 
 SafetyConfig SafetyConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"cmd_min_deg", "cmd_max_deg", "rate_limit_deg_s", "p_max_mpa", "p_min_mpa", "pressure_debounce",
-                "watchdog_misses", "safe_state", "safe_angle_deg", "safe_rate_deg_s", "safe_hold_ms"});
+                "watchdog_misses", "safe_state", "safe_angle_deg", "safe_rate_deg_s", "safe_hold_ms", "following_error"});
   SafetyConfig c;
   c.cmd_min_rad = deg_to_rad(n.number("cmd_min_deg"));
   c.cmd_max_rad = deg_to_rad(n.number("cmd_max_deg"));
@@ -70,6 +71,16 @@ SafetyConfig SafetyConfig::from_yaml(const cfg::Node& n) {
   }
   c.safe_hold_s = n.number("safe_hold_ms", 200) / 1000.0;
   if (n.has("safe_hold_ms")) n.at("safe_hold_ms").require(c.safe_hold_s >= 0 && c.safe_hold_s <= 60, "must be 0..60000");
+  if (n.has("following_error")) {
+    const cfg::Node f = n.at("following_error");
+    f.allow_keys({"max_deg", "time_ms"});
+    const double max_deg = f.number("max_deg");
+    f.at("max_deg").require(max_deg > 0 && max_deg <= 360, "must be above 0 and at most 360");
+    c.following_error_rad = deg_to_rad(max_deg);
+    f.at("time_ms");  // required: how long a normal lag may last is the rig's to say
+    c.following_error_s =
+        static_cast<double>(f.milliseconds_in("time_ms", std::chrono::milliseconds(0), 0, 60000).count()) / 1000.0;
+  }
   return c;
 }
 
@@ -93,6 +104,17 @@ Trip Safety::check(bool missed, bool rig_fault, double p_meas_pa, double& value,
     return Trip::underpressure;
   }
   return Trip::none;
+}
+
+Trip Safety::follow(double target_rad, double position_rad, double dt_s, double& value, double& limit) noexcept {
+  const double error = position_rad - target_rad;
+  if (!std::isfinite(position_rad)) return Trip::none;
+  beyond_s_ = std::abs(error) > c_.following_error_rad ? beyond_s_ + dt_s : 0;
+  // Half a period of slack: a sum of periods lands a rounding error either side of the time.
+  if (beyond_s_ == 0 || beyond_s_ + 0.5 * dt_s <= c_.following_error_s) return Trip::none;
+  value = error;
+  limit = c_.following_error_rad;
+  return Trip::following_error;
 }
 
 double Safety::limit(double cmd_rad, double last_rad, double dt_s, bool& limited) const noexcept {

@@ -78,7 +78,15 @@ struct Reply {
 // that are not UTF-8; dumping them must not throw, so they become U+FFFD.
 std::string dump_json(const json& j, int indent = -1) { return j.dump(indent, ' ', false, json::error_handler_t::replace); }
 
-Reply json_reply(http::status status, const json& j) { return {status, dump_json(j, 2) + "\n", "application/json", {}, {}}; }
+// An answer held in memory (Reply's other members at their defaults).
+Reply body_reply(http::status status, std::string body, std::string content_type) {
+  Reply r;
+  r.status = status;
+  r.body = std::move(body);
+  r.content_type = std::move(content_type);
+  return r;
+}
+Reply json_reply(http::status status, const json& j) { return body_reply(status, dump_json(j, 2) + "\n", "application/json"); }
 Reply error_reply(http::status status, const std::string& error, const std::string& detail = "", const std::string& field = "") {
   json j = {{"error", error}};
   if (!detail.empty()) j["detail"] = detail;
@@ -1418,13 +1426,13 @@ struct Route {
 const Route kRoutes[] = {
     {http::verb::get, "/", "the operator console: live plots, loop health, events, controls, runs (HTML)",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) {
-       Reply r{http::status::ok, std::string(console::kPage), "text/html; charset=utf-8", {}, {}};
+       Reply r = body_reply(http::status::ok, std::string(console::kPage), "text/html; charset=utf-8");
        r.no_store = true;
        return r;
      }},
     {http::verb::get, "/favicon.ico", "no icon: 204, so that a browser asking for one is not an error",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) {
-       return Reply{http::status::no_content, {}, "image/x-icon", {}, {}};
+       return body_reply(http::status::no_content, "", "image/x-icon");
      }},
     {http::verb::get, "/api", "this list",
      [](ApiServer::Impl&, const Request&, const Target&, const std::vector<std::string>&) { return route_index(); }},
@@ -1634,7 +1642,7 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
     spdlog::warn("{} {}: refused (no valid token)", std::string(req.method_string()), loggable_target(req.target()));
     // A page asks for the token; a WebSocket handshake to / is refused in JSON like any other.
     if (t.path.empty() && req.method() == http::verb::get && !websocket::is_upgrade(req)) {
-      Reply r{http::status::unauthorized, std::string(kTokenForm), "text/html; charset=utf-8", {}, {}};
+      Reply r = body_reply(http::status::unauthorized, std::string(kTokenForm), "text/html; charset=utf-8");
       r.no_store = true;
       return r;
     }

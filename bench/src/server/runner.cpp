@@ -112,6 +112,11 @@ std::string describe_trip(const RunLoop& loop) {
       return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
     case Trip::operator_abort: return "operator abort";
     case Trip::recording: return fmt("recording: telemetry could not be recorded at t = %.3f s", t);
+    case Trip::following_error:
+      return fmt("following error: the drive's position %+.3f deg from its target, beyond the %.3f deg limit for %.0f ms",
+                 units::rad_to_deg(loop.trip_value()), units::rad_to_deg(loop.trip_limit()),
+                 loop.safety_config().following_error_s * 1000) +
+             fmt(" in a row at t = %.3f s (a frozen encoder, a jammed gear or a drive that stopped following)", t);
     case Trip::none: break;
   }
   return "none";

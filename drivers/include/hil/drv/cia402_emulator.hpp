@@ -73,6 +73,8 @@ class Cia402DriveEmulator {
   void stop_heartbeat(bool stopped);
   void set_silent(bool silent);                              // answer nothing at all: no SDO, PDO, heartbeat, NMT reaction
   void set_response_delay(std::chrono::microseconds delay);  // SDO replies and TPDOs go out this late
+  // A frozen encoder: 0x6064 keeps the position it had (0x606C reads 0) while the motor moves on.
+  void freeze_position(bool frozen);
   // Sends EMCY (code, register, manufacturer bytes) and enters fault; a fault reset clears it
   // (and sends EMCY 0x0000).
   void raise_emcy(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer = {});

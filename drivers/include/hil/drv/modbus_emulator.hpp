@@ -49,6 +49,9 @@ class ModbusDriveEmulator final : public ModbusFaults {
   std::uint64_t requests() const;
   // The drive trips by itself with this fault code (status fault bit, fault_code register).
   void raise_fault(std::uint16_t code);
+  // A frozen encoder: `actual_position` keeps the value it had (`actual_velocity` reads 0) while
+  // the motor moves on.
+  void freeze_position(bool frozen);
 
   void set_silent(bool silent) override;
   void set_response_delay(std::chrono::microseconds delay) override;

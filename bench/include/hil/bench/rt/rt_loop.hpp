@@ -188,6 +188,7 @@ class RunLoop {
   double trip_t_s() const noexcept { return trip_t_s_; }
   double trip_value() const noexcept { return trip_value_; }
   double trip_limit() const noexcept { return trip_limit_; }
+  const SafetyConfig& safety_config() const noexcept { return safety_.config(); }
   // The rig's last error when a rig fault or the watchdog tripped ("" otherwise).
   std::string_view trip_detail() const noexcept { return trip_detail_.data(); }
   std::uint64_t rows_pushed() const noexcept { return rows_pushed_; }
@@ -214,6 +215,7 @@ class RunLoop {
   const bool timed_;       // on a clock (not simulated time): wake-up and compute times are kept,
                            // the snapshot is published every period
   Safety safety_;
+  const bool following_;  // the rig's safety watches the following error
   const LoopConfig loop_;
   TargetShaper shaper_;
   const Clock::duration wall_period_;
@@ -227,7 +229,8 @@ class RunLoop {
   Schedule::Cursor ref_cursor_, gap_cursor_;
   plant::Rng rng_;
   std::int64_t k_ = 0;
-  double last_sent_rad_ = 0;  // the last command the bench sent
+  double last_sent_rad_ = 0;    // the last command the bench sent
+  double last_target_rad_ = 0;  // the last target the rig was sent (shaped; what the drive follows)
   double last_p_meas_pa_ = kNaN;
   RigReading last_shown_;  // recorded again in periods without a reading
   bool limited_ = false;

@@ -3,7 +3,9 @@
 // owns the state and the clock; every method used on the loop is real-time safe.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string_view>
 
 namespace hil::cfg {
@@ -29,6 +31,13 @@ struct SafetyConfig {
   double safe_angle_rad = 0;
   double safe_rate_rad_s = 0.349;  // how fast the safe state drives there (20 deg/s)
   double safe_hold_s = 0.2;        // the loop stays in the safe state this long, then the run ends
+  // Following error: the drive's reported position more than following_error_rad from the target
+  // it was sent the period before, for following_error_s in a row (a frozen encoder, a jammed
+  // gear, a drive that stopped following). Off (infinite) unless the rig file sets it: what is a
+  // normal lag depends on the drive and on the rig's target shaping.
+  double following_error_rad = std::numeric_limits<double>::infinity();
+  double following_error_s = 0;
+  bool watches_following() const noexcept { return std::isfinite(following_error_rad); }
 
   // No interlocks: no limits, no trips. An offline simulation has no motor to protect and records
   // what the controller does, whatever it does (a runaway estimate included).
@@ -39,7 +48,17 @@ struct SafetyConfig {
 
 // recording: telemetry could not be recorded (a write error, a full disk, a full ring), and the
 // rig's loop.recording_fault policy says a run without its record must not go on.
-enum class Trip : std::uint8_t { none, overpressure, underpressure, watchdog, rig_fault, overruns, operator_abort, recording };
+enum class Trip : std::uint8_t {
+  none,
+  overpressure,
+  underpressure,
+  watchdog,
+  rig_fault,
+  overruns,
+  operator_abort,
+  recording,
+  following_error
+};
 std::string_view to_string(Trip trip) noexcept;
 
 // The interlocks' memory between periods. One per run, used by the loop thread only.
@@ -53,6 +72,12 @@ class Safety {
   // Real-time safe.
   Trip check(bool missed, bool rig_fault, double p_meas_pa, double& value, double& limit) noexcept;
   int misses_in_a_row() const noexcept { return misses_; }
+  // One period's following error: the drive's position against the target sent the period
+  // before (the reading answers that target), `dt_s` the loop period. Returns
+  // Trip::following_error once it has been beyond the limit for following_error_s in a row, with
+  // the error in `value` and the limit in `limit` (rad). A non-finite position (the rig measures
+  // none) is not checked. Real-time safe.
+  Trip follow(double target_rad, double position_rad, double dt_s, double& value, double& limit) noexcept;
 
   // Clamps a command to the angle limits, then to the rate limit from the last command sent.
   // Sets `limited` when either changed it. Real-time safe.
@@ -64,6 +89,7 @@ class Safety {
   SafetyConfig c_;
   int misses_ = 0;
   int over_ = 0, under_ = 0;
+  double beyond_s_ = 0;  // how long the following error has been beyond the limit
 };
 
 }  // namespace hil::bench
