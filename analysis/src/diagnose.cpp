@@ -687,55 +687,73 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
 
 // A variant chosen in an early round can keep a parameter that a later effect made idle (a gap
 // step of 0.001 deg once a sensor lag took over what the step had mimicked: with several files a
-// per-file step can stand for a speed-dependent lag). For each accepted effect, every variant of
-// its candidate whose parameters are a subset of the chosen one's is tried in its place, all
-// accepted effects refitted with it; it replaces the chosen variant when the whole model's BIC is
-// lower. Told in `revisions`.
-void simplify_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
-                       int& evaluations) {
+// per-file step can stand for a speed-dependent lag), or be the wrong form of the right effect
+// with another effect making up the difference (proportional erosion where it was additive, and a
+// sensor gain of 0.91 with an offset of 139 kPa covering what the wrong form left:
+// triple_erosion_bias_delay stopped at 94.4 % for a floor of 98.8 %). For each accepted effect,
+// every other variant of its candidate with no more parameters than the chosen one (a simpler
+// form, or a sibling form of as many) is tried in its place, all accepted effects refitted with
+// it; it replaces the chosen variant when the whole model's BIC is lower. A change can make
+// another effect's simpler form the better one (the gain goes idle once the erosion is right), so
+// the effects are gone over again until nothing changes (at most kVariantPasses times). Told in
+// `revisions`.
+constexpr int kVariantPasses = 3;
+void revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
+                     int& evaluations) {
   if (path.added.empty()) return;
-  const double n_eff = measure_path(su, base0, path, evaluations);
   auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
-  for (std::size_t i = 0; i < path.added.size(); ++i) {
-    const Candidate& cand = *path.added[i].cand;
-    const VariantFit& chosen = path.added[i].fit;
-    const Variant& current = cand.variants[chosen.variant];
-    for (std::size_t vi = 0; vi < cand.variants.size(); ++vi) {
-      const Variant& simpler = cand.variants[vi];
-      const bool nested =
-          vi != chosen.variant && simpler.params.size() < current.params.size() &&
-          std::all_of(simpler.params.begin(), simpler.params.end(), [&](const FreeParam& p) {
-            return std::any_of(current.params.begin(), current.params.end(), [&](const FreeParam& q) { return same(p, q); });
-          });
-      if (!nested) continue;
-      // The simpler variant starts from the chosen one's values of the parameters they share.
-      VariantFit f;
-      f.candidate = chosen.candidate;
-      f.variant = vi;
-      split_params(cand, f);
-      if (f.grid) f.grid_value = chosen.grid_value;
-      for (const auto& p : f.continuous) {
-        double v = p.starts.empty() ? 0.0 : p.starts.front();
-        for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
-          if (same(chosen.continuous[j], p)) v = chosen.values[j];
-        f.values.push_back(v);
-      }
-      f.sigma.assign(f.values.size(), kNaN);
-      std::vector<Added> trial = path.added;
-      trial[i].fit = std::move(f);
-      joint_refit(su.ctx, base0, trial, evaluations);
-      const double rss_trial = rss_of(apply_added(base0, trial), su.ctx.full, nullptr);
-      evaluations += 1;
-      if (path_bic(trial, rss_trial, n_eff) < path_bic(path.added, path.rss, n_eff)) {
-        trial[i].fit.rss_full = rss_trial;
-        trial[i].fit.refined = true;
-        revisions.push_back("simplified " + cand.name + " from " + current.name + " to " + simpler.name +
-                            ": with the others refitted, the simpler form explains the data with a lower BIC");
-        path.added = std::move(trial);
-        path.rss = rss_trial;
-        break;
+  for (int pass = 0; pass < kVariantPasses; ++pass) {
+    const double n_eff = measure_path(su, base0, path, evaluations);
+    bool changed = false;
+    for (std::size_t i = 0; i < path.added.size(); ++i) {
+      const Candidate& cand = *path.added[i].cand;
+      const VariantFit& chosen = path.added[i].fit;
+      const Variant& current = cand.variants[chosen.variant];
+      for (std::size_t vi = 0; vi < cand.variants.size(); ++vi) {
+        const Variant& other = cand.variants[vi];
+        if (vi == chosen.variant || other.params.size() > current.params.size()) continue;
+        const auto shared = [&](const FreeParam& p) {
+          return std::any_of(current.params.begin(), current.params.end(), [&](const FreeParam& q) { return same(p, q); });
+        };
+        // A grid parameter (a step time) has no starting value but the chosen one's.
+        if (std::any_of(other.params.begin(), other.params.end(), [&](const FreeParam& p) { return p.grid && !shared(p); }))
+          continue;
+        const bool nested =
+            other.params.size() < current.params.size() && std::all_of(other.params.begin(), other.params.end(), shared);
+        // The other variant starts from the chosen one's values of the parameters they share, the
+        // rest from their first starting point (the joint refit also tries every combination of
+        // the starting points).
+        VariantFit f;
+        f.candidate = chosen.candidate;
+        f.variant = vi;
+        split_params(cand, f);
+        if (f.grid) f.grid_value = chosen.grid_value;
+        for (const auto& p : f.continuous) {
+          double v = p.starts.empty() ? 0.0 : p.starts.front();
+          for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
+            if (same(chosen.continuous[j], p)) v = chosen.values[j];
+          f.values.push_back(v);
+        }
+        f.sigma.assign(f.values.size(), kNaN);
+        std::vector<Added> trial = path.added;
+        trial[i].fit = std::move(f);
+        joint_refit(su.ctx, base0, trial, evaluations);
+        const double rss_trial = rss_of(apply_added(base0, trial), su.ctx.full, nullptr);
+        evaluations += 1;
+        if (path_bic(trial, rss_trial, n_eff) < path_bic(path.added, path.rss, n_eff)) {
+          trial[i].fit.rss_full = rss_trial;
+          trial[i].fit.refined = true;
+          revisions.push_back((nested ? "simplified " : "changed ") + cand.name + " from " + current.name + " to " + other.name +
+                              (nested ? ": with the others refitted, the simpler form explains the data with a lower BIC"
+                                      : ": with the others refitted, this form explains the data with a lower BIC"));
+          path.added = std::move(trial);
+          path.rss = rss_trial;
+          changed = true;
+          break;
+        }
       }
     }
+    if (!changed) break;
   }
 }
 
@@ -862,7 +880,7 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     chosen = std::move(paths[best]);
   }
   revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
-  simplify_variants(su, base0, chosen, d.revisions, d.evaluations);
+  revise_variants(su, base0, chosen, d.revisions, d.evaluations);
   d.rounds = chosen.rounds;
   for (auto& rd : d.rounds)
     for (auto& c : rd.ranking) localise_event_times(c.parameters, full);
