@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <thread>
@@ -446,15 +447,15 @@ TEST(ServerHardening, APageOfAnotherSiteCannotDriveTheBenchNorWatchIt) {
                                            "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: "
                                            "dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
   };
-  for (const std::string foreign : std::vector<std::string>{"Origin: http://evil.example\r\n", "Origin: null\r\n",
-                                                            "Origin: http://" + host + ".evil.example\r\n"}) {
+  for (const std::string& foreign : std::vector<std::string>{"Origin: http://evil.example\r\n", "Origin: null\r\n",
+                                                             "Origin: http://" + host + ".evil.example\r\n"}) {
     const std::string posted = inject(foreign), upgraded = watch(foreign);
     EXPECT_EQ(posted.rfind("HTTP/1.1 403", 0), 0u) << foreign << posted;
     EXPECT_NE(posted.find("cross-origin request refused"), std::string::npos) << posted;
     EXPECT_EQ(upgraded.rfind("HTTP/1.1 403", 0), 0u) << foreign << upgraded;
   }
   // The console's own origin, and no Origin at all (ctl, curl): served (409: nothing runs).
-  for (const std::string own : {"Origin: http://" + host + "\r\n", std::string()}) {
+  for (const std::string& own : {"Origin: http://" + host + "\r\n", std::string()}) {
     EXPECT_EQ(inject(own).rfind("HTTP/1.1 409", 0), 0u) << own;
     EXPECT_EQ(watch(own).rfind("HTTP/1.1 101", 0), 0u) << own;
   }
@@ -1146,6 +1147,41 @@ TEST(ServerProtocol, AHugeRegisterMapIsRefusedNamingTheFileAndTheLimit) {
   EXPECT_EQ(start.status, 409) << start.body;
   EXPECT_EQ(start.json().value("field", ""), "rig") << start.body;
   EXPECT_NE(start.body.find("huge_map.yaml"), std::string::npos) << start.body;
+}
+
+// A rig with a real drive says in GET /api/rigs whether it watches the drive's following error
+// (the shipped ones: 3 deg for 100 ms; sim: null), and one without the limit is listed, and
+// started, with a warning that names the key: a frozen encoder would trip no interlock there.
+TEST(ServerProtocol, ADriveRigWithoutAFollowingErrorLimitIsListedAndStartedWithAWarning) {
+  hil::test::TempDir base;
+  const auto configs = configs_with_padded_map(base.path(), "nofollow", 0);
+  std::string text = hil::test::slurp(configs / "rigs" / "nofollow.yaml");
+  const auto line = text.find("  following_error:");
+  ASSERT_NE(line, std::string::npos);
+  text.erase(line, text.find('\n', line) + 1 - line);
+  std::ofstream(configs / "rigs" / "nofollow.yaml") << text;
+  ServerProcess server({"--configs", configs.string()});
+  const json rigs = server.client().get("/api/rigs").json()["rigs"];
+  const auto rig = [&](const std::string& name) {
+    const auto it = std::find_if(rigs.begin(), rigs.end(), [&](const json& r) { return r["name"] == name; });
+    EXPECT_NE(it, rigs.end()) << name << ": " << rigs.dump(2);
+    return it == rigs.end() ? json::object() : *it;
+  };
+  for (const char* name : {"can", "modbus", "hybrid"}) {
+    EXPECT_EQ(rig(name)["following_error"], (json{{"max_deg", 3.0}, {"time_ms", 100}})) << name;
+    EXPECT_FALSE(rig(name).contains("warning")) << name;
+  }
+  EXPECT_TRUE(rig("sim")["following_error"].is_null());
+  EXPECT_FALSE(rig("sim").contains("warning"));
+  EXPECT_TRUE(rig("nofollow")["following_error"].is_null());
+  const std::string warning = rig("nofollow").value("warning", "");
+  EXPECT_NE(warning.find("rig 'nofollow' drives a real motor without safety.following_error"), std::string::npos) << warning;
+
+  // Started on it (nothing listens on its ports: the run ends in a setup error), the start's
+  // answer carries the same warning.
+  const auto start = server.client().post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "nofollow"}});
+  ASSERT_EQ(start.status, 202) << start.body;
+  EXPECT_EQ(start.json().value("warning", ""), warning) << start.body;
 }
 
 // The bytes the server process has read so far (its /proc/PID/io rchar: files and sockets).

@@ -216,6 +216,7 @@ int start(const CtlArgs& a, const ApiClient& api) {
   if (a.speed_opt->count() > 0) body["speed"] = a.speed;
   const json j = checked(api.post("/api/start", body));
   std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
+  if (j.contains("warning")) std::printf("warning: %s\n", j.value("warning", "").c_str());
   std::fflush(stdout);
   return a.detach ? 0 : watch(api);
 }

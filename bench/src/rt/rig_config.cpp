@@ -108,6 +108,15 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
 
 }  // namespace
 
+std::string rig_warning(const RigConfig& config) {
+  const bool real_drive = config.devices.can_drive.has_value() || config.devices.modbus_drive.has_value();
+  if (!real_drive || config.safety.watches_following()) return {};
+  return "rig '" + config.name +
+         "' drives a real motor without safety.following_error: a drive that stops following its target (a frozen "
+         "encoder, a jammed gear) trips no interlock; set following_error: {max_deg, time_ms} (the shipped drive rigs: "
+         "3 deg, 100 ms)";
+}
+
 RigConfig load_rig_config(const std::filesystem::path& file) {
   std::string text;
   const cfg::Node root = cfg::Node::load_file(file, &text);

@@ -919,6 +919,12 @@ Reply ApiServer::Impl::rigs() {
     j["description"] = r.description;
     j["priority"] = r.loop.priority;
     j["cpu"] = r.loop.cpu;
+    j["following_error"] =
+        r.safety.watches_following()
+            ? json{{"max_deg", std::round(units::rad_to_deg(r.safety.following_error_rad) * 1e9) / 1e9},  // as written
+                   {"time_ms", std::lround(r.safety.following_error_s * 1000)}}
+            : json(nullptr);
+    if (const std::string w = rig_warning(r); !w.empty()) j["warning"] = w;
   });
   return json_reply(http::status::ok, {{"rigs", list}});
 }
@@ -952,6 +958,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   StartRequest s;
   const std::string rig = yaml_body ? option("rig").value_or("sim") : field<std::string>(body, "rig", "sim");
   s.rig = rig_named(rig);
+  const std::string warning = rig_warning(s.rig);
   if (yaml_body) {
     if (const auto runs = option("runs")) {
       std::stringstream rs(*runs);
@@ -1023,7 +1030,12 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     throw ApiError{http::status::bad_request, "cannot start", e.what()};
   }
   spdlog::info("campaign '{}' started", name);
-  return json_reply(http::status::accepted, {{"started", name}, {"rig", rig}, {"status", runner.status()}});
+  json reply = {{"started", name}, {"rig", rig}, {"status", runner.status()}};
+  if (!warning.empty()) {
+    spdlog::warn("{}", warning);
+    reply["warning"] = warning;
+  }
+  return json_reply(http::status::accepted, reply);
 }
 
 Reply ApiServer::Impl::inject(const std::string& what, const json& body) {

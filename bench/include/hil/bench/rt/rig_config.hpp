@@ -43,6 +43,10 @@ struct RigConfig {
 };
 
 RigConfig load_rig_config(const std::filesystem::path& file);
+// What an operator should know before a run on this rig, in words; empty when nothing. Today: a
+// rig with a real drive and no safety.following_error, where a drive that stops following (a
+// frozen encoder, a jammed gear) is caught by no interlock.
+std::string rig_warning(const RigConfig& config);
 RigConfig load_rig_config_text(const std::string& yaml, const std::string& origin);
 
 // A new, unconfigured rig of the file's kind, made by the kind's registered recipe
