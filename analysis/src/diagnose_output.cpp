@@ -144,6 +144,13 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
         {{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)}, {"chosen", p.chosen}});
   j["paths_followed"] = paths;
   j["revisions"] = d.revisions;
+  j["rivals"] = nlohmann::json::array();
+  for (const auto& r : d.rivals)
+    j["rivals"].push_back({{"effect", r.effect},
+                           {"alternative", r.alternative},
+                           {"variant", r.variant},
+                           {"delta_bic", number(r.dbic)},
+                           {"fit_pct", number(r.fit_pct)}});
   nlohmann::json corr = nlohmann::json::array();
   for (const auto& c : d.correlations) {
     corr.push_back({{"a", c.effect_a + "." + c.key_a},

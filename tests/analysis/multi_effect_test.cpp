@@ -9,9 +9,9 @@
 // HIL_ANALYSIS_FULL_MATRIX=1 adds the longer ones: offset_and_delay (passes), offset_erosion_lag,
 // which does not pass (erosion and a sensor lag of 16.8 ms stand in for the valve offset at the
 // noise floor), all 28 pairs of the eight candidates (25 pass; the other three are not
-// identifiable from pressure) and ten more triples and quadruples (nine pass; the tenth is the
-// offset/burn-rate pair again); analysis/README.md, Limits, says which do not and why. The whole
-// matrix took 4 min on a quiet machine (2026-11-28).
+// identifiable from pressure) and the other triples and quadruples (all pass); analysis/README.md,
+// Limits, says which do not and why. The whole matrix took 4.5 min on a quiet machine
+// (2026-11-28).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -146,17 +146,18 @@ std::vector<MultiCase> cases() {
     }
   // Triples and quadruples without a pair that Limits names as not told apart from pressure
   // (valve offset with erosion, a sensor offset or a burn rate; a sensor offset with a burn rate;
-  // a sensor lag with a transport delay, no encoder). Three run by default (5-20 s each), the
+  // a sensor lag with a transport delay, no encoder). Four run by default (5-20 s each), the
   // rest in the full matrix. erosion + bias + delay is one of them because it is where the wrong
   // form of the right effect was kept (proportional erosion, a sensor gain making up the
-  // difference: 94.4 % for a floor of 98.8 %) until the revisit tried sibling forms.
+  // difference: 94.4 % for a floor of 98.8 %) until the revisit tried sibling forms; offset + lag
+  // + gap because a burn-rate refit stood in for the offset until the rival scan swapped it.
   struct Group {
     std::vector<std::string> tags;
     bool by_default = false;
   };
   const std::vector<Group> groups = {{{"gap", "erosion", "lag"}, true},   {{"gap", "bias", "lag"}},
                                      {{"gap", "delay", "erosion"}},       {{"gap", "servo", "bias"}},
-                                     {{"offset", "lag", "gap"}},          {{"erosion", "bias", "delay"}, true},
+                                     {{"offset", "lag", "gap"}, true},    {{"erosion", "bias", "delay"}, true},
                                      {{"gap", "delay", "bias"}},          {{"offset", "delay", "gap"}},
                                      {{"gap", "erosion", "lag", "bias"}}, {{"gap", "delay", "bias", "erosion"}},
                                      {{"gap", "offset", "lag", "servo"}}, {{"gap", "erosion", "servo", "bias"}, true}};
@@ -224,6 +225,16 @@ TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
     if (found == expected) {
       EXPECT_FALSE(corr.at("indistinguishable").get<bool>()) << corr.dump();
     }
+  }
+  // A rival is an explanation within the criterion's margin of the one found; none may be better
+  // by it (the search takes a better one: triple_offset_lag_gap kept a burn-rate refit 47.8 BIC
+  // worse than the valve offset in its place, until the rival scan took the offset).
+  for (const auto& r : d.at("rivals")) {
+    std::printf("[ %s ] rival: %s in place of %s, dBIC %+.1f\n", c.scenario.name.c_str(),
+                r.at("alternative").get<std::string>().c_str(), r.at("effect").get<std::string>().c_str(),
+                r.at("delta_bic").get<double>());
+    EXPECT_GE(r.at("delta_bic").get<double>(), 0.0) << r.dump();
+    EXPECT_LT(r.at("delta_bic").get<double>(), 10.0) << r.dump();
   }
   std::printf("[ %s ] fit %.2f -> %.2f %% (floor %.2f %%), verdict %s, %.1f s\n", c.scenario.name.c_str(),
               d.at("fit_before_pct").get<double>(), after, floor, d.at("verdict").get<std::string>().c_str(),

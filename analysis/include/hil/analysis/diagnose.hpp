@@ -97,6 +97,15 @@ inline constexpr double kReportCorrelation = 0.5;  // listed from here on
 inline constexpr double kIndistinguishableCorrelation = 0.95;
 inline constexpr double kUnpinnedShare = 0.1;
 
+// An explanation the file does not tell from the one found: `alternative` (its `variant`) in
+// place of the found `effect`, the other found effects refitted, gives a whole-model BIC within
+// kRivalBic of the found model's (`dbic`: its BIC minus the found one's) and fits `fit_pct`.
+struct Rival {
+  std::string effect, alternative, variant;
+  double dbic = 0, fit_pct = 0;
+};
+inline constexpr double kRivalBic = 10;  // the criterion's own margin (an effect earns its place below -10)
+
 struct NotIdentifiable {
   std::string effect, reason;
 };
@@ -130,6 +139,7 @@ struct Diagnosis {
   std::vector<std::string> revisions;          // choices the forward-backward revisit changed, in words
   std::vector<ParamCorrelation> correlations;  // |rho| >= kReportCorrelation, between added effects
   std::vector<NotIdentifiable> not_identifiable;
+  std::vector<Rival> rivals;         // explanations this file does not tell from the one found
   std::vector<std::string> summary;  // plain-language verdict
   ResidualReport before, after;
   std::shared_ptr<const plant::Plant> fitted;  // the input model (noise included) with the found effects
