@@ -89,7 +89,6 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
       gap_to_rig_(rig.programmable_gap()),
       timed_(now != nullptr),
       safety_(safety),
-      following_(safety.watches_following()),
       loop_(loop),
       shaper_(loop.target_shaping),
       wall_period_(wall_period),
@@ -116,7 +115,6 @@ void RunLoop::begin(Clock::time_point now) {
   }
   cs_ = controller_.initial_state(theta0, rd.p_meas_pa, run_.initial_touch);
   last_sent_rad_ = theta0;
-  last_target_rad_ = theta0;
   shaper_.reset(theta0);
   last_p_meas_pa_ = rd.p_meas_pa;
   last_shown_ = rd;
@@ -241,8 +239,9 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
     double value = kNaN, limit = kNaN;
     Trip trip = safety_.check(missed, status == RigStatus::fault, rd.p_meas_pa, value, limit);
     if (trip == Trip::none && abort_requested_) trip = Trip::operator_abort;
-    if (trip == Trip::none && !missed && following_) {
-      trip = safety_.follow(last_target_rad_, rd.theta_motor_rad, dt, value, limit);
+    if (trip == Trip::none && !missed && safety_.config().watches_following()) {
+      // The shaper still holds last period's target: the one this reading answers.
+      trip = safety_.follow(shaper_.position_rad(), rd.theta_motor_rad, dt, value, limit);
     }
     if (trip == Trip::none && overrun_trip_) {
       trip = Trip::overruns;
@@ -281,7 +280,6 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   const double target = shaper_.step(drive_fault_ ? drive_frozen_rad_ : cmd, dt);
   rig_.write(woke, wall_period_, {target, true, gap_to_rig_ ? gap : kNaN});
   last_sent_rad_ = cmd;
-  last_target_rad_ = target;
 
   if (missed) {
     flags |= kFlagReadMissed;

@@ -215,7 +215,6 @@ class RunLoop {
   const bool timed_;       // on a clock (not simulated time): wake-up and compute times are kept,
                            // the snapshot is published every period
   Safety safety_;
-  const bool following_;  // the rig's safety watches the following error
   const LoopConfig loop_;
   TargetShaper shaper_;
   const Clock::duration wall_period_;
@@ -229,8 +228,7 @@ class RunLoop {
   Schedule::Cursor ref_cursor_, gap_cursor_;
   plant::Rng rng_;
   std::int64_t k_ = 0;
-  double last_sent_rad_ = 0;    // the last command the bench sent
-  double last_target_rad_ = 0;  // the last target the rig was sent (shaped; what the drive follows)
+  double last_sent_rad_ = 0;  // the last command the bench sent
   double last_p_meas_pa_ = kNaN;
   RigReading last_shown_;  // recorded again in periods without a reading
   bool limited_ = false;
