@@ -665,50 +665,64 @@ std::vector<Added> without(const Setup& su, const plant::Plant& base0, const std
   return rest;
 }
 
-// Revisits the choices of a greedy path (forward-backward): for each accepted effect, the others
-// are refitted without it; if it no longer earns its place against them (dBIC >= -10, or a gain
-// under 5 % of the noise power) it is dropped; otherwise a round over the candidates not in the
-// model asks whether another effect in its place gives a lower BIC (a valve offset that a burn
-// rate exponent plus a sensor offset had stood in for), and if so swaps it. Repeats until nothing
-// changes (at most kRevisitPasses passes). Each change is told in `revisions`.
-constexpr int kRevisitPasses = 3;
-void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
-             std::vector<std::string>& revisions, int& evaluations) {
-  for (int pass = 0; pass < kRevisitPasses && path.added.size() >= 2; ++pass) {
+// Revisits the choices of a path (forward-backward): for each accepted effect, the others are
+// refitted without it; if it no longer earns its place against them (dBIC >= -10, or a gain under
+// 5 % of the noise power) it is dropped; otherwise a round over the candidates not in the model
+// asks for the best other effect in its place (a valve offset that a burn rate exponent plus a
+// sensor offset had stood in for). If that gives a lower whole-model BIC it is swapped in. Passes
+// repeat until one changes nothing (at most kRevisitPasses passes change anything; each change is
+// told in `revisions`). In that last pass, an alternative whose BIC is within kRivalBic of the
+// found model's is a rival: the file does not tell the two apart by the criterion's own margin.
+// Those are returned. A one-effect model has nothing to drop but is asked for rivals too.
+constexpr int kRevisitPasses = 3;  // passes of one revisit that may change the model
+constexpr int kFormRevisions = 2;  // times revise_variants may send the model back to the revisit
+std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
+                           std::vector<std::string>& revisions, int& evaluations) {
+  std::vector<Rival> rivals;
+  for (int pass = 0; !path.added.empty(); ++pass) {
+    const bool may_change = pass < kRevisitPasses;
     const double n_eff = measure_path(su, base0, path, evaluations);
+    const double bic_found = path_bic(path.added, path.rss, n_eff);
+    rivals.clear();
     bool changed = false;
     for (std::size_t i = 0; i < path.added.size() && !changed; ++i) {
       std::vector<Added> rest = without(su, base0, path.added, i, evaluations);
-      const double rss_rest = rss_of(apply_added(base0, rest), su.ctx.full, nullptr);
-      evaluations += 1;
       const Added& e = path.added[i];
-      const double dbic = n_eff * std::log(path.rss / rss_rest) + static_cast<double>(e.fit.k()) * std::log(n_eff);
-      if (!(dbic < kBicMargin) || rss_rest - path.rss < kMinNoiseShare * su.noise_rss) {
-        revisions.push_back("dropped " + e.cand->name + ": refitted without it the others do as well (dBIC " +
-                            text::num(dbic, 3) + ")");
-        path.added = std::move(rest);
-        path.rss = rss_rest;
-        changed = true;
-        break;
+      if (may_change && path.added.size() >= 2) {
+        const double rss_rest = rss_of(apply_added(base0, rest), su.ctx.full, nullptr);
+        evaluations += 1;
+        const double dbic = n_eff * std::log(path.rss / rss_rest) + static_cast<double>(e.fit.k()) * std::log(n_eff);
+        if (!(dbic < kBicMargin) || rss_rest - path.rss < kMinNoiseShare * su.noise_rss) {
+          revisions.push_back("dropped " + e.cand->name + ": refitted without it the others do as well (dBIC " +
+                              text::num(dbic, 3) + ")");
+          path.added = std::move(rest);
+          path.rss = rss_rest;
+          changed = true;
+          break;
+        }
       }
       InPlace alt = best_in_place_of(su, base0, pool, rest, *e.cand, evaluations);
       if (alt.added.empty()) continue;
-      RoundOutcome& r = alt.round;
-      std::vector<Added>& swapped = alt.added;
-      const double rss_swapped = alt.rss;
-      if (path_bic(swapped, rss_swapped, n_eff) < path_bic(path.added, path.rss, n_eff)) {
-        revisions.push_back("replaced " + e.cand->name + " by " + r.earning.front().cand->name +
+      const double dbic = path_bic(alt.added, alt.rss, n_eff) - bic_found;
+      const Added& a = alt.added.back();
+      if (may_change && dbic < 0) {
+        revisions.push_back("replaced " + e.cand->name + " by " + a.cand->name +
                             ": with the others refitted, it explains the data with a lower BIC");
-        r.round.added = r.earning.front().cand->name;
-        r.round.note = "revisit: in place of " + e.cand->name;
-        path.rounds.push_back(std::move(r.round));
-        path.added = std::move(swapped);
-        path.rss = rss_swapped;
+        Round& r = alt.round.round;
+        r.added = a.cand->name;
+        r.note = "revisit: in place of " + e.cand->name;
+        path.rounds.push_back(std::move(r));
+        path.added = std::move(alt.added);
+        path.rss = alt.rss;
         changed = true;
+      } else if (dbic < kRivalBic) {
+        rivals.push_back({e.cand->name, a.cand->name, a.cand->variants[a.fit.variant].name, dbic,
+                          fit_percent(alt.rss, su.spread, su.ctx.full.size())});
       }
     }
     if (!changed) break;
   }
+  return rivals;
 }
 
 // A variant chosen in an early round can keep a parameter that a later effect made idle (a gap
@@ -722,11 +736,12 @@ void revisit(const Setup& su, const plant::Plant& base0, const std::vector<const
 // it; it replaces the chosen variant when the whole model's BIC is lower. A change can make
 // another effect's simpler form the better one (the gain goes idle once the erosion is right), so
 // the effects are gone over again until nothing changes (at most kVariantPasses times). Told in
-// `revisions`.
+// `revisions`; true when anything changed.
 constexpr int kVariantPasses = 3;
-void revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
+bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
                      int& evaluations) {
-  if (path.added.empty()) return;
+  bool any = false;
+  if (path.added.empty()) return any;
   auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
   for (int pass = 0; pass < kVariantPasses; ++pass) {
     const double n_eff = measure_path(su, base0, path, evaluations);
@@ -774,70 +789,14 @@ void revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
                                       : ": with the others refitted, this form explains the data with a lower BIC"));
           path.added = std::move(trial);
           path.rss = rss_trial;
-          changed = true;
+          changed = any = true;
           break;
         }
       }
     }
     if (!changed) break;
   }
-}
-
-// Explanations the file does not tell from the one found (Limits: a burn-rate refit in place of a
-// valve offset reaches the noise floor as well). For each found effect, the best other effect in
-// its place, the rest refitted, is a rival when the whole model's BIC is within kRivalBic of the
-// found model's: the data prefer neither by the criterion's own margin. One with a lower BIC is
-// not a rival but a better model (the revisit ran before revise_variants changed a form, or
-// chose its round's best by the round's own criterion): `better` holds the best such swap.
-struct RivalScan {
-  std::vector<Rival> rivals;
-  InPlace better;
-  std::size_t replaced = 0;  // the effect `better` replaces
-};
-RivalScan rivals_of(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
-                    int& evaluations) {
-  RivalScan out;
-  if (path.added.empty()) return out;
-  const double n_eff = measure_path(su, base0, path, evaluations);
-  const double bic_found = path_bic(path.added, path.rss, n_eff);
-  double best_dbic = 0;
-  for (std::size_t i = 0; i < path.added.size(); ++i) {
-    InPlace alt =
-        best_in_place_of(su, base0, pool, without(su, base0, path.added, i, evaluations), *path.added[i].cand, evaluations);
-    if (alt.added.empty()) continue;
-    const double dbic = path_bic(alt.added, alt.rss, n_eff) - bic_found;
-    if (!(dbic < kRivalBic)) continue;
-    const Added& a = alt.added.back();
-    out.rivals.push_back({path.added[i].cand->name, a.cand->name, a.cand->variants[a.fit.variant].name, dbic,
-                          fit_percent(alt.rss, su.spread, su.ctx.full.size())});
-    if (dbic < best_dbic) {
-      best_dbic = dbic;
-      out.better = std::move(alt);
-      out.replaced = i;
-    }
-  }
-  return out;
-}
-
-// The last of the search: better models the rival scan finds are taken (each then gone over by
-// revise_variants), up to kRivalPasses times; what is left are the rivals reported.
-constexpr int kRivalPasses = 2;
-std::vector<Rival> settle_rivals(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool,
-                                 Path& path, std::vector<std::string>& revisions, int& evaluations) {
-  for (int pass = 0;; ++pass) {
-    RivalScan scan = rivals_of(su, base0, pool, path, evaluations);
-    if (scan.better.added.empty() || pass == kRivalPasses) return std::move(scan.rivals);
-    RoundOutcome& r = scan.better.round;
-    const std::string name = r.earning.front().cand->name, replaced = path.added[scan.replaced].cand->name;
-    revisions.push_back("replaced " + replaced + " by " + name +
-                        ": with the others refitted, it explains the data with a lower BIC (found after the forms were revised)");
-    r.round.added = name;
-    r.round.note = "revisit: in place of " + replaced;
-    path.rounds.push_back(std::move(r.round));
-    path.added = std::move(scan.better.added);
-    path.rss = scan.better.rss;
-    revise_variants(su, base0, path, revisions, evaluations);
-  }
+  return any;
 }
 
 }  // namespace
@@ -962,9 +921,13 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     }
     chosen = std::move(paths[best]);
   }
-  revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
-  revise_variants(su, base0, chosen, d.revisions, d.evaluations);
-  d.rivals = settle_rivals(su, base0, pool, chosen, d.revisions, d.evaluations);
+  // Revisit, then revise the forms; a revised form can make another effect the better one in a
+  // slot (the revisit ran before it), so the two alternate until the forms stand. The revisit's
+  // last pass, on the final model, names the rivals.
+  for (int k = 0;; ++k) {
+    d.rivals = revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
+    if (k == kFormRevisions || !revise_variants(su, base0, chosen, d.revisions, d.evaluations)) break;
+  }
   d.rounds = chosen.rounds;
   for (auto& rd : d.rounds)
     for (auto& c : rd.ranking) localise_event_times(c.parameters, full);

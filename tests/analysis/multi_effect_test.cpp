@@ -150,7 +150,8 @@ std::vector<MultiCase> cases() {
   // rest in the full matrix. erosion + bias + delay is one of them because it is where the wrong
   // form of the right effect was kept (proportional erosion, a sensor gain making up the
   // difference: 94.4 % for a floor of 98.8 %) until the revisit tried sibling forms; offset + lag
-  // + gap because a burn-rate refit stood in for the offset until the rival scan swapped it.
+  // + gap because a burn-rate refit stood in for the offset until the revisit ran again after the
+  // forms were revised.
   struct Group {
     std::vector<std::string> tags;
     bool by_default = false;
@@ -228,7 +229,7 @@ TEST_P(MultiEffect, EveryHiddenEffectIsFoundWithItsValue) {
   }
   // A rival is an explanation within the criterion's margin of the one found; none may be better
   // by it (the search takes a better one: triple_offset_lag_gap kept a burn-rate refit 47.8 BIC
-  // worse than the valve offset in its place, until the rival scan took the offset).
+  // worse than the valve offset in its place, until the revisit ran again after the forms).
   for (const auto& r : d.at("rivals")) {
     std::printf("[ %s ] rival: %s in place of %s, dBIC %+.1f\n", c.scenario.name.c_str(),
                 r.at("alternative").get<std::string>().c_str(), r.at("effect").get<std::string>().c_str(),
