@@ -4,11 +4,12 @@
 // step) shows in the events list and as the true gap in the gap plot's data; Abort ends the run
 // "aborted" in the runs list; the run's report link opens the paper-style report with its figures;
 // Compare against the nominal model, clicked in the run's row, runs to done and its report opens;
-// the gap plot's y tick labels are distinct numbers whatever the range.
+// the gap plot's y tick labels are distinct numbers whatever the range; a rig driving a real motor
+// without the following-error interlock is warned about in red before Start.
 // No console error or page error on either page; screenshots at 1400 and 390 px are not blank.
 //   node console_browser_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
 import { spawn } from "node:child_process";
-import { existsSync, mkdtempSync, openSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { existsSync, mkdirSync, mkdtempSync, openSync, readdirSync, readFileSync, rmSync, symlinkSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { inflateSync } from "node:zlib";
@@ -122,9 +123,23 @@ async function waitFor(page, what, fn, arg, timeoutMs = 20_000) {
   }
 }
 
+// The shipped configs, plus a rig the server must warn about: the CAN rig without its
+// following-error interlock. The rigs are copies with the drivers' files named absolutely.
+function configsWithBareRig() {
+  const configs = join(dir, "configs");
+  mkdirSync(join(configs, "rigs"), { recursive: true });
+  for (const sub of ["campaigns", "plant"]) symlinkSync(join(sourceDir, "configs", sub), join(configs, sub));
+  const rig = (name) => readFileSync(join(sourceDir, "configs", "rigs", name), "utf8").replaceAll("../../drivers/", join(sourceDir, "drivers") + "/");
+  for (const name of readdirSync(join(sourceDir, "configs", "rigs"))) writeFileSync(join(configs, "rigs", name), rig(name));
+  const bare = rig("can.yaml").replace(/^ *following_error:.*$/m, "");
+  if (bare.includes("following_error:")) throw new Error("can.yaml's following_error line was not removed");
+  writeFileSync(join(configs, "rigs", "bare_can.yaml"), bare);
+  return configs;
+}
+
 async function main() {
   const log = openSync(join(dir, "server.log"), "a");
-  server = spawn(exe, ["serve", "--listen", "127.0.0.1:0", "--configs", join(sourceDir, "configs"), "--runs-dir", join(dir, "runs"),
+  server = spawn(exe, ["serve", "--listen", "127.0.0.1:0", "--configs", configsWithBareRig(), "--runs-dir", join(dir, "runs"),
     "--port-file", join(dir, "port")], { stdio: ["ignore", log, log] });
   for (let i = 0; i < 600 && !existsSync(join(dir, "port")); ++i) await sleep(100);
   if (!existsSync(join(dir, "port"))) return fail("hilbench serve did not start");
@@ -147,7 +162,20 @@ async function main() {
   // Choose paper_adaptive, only its adaptive run, on the sim rig; start by clicking.
   if (!(await waitFor(page, "campaigns listed", () => [...document.querySelectorAll("#campaign option")].some((o) => o.value === "paper_adaptive")))) return;
   await page.select("#campaign", "paper_adaptive");
-  await page.select("#rig", "sim");
+  // The rig's interlock shows before Start; a real drive without the following-error interlock
+  // is marked in the list and warned about in red.
+  const rigAbout = async (name) => {
+    await page.select("#rig", name);
+    return page.evaluate(() => ({ text: document.getElementById("rig-about").textContent, bad: document.getElementById("rig-about").classList.contains("bad"),
+      option: document.querySelector("#rig option:checked").textContent }));
+  };
+  const can = await rigAbout("can");
+  if (!can.text.includes("following-error interlock 3 deg for 100 ms") || can.bad) fail("the can rig as shown: " + JSON.stringify(can));
+  const bare = await rigAbout("bare_can");
+  if (!bare.bad || !bare.text.includes("WARNING") || !bare.text.includes("without safety.following_error") ||
+      !bare.option.includes("no following-error interlock")) fail("the rig without following_error as shown: " + JSON.stringify(bare));
+  const sim = await rigAbout("sim");
+  if (sim.bad || sim.text.includes("WARNING")) fail("the sim rig as shown: " + JSON.stringify(sim));
   const runs = await page.$$eval("#runs-choice input", (boxes) => boxes.map((b) => b.value));
   if (!runs.includes("adaptive")) return fail("paper_adaptive's runs in the page: " + JSON.stringify(runs));
   for (const r of runs) if (r !== "adaptive") await page.click(`#runs-choice input[value="${r}"]`);

@@ -466,14 +466,37 @@
     }
   }
 
+  // The chosen rig's interlocks, and the server's warning about it (a real drive without the
+  // following-error interlock), shown before Start is pressed: that is when an operator decides.
+  let rigs = [];
+  function renderRigAbout() {
+    const r = rigs.find((x) => x.name === $("rig").value);
+    const about = $("rig-about");
+    about.className = r && (r.warning || r.error) ? "about bad" : "about";
+    if (!r) {
+      about.textContent = "";
+    } else if (r.error) {
+      about.textContent = "cannot load: " + r.error;
+    } else {
+      const fe = r.following_error;
+      about.textContent = (r.description || r.kind || "") +
+        (fe ? " · following-error interlock " + fe.max_deg + " deg for " + fe.time_ms + " ms" : "") +
+        (r.warning ? " · WARNING: " + r.warning : "");
+    }
+  }
+
   async function loadChoices() {
     const [c, r] = await Promise.all([api("GET", "/api/campaigns"), api("GET", "/api/rigs")]);
     campaigns = c.campaigns;
+    rigs = r.rigs;
     $("campaign").replaceChildren(...campaigns.map((x) => new Option(x.name + (x.error ? " (invalid)" : ""), x.name)));
-    $("rig").replaceChildren(...r.rigs.map((x) => new Option(x.name + (x.kind ? " (" + x.kind + ")" : ""), x.name, x.name === "sim", x.name === "sim")));
+    $("rig").replaceChildren(...rigs.map((x) => new Option(x.name + (x.kind ? " (" + x.kind + ")" : "") +
+      (x.error ? " (invalid)" : x.warning ? " (no following-error interlock)" : ""), x.name, x.name === "sim", x.name === "sim")));
     renderRunsChoice();
+    renderRigAbout();
   }
   $("campaign").addEventListener("change", renderRunsChoice);
+  $("rig").addEventListener("change", renderRigAbout);
 
   $("start").addEventListener("click", async () => {
     const boxes = [...$("runs-choice").querySelectorAll("input[type=checkbox]")];
@@ -482,6 +505,10 @@
     if (chosen.length !== boxes.length) payload.runs = chosen;
     const reply = await act("start " + payload.campaign + " on " + payload.rig, "POST", "/api/start", payload);
     if (reply) {
+      if (reply.warning) {
+        showMessage("start " + payload.campaign + " on " + payload.rig + ": accepted; warning: " + reply.warning, false);
+        addLocalEvent("warning", reply.warning, "trip");
+      }
       setView("follow", null);
       renderStatus(reply.status);
     }
