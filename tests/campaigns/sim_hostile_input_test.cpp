@@ -154,6 +154,48 @@ TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
   EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
 }
 
+// A second Ctrl-C ends the process at once (for work that cannot poll the first): exit 130 either
+// way. Whatever it leaves of the unpublished folder holds only whole lines, nothing is published,
+// and the campaign's next sim clears the leftover (its process is gone). Standard signals do not queue, so
+// the two are sent 2 ms apart: the second lands while the first's stop is under way.
+TEST(SimHostileInput, ASecondCtrlCLeavesOnlyWholeLinesAndTheNextSimClearsThem) {
+  Sandbox s;
+  std::string yaml = campaign_yaml("name: long");
+  yaml.replace(yaml.find("duration_s: 1"), 13, "duration_s: 3000");
+  const auto file = s.root.write("cfg/long.yaml", yaml);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    execl(hilbench().c_str(), hilbench().c_str(), "sim", file.c_str(), "--out", s.out.c_str(), "--quiet", nullptr);
+    _exit(127);
+  }
+  const auto tmp = s.out / (".long.tmp-" + std::to_string(pid));
+  const auto telemetry = tmp / "none" / "telemetry.csv";
+  for (int i = 0; i < 3000 && !(std::filesystem::exists(telemetry) && std::filesystem::file_size(telemetry) > 100000); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(std::filesystem::exists(telemetry)) << "the sim did not start writing";
+  kill(pid, SIGINT);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGINT) << status;
+  EXPECT_FALSE(std::filesystem::exists(s.out / "long"));
+  if (std::filesystem::exists(tmp)) {
+    for (const auto& e : std::filesystem::recursive_directory_iterator(tmp)) {
+      if (!e.is_regular_file() || e.file_size() == 0) continue;
+      std::ifstream in(e.path(), std::ios::binary);
+      in.seekg(-1, std::ios::end);
+      EXPECT_EQ(in.get(), '\n') << e.path() << " ends part way through a line";
+    }
+  }
+  const auto r = s.sim(campaign_yaml("name: long"), "long.yaml");  // the same campaign, now 1 s long
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(tmp));
+  EXPECT_TRUE(std::filesystem::exists(s.out / "long" / "report.html"));
+  EXPECT_TRUE(std::filesystem::exists(s.out / "old" / "keep.txt"));
+}
+
 // The campaign's name picks the folder under --out that a sim replaces: a former sim's output
 // goes, anything else stays and the sim says so before it runs (a campaign named `src` with
 // --out . wiped ./src).
