@@ -54,6 +54,31 @@ struct Sandbox {
     const auto path = root.write("cfg/" + file, yaml);
     return run_command(hilbench() + " sim " + path.string() + " --out " + out.string() + " --quiet");
   }
+  // `hilbench sim` of a 3000 s campaign `long` in the background, once its unpublished
+  // telemetry.csv holds more than `bytes` (at most 30 s); `started` false if it never did.
+  struct LongSim {
+    pid_t pid;
+    std::filesystem::path tmp;  // its unpublished folder
+    bool started;
+  };
+  LongSim start_long_sim(std::uintmax_t bytes) const {
+    std::string yaml = campaign_yaml("name: long");
+    yaml.replace(yaml.find("duration_s: 1"), 13, "duration_s: 3000");
+    const auto file = root.write("cfg/long.yaml", yaml);
+    const pid_t pid = fork();
+    if (pid == 0) {
+      execl(hilbench().c_str(), hilbench().c_str(), "sim", file.c_str(), "--out", out.c_str(), "--quiet", nullptr);
+      _exit(127);
+    }
+    const auto tmp = out / (".long.tmp-" + std::to_string(pid));
+    const auto telemetry = tmp / "none" / "telemetry.csv";
+    std::error_code ec;
+    const auto written = [&] {
+      return std::filesystem::exists(telemetry, ec) && std::filesystem::file_size(telemetry, ec) > bytes;
+    };
+    for (int i = 0; i < 3000 && !written(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return {pid, tmp, written()};
+  }
 };
 
 TEST(SimHostileInput, CampaignNamesThatWouldLeaveOutAreRefusedNamingTheKey) {
@@ -123,19 +148,8 @@ TEST(SimHostileInput, PlantPathThatIsAFifoOrAFolderIsAClearErrorNotAHang) {
 TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
   Sandbox s;
   // A long campaign, killed with SIGTERM while it runs: nothing of it stays.
-  std::string yaml = campaign_yaml("name: long");
-  yaml.replace(yaml.find("duration_s: 1"), 13, "duration_s: 3000");
-  const auto file = s.root.write("cfg/long.yaml", yaml);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    execl(hilbench().c_str(), hilbench().c_str(), "sim", file.c_str(), "--out", s.out.c_str(), "--quiet", nullptr);
-    _exit(127);
-  }
-  const auto tmp = s.out / (".long.tmp-" + std::to_string(pid));
-  for (int i = 0; i < 3000 && !std::filesystem::exists(tmp / "none" / "telemetry.csv"); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(std::filesystem::exists(tmp / "none" / "telemetry.csv")) << "the sim did not start writing";
+  const auto [pid, tmp, started] = s.start_long_sim(0);
+  ASSERT_TRUE(started) << "the sim did not start writing";
   kill(pid, SIGTERM);
   int status = 0;
   ASSERT_EQ(waitpid(pid, &status, 0), pid);
@@ -160,20 +174,8 @@ TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
 // the two are sent 2 ms apart: the second lands while the first's stop is under way.
 TEST(SimHostileInput, ASecondCtrlCLeavesOnlyWholeLinesAndTheNextSimClearsThem) {
   Sandbox s;
-  std::string yaml = campaign_yaml("name: long");
-  yaml.replace(yaml.find("duration_s: 1"), 13, "duration_s: 3000");
-  const auto file = s.root.write("cfg/long.yaml", yaml);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    execl(hilbench().c_str(), hilbench().c_str(), "sim", file.c_str(), "--out", s.out.c_str(), "--quiet", nullptr);
-    _exit(127);
-  }
-  const auto tmp = s.out / (".long.tmp-" + std::to_string(pid));
-  const auto telemetry = tmp / "none" / "telemetry.csv";
-  for (int i = 0; i < 3000 && !(std::filesystem::exists(telemetry) && std::filesystem::file_size(telemetry) > 100000); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(std::filesystem::exists(telemetry)) << "the sim did not start writing";
+  const auto [pid, tmp, started] = s.start_long_sim(100000);
+  ASSERT_TRUE(started) << "the sim did not start writing";
   kill(pid, SIGINT);
   std::this_thread::sleep_for(std::chrono::milliseconds(2));
   kill(pid, SIGINT);
