@@ -166,7 +166,7 @@ async function main() {
   // is marked in the list and warned about in red.
   const rigAbout = async (name) => {
     await page.select("#rig", name);
-    return page.evaluate(() => ({ text: document.getElementById("rig-about").textContent, bad: document.getElementById("rig-about").classList.contains("bad"),
+    return page.evaluate(() => ({ text: document.getElementById("rig-about").textContent, bad: document.querySelector("#rig-about .bad") !== null,
       option: document.querySelector("#rig option:checked").textContent }));
   };
   const can = await rigAbout("can");

@@ -472,16 +472,18 @@
   function renderRigAbout() {
     const r = rigs.find((x) => x.name === $("rig").value);
     const about = $("rig-about");
-    about.className = r && (r.warning || r.error) ? "about bad" : "about";
+    const warning = document.createElement("span");
+    warning.className = "bad";
     if (!r) {
-      about.textContent = "";
+      about.replaceChildren();
     } else if (r.error) {
-      about.textContent = "cannot load: " + r.error;
+      warning.textContent = "cannot load: " + r.error;
+      about.replaceChildren(warning);
     } else {
       const fe = r.following_error;
-      about.textContent = (r.description || r.kind || "") +
-        (fe ? " · following-error interlock " + fe.max_deg + " deg for " + fe.time_ms + " ms" : "") +
-        (r.warning ? " · WARNING: " + r.warning : "");
+      const text = (r.description || r.kind || "") + (fe ? " · following-error interlock " + fe.max_deg + " deg for " + fe.time_ms + " ms" : "");
+      warning.textContent = r.warning ? "WARNING: " + r.warning : "";
+      about.replaceChildren(text, ...(r.warning ? [document.createElement("br"), warning] : []));
     }
   }
 
