@@ -423,6 +423,18 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
   }
 }
 
+namespace {
+// What a loaded campaign holds on the heap, roughly: its texts, schedules and runs, and a few kB
+// for its plant and the rest (measured: robustness.yaml's points about 5 kB each).
+std::size_t approx_bytes(const Campaign& c) {
+  std::size_t bytes = 4096 + c.yaml_text.size() + c.plant_yaml_text.size() + c.description.size();
+  for (const Schedule* s : {&c.reference_pa, &c.gap_rad}) {
+    bytes += s->points().size() * sizeof(s->points().front()) + s->sines().size() * sizeof(s->sines().front());
+  }
+  return bytes + c.reversals_s.size() * sizeof(double) + c.runs.size() * sizeof(RunSpec);
+}
+}  // namespace
+
 SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
                      const std::function<std::string(const std::string& name)>& checked_hash, const PlanCheckOptions& options) {
   std::string sweep_text;  // the file as parsed, for the plan's hash
@@ -603,6 +615,8 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   std::vector<std::string> why(static_cast<std::size_t>(plan.size()));
   std::mutex mutex;  // guards files and the progress line
   std::set<std::filesystem::path> files(base.data_files.begin(), base.data_files.end());
+  auto kept = std::make_shared<std::vector<std::unique_ptr<const Campaign>>>(static_cast<std::size_t>(plan.size()));
+  std::atomic<std::size_t> kept_bytes{0};
   std::optional<ProgressLine> progress_line;
   if (options.progress) {
     ProgressLine::Options po;
@@ -617,7 +631,7 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
         return;
       }
       try {
-        const Campaign c = maker.campaign(p);
+        Campaign c = maker.campaign(p);
         if (!c.data_files.empty()) {
           std::lock_guard lock(mutex);
           files.insert(c.data_files.begin(), c.data_files.end());
@@ -625,6 +639,13 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
         std::vector<std::string> names;
         for (const auto& r : c.runs) names.push_back(r.name);
         if (names != plan.runs) throw cfg::Error("its runs are not the sweep's runs");
+        // Kept for the run while the budget lasts (its own slot: no lock).
+        const std::size_t bytes = approx_bytes(c);
+        if (kept_bytes.fetch_add(bytes) + bytes <= kKeptCampaignBytes) {
+          (*kept)[static_cast<std::size_t>(p)] = std::make_unique<const Campaign>(std::move(c));
+        } else {
+          kept_bytes.fetch_sub(bytes);
+        }
       } catch (const cfg::Error& e) {
         why[static_cast<std::size_t>(p)] = e.what();
         for (long seen = first_bad.load(); p < seen && !first_bad.compare_exchange_weak(seen, p);) {}
@@ -650,6 +671,7 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
     axes.fail("point " + std::to_string(p) + " (" + values + "): " + why[static_cast<std::size_t>(p)]);
   }
   for (const auto& f : files) plan.input_files.push_back({std::filesystem::absolute(f), content_hash(f)});
+  plan.checked_campaigns = std::move(kept);
   return plan;
 }
 
@@ -749,7 +771,12 @@ PointYaml point_yaml(const SweepPlan& plan, long p) { return PointMaker(plan).ya
 
 std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) const {
   const SweepPlan& plan = plan_;
-  const Campaign c = campaign(p);
+  // The campaign the plan's check loaded, where it kept it: the same function of the same text.
+  const auto& kept = plan.checked_campaigns;
+  const Campaign* checked =
+      kept && p >= 0 && p < static_cast<long>(kept->size()) ? (*kept)[static_cast<std::size_t>(p)].get() : nullptr;
+  std::optional<Campaign> loaded;
+  const Campaign& c = checked != nullptr ? *checked : loaded.emplace(campaign(p));
   std::vector<std::string> names;
   for (const auto& r : c.runs) names.push_back(r.name);
   if (names != plan.runs)

@@ -10,9 +10,10 @@
 
 #include <atomic>
 #include <cstdint>
-#include <map>
 #include <filesystem>
 #include <functional>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -70,6 +71,11 @@ struct SweepPlan {
     std::string hash;  // fnv1a-64 of the contents, 16 hex digits
   };
   std::vector<InputFile> input_files;
+  // In this process only, never in plan.json: the campaigns the check loaded, kept so that a
+  // fresh sweep's run loads each point once (the second load was about 15 % of a fresh sweep,
+  // docs/benchmarks.md), up to kKeptCampaignBytes. Null, or a point's entry null, where none was
+  // kept: a resumed plan, a plan read from plan.json, points past the budget.
+  std::shared_ptr<const std::vector<std::unique_ptr<const Campaign>>> checked_campaigns;
 
   long size() const { return static_cast<long>(points.size()); }
   // "<run>.<metric>" for every run: iae_mpa_s, stall_s_per_reversal, stall_vs_none (with a `none`
@@ -88,6 +94,9 @@ struct SweepPlan {
 // points were checked already (the plan.json of a sweep being resumed): a plan with that hash is
 // returned without loading its points again.
 inline constexpr long kMaxSweepPoints = 1'000'000;
+// The most memory a plan's kept campaigns may take (SweepPlan::checked_campaigns), by an
+// estimate of their texts and schedules: robustness.yaml's 2160 points take about 12 MB.
+inline constexpr std::size_t kKeptCampaignBytes = std::size_t{128} << 20;
 struct PlanCheckOptions {
   // A progress line while the points are checked (a load each, about 1 ms: minutes for a large
   // sweep); shown only once the check has taken a second.
