@@ -241,6 +241,11 @@ struct Cia402Drive::Impl {
   // 0x6064 moved further in one TPDO than the drive can (an int32 wrap of the count, a corrupt
   // frame): latched, with the last trusted position kept, until configure().
   bool position_jump = false;
+  // configure()'s SDO read of 0x6064 and the time just before it was asked: the first TPDO after
+  // NMT start is checked against it. Without it the first TPDO's position was taken unchecked, so
+  // a corrupt or wrapped first count became the position the loop holds and starts from.
+  bool position_read_valid = false;
+  Clock::time_point position_read_time{};
   std::uint16_t last_cw = 0;
   std::int32_t last_pos_counts = 0;
   std::int32_t last_target_counts = 0;  // the target in the last RPDO1
@@ -384,7 +389,9 @@ struct Cia402Drive::Impl {
     ++h.pdo_received;
     fb.statusword = static_cast<std::uint16_t>(get_le(&f.data[0], 2));
     const auto counts = static_cast<std::int32_t>(get_le(&f.data[2], 4));
-    if (fb.valid && !position_jump) check_position_step(counts, f.rx_time);
+    if (!position_jump && (fb.valid || position_read_valid)) {
+      check_position_step(counts, f.rx_time, fb.valid ? fb.rx_time : position_read_time);
+    }
     if (!position_jump) {
       last_pos_counts = counts;
       fb.position_rad = cfg.units.to_rad(counts);
@@ -416,8 +423,9 @@ struct Cia402Drive::Impl {
     return counts >= static_cast<double>(kHalfInt32Range) ? kHalfInt32Range : static_cast<std::int64_t>(counts);
   }
 
-  void check_position_step(std::int32_t counts, Clock::time_point rx_time) {
-    const Clock::duration gap = rx_time - fb.rx_time;
+  // `since`: when last_pos_counts was true (the previous TPDO, or just before configure()'s read).
+  void check_position_step(std::int32_t counts, Clock::time_point rx_time, Clock::time_point since) {
+    const Clock::duration gap = rx_time - since;
     const std::int64_t step = std::int64_t{counts} - last_pos_counts;
     const std::int64_t limit = max_position_step_counts(gap);
     if (step <= limit && -step <= limit) return;
@@ -734,6 +742,7 @@ void Cia402Drive::configure() {
     m.seen_operational = false;
     m.left_operational = false;
     m.position_jump = false;
+    m.position_read_valid = false;
     m.reset_pending = false;
     m.fault_hold = false;
     m.fb.valid = false;
@@ -878,11 +887,16 @@ void Cia402Drive::configure() {
     optional_write(cia402::kQuickStopDeceleration, 0, counts(lim.quick_stop_deceleration_rad_s2), 4,
                    "no quick stop deceleration to set");
   }
+  const auto read_time = Clock::now();
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
   no_reboot("while the objects were written");
   m.command.store({m.cfg.units.to_rad(pos), false, false});
-  m.run_on_io([&m, pos] {
+  m.run_on_io([&m, pos, read_time] {
     m.last_pos_counts = pos;
+    m.position_read_valid = true;
+    m.position_read_time = read_time;
+    m.fb.valid = false;  // a TPDO before NMT start (none is due) neither counts as flowing nor sets the position
+    m.fb.position_rad = m.cfg.units.to_rad(pos);
     m.h.last_heartbeat = Clock::now();
     m.expect_heartbeat = true;
     m.pdo_running = true;
@@ -898,6 +912,12 @@ void Cia402Drive::configure() {
     throw DriveError(m.who + ": not operational with TPDOs flowing within " + std::to_string(m.cfg.boot_timeout.count()) +
                      " ms of NMT start (last heartbeat state " + std::string(to_string(static_cast<NmtState>(m.nmt_now.load()))) +
                      ")");
+  }
+  bool jumped = false;
+  m.run_on_io([&m, &jumped] { jumped = m.position_jump; });
+  if (jumped) {
+    throw DriveError(m.who + ": the first TPDO's 0x6064 is not the position read by SDO just before (" +
+                     std::string(health().last_error_text()) + ")");
   }
 }
 

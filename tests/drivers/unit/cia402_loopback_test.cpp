@@ -487,6 +487,50 @@ TEST_F(Cia402Loopback, PositionStepBeyondTheVelocityLimitIsAFault) {
   EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, fb.position_rad, 1e-2);
 }
 
+// configure() reads 0x6064 by SDO so that the loop starts by holding where the motor is; the
+// first TPDO after NMT start was then taken unchecked, so a corrupt or wrapped first count became
+// the position. It is checked against that read now: configure() fails naming the jump, and the
+// position stays the one read.
+TEST_F(Cia402Loopback, FirstTpdoIsCheckedAgainstThePositionReadBySdo) {
+  auto cfg = test_config(5);
+  cfg.limits.max_profile_velocity_rad_s = 40.0;
+  Rig r(factory(), cfg);
+  const auto read_counts = static_cast<std::int32_t>(r.emulator.object(0x6064, 0).value());
+  std::atomic<bool> started{false};
+  bus.set_tap([&](const CanFrame& f) {
+    // The client's NMT start: the drive falls silent before it sees it, so the first TPDO is ours.
+    if (f.id == 0 && f.dlc >= 2 && f.data[0] == 0x01 && f.data[1] == 5 && !started.exchange(true)) r.emulator.set_silent(true);
+  });
+  std::thread corrupt_drive([&] {
+    if (!eventually([&] { return started.load(); }, 10s)) return;
+    bus.inject(canopen::heartbeat(5, canopen::NmtState::operational));
+    // Ten valve revolutions from the read: 63 rad, where 40 rad/s covers 0.3 rad a few ms later.
+    bus.inject(tpdo1(5, 0x0250, read_counts + 10 * 40960));
+  });
+  try {
+    r.client.configure();
+    ADD_FAILURE() << "configure() took a first TPDO 10 revolutions from the position it had read";
+  } catch (const DriveError& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("node 5 on vcan0: the first TPDO's 0x6064 is not the position read by SDO just before"),
+              std::string::npos)
+        << text;
+    EXPECT_NE(text.find("position jump: 0x6064 from " + std::to_string(read_counts) + " to " +
+                        std::to_string(read_counts + 10 * 40960) + " counts"),
+              std::string::npos)
+        << text;
+  }
+  corrupt_drive.join();
+  EXPECT_TRUE(started);
+  EXPECT_TRUE(r.client.health().fault);
+  EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, cfg.units.to_rad(read_counts), 1e-9);
+  bus.set_tap({});
+  r.emulator.set_silent(false);
+  r.client.configure();  // the drive answers for itself again: its first TPDO agrees with the read
+  EXPECT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+  EXPECT_NEAR(r.client.read(Clock::now(), 1ms).position_rad, cfg.units.to_rad(read_counts), 1e-2);
+}
+
 // configure() and activate() each wait up to their timeouts (here 600 s) for a drive that does
 // not answer; an operator's abort could not cut them short. cancel_setup() from another thread
 // ends the one in progress within a poll, and the enable sequence does not go on behind it.
