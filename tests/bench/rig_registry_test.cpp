@@ -9,6 +9,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hil/bench/rt/device_rig.hpp"
@@ -244,6 +245,34 @@ TEST(ComposedRig, ADriveThatAnswersEachWriteIsStaleWithoutAReply) {
   EXPECT_EQ(rig.read(Clock::now(), 1ms, rd), bench::RigStatus::ok);
   rig.deactivate();
   EXPECT_EQ(made.drive->deactivations, 1);
+}
+
+// activate() waits (up to 5 s) for a fresh reading of every part once the drive is enabled; an
+// operator's abort did not end that wait. Here the transducer's only reading is from configure()
+// (older than its 10 ms limit): the abort ends the wait within a poll, and the drive goes off.
+TEST(ComposedRig, AnAbortEndsActivatesWaitForAFreshReading) {
+  MadeParts made;
+  bench::DeviceRig rig(parts_config(), parts_kind(false), test_parts(made, drv::FeedbackFreshness::polled, true));
+  rig.configure({nullptr, 1e-3, bench::kNaN, bench::kNaN});
+  std::this_thread::sleep_for(20ms);  // the configure() reading is now stale, and none comes after
+  std::thread canceller([&] {
+    std::this_thread::sleep_for(200ms);
+    rig.cancel_setup();
+  });
+  const auto t0 = Clock::now();
+  const std::string e = error_of([&] { rig.activate(); });
+  const auto took = Clock::now() - t0;
+  canceller.join();
+  EXPECT_NE(e.find("parts rig: activate() cancelled while waiting for a fresh reading of every part"), std::string::npos) << e;
+  EXPECT_LT(took, 2s);  // 200 ms and a loaded machine's slack; not the 5 s wait
+  EXPECT_EQ(made.drive->activations, 1);
+  rig.deactivate();  // as the runner does after a failed setup
+  EXPECT_EQ(made.drive->deactivations, 1);
+  // A cancelled rig is being given up: configure() again stops before the transducer's setup.
+  made.sensor = nullptr;  // configure() drops the old one
+  const std::string again = error_of([&] { rig.configure({nullptr, 1e-3, bench::kNaN, bench::kNaN}); });
+  EXPECT_NE(again.find("parts rig: configure() cancelled before the transducer's setup"), std::string::npos) << again;
+  EXPECT_EQ(made.sensor, nullptr) << "a transducer was made and set up after the cancel";
 }
 
 // A drive with the simulated valve and chamber (the hybrid composition): the pressure and the

@@ -56,6 +56,9 @@ void DeviceRig::configure(const RigSetup& setup) {
       if (setup_cancelled_) drive_->cancel_setup();
     }
     drive_->configure();
+    // The transducer's own setup (a connect and a poll, up to its response timeout) takes no
+    // cancel: an abort that came during the drive's is not made to wait for it too.
+    if (setup_cancelled_) throw std::runtime_error(kind_ + " rig: configure() cancelled before the transducer's setup");
     if (parts_.pressure_sensor) {
       sensor_ = parts_.pressure_sensor(setup);
       sensor_->configure();
@@ -114,6 +117,9 @@ void DeviceRig::activate() {
       enable_held_ = true;  // from here on the drive must stay enabled until a command says otherwise
       return;
     }
+    // An operator's abort ends the wait within a poll; the caller's deactivate() turns the drive off.
+    if (setup_cancelled_)
+      throw std::runtime_error(kind_ + " rig: activate() cancelled while waiting for a fresh reading of every part");
     if (s == RigStatus::fault || Clock::now() > until) {
       const RigHealth h = health();
       throw std::runtime_error(kind_ + " rig: no fresh reading after enabling the drive" +

@@ -11,6 +11,7 @@
 // mailboxes (and, with the simulated chamber, step the plant), so they are real-time safe.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -92,7 +93,8 @@ class DeviceRig final : public Rig {
   // Guards drive_ being replaced (configure(), the setup thread) against cancel_setup() (another
   // thread); the loop's calls never take it.
   std::mutex cancel_mutex_;
-  bool setup_cancelled_ = false;
+  // Also read without the lock: by activate()'s wait for fresh readings and between configure()'s parts.
+  std::atomic<bool> setup_cancelled_{false};
   std::unique_ptr<drv::PositionDrive> drive_;
   std::unique_ptr<drv::PressureSensor> sensor_;
   drv::FeedbackFreshness drive_freshness_ = drv::FeedbackFreshness::polled;
