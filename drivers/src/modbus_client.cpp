@@ -467,6 +467,11 @@ struct ModbusDrive::Impl {
   // The newest write failed (an exception reply: the device refuses its target or control word):
   // a fault until a write goes through, since the drive then no longer does what the loop asks.
   bool write_failed = false;
+  // actual_position moved by more than half its register's count range between two polls: a wrap
+  // of the count (or a corrupt reply), never a move. Latched for this client's life (a rig makes
+  // a new one at each setup), with the last trusted position kept and held as the target.
+  bool position_jump = false;
+  double position_jump_limit_rad = 0;  // half the register's count span
 
   static const ModbusDriveConfig& checked(const ModbusDriveConfig& c) {
     need(c.map, "control", true, "the enable and fault-reset bits");
@@ -485,7 +490,24 @@ struct ModbusDrive::Impl {
         bit_enable(cfg.map.bit("enable", 0)),
         bit_reset(cfg.map.bit("fault_reset", 7)),
         bit_enabled(cfg.map.bit("enabled", 0)),
-        bit_fault(cfg.map.bit("fault", 3)) {}
+        bit_fault(cfg.map.bit("fault", 3)),
+        position_jump_limit_rad(0.5 * cfg.map.at("actual_position").count_span()) {}
+
+  // The newest actual_position, unless it jumped (see position_jump).
+  void take_position(double pos_rad) {
+    if (position_jump) return;
+    if (fb.valid && std::abs(pos_rad - fb.position_rad) > position_jump_limit_rad) {
+      position_jump = true;
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    ": position jump: actual_position from %.5g to %.5g rad in one poll, over half its register's range "
+                    "(%.5g rad): a wrapped count; set it up again",
+                    fb.position_rad, pos_rad, position_jump_limit_rad);
+      poller.health().set_last_error(poller.who() + text);
+      return;
+    }
+    fb.position_rad = pos_rad;
+  }
 
   bool cycle() {
     if (!poller.read_all()) return false;
@@ -494,7 +516,7 @@ struct ModbusDrive::Impl {
     fb.statusword = status;
     fb.enabled = (status >> bit_enabled) & 1;
     fb.fault = (status >> bit_fault) & 1;
-    fb.position_rad = poller.slot(kPosition).read(buf);
+    take_position(poller.slot(kPosition).read(buf));
     fb.velocity_rad_s = poller.slot(kVelocity).reg ? poller.slot(kVelocity).read(buf) : kNaN;
     fb.valid = true;
     fb.rx_time = Clock::now();
@@ -519,7 +541,7 @@ struct ModbusDrive::Impl {
     } else if (reset_requested.exchange(false)) {
       reset_pulse = true;
     }
-    const bool follow = enable && fb.enabled && !fb.fault;
+    const bool follow = enable && fb.enabled && !fb.fault && !position_jump;
     std::uint16_t words[2] = {0, 0};
     target.encode(follow ? cmd.target_position_rad : fb.position_rad, words);
     // A fresh connection, or a write refused last time (retried each poll until one goes through).
@@ -541,7 +563,7 @@ struct ModbusDrive::Impl {
 
   void publish() {
     auto& h = poller.health();
-    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected || write_failed;
+    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected || write_failed || position_jump;
     h.fault = fb.fault;
     feedback.store(fb);
     poller.health_box().store(h);

@@ -260,6 +260,7 @@ struct ModbusDriveEmulator::Impl {
   std::atomic<std::uint16_t> injected_fault{0};
   std::atomic<bool> freeze_position{false};  // the fault API's frozen encoder
   std::optional<double> frozen_rad;          // what it reports while frozen (server thread)
+  std::atomic<bool> wrap_position{false};    // the fault API's wrapping counter
   std::uint16_t last_control = 0;
   std::unique_ptr<detail::ModbusServer> server;
 
@@ -295,7 +296,8 @@ struct ModbusDriveEmulator::Impl {
     } else if (!frozen_rad) {
       frozen_rad = s.position_rad;
     }
-    put(m, &position, frozen_rad.value_or(s.position_rad));
+    const double reported_rad = frozen_rad.value_or(s.position_rad);
+    put(m, &position, wrap_position ? position.wrapped(reported_rad) : reported_rad);
     put(m, velocity, frozen_rad ? 0.0 : s.velocity_rad_s);
     put(m, fault_code, code);
     put(m, &status, (enabled ? 1u << bit_enabled : 0u) | (fault ? 1u << bit_fault : 0u));
@@ -327,6 +329,7 @@ void ModbusDriveEmulator::raise_fault(std::uint16_t code) {
 }
 void ModbusDriveEmulator::set_silent(bool s) { impl_->server->silent = s; }
 void ModbusDriveEmulator::freeze_position(bool frozen) { impl_->freeze_position = frozen; }
+void ModbusDriveEmulator::wrap_position(bool wrap) { impl_->wrap_position = wrap; }
 void ModbusDriveEmulator::set_response_delay(std::chrono::microseconds d) { impl_->server->delay_us = d.count(); }
 void ModbusDriveEmulator::set_exception(int code) { impl_->server->exception = code; }
 void ModbusDriveEmulator::set_write_exception(int code) { impl_->server->write_exception = code; }

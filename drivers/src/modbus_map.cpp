@@ -56,6 +56,32 @@ void Register::encode(double physical, std::uint16_t* w) const noexcept {
   }
 }
 
+namespace {
+// Counts in the type's range and its lowest count; 0 for float32 (no count).
+std::pair<double, double> count_range(RegisterType t) {
+  switch (t) {
+    case RegisterType::int16: return {65536.0, -32768.0};
+    case RegisterType::uint16: return {65536.0, 0.0};
+    case RegisterType::int32: return {4294967296.0, -2147483648.0};
+    case RegisterType::uint32: return {4294967296.0, 0.0};
+    case RegisterType::float32: break;
+  }
+  return {0.0, 0.0};
+}
+}  // namespace
+
+double Register::count_span() const noexcept {
+  const double counts = count_range(type).first;
+  return counts > 0 ? counts * std::abs(scale) : std::numeric_limits<double>::infinity();
+}
+
+double Register::wrapped(double physical) const noexcept {
+  const auto [counts, lowest] = count_range(type);
+  if (!(counts > 0) || !std::isfinite(physical)) return physical;
+  const double raw = std::nearbyint((physical - offset) / scale);
+  return (raw - counts * std::floor((raw - lowest) / counts)) * scale + offset;
+}
+
 std::string Register::where() const {
   return std::string(to_string(table)) + " register " + std::to_string(address) + " (" + name + ")";
 }

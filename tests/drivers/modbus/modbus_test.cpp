@@ -156,6 +156,62 @@ TEST(ModbusTcp, DriveActivatesAndTracksTheTarget) {
   EXPECT_FALSE(d.model.enabled());
 }
 
+// An encoder count wraps at its register's range (int16 here: 3.2768 rad at 1e-4 rad a count);
+// the client took the wrapped count as a move of 6.5 rad in one poll. Now it is a fault naming
+// the jump, the position stays the last trusted one, and the drive is held there.
+TEST(ModbusTcp, APositionCountThatWrapsIsAFaultNotAMove) {
+  const auto map = RegisterMap::from_yaml(cfg::Node::load_string(R"(registers:
+  control:         {table: holding, address: 0, type: uint16}
+  target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}
+  status:          {table: input, address: 0, type: uint16}
+  actual_position: {table: input, address: 1, type: int16, scale: 1.0e-4}
+)",
+                                                                 "int16_position_map.yaml"));
+  FirstOrderServoTestModel model{0.01, 20.0, 3.0};
+  ModbusDriveEmulator emulator{tcp_link(0), map, model};
+  ModbusDrive client{{tcp_link(emulator.port()), map, 5000ms}};
+  emulator.wrap_position(true);
+  client.configure();
+  EXPECT_NEAR(client.read(Clock::now(), 1ms).position_rad, 3.0, 1e-4);
+  client.activate();
+  client.write(Clock::now(), 1ms, {3.2, true, false});  // 32000 counts: below the wrap
+  ASSERT_TRUE(eventually([&] { return std::abs(client.read(Clock::now(), 1ms).position_rad - 3.2) < 1e-3; }));
+  EXPECT_FALSE(client.health().fault) << client.health().last_error_text();
+  client.write(Clock::now(), 1ms, {3.35, true, false});  // 33500 counts: the int16 count wraps at 32767
+  ASSERT_TRUE(eventually([&] { return client.health().fault; }, 5s)) << client.read(Clock::now(), 1ms).position_rad;
+  const std::string text(client.health().last_error_text());
+  EXPECT_NE(text.find("Modbus drive tcp 127.0.0.1:"), std::string::npos) << text;
+  EXPECT_NE(text.find(": position jump: actual_position from 3."), std::string::npos) << text;
+  EXPECT_NE(text.find("over half its register's range (3.2768 rad): a wrapped count"), std::string::npos) << text;
+  const auto fb = client.read(Clock::now(), 1ms);
+  EXPECT_TRUE(fb.fault);
+  EXPECT_GT(fb.position_rad, 3.2) << "the wrapped count (about -3.2 rad) was published as the position";
+  EXPECT_LE(fb.position_rad, 3.2768);
+  // Held at the last trusted position, not taken on to the loop's 3.35 rad.
+  EXPECT_TRUE(eventually([&] { return std::abs(model.target_rad() - fb.position_rad) < 1e-4; }, 5s)) << model.target_rad();
+}
+
+// The same motion on a counter that saturates (the emulator's default) is no fault: the reading
+// stops at 32767 counts, a step of at most 0.08 rad.
+TEST(ModbusTcp, APositionCountThatSaturatesIsNoJump) {
+  const auto map = RegisterMap::from_yaml(cfg::Node::load_string(R"(registers:
+  control:         {table: holding, address: 0, type: uint16}
+  target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}
+  status:          {table: input, address: 0, type: uint16}
+  actual_position: {table: input, address: 1, type: int16, scale: 1.0e-4}
+)",
+                                                                 "int16_position_map.yaml"));
+  FirstOrderServoTestModel model{0.01, 20.0, 3.2};
+  ModbusDriveEmulator emulator{tcp_link(0), map, model};
+  ModbusDrive client{{tcp_link(emulator.port()), map, 5000ms}};
+  client.configure();
+  client.activate();
+  client.write(Clock::now(), 1ms, {3.35, true, false});
+  ASSERT_TRUE(eventually([&] { return std::abs(model.sample().position_rad - 3.35) < 1e-3; }));
+  EXPECT_TRUE(eventually([&] { return std::abs(client.read(Clock::now(), 1ms).position_rad - 3.2767) < 1e-6; }));
+  EXPECT_FALSE(client.health().fault) << client.health().last_error_text();
+}
+
 TEST(ModbusTcp, DriveFaultIsReportedAndReset) {
   TcpDrive d;
   d.client.configure();

@@ -50,6 +50,36 @@ TEST(RegisterMap, DecodeAndEncodeEachType) {
   EXPECT_DOUBLE_EQ(m.at("c").decode(w), 0.0);
 }
 
+// A count's span and its wrap, against the types' ranges: what the drive's position-jump check
+// and the emulator's wrapping counter are built on.
+TEST(RegisterMap, CountSpanAndWrapFollowTheTypesRange) {
+  const auto m = map_of(R"(registers:
+  a: {table: holding, address: 0, type: int16, scale: 0.5, offset: 1}
+  b: {table: holding, address: 1, type: uint16, scale: -2}
+  c: {table: input, address: 0, type: int32, scale: 1.0e-5}
+  d: {table: input, address: 2, type: uint32}
+  e: {table: input, address: 4, type: float32}
+)");
+  EXPECT_DOUBLE_EQ(m.at("a").count_span(), 32768.0);
+  EXPECT_DOUBLE_EQ(m.at("b").count_span(), 131072.0);  // |scale|
+  EXPECT_DOUBLE_EQ(m.at("c").count_span(), 42949.67296);
+  EXPECT_DOUBLE_EQ(m.at("d").count_span(), 4294967296.0);
+  EXPECT_TRUE(std::isinf(m.at("e").count_span()));
+  // int16: counts -32768..32767; 32768 counts (physical 16385) is -32768 (physical -16383).
+  EXPECT_DOUBLE_EQ(m.at("a").wrapped(16385.0), -16383.0);
+  EXPECT_DOUBLE_EQ(m.at("a").wrapped(16384.5), 16384.5);   // 32767 counts: in range, unchanged
+  EXPECT_DOUBLE_EQ(m.at("a").wrapped(-16383.5), 16384.5);  // -32769 counts -> 32767
+  // uint16 with a negative scale: physical -2 is count 1; physical 2 is count -1 -> 65535.
+  EXPECT_DOUBLE_EQ(m.at("b").wrapped(2.0), -131070.0);
+  EXPECT_DOUBLE_EQ(m.at("c").wrapped(21474.83648), -21474.83648);  // 2^31 counts -> -2^31
+  EXPECT_DOUBLE_EQ(m.at("d").wrapped(4294967297.0), 1.0);
+  EXPECT_DOUBLE_EQ(m.at("e").wrapped(1e12), 1e12);
+  // What a wrapped value encodes to is what the device's counter shows: encode no longer saturates it.
+  std::uint16_t w[1];
+  m.at("a").encode(m.at("a").wrapped(16385.0), w);
+  EXPECT_EQ(w[0], 0x8000);
+}
+
 TEST(RegisterMap, BlocksJoinNeighboursPerTable) {
   const auto m = RegisterMap::load(HIL_SOURCE_DIR "/drivers/configs/modbus_drive_map.yaml");
   const auto b = m.blocks({"status", "actual_position", "actual_velocity", "fault_code", "missing"});

@@ -52,6 +52,9 @@ class ModbusDriveEmulator final : public ModbusFaults {
   // A frozen encoder: `actual_position` keeps the value it had (`actual_velocity` reads 0) while
   // the motor moves on.
   void freeze_position(bool frozen);
+  // `actual_position` wraps at its register's count range, as an encoder's counter does, instead
+  // of saturating there (off by default).
+  void wrap_position(bool wrap);
 
   void set_silent(bool silent) override;
   void set_response_delay(std::chrono::microseconds delay) override;

@@ -42,6 +42,13 @@ struct Register {
   // Rounds integers to nearest and saturates at the type's range. Real-time safe.
   void encode(double physical, std::uint16_t* words) const noexcept;
   std::string where() const;  // "input register 2 (actual_position)"
+  // The physical span of the register's whole count range (|scale| times 2^16 or 2^32; infinite
+  // for float32): a value that moves by more than half of it between two readings can only be
+  // a wrap of the count (or a corrupt reply), never a move.
+  double count_span() const noexcept;
+  // What the register reads for `physical` on a device whose count wraps at the type's range (as
+  // encoder counters do) instead of saturating as encode() does; float32 unchanged. Emulators.
+  double wrapped(double physical) const noexcept;
 };
 
 // A contiguous span of one table that one request reads (at most 125 registers).
