@@ -156,17 +156,22 @@ TEST(ModbusTcp, DriveActivatesAndTracksTheTarget) {
   EXPECT_FALSE(d.model.enabled());
 }
 
-// An encoder count wraps at its register's range (int16 here: 3.2768 rad at 1e-4 rad a count);
-// the client took the wrapped count as a move of 6.5 rad in one poll. Now it is a fault naming
-// the jump, the position stays the last trusted one, and the drive is held there.
-TEST(ModbusTcp, APositionCountThatWrapsIsAFaultNotAMove) {
-  const auto map = RegisterMap::from_yaml(cfg::Node::load_string(R"(registers:
+// A drive whose position is an int16 count of 1e-4 rad: its range ends at 3.2767 rad.
+RegisterMap int16_position_map() {
+  return RegisterMap::from_yaml(cfg::Node::load_string(R"(registers:
   control:         {table: holding, address: 0, type: uint16}
   target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}
   status:          {table: input, address: 0, type: uint16}
   actual_position: {table: input, address: 1, type: int16, scale: 1.0e-4}
 )",
-                                                                 "int16_position_map.yaml"));
+                                                       "int16_position_map.yaml"));
+}
+
+// An encoder count wraps at its register's range (int16 here: 3.2768 rad at 1e-4 rad a count);
+// the client took the wrapped count as a move of 6.5 rad in one poll. Now it is a fault naming
+// the jump, the position stays the last trusted one, and the drive is held there.
+TEST(ModbusTcp, APositionCountThatWrapsIsAFaultNotAMove) {
+  const auto map = int16_position_map();
   FirstOrderServoTestModel model{0.01, 20.0, 3.0};
   ModbusDriveEmulator emulator{tcp_link(0), map, model};
   ModbusDrive client{{tcp_link(emulator.port()), map, 5000ms}};
@@ -194,13 +199,7 @@ TEST(ModbusTcp, APositionCountThatWrapsIsAFaultNotAMove) {
 // The same motion on a counter that saturates (the emulator's default) is no fault: the reading
 // stops at 32767 counts, a step of at most 0.08 rad.
 TEST(ModbusTcp, APositionCountThatSaturatesIsNoJump) {
-  const auto map = RegisterMap::from_yaml(cfg::Node::load_string(R"(registers:
-  control:         {table: holding, address: 0, type: uint16}
-  target_position: {table: holding, address: 1, type: int32, scale: 1.0e-5}
-  status:          {table: input, address: 0, type: uint16}
-  actual_position: {table: input, address: 1, type: int16, scale: 1.0e-4}
-)",
-                                                                 "int16_position_map.yaml"));
+  const auto map = int16_position_map();
   FirstOrderServoTestModel model{0.01, 20.0, 3.2};
   ModbusDriveEmulator emulator{tcp_link(0), map, model};
   ModbusDrive client{{tcp_link(emulator.port()), map, 5000ms}};
