@@ -434,17 +434,25 @@ struct Cia402DriveEmulator::Impl {
     if (rpdo_map || tpdo_map) {
       const std::uint16_t comm = static_cast<std::uint16_t>(rpdo_map ? index - 0x200 : index - 0x200);
       if (pdo_valid(comm)) return kAbortState;
+      // An entry (index << 16 | sub << 8 | bits) must name an object this PDO can carry, whole.
+      const auto entry_mappable = [&](std::uint32_t entry) {
+        const auto it = od.find(entry >> 8);
+        return it != od.end() && it->second.mappable && (entry & 0xFF) == it->second.size * 8u &&
+               (!rpdo_map || it->second.writable);
+      };
       if (sub == 0) {
+        // CiA 301: the count is checked when written, against the entries it counts (an entry
+        // left at 0 maps nothing: taken, the next PDO would look up an object that is not there).
         if (v > 8) return kAbortPdoLength;
         int bits = 0;
-        for (std::uint8_t s = 1; s <= v; ++s) bits += get(index, s) & 0xFF;
+        for (std::uint8_t s = 1; s <= v; ++s) {
+          if (!entry_mappable(get(index, s))) return kAbortNotMappable;
+          bits += get(index, s) & 0xFF;
+        }
         return bits > 64 ? kAbortPdoLength : 0;
       }
       if (get(index, 0) != 0) return kAbortState;  // CiA 301: clear the count before remapping
-      const auto it = od.find(v >> 8);
-      if (it == od.end() || !it->second.mappable || (v & 0xFF) != it->second.size * 8u) return kAbortNotMappable;
-      if (rpdo_map && !it->second.writable) return kAbortNotMappable;
-      return 0;
+      return entry_mappable(v) ? 0 : kAbortNotMappable;
     }
     if ((index >= 0x1400 && index <= 0x1403) || (index >= 0x1800 && index <= 0x1803)) {
       if (sub == 1 && !(v & kCobIdInvalid) && pdo_valid(index) && (v & 0x7FF) != (get(index, 1) & 0x7FF)) {

@@ -573,5 +573,51 @@ TEST_F(Cia402Loopback, CancelEndsASetupCallWithinAPoll) {
   expect_only_controlword(log, cia402::kCwDisableVoltage, 200ms);
 }
 
+// CiA 301: a PDO mapping's count is checked when it is written; every entry it counts must map an
+// object. The emulator took a count over entries that map nothing (0, the default of subs 2..8),
+// and its next RPDO (or SYNC, for a TPDO) looked up object 0x0000:00 and threw out of its I/O
+// thread: std::terminate, the whole `hilbench plant` gone, from a frame any node may send.
+TEST_F(Cia402Loopback, EmulatorRefusesAMappingCountOverEntriesThatMapNothing) {
+  FirstOrderServoTestModel model{0.01, 20.0, 0.25};
+  Cia402DriveEmulator emulator(Rig::emulator_config(test_config(5), {}), model, factory());
+  Cia402Drive client(test_config(5), factory());
+  ASSERT_TRUE(eventually([&] { return emulator.nmt_state() == canopen::NmtState::pre_operational; }));
+  const auto refused = [&](std::uint16_t index, std::uint32_t count) -> std::uint32_t {
+    try {
+      client.sdo_write(index, 0, count, 1);
+    } catch (const SdoAbortError& e) {
+      return e.code;
+    }
+    return 0;
+  };
+  for (std::uint16_t comm : {0x1400, 0x1800}) {  // RPDO1, TPDO1: invalid while remapped
+    client.sdo_write(comm, 1, canopen::kCobIdInvalid | (comm == 0x1400 ? 0x205u : 0x185u), 4);
+    const auto map = static_cast<std::uint16_t>(comm + 0x200);
+    client.sdo_write(map, 0, 0, 1);
+    EXPECT_EQ(refused(map, 2), 0x06040041u) << std::hex << map << ": sub 2 maps nothing";
+    EXPECT_EQ(refused(map, 1), 0u) << std::hex << map << ": sub 1 maps the controlword/statusword";
+    EXPECT_EQ(emulator.object(map, 0), 1u);
+    client.sdo_write(comm, 1, comm == 0x1400 ? 0x205u : 0x185u, 4);
+    client.sdo_write(comm, 2, 1, 1);  // synchronous
+  }
+  // The PDOs run with what was accepted: an RPDO applied at the next SYNC, a TPDO sent for it.
+  std::atomic<int> tpdos{0};
+  bus.set_tap([&](const CanFrame& f) {
+    if (f.id == 0x185) ++tpdos;
+  });
+  client.nmt(canopen::NmtCommand::start);
+  ASSERT_TRUE(eventually([&] { return emulator.nmt_state() == canopen::NmtState::operational; }));
+  CanFrame rpdo;
+  rpdo.id = 0x205;
+  rpdo.dlc = 8;
+  canopen::put_le(rpdo.data.data(), 0x0006, 2);  // shutdown
+  bus.inject(rpdo);
+  CanFrame sync;
+  sync.id = canopen::kSync;
+  bus.inject(sync);
+  EXPECT_TRUE(eventually([&] { return tpdos.load() > 0; }));
+  EXPECT_EQ(emulator.object(0x6040, 0), 0x0006u);  // and the emulator is still there to answer
+}
+
 }  // namespace
 }  // namespace hil::drv::test
