@@ -2,6 +2,8 @@
 // the in-process loopback bus, and a Modbus drive and transducer over TCP on 127.0.0.1.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "drivers/cia402_scenarios.hpp"
 #include "hil/bench/rt/plant_service.hpp"
 #include "hil/drv/can_loopback.hpp"
@@ -62,6 +64,29 @@ TEST(PlantService, CanDriveMovesThePlant) {
   EXPECT_NEAR(units::rad_to_deg(s.theta_valve_rad - s.theta_motor_rad), -0.5, 1e-6);  // still on the opening flank
   EXPECT_LT(s.p_chamber_pa, 0.93e6);                                                  // 13 deg instead of 11 deg: about 0.88 MPa
   EXPECT_NEAR(loop.position_rad.load(), s.theta_motor_rad, deg_to_rad(0.05));         // the encoder reports the motor
+}
+
+// Any Modbus master may write a float target register NaN or inf: the plant must not step into
+// it (one NaN step makes the motor, the valve and the chamber NaN for the rest of the process).
+// It holds the motor where it is, as for a disabled drive, and follows the next real target.
+TEST(PlantService, ATargetThatIsNoNumberHoldsTheMotor) {
+  bench::PlantService service(nominal(1.0));
+  drv::DriveModel& drive = service.add_drive();
+  service.start();
+  const double start = service.sample().theta_motor_rad;
+  drive.command(start + deg_to_rad(1.0), true);
+  ASSERT_TRUE(
+      eventually([&] { return std::abs(service.sample().theta_motor_rad - (start + deg_to_rad(1.0))) < deg_to_rad(0.01); }, 5s));
+  for (double bad : {plant::kNaN, std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()}) {
+    drive.command(bad, true);
+    const std::uint64_t steps = service.sample().steps;
+    ASSERT_TRUE(eventually([&] { return service.sample().steps > steps + 50; }));  // 50 plant steps with it
+    const auto s = service.sample();
+    EXPECT_NEAR(s.theta_motor_rad, start + deg_to_rad(1.0), deg_to_rad(0.01)) << bad;
+    EXPECT_TRUE(std::isfinite(s.p_chamber_pa) && std::isfinite(s.p_meas_pa) && std::isfinite(s.theta_valve_rad)) << bad;
+  }
+  drive.command(start, true);
+  EXPECT_TRUE(eventually([&] { return std::abs(service.sample().theta_motor_rad - start) < deg_to_rad(0.01); }, 5s));
 }
 
 // The same with the Modbus drive and transducer clients, and a gap programme on the plant's clock.

@@ -62,8 +62,9 @@ void PlantService::run() noexcept {
       if (v != seen[i]) seen[i] = v, command = drives_[i]->command_.load();
     }
     if (command.enabled && enabled_at_s < 0) enabled_at_s = s.t_s;
-    // A disabled drive holds where it is.
-    const double cmd = command.enabled ? command.target_rad : s.theta_motor_rad;
+    // A disabled drive holds where it is; so does one sent a target that is no number (a float
+    // register written NaN or inf by any Modbus master), which would poison the plant for good.
+    const double cmd = command.enabled && std::isfinite(command.target_rad) ? command.target_rad : s.theta_motor_rad;
     double gap = gap_override_.load(std::memory_order_relaxed);
     if (std::isnan(gap) && config_.gap_program && enabled_at_s >= 0)
       gap = config_.gap_program->at(s.t_s - enabled_at_s, gap_cursor);
