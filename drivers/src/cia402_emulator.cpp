@@ -458,6 +458,9 @@ struct Cia402DriveEmulator::Impl {
       if (sub == 1 && !(v & kCobIdInvalid) && pdo_valid(index) && (v & 0x7FF) != (get(index, 1) & 0x7FF)) {
         return kAbortValue;  // change the COB-ID of a valid PDO: invalidate it first
       }
+      // A PDO on a restricted id would speak as NMT, SDO or a heartbeat to every node (a TPDO on
+      // 0x000 is an NMT command); 29-bit ids this drive does not have.
+      if (sub == 1 && !(v & kCobIdInvalid) && ((v & kCobIdExtended) || restricted_can_id(v & 0x7FF))) return kAbortValue;
       return 0;
     }
     if (index == cia402::kModesOfOperation) {

@@ -29,6 +29,15 @@ TEST(CanopenCodec, SyncAndHeartbeat) {
   EXPECT_EQ(bytes(hb), (std::vector<int>{0x05}));
 }
 
+// CiA 301 7.3.5's table of restricted CAN-IDs, at each range's edges.
+TEST(CanopenCodec, RestrictedCanIdsAreTheStandardsRanges) {
+  for (std::uint32_t id :
+       {0x000u, 0x001u, 0x07Fu, 0x101u, 0x180u, 0x581u, 0x5FFu, 0x601u, 0x67Fu, 0x6E0u, 0x6FFu, 0x701u, 0x77Fu, 0x780u, 0x7FFu})
+    EXPECT_TRUE(canopen::restricted_can_id(id)) << std::hex << id;
+  for (std::uint32_t id : {0x080u, 0x100u, 0x181u, 0x185u, 0x205u, 0x4FFu, 0x580u, 0x600u, 0x680u, 0x6DFu, 0x700u})
+    EXPECT_FALSE(canopen::restricted_can_id(id)) << std::hex << id;
+}
+
 TEST(CanopenCodec, SdoDownloadCommandSpecifierBySize) {
   // 1, 2, 3, 4 data bytes: 0x2F, 0x2B, 0x27, 0x23; index little-endian, then sub-index.
   EXPECT_EQ(bytes(sdo_download(5, 0x6060, 0, 8, 1)), (std::vector<int>{0x2F, 0x60, 0x60, 0x00, 0x08, 0, 0, 0}));

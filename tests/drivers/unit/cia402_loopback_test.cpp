@@ -619,5 +619,27 @@ TEST_F(Cia402Loopback, EmulatorRefusesAMappingCountOverEntriesThatMapNothing) {
   EXPECT_EQ(emulator.object(0x6040, 0), 0x0006u);  // and the emulator is still there to answer
 }
 
+// CiA 301: no PDO on a restricted CAN-ID. The emulator took any: a TPDO moved to 0x000 reaches
+// every node at each SYNC as an NMT command (its first two bytes read as command and node), one
+// on 0x705 speaks as node 5's heartbeat, one on 0x585 as its SDO replies.
+TEST_F(Cia402Loopback, EmulatorRefusesAPdoOnARestrictedCanId) {
+  FirstOrderServoTestModel model{0.01, 20.0, 0.25};
+  Cia402DriveEmulator emulator(Rig::emulator_config(test_config(5), {}), model, factory());
+  Cia402Drive client(test_config(5), factory());
+  ASSERT_TRUE(eventually([&] { return emulator.nmt_state() == canopen::NmtState::pre_operational; }));
+  client.sdo_write(0x1800, 1, canopen::kCobIdInvalid | 0x185u, 4);
+  for (std::uint32_t cob : {0x000u, 0x005u, 0x605u, 0x585u, 0x705u, 0x7E5u, canopen::kCobIdExtended | 0x285u}) {
+    try {
+      client.sdo_write(0x1800, 1, cob, 4);
+      ADD_FAILURE() << "TPDO1 on " << std::hex << cob << " was taken";
+    } catch (const SdoAbortError& e) {
+      EXPECT_EQ(e.code, 0x06090030u) << std::hex << cob;  // value range of parameter exceeded
+    }
+  }
+  EXPECT_EQ(emulator.object(0x1800, 1), canopen::kCobIdInvalid | 0x185u);
+  client.sdo_write(0x1800, 1, 0x285u, 4);  // a free id is taken
+  EXPECT_EQ(emulator.object(0x1800, 1), 0x285u);
+}
+
 }  // namespace
 }  // namespace hil::drv::test

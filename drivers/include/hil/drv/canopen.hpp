@@ -15,13 +15,22 @@ namespace hil::drv::canopen {
 // Predefined connection set (CiA 301 7.3.5).
 inline constexpr std::uint32_t kNmt = 0x000;
 inline constexpr std::uint32_t kSync = 0x080;
-inline constexpr std::uint32_t kEmcy = 0x080;                // + node
-inline constexpr std::uint32_t kTpdo1 = 0x180;               // + node; TPDO2..4: +0x100 each
-inline constexpr std::uint32_t kRpdo1 = 0x200;               // + node; RPDO2..4: +0x100 each
-inline constexpr std::uint32_t kSdoTx = 0x580;               // server -> client, + node
-inline constexpr std::uint32_t kSdoRx = 0x600;               // client -> server, + node
-inline constexpr std::uint32_t kHeartbeat = 0x700;           // + node
-inline constexpr std::uint32_t kCobIdInvalid = 0x80000000u;  // PDO COB-ID bit 31: PDO does not exist
+inline constexpr std::uint32_t kEmcy = 0x080;                 // + node
+inline constexpr std::uint32_t kTpdo1 = 0x180;                // + node; TPDO2..4: +0x100 each
+inline constexpr std::uint32_t kRpdo1 = 0x200;                // + node; RPDO2..4: +0x100 each
+inline constexpr std::uint32_t kSdoTx = 0x580;                // server -> client, + node
+inline constexpr std::uint32_t kSdoRx = 0x600;                // client -> server, + node
+inline constexpr std::uint32_t kHeartbeat = 0x700;            // + node
+inline constexpr std::uint32_t kCobIdInvalid = 0x80000000u;   // PDO COB-ID bit 31: PDO does not exist
+inline constexpr std::uint32_t kCobIdExtended = 0x20000000u;  // COB-ID bit 29: a 29-bit CAN id
+
+// CiA 301 (7.3.5, restricted CAN-IDs): ids no configurable object (a PDO, the SYNC, EMCY) may
+// use, because NMT, the default SDO channels and NMT error control own them, or they are
+// reserved: 0x000, 0x001-0x07F, 0x101-0x180, 0x581-0x5FF, 0x601-0x67F, 0x6E0-0x6FF, 0x701-0x7FF.
+constexpr bool restricted_can_id(std::uint32_t id11) noexcept {
+  return id11 <= 0x07F || (id11 >= 0x101 && id11 <= 0x180) || (id11 >= 0x581 && id11 <= 0x5FF) ||
+         (id11 >= 0x601 && id11 <= 0x67F) || (id11 >= 0x6E0 && id11 <= 0x6FF) || id11 >= 0x701;
+}
 
 enum class NmtCommand : std::uint8_t {
   start = 0x01,
