@@ -92,6 +92,11 @@ class ModbusServer {
     modbus_set_slave(ctx_, cfg_.unit_id);
     modbus_set_indication_timeout(ctx_, 1, 0);  // a half-sent request must not hang the server
     if (tcp()) {
+      // One thread serves every client and libmodbus reads a request whole: a client that sent
+      // part of one and stalled held all the others for the byte timeout (0.5 s by default) each
+      // time. A TCP request is one small write whose bytes arrive together: 20 ms is plenty, and
+      // then that client is dropped. (A serial line's characters do come apart: RTU keeps it.)
+      modbus_set_byte_timeout(ctx_, 0, 20000);
       port_ = cfg_.port;
       if (!listen()) throw ModbusError(who_ + ": cannot listen: " + std::strerror(errno));
     } else if (modbus_connect(ctx_) == -1) {

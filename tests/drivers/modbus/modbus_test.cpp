@@ -340,6 +340,50 @@ TEST(ModbusTcp, AConnectionFloodDoesNotBringTheEmulatorDown) {
   EXPECT_TRUE(eventually([&] { return std::abs(t.client.read(Clock::now(), 1ms).pressure_pa - 1.5e6) < 1.0; }));
 }
 
+// The emulator serves its clients on one thread, and libmodbus reads a request whole: a client
+// that sent part of one and stalled (crashed mid-write, a half-working tool on the lab network)
+// held every other client for the byte timeout, libmodbus' 0.5 s, once per stall: the bench's
+// polls timed out and its rig went stale. The server now waits 20 ms for the rest of a request
+// that began arriving over TCP (a request is one small write; its bytes arrive together) and
+// then drops that client. Asserted on the best of three stalls, so a busy machine's one slow
+// reply does not fail it; the old server could not answer before 0.45 s in any of them.
+TEST(ModbusTcp, AClientThatStallsMidRequestHoldsTheOthersBriefly) {
+  TcpTransducer t;
+  const auto connect = [&] {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(t.emulator.port()));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+    return fd;
+  };
+  // Read input register 0 (function 4), MBAP transaction `id`, unit 1.
+  const auto request = [](std::uint8_t id) { return std::array<std::uint8_t, 12>{0, id, 0, 0, 0, 6, 1, 4, 0, 0, 0, 1}; };
+  const int good = connect();
+  auto best = std::chrono::steady_clock::duration::max();
+  for (std::uint8_t round = 1; round <= 3; ++round) {
+    const int stalled = connect();
+    const auto part = request(100 + round);
+    ASSERT_EQ(::send(stalled, part.data(), 3, MSG_NOSIGNAL), 3);  // three bytes of the header, then nothing
+    std::this_thread::sleep_for(5ms);                             // the server is in that request now
+    const auto whole = request(round);
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(::send(good, whole.data(), whole.size(), MSG_NOSIGNAL), static_cast<ssize_t>(whole.size()));
+    std::array<std::uint8_t, 64> reply{};
+    const ssize_t n = ::recv(good, reply.data(), reply.size(), 0);
+    best = std::min(best, std::chrono::steady_clock::now() - t0);
+    ASSERT_GE(n, 9) << "no reply";
+    EXPECT_EQ(reply[1], round);  // the answer to this request
+    // The stalled client was let go: end of file on its side.
+    char byte;
+    EXPECT_TRUE(eventually([&] { return ::recv(stalled, &byte, 1, MSG_DONTWAIT) == 0; }, 5s));
+    ::close(stalled);
+  }
+  ::close(good);
+  EXPECT_LT(best, 250ms) << std::chrono::duration<double, std::milli>(best).count() << " ms";
+}
+
 TEST(ModbusTcp, ExceptionsAreSurfacedByName) {
   TcpTransducer t;
   t.emulator.set_exception(4);
