@@ -50,6 +50,20 @@ int free_port() {
   return ntohs(a.sin_port);
 }
 
+// A raw TCP connection to 127.0.0.1:port (a client that is not libmodbus); -1 when refused.
+int connect_loopback(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
 // A child process, ended by its pid (SIGTERM) when the test is done.
 class Child {
  public:
@@ -280,18 +294,7 @@ TEST(ModbusTcp, AConnectionFloodDoesNotBringTheEmulatorDown) {
   }
   ASSERT_GE(files.rlim_cur, 1200u) << "the test needs descriptors past FD_SETSIZE";
   TcpTransducer t;
-  const auto connect = [&] {
-    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(static_cast<std::uint16_t>(t.emulator.port()));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
-      ::close(fd);
-      return -1;
-    }
-    return fd;
-  };
+  const auto connect = [&] { return connect_loopback(t.emulator.port()); };
   // How many of `fds` the emulator closed (EOF; an idle connection it keeps has nothing to read).
   const auto closed_by_emulator = [](const std::vector<int>& fds) {
     std::size_t n = 0;
@@ -349,21 +352,14 @@ TEST(ModbusTcp, AConnectionFloodDoesNotBringTheEmulatorDown) {
 // reply does not fail it; the old server could not answer before 0.45 s in any of them.
 TEST(ModbusTcp, AClientThatStallsMidRequestHoldsTheOthersBriefly) {
   TcpTransducer t;
-  const auto connect = [&] {
-    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(static_cast<std::uint16_t>(t.emulator.port()));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
-    return fd;
-  };
   // Read input register 0 (function 4), MBAP transaction `id`, unit 1.
   const auto request = [](std::uint8_t id) { return std::array<std::uint8_t, 12>{0, id, 0, 0, 0, 6, 1, 4, 0, 0, 0, 1}; };
-  const int good = connect();
+  const int good = connect_loopback(t.emulator.port());
+  ASSERT_GE(good, 0);
   auto best = std::chrono::steady_clock::duration::max();
   for (std::uint8_t round = 1; round <= 3; ++round) {
-    const int stalled = connect();
+    const int stalled = connect_loopback(t.emulator.port());
+    ASSERT_GE(stalled, 0);
     const auto part = request(100 + round);
     ASSERT_EQ(::send(stalled, part.data(), 3, MSG_NOSIGNAL), 3);  // three bytes of the header, then nothing
     std::this_thread::sleep_for(5ms);                             // the server is in that request now
