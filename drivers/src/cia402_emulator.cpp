@@ -446,8 +446,9 @@ struct Cia402DriveEmulator::Impl {
         if (v > 8) return kAbortPdoLength;
         int bits = 0;
         for (std::uint8_t s = 1; s <= v; ++s) {
-          if (!entry_mappable(get(index, s))) return kAbortNotMappable;
-          bits += get(index, s) & 0xFF;
+          const std::uint32_t entry = get(index, s);
+          if (!entry_mappable(entry)) return kAbortNotMappable;
+          bits += entry & 0xFF;
         }
         return bits > 64 ? kAbortPdoLength : 0;
       }
