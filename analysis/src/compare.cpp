@@ -48,7 +48,8 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
     for (std::size_t k = 0; k < rows->size(); ++k) {
       const double t = rows->t_s[k];
       const double motor = enc ? rows->theta_motor_rad[k] : plant::kNaN;
-      const double yhat = first_row ? yhat0 : rep.advance(t, cmd_prev, motor);
+      const double cmd = rows->theta_cmd_rad[k];
+      const double yhat = first_row ? yhat0 : rep.advance_interpolated(t, cmd_prev, cmd, motor);
       // The reader refuses what could make the prediction non-finite; a model that still diverges
       // must stop here, not turn every metric into NaN.
       if (!std::isfinite(yhat)) {
@@ -60,7 +61,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
         throw std::runtime_error(file.string() + b);
       }
       if (enc) {
-        if (!first_row) drive.advance(t, cmd_prev, plant::kNaN);
+        if (!first_row) drive.advance_interpolated(t, cmd_prev, cmd, plant::kNaN);
         const double d = units::rad_to_deg(motor - drive.signals().theta_motor_rad);
         sum_d += d;
         sum_d2 += d * d;
@@ -69,9 +70,8 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
       }
       first_row = false;
       ++row;
-      cmd_prev = rows->theta_cmd_rad[k];
-      an.add({t, rows->p_meas_pa[k], yhat, enc ? motor : rows->theta_cmd_rad[k], ref ? rows->p_ref_pa[k] : plant::kNaN,
-              rep.burned_kg()});
+      cmd_prev = cmd;
+      an.add({t, rows->p_meas_pa[k], yhat, enc ? motor : cmd, ref ? rows->p_ref_pa[k] : plant::kNaN, rep.burned_kg()});
     }
     rows = next(buffer) ? &buffer : nullptr;
   }

@@ -90,7 +90,7 @@ void MeasurementReader::check_rows(const CsvChunk& c) {
     if (dt > L::kMaxGapS) {
       std::snprintf(b, sizeof b,
                     "a gap of %.6g s in the log (t_s %.9g -> %.9g); the replay crosses gaps of at most %.3g s open "
-                    "loop with the inputs held: longer than that it is two runs, so cut the file there",
+                    "loop, guessing the inputs: longer than that it is two runs, so cut the file there",
                     dt, t_last_s_, t[r], L::kMaxGapS);
       fail_at(line, telemetry::name(Col::t_s), b);
     }

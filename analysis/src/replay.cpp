@@ -29,6 +29,7 @@ double Replayer::start(const ReplayStart& s) {
   // valve rests on the flank that comes closest and the misfit shows from the first row on.
   model_.settle_nearest(state_, s.p0_pa, s.motor0_rad, 0.0);
   last_t_s_ = s.t0_s;
+  last_motor_rad_ = s.motor0_rad;  // the first encoder angle, or the first command (never ramped: no encoder)
   burned_kg_ = 0;
   return state_.s.p_meas_pa;
 }
@@ -128,8 +129,17 @@ bool replay(const plant::Plant& model, const ReplayData& data, std::span<double>
     } catch (const std::out_of_range&) {
       return false;
     }
+    // A decimated copy holds the mean command of the rows it replaces (decimate): its steps are held.
+    const bool interpolate = data.decimation == 1;
     for (std::size_t k = b + 1; k < e; ++k) {
-      yhat[k] = r.advance(data.t_s[k], data.cmd_held_rad[k], enc ? data.motor_rad[k] : plant::kNaN);
+      const double motor = enc ? data.motor_rad[k] : plant::kNaN;
+      if (interpolate) {
+        // The command logged at row k is held over the next step; the last row's is not kept (nothing follows it).
+        const double cmd_row = k + 1 < e ? data.cmd_held_rad[k + 1] : data.cmd_held_rad[k];
+        yhat[k] = r.advance_interpolated(data.t_s[k], data.cmd_held_rad[k], cmd_row, motor);
+      } else {
+        yhat[k] = r.advance(data.t_s[k], data.cmd_held_rad[k], motor);
+      }
     }
     for (std::size_t k = b; k < e; k += 97) {
       if (!std::isfinite(yhat[k])) return false;

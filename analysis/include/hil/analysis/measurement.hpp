@@ -32,8 +32,8 @@ struct MeasurementRows {
 
 // What a measurement file must satisfy beyond being numeric and in time order. Every bound is a
 // physical statement about the rig, not a tuning knob:
-//  - time: a gap between two rows of at most kMaxGapS (the replay crosses a gap open loop with the
-//    inputs held; longer than that it is two runs, not a dropout), and on average at least one row
+//  - time: a gap between two rows of at most kMaxGapS (the replay crosses a gap open loop, the
+//    inputs interpolated; longer than that it is two runs, not a dropout), and on average at least one row
 //    per kMaxMeanPeriodS from the first row to any row k: t(k) - t(0) <= kMaxGapS + k kMaxMeanPeriodS
 //    (the chamber's ~0.1 s dynamics must be sampled; this also bounds the replay's work at about
 //    two plant steps per row, whatever the time stamps say);
