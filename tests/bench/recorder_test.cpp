@@ -8,6 +8,7 @@
 #include "hil/bench/server/runner.hpp"
 #include "hil/csv_reader.hpp"
 #include "loop_fixture.hpp"
+#include "small_disk.hpp"
 
 using namespace hil::bench;
 using namespace std::chrono_literals;
@@ -223,4 +224,86 @@ TEST(RunRecord, HostileFilesNameTheFileAndTheKey) {
   EXPECT_NE(msg.find("'config' is missing"), std::string::npos) << msg;
   EXPECT_NE(msg.find("run.json"), std::string::npos) << msg;
   EXPECT_EQ(refused(good.dump()), "(accepted)");
+}
+
+namespace {
+
+// A run folder as a server leaves it when it dies mid-run: run.json says running, the 1 MiB
+// reserve is still there, the lock is not held.
+std::filesystem::path crashed_run(const std::filesystem::path& runs, const std::string& name) {
+  const auto dir = runs / name;
+  std::filesystem::create_directories(dir);
+  RunRecord r = ended_record();
+  r.ended = false;
+  r.trip.reset();
+  r.periods_run.reset();
+  r.loop = nullptr;
+  r.telemetry.reset();
+  r.stop_utc.reset();
+  r.reason.reset();
+  r.outcome = Outcome::running;
+  write_run_record(dir, r);
+  std::ofstream(dir / ".reserve", std::ios::binary) << std::string(1 << 20, '\0');
+  std::ofstream(dir / "telemetry.csv") << "t_s,p_meas_mpa\n0,1.2\n0.001,1.2\n0.002,1.2\n";
+  return dir;
+}
+
+}  // namespace
+
+// On a full disk the restarting server could not append the "interrupted" event and left the run
+// `running` for good (listed as running while the server was idle, its review refused, the reserve
+// kept): the reserve it frees first is the room that line and the record need.
+TEST(InterruptedRuns, ACrashedRunIsMarkedOnAFullDisk) {
+  const hil::test::TempDir base;
+  const hil::test::SmallDisk disk(base.path() / "runs", "4m");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?)";
+  const auto dir = crashed_run(base.path() / "runs", "20261129T080000Z_paper_adaptive_adaptive");
+  // events.jsonl fills its last page exactly: one more line needs a page the disk does not have.
+  std::string events;
+  while (events.size() < 4096 - 64) events += "{\"kind\":\"gap_change\",\"gap_deg\":1.5,\"source\":\"operator\"}\n";
+  events += std::string(4096 - events.size() - 1, ' ') + "\n";
+  std::ofstream(dir / "events.jsonl") << events;
+  disk.fill();
+
+  const auto marked = mark_interrupted_runs(base.path() / "runs");
+  ASSERT_EQ(marked.size(), 1u);
+  const RunRecord r = read_run_record(dir);
+  EXPECT_EQ(r.outcome, Outcome::interrupted);
+  ASSERT_TRUE(r.telemetry.has_value());
+  EXPECT_EQ(r.telemetry->rows_written, 3u);
+  EXPECT_FALSE(std::filesystem::exists(dir / ".reserve"));
+  std::ifstream in(dir / "events.jsonl");
+  std::string line, last;
+  while (std::getline(in, line)) last = line;
+  EXPECT_NE(last.find("\"interrupted\""), std::string::npos) << last;
+}
+
+// A server killed between writing run.json's replacement and renaming it left the record in a
+// temporary: a run with no run.json at all (killed before its first rename) was listed nowhere and
+// kept its 1 MiB reserve; one whose final record was not yet renamed was called interrupted
+// although its server had written how it ended.
+TEST(InterruptedRuns, ARecordLeftInItsTemporaryIsTheRunsRecord) {
+  const hil::test::TempDir runs;
+  const auto first = crashed_run(runs.path(), "20261129T080000Z_paper_adaptive_none");
+  std::filesystem::rename(first / "run.json", first / ".run.json.tmp4242-1");
+  const auto ended = crashed_run(runs.path(), "20261129T080100Z_paper_adaptive_adaptive");
+  const hil::test::TempDir scratch;
+  write_run_record(scratch.path(), ended_record());  // the final record, as its server wrote it
+  std::filesystem::rename(scratch.path() / "run.json", ended / ".run.json.tmp4242-4");
+  const auto nothing = runs.path() / "20261129T080200Z_paper_adaptive_adaptive_paper";  // died before any record
+  std::filesystem::create_directories(nothing);
+  std::ofstream(nothing / ".reserve") << "x";
+
+  const auto marked = mark_interrupted_runs(runs.path());
+  ASSERT_EQ(marked.size(), 1u);
+  EXPECT_EQ(marked[0], first);
+  EXPECT_EQ(read_run_record(first).outcome, Outcome::interrupted);
+  const RunRecord end = read_run_record(ended);
+  EXPECT_EQ(end.outcome, Outcome::aborted);
+  EXPECT_EQ(end.reason, "overpressure: 2.61 MPa > 2.5 MPa");
+  for (const auto& dir : {first, ended, nothing}) {
+    EXPECT_FALSE(std::filesystem::exists(dir / ".reserve")) << dir;
+    for (const auto& f : std::filesystem::directory_iterator(dir))
+      EXPECT_FALSE(f.path().filename().string().starts_with(".run.json.tmp")) << f.path();
+  }
 }

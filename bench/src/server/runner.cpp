@@ -18,6 +18,7 @@
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/config.hpp"
 #include "hil/file_lock.hpp"
+#include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
 #include "hil/units.hpp"
@@ -730,21 +731,74 @@ json final_event_unrecorded(const std::filesystem::path& events) {
 
 }  // namespace
 
+namespace {
+
+// What a server that died left of a replacement of run.json (replace_file writes
+// ".run.json.tmp<pid>-<n>" whole, then renames it over run.json): the newest such file that reads
+// as a run record; every such file is removed. It is the last thing that server said of the run:
+// newer than a run.json that still says running, and all there is when the server died before
+// its first rename (the folder then had no run.json and the run was listed nowhere).
+std::optional<RunRecord> take_unrenamed_record(const std::filesystem::path& dir) {
+  std::optional<RunRecord> newest;
+  std::filesystem::file_time_type newest_time{};
+  std::vector<std::filesystem::path> leftovers;
+  std::error_code ec;
+  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
+    if (f.is_regular_file() && f.path().filename().string().starts_with(".run.json.tmp")) leftovers.push_back(f.path());
+  }
+  for (const auto& file : leftovers) {
+    try {
+      RunRecord r = RunRecord::from_json(read_json_file(file), file.string());
+      const auto t = std::filesystem::last_write_time(file);
+      if (!newest || t > newest_time) newest = std::move(r), newest_time = t;
+    } catch (const std::exception& ex) {
+      spdlog::warn("{}: a half-written run record of a server that died ({}); removed", file.string(), ex.what());
+    }
+    std::filesystem::remove(file, ec);
+  }
+  return newest;
+}
+
+}  // namespace
+
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
   std::vector<std::filesystem::path> marked;
   std::error_code ec;
   for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
     const auto dir = e.path();
-    if (!e.is_directory() || !std::filesystem::is_regular_file(dir / "run.json")) continue;
+    if (!e.is_directory() || !FileLock::free(run_lock_file(dir))) continue;  // a live server's run
+    const bool has_record = std::filesystem::is_regular_file(dir / "run.json");
+    std::optional<RunRecord> unrenamed;
+    if (has_record || std::filesystem::exists(dir / ".reserve")) unrenamed = take_unrenamed_record(dir);
+    if (!has_record && !unrenamed) {
+      if (std::filesystem::remove(dir / ".reserve", ec)) {
+        spdlog::warn("{}: a run folder whose server died before it wrote any record of the run; its reserve is freed",
+                     dir.string());
+      }
+      continue;
+    }
     RunRecord info;
     try {
       info = read_run_record(dir);
     } catch (const std::exception& ex) {
-      spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
-      continue;
+      if (!unrenamed) {
+        spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
+        continue;
+      }
     }
-    if (info.outcome != Outcome::running || !FileLock::free(run_lock_file(dir))) continue;
+    if (unrenamed && (!has_record || info.outcome == Outcome::running)) {
+      info = std::move(*unrenamed);
+      spdlog::warn("{}: the record its server wrote last was not yet in place; taken as the run's record", dir.string());
+      if (info.outcome != Outcome::running) {
+        std::filesystem::remove(dir / ".reserve", ec);
+        write_run_record(dir, info);
+        continue;  // the run's end, as its server wrote it
+      }
+    }
+    if (info.outcome != Outcome::running) continue;
     try {
+      // The reserve is freed first: on a full disk it is the room the lines below need.
+      std::filesystem::remove(dir / ".reserve", ec);
       // What is on disk is the record: a line cut by the crash is removed and counted.
       json trimmed = json::object();
       for (const char* file : {"telemetry.csv", "events.jsonl"}) {
@@ -774,13 +828,19 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
       info.telemetry = tel;
       if (std::filesystem::is_regular_file(dir / "events.jsonl")) {
-        LineFile events(dir / "events.jsonl", /*append=*/true);
-        events.append(
-            json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
-                .dump() +
-            "\n");
+        try {
+          LineFile events(dir / "events.jsonl", /*append=*/true);
+          events.append(
+              json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
+                  .dump() +
+              "\n");
+        } catch (const std::exception& ex) {
+          // The record matters more than the event line: say so in it, and write it.
+          info.interrupted["event_unwritten"] = ex.what();
+          spdlog::error("{}: the interrupted event could not be appended ({}); the run's record says so", dir.string(),
+                        ex.what());
+        }
       }
-      std::filesystem::remove(dir / ".reserve", ec);
       write_run_record(dir, info);
       marked.push_back(dir);
     } catch (const std::exception& ex) {
