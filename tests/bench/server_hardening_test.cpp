@@ -273,6 +273,28 @@ TEST(ServerHardening, ARunWhoseFinalRecordWasNotWrittenIsRestoredNotCalledInterr
   EXPECT_EQ(run["telemetry"]["rows_written"], 3000);
 }
 
+// A second server on the same runs folder (a second terminal, a service started twice) cleaned at
+// its start what it took for a dead server's leftovers: the live server's half-made analyses
+// (which then failed "cannot write ... No such file or directory"), and marked runs. It is now
+// refused before it touches anything; the first server goes on.
+TEST(ServerHardening, ASecondServerOnTheSameRunsFolderIsRefusedAndTouchesNothing) {
+  hil::test::TempDir base;
+  const auto runs = base.path() / "runs";
+  ServerProcess first({"--runs-dir", runs.string()});
+  const auto half_made = runs / "20261129T090000Z_paper_adaptive_none/analyses/.a7.tmp";  // the first server's, in the making
+  std::filesystem::create_directories(half_made);
+  std::ofstream(half_made / "diagnosis.json") << "{}\n";
+  std::string refusal;
+  try {
+    ServerProcess second({"--runs-dir", runs.string()});
+  } catch (const std::runtime_error& e) {
+    refusal = e.what();
+  }
+  EXPECT_NE(refusal.find("another hilbench serve uses the runs folder " + runs.string()), std::string::npos) << refusal;
+  EXPECT_TRUE(std::filesystem::exists(half_made / "diagnosis.json"));
+  EXPECT_EQ(first.client().get("/api/health").status, 200);
+}
+
 // The live server does not list such a run as running while the file says so: it shows the end
 // it keeps, refuses a review (which reads the file) with a 409 that says why, and writes the file
 // as soon as the disk takes it again.

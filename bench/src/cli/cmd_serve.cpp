@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <string>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include <boost/asio/io_context.hpp>
@@ -16,6 +17,7 @@
 #include "commands.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "server/api_server.hpp"
 
@@ -79,6 +81,16 @@ int run_serve(const ServeArgs& args) {
     }
   }
   std::filesystem::create_directories(api.runs_dir);
+  // One server a runs folder: a second one's start cleans what it takes for leftovers (the first
+  // one's half-made reports and analyses) and marks runs. Held until the process ends; the kernel
+  // drops it with a server that dies, so a restart after a crash is never refused.
+  std::optional<hil::FileLock> runs_lock;
+  try {
+    runs_lock.emplace(api.runs_dir / ".server.lock");
+  } catch (const hil::FileLock::Busy&) {
+    throw std::runtime_error("another hilbench serve uses the runs folder " + api.runs_dir.string() + " (it holds " +
+                             (api.runs_dir / ".server.lock").string() + "); give each server its own --runs-dir");
+  }
   // Runs a dead server left "running" get their honest end before anyone lists them.
   for (const auto& dir : mark_interrupted_runs(api.runs_dir)) {
     spdlog::warn("run {}: its server ended during the run; marked interrupted", dir.filename().string());
