@@ -10,10 +10,12 @@
 
 #include <chrono>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <thread>
 
+#include "hil/file_lock.hpp"
 #include "support/run_command.hpp"
 #include "support/temp_file.hpp"
 
@@ -166,6 +168,34 @@ TEST(SimHostileInput, AKilledOrFailedSimLeavesNoHalfMadeFolder) {
   EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "report.html"));
   EXPECT_TRUE(std::filesystem::exists(s.out / "old" / "keep.txt"));
   EXPECT_TRUE(std::filesystem::exists(s.root.path() / "precious.txt"));
+}
+
+// A sim's unpublished folder belongs to a live process when its lock is held, whatever its PID
+// says: a sim in another PID namespace (a container, another host on the same storage) has a PID
+// this one cannot see, and the next sim of the campaign deleted its folder under it (it then
+// failed "cannot write .../summary.json"). A folder whose lock nobody holds is a leftover.
+TEST(SimHostileInput, AnUnpublishedFolderWhoseLockIsHeldIsNotTakenForALeftover) {
+  Sandbox s;
+  const pid_t gone = fork();  // a PID that is not alive here, as another namespace's is
+  if (gone == 0) _exit(0);
+  ASSERT_EQ(waitpid(gone, nullptr, 0), gone);
+  const auto working = s.out / (".x.tmp-" + std::to_string(gone));
+  std::filesystem::create_directories(working / "none");
+  std::optional<hil::FileLock> held(std::in_place, s.out / (".x.tmp-" + std::to_string(gone) + ".lock"));
+  auto r = s.sim(campaign_yaml("name: x"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(working / "none"));
+  EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "report.html"));
+  // Its process ended without cleaning up: the next sim clears the folder and its lock file.
+  held.reset();
+  r = s.sim(campaign_yaml("name: x"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(working));
+  EXPECT_FALSE(std::filesystem::exists(s.out / (".x.tmp-" + std::to_string(gone) + ".lock")));
+  // The second sim replaced the first one's result in place: one whole folder, no leftovers.
+  EXPECT_TRUE(std::filesystem::exists(s.out / "x" / "none" / "summary.json"));
+  for (const auto& e : std::filesystem::directory_iterator(s.out))
+    EXPECT_TRUE(e.path().filename() == "x" || e.path().filename() == "old") << e.path();
 }
 
 // A second Ctrl-C ends the process at once (for work that cannot poll the first): exit 130 either

@@ -1,5 +1,6 @@
 #include "hil/bench/campaign/sim.hpp"
 
+#include <fcntl.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -11,10 +12,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <system_error>
 #include <thread>
 
 #include "sim_report.hpp"
 #include "hil/config.hpp"
+#include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "hil/minmax_decimator.hpp"
 #include "hil/progress_line.hpp"
@@ -98,7 +101,16 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   return out;
 }
 
-// ".NAME.tmp-PID" folders whose process is gone (killed before it could clean up).
+// The lock a sim holds on its unpublished folder ".NAME.tmp-PID" while it works, beside it (not
+// in it: the folder is published as it is).
+std::filesystem::path tmp_dir_lock(const std::filesystem::path& tmp_dir) {
+  return tmp_dir.parent_path() / (tmp_dir.filename().string() + ".lock");
+}
+
+// ".NAME.tmp-PID" folders whose process is gone (killed before it could clean up). Alive is a held
+// lock: the PID alone cannot say, as a sim in another PID namespace (a container, another host on
+// shared storage) is a PID this process does not see, and a dead sim's PID may be reused. A
+// folder without a lock file (a sim of a version before the lock) is judged by its PID.
 void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::string& name) {
   const std::string prefix = "." + name + ".tmp-";
   std::error_code ec;
@@ -108,10 +120,42 @@ void remove_dead_tmp_dirs(const std::filesystem::path& out_dir, const std::strin
     const std::string pid_text = f.substr(prefix.size());
     char* end = nullptr;
     const long pid = std::strtol(pid_text.c_str(), &end, 10);
-    if (pid_text.empty() || *end != '\0' || pid <= 0) continue;
-    if (pid == ::getpid() || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    if (pid_text.empty() || *end != '\0' || pid <= 0 || pid == ::getpid()) continue;
+    const auto lock = tmp_dir_lock(e.path());
+    if (std::filesystem::exists(lock, ec)) {
+      if (!FileLock::free(lock)) continue;  // its sim is working
+    } else if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) {
+      continue;  // alive, or not ours to judge
+    }
     std::filesystem::remove_all(e.path(), ec);
+    std::filesystem::remove(lock, ec);
   }
+}
+
+// Puts the finished folder `tmp_dir` at `final_dir` in one step: the old result (if any) and the
+// new one trade places (renameat2 RENAME_EXCHANGE), then the old one, now at tmp_dir, goes. A
+// process killed at any moment leaves one whole result at final_dir; before, the old one was
+// removed first, and a kill during that removal (a large folder takes seconds) lost both. A file
+// system without the exchange gets two renames, the old result parked at ".NAME.old-PID" between
+// them (a kill there leaves it to be found, never removed).
+void publish_dir(const std::filesystem::path& tmp_dir, const std::filesystem::path& final_dir) {
+  std::error_code ec;
+  if (!std::filesystem::exists(std::filesystem::symlink_status(final_dir, ec))) {
+    std::filesystem::rename(tmp_dir, final_dir);
+    return;
+  }
+  if (::renameat2(AT_FDCWD, tmp_dir.c_str(), AT_FDCWD, final_dir.c_str(), RENAME_EXCHANGE) == 0) {
+    std::filesystem::remove_all(tmp_dir, ec);
+    return;
+  }
+  if (errno != EINVAL && errno != ENOSYS)
+    throw std::system_error(errno, std::generic_category(),
+                            "cannot put " + tmp_dir.string() + " in place of " + final_dir.string());
+  const auto parked = final_dir.parent_path() / ("." + final_dir.filename().string() + ".old-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(parked);
+  std::filesystem::rename(final_dir, parked);
+  std::filesystem::rename(tmp_dir, final_dir);
+  std::filesystem::remove_all(parked, ec);
 }
 
 // `dir` is what a former `hilbench sim` of this campaign left (campaign.yaml, report.html, run
@@ -208,6 +252,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   const auto final_dir = options.out_dir / c.name;
   require_replaceable_output(final_dir);  // before the runs: say it now, not after minutes of work
   const auto tmp_dir = options.out_dir / ("." + c.name + ".tmp-" + std::to_string(::getpid()));
+  const FileLock tmp_lock(tmp_dir_lock(tmp_dir), /*remove_when_released=*/true);  // released after the folder's guard
   struct RemoveUnlessKept {
     std::filesystem::path dir;
     bool keep = false;
@@ -274,8 +319,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
   write_sim_report(c, outcome.runs, tmp_dir / "report.html");
   require_replaceable_output(final_dir);  // again: something may have come in the meantime
-  std::filesystem::remove_all(final_dir);
-  std::filesystem::rename(tmp_dir, final_dir);
+  publish_dir(tmp_dir, final_dir);
   tmp_guard.keep = true;
   outcome.dir = final_dir;
   outcome.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
