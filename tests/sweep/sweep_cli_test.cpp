@@ -200,6 +200,36 @@ TEST(Sweep, AFullDiskKeepsWholeRowsAndTheSameCommandGoesOn) {
   EXPECT_EQ(slurp(out / "sweep.csv"), slurp(reference / "sweep.csv"));
 }
 
+// The outputs of a finished sweep are one result: a disk with room for sweep.csv but not for
+// sweep.json left the new csv alone, and `--status` said "outputs written".
+TEST(Sweep, OutputsAreWrittenAllOrNoneAndTheStatusSaysWhichItIs) {
+  TempDir dir;
+  const auto sweep = write_grid_sweep(dir, "grid.yaml", 10, 12);  // sweep.csv 13 kB, sweep.json 86 kB
+  hil::test::SmallDisk disk(dir.path() / "disk", "1m");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?): the full-disk case needs its own small disk";
+  const auto out = dir.path() / "disk" / "sweep";
+  const std::string command = hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --jobs 2 --quiet";
+  ASSERT_EQ(run_command(command).status, 0);
+  for (const char* f : {"sweep.csv", "sweep.json", "report.html"}) fs::remove(out / f);
+  disk.fill();
+  fs::resize_file(dir.path() / "disk" / "filler",
+                  fs::file_size(dir.path() / "disk" / "filler") - 40 * 1024);  // room for the csv only
+
+  const auto full = run_command(command);
+  EXPECT_EQ(full.status, 1) << full.output;
+  EXPECT_NE(full.output.find("No space left on device"), std::string::npos) << full.output;
+  for (const char* f : {"sweep.csv", "sweep.json", "report.html"}) EXPECT_FALSE(fs::exists(out / f)) << f;
+  const auto status = run_command(hilbench() + " sweep --status " + q(out));
+  EXPECT_NE(status.output.find("120 of 120 points done, 0 missing\n"), std::string::npos) << status.output;
+
+  disk.unfill();
+  ASSERT_EQ(run_command(command).status, 0);
+  EXPECT_NE(run_command(hilbench() + " sweep --status " + q(out)).output.find("0 missing; outputs written"), std::string::npos);
+  fs::remove(out / "sweep.json");  // by hand, or by an older hilbench
+  EXPECT_NE(run_command(hilbench() + " sweep --status " + q(out)).output.find("0 missing; outputs incomplete"),
+            std::string::npos);
+}
+
 // Lines of a rows file that are no row of the plan (damaged, or edited by hand) are counted and
 // shown; their points count as missing and run again, to the same sweep.csv.
 TEST(Sweep, DamagedRowLinesAreShownAndTheirPointsRunAgain) {

@@ -230,9 +230,11 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     replace_file(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
     replace_file(folder / "plant.yaml", y.plant);
   }
-  replace_file(dir / "sweep.csv", csv);
-  replace_file(dir / "sweep.json", out.dump(1) + "\n");
-  doc.write(dir / "report.html");
+  // The three outputs are one result: all replaced or none (a full disk used to leave a new
+  // sweep.csv beside no sweep.json, and `--status` called that "outputs written").
+  const std::string json_text = out.dump(1) + "\n", html = doc.html();
+  const FileText outputs[] = {{dir / "sweep.csv", {csv}}, {dir / "sweep.json", {json_text}}, {dir / "report.html", {html}}};
+  replace_files(outputs);
   return {0, passed, order};
 }
 

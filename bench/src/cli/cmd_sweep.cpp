@@ -307,12 +307,15 @@ int run_status(const SweepArgs& args) {
   long damaged = 0;
   const auto rows = read_rows(dir, plan, &damaged);
   const long done = static_cast<long>(rows.size());
-  // The outputs are of every point; with points missing, a sweep.csv there is from an earlier state.
-  const bool outputs = std::filesystem::exists(dir / "sweep.csv");
+  // The outputs are of every point; with points missing, those there are from an earlier state.
+  // They are written all or none; one missing (an older hilbench, a hand) is said, not counted as written.
+  int outputs = 0;
+  for (const char* f : kSweepOutputs) outputs += std::filesystem::is_regular_file(dir / f) ? 1 : 0;
   std::printf("sweep %s: %ld of %ld points done, %ld missing%s\n", plan.name.c_str(), done, plan.size(), plan.size() - done,
-              !outputs              ? ""
-              : done == plan.size() ? "; outputs written"
-                                    : "; the outputs there are out of date (written before points went missing)");
+              outputs == 0                          ? ""
+              : outputs < std::ssize(kSweepOutputs) ? "; outputs incomplete (not all of sweep.csv, sweep.json, report.html)"
+              : done == plan.size()                 ? "; outputs written"
+                                                    : "; the outputs there are out of date (written before points went missing)");
   say_damaged_rows(stdout, dir, damaged);
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) return 0;

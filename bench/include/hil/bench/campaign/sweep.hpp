@@ -183,6 +183,8 @@ struct SweepOutputs {
 // sweep.csv, sweep.json, report.html and, for the worst points, points/<p>/campaign.yaml and
 // plant.yaml, once every point has its row.
 SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan);
+// The files write_sweep_outputs writes in DIR, all or none.
+inline constexpr const char* kSweepOutputs[] = {"sweep.csv", "sweep.json", "report.html"};
 
 // One point's row of sweep.csv (and the header): fixed formatting, so the file is the same bytes
 // whoever computed the rows.
