@@ -12,6 +12,7 @@
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "json_out.hpp"
+#include "log_checks.hpp"
 #include "text.hpp"
 
 namespace hil::analysis {
@@ -29,6 +30,15 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
   (void)first_line;
   Replayer rep(quiet);
   const double yhat0 = rep.start(start);
+  LogChecks checks = [&] {
+    try {
+      const auto [lo, hi] = quiet.pressure_range_pa();
+      return LogChecks(lo, hi);
+    } catch (const std::exception&) {
+      return LogChecks(plant::kNaN, plant::kNaN);  // a model without a reach: that check is skipped
+    }
+  }();
+  checks.start(start.p0_pa, yhat0, start.motor0_rad);
   if (info) info->start = start;
   ResidualAnalyzer an(opt);
   const bool enc = !first.theta_motor_rad.empty();
@@ -68,6 +78,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
         if (std::abs(d) > mc.max_abs_deg) mc.max_abs_deg = std::abs(d), mc.t_at_max_s = t;
         ++mc.samples;
       }
+      checks.add(t, rows->p_meas_pa[k]);
       first_row = false;
       ++row;
       cmd_prev = cmd;
@@ -76,6 +87,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
     rows = next(buffer) ? &buffer : nullptr;
   }
   ResidualReport r = an.finish();
+  r.log_warnings = checks.warnings(r.noise_sigma_pa);
   if (mc.samples > 0) {
     mc.bias_deg = sum_d / static_cast<double>(mc.samples);
     mc.rmse_deg = std::sqrt(sum_d2 / static_cast<double>(mc.samples));
@@ -356,6 +368,7 @@ ResidualReport run_compare(const CompareOptions& o) {
                 std::to_string(r.rows) + " rows, " + text::num(r.duration_s, 4) + " s, " +
                 (info.has_encoder ? "motor encoder replayed" : "no encoder: the motor model acts on the command") + ").");
   detail::add_summary_table(doc, r);
+  for (const auto& w : r.log_warnings) doc.note(w, true);
   doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
   add_residual_sections(doc, r, "time", "model");
   // Both or neither: a full disk never leaves this JSON beside an older report.

@@ -30,6 +30,10 @@ nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
                       {"searched_on_grid", p.grid}});
     if (p.file >= 0) params.back()["file_index"] = p.file;
     if (std::isfinite(p.lo) && std::isfinite(p.hi)) params.back()["fits_within_one_sigma"] = {p.lo, p.hi};
+    if (std::isfinite(p.search_lo) && std::isfinite(p.search_hi)) {
+      params.back()["search_range"] = {p.search_lo, p.search_hi};
+      params.back()["at_search_limit"] = p.at_search_limit();
+    }
   }
   nlohmann::json j = {{"effect", c.effect},
                       {"variant", c.variant},
@@ -55,8 +59,9 @@ std::string params_text(const CandidateResult& c) {
   std::string s;
   for (const auto& p : c.parameters) {
     s += (s.empty() ? "" : ", ") + p.key + " = " + text::num(p.value, 4);
-    if (std::isfinite(p.sigma)) s += " \u00b1 " + text::num(p.sigma, 2);
+    if (std::isfinite(p.sigma) && !p.at_search_limit()) s += " \u00b1 " + text::num(p.sigma, 2);
     s += p.span_text();
+    s += p.limit_text();
     if (p.file >= 0) s += " (file " + std::to_string(p.file + 1) + ")";
   }
   return s;
@@ -86,7 +91,8 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                      {"noise_floor_fit_pct", number(f.before.noise_floor_fit_pct)},
                      {"fit_before_pct", number(f.before.fit_pct)},
                      {"fit_after_pct", number(f.after.fit_pct)},
-                     {"signature", d.explained ? f.after.signature : f.before.signature}});
+                     {"signature", d.explained ? f.after.signature : f.before.signature},
+                     {"log_warnings", f.before.log_warnings}});
   }
   j["files"] = files;
   // Which fitted parameters the files share (one rig) and which are per file (an event time: the
@@ -163,6 +169,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   for (const auto& n : d.not_identifiable) ni.push_back({{"effect", n.effect}, {"reason", n.reason}});
   j["not_identifiable"] = ni;
   j["signature"] = d.explained ? d.after.signature : d.before.signature;  // the first file's (files[i] has each)
+  j["log_warnings"] = d.before.log_warnings;                              // the first file's, likewise
   nlohmann::json peaks = nlohmann::json::array();
   for (const auto& p : (d.explained ? d.after : d.before).diagnostics.peaks)
     peaks.push_back({{"hz", p.hz}, {"power_share", p.power_share}, {"name", p.name}});

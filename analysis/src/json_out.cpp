@@ -118,6 +118,7 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
                       {"vs_dpdt", binned_json(d.vs_dpdt)},
                       {"vs_pressure", binned_json(d.vs_pressure)}};
   j["signature"] = r.signature;
+  j["log_warnings"] = r.log_warnings;
   if (r.motor.present) {
     j["motor_channel"] = {{"what", "encoder - drive model fed with the command (the pressure replay uses the encoder)"},
                           {"rmse_deg", number(r.motor.rmse_deg)},
@@ -162,6 +163,7 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
     }
     s += "\n";
   }
+  for (const auto& line : r.log_warnings) s += "  ! " + line + "\n";
   for (const auto& line : r.signature) s += "  - " + line + "\n";
   return s;
 }

@@ -100,6 +100,19 @@ std::vector<MultiCase> cases() {
                           "sensor_bias", "{offset_kpa: 25, gain: 1.0}");
       },
       {{"backlash_change", "gap_deg", 1.7}, {"throat_erosion", "rate_mm2_per_s", 0.5}, {"sensor_bias", "offset_kpa", 25}});
+  // Found by a tester on a logger's file (no encoder): the revisit took the sensor lag out again
+  // although the file decisively wanted it (dBIC -220), because what it added was under 5 % of the
+  // noise power, and the transport delay took its place at 39 ms for 25.
+  add("delay_lag_bias", 15,
+      "  initial_mpa: 1.2\n  profile:\n    - random: {from_s: 1, directions: alternate, min_mpa: 0.9, max_mpa: 1.6, "
+      "min_change_mpa: 0.12, dwell_s: [1.0, 2.5], ramp_probability: 0.3, ramp_s: [0.2, 1.0]}\n",
+      false, 2.0,
+      [](const Plant& p) {
+        return with_block(with_block(with_block(p, "transport_delay", "delay_s: 0.025"), "sensor_lag", "time_constant_s: 0.015"),
+                          "sensor_bias", "{offset_kpa: -25, gain: 1.0}");
+      },
+      {{"transport_delay", "delay_s", 0.025}, {"sensor_lag", "time_constant_s", 0.015}, {"sensor_bias", "offset_kpa", -25}});
+  out.back().scenario.compensation = "none";  // the integral controller's smooth command, as on that file
   // Every pair of the eight candidates (full matrix only): magnitudes and a reference the single
   // suite does not use; no encoder, so the command-side effects are identifiable.
   struct One {

@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -678,6 +680,119 @@ TEST(Replay, ACoarseLogIsReplayedWithoutAMadeUpLag) {
   ASSERT_EQ(d.at("added").size(), 1u) << d.at("summary");
   EXPECT_EQ(d.at("added")[0].at("effect"), "sensor_lag");
   EXPECT_NEAR(hil::test::param(d.at("added")[0], "time_constant_s"), 0.02, 0.001);
+}
+
+// A copy of a measurement file with its pressure column (MPa) changed row by row: f(row, t_s,
+// p_mpa) returns the new value, or NaN to drop the row.
+fs::path with_pressure(const fs::path& file, const fs::path& out, const std::function<double(std::size_t, double, double)>& f) {
+  std::ifstream in(file);
+  std::ofstream o(out);
+  std::string line;
+  std::vector<std::string> header;
+  std::size_t p_col = 0, t_col = 0, row = 0;
+  const auto split = [](const std::string& l) {
+    std::vector<std::string> cells;
+    std::stringstream ss(l);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    return cells;
+  };
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#' || header.empty()) {
+      if (!line.empty() && line[0] != '#') {
+        header = split(line);
+        p_col = static_cast<std::size_t>(std::find(header.begin(), header.end(), "p_meas_mpa") - header.begin());
+        t_col = static_cast<std::size_t>(std::find(header.begin(), header.end(), "t_s") - header.begin());
+      }
+      o << line << '\n';
+      continue;
+    }
+    auto cells = split(line);
+    const double p = f(row++, std::stod(cells[t_col]), std::stod(cells[p_col]));
+    if (std::isnan(p)) continue;
+    char b[32];
+    std::snprintf(b, sizeof b, "%.6f", p);
+    cells[p_col] = b;
+    for (std::size_t i = 0; i < cells.size(); ++i) o << (i ? "," : "") << cells[i];
+    o << '\n';
+  }
+  return out;
+}
+
+std::string log_warnings_of(const nlohmann::json& compare_json) {
+  std::string all;
+  for (const auto& w : compare_json.at("log_warnings")) all += w.get<std::string>() + "\n";
+  return all;
+}
+
+TEST(CompareLog, WhatTheFileItselfShowsIsSaidFirst) {
+  // A logger's damage that a replay cannot undo, each on an otherwise clean log of the nominal
+  // plant. Before, each was fitted as physics: a pressure updated at 100 Hz and logged at 1 kHz
+  // as a 5 ms sensor lag and "mains hum", a 3 s dropout as "something changed at 9.75 s", a
+  // clipped transducer as a burn-rate exponent of 0.28, a file in bar as a burn rate at the end
+  // of its search range. None of them was said.
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.name = "clean";
+  s.compensation = "none";
+  s.encoder = false;
+  s.duration_s = 20;
+  s.seed = 17;
+  s.reference_yaml = hil::test::reference_random(6, 0.9, 1.6, 0.6, 1.5);
+  const auto clean = hil::test::make_measurement(s, dir.path());
+  const auto model = hil::test::nominal_model();
+  const auto compare = [&](const fs::path& data) {
+    return log_warnings_of(hil::test::run_compare(model, data, dir.path() / ("cmp_" + data.stem().string())));
+  };
+  EXPECT_EQ(compare(clean), "");
+
+  double held = 0;
+  const auto stale = with_pressure(clean, dir.path() / "stale.csv", [&](std::size_t k, double, double p) {
+    if (k % 10 == 0) held = p;  // a reading updated every 10 ms, logged every 1 ms
+    return held;
+  });
+  const std::string w_stale = compare(stale);
+  EXPECT_NE(w_stale.find("repeat the pressure of the row before, in runs of about 10 rows"), std::string::npos) << w_stale;
+  const auto d = hil::test::run_diagnose(model, stale, dir.path() / "diag_stale");
+  ASSERT_FALSE(d.at("summary").empty());
+  EXPECT_EQ(d.at("summary")[0].get<std::string>().rfind("Log: ", 0), 0u) << d.at("summary");
+  EXPECT_EQ(d.at("log_warnings").size(), 1u);
+
+  const auto holed = with_pressure(clean, dir.path() / "hole.csv",
+                                   [](std::size_t, double t, double p) { return t >= 10 && t < 13 ? hil::plant::kNaN : p; });
+  const std::string w_hole = compare(holed);
+  EXPECT_NE(w_hole.find("1 hole in the log (3 s at 10 s"), std::string::npos) << w_hole;
+
+  const auto clipped =
+      with_pressure(clean, dir.path() / "clip.csv", [](std::size_t, double, double p) { return std::min(p, 1.45); });
+  const std::string w_clip = compare(clipped);
+  EXPECT_NE(w_clip.find("read exactly 1.45 MPa, the file's highest reading"), std::string::npos) << w_clip;
+
+  const auto bar = with_pressure(clean, dir.path() / "bar.csv", [](std::size_t, double, double p) { return 10 * p; });
+  const std::string w_bar = compare(bar);
+  EXPECT_NE(w_bar.find("far above what the model makes at any valve angle"), std::string::npos) << w_bar;
+}
+
+TEST(DiagnoseText, AValueAtTheEndOfItsSearchRangeIsNotGivenAsAMeasurement) {
+  // A file logged in bar: the burn rate fitted to 10 mm/s, the top of its 2.5..10 range, was
+  // printed "10 +- 1.4" like any finding.
+  hil::analysis::FittedParam p;
+  p.key = "burn_rate_mm_s_at_1mpa";
+  p.search_lo = 2.5;
+  p.search_hi = 10;
+  p.sigma = 1.4;
+  for (const double v : {10.0, 9.995, 2.5, 2.504}) {
+    p.value = v;
+    EXPECT_TRUE(p.at_search_limit()) << v;
+    EXPECT_NE(p.limit_text().find("at the end of its search range, 2.5 to 10"), std::string::npos) << v;
+  }
+  for (const double v : {5.0, 9.98, 2.52}) {
+    p.value = v;
+    EXPECT_FALSE(p.at_search_limit()) << v;
+    EXPECT_EQ(p.limit_text(), "") << v;
+  }
+  p.search_lo = p.search_hi = std::numeric_limits<double>::quiet_NaN();  // a grid parameter: no range
+  p.value = 10;
+  EXPECT_FALSE(p.at_search_limit());
 }
 
 TEST(Replay, CandidatesAreTheBuiltInEightPlusUserEffects) {

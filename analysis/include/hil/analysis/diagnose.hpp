@@ -51,6 +51,13 @@ struct FittedParam {
   double lo = std::numeric_limits<double>::quiet_NaN(), hi = std::numeric_limits<double>::quiet_NaN();
   bool located_between() const { return std::isfinite(lo) && std::isfinite(hi) && hi > lo; }
   std::string span_text() const;  // " [lo to hi fit as well]", or empty
+  // The range the candidate searches this parameter in (candidates.hpp FreeParam::lo/hi; NaN for a
+  // grid parameter). A value at an end of it is no measurement: the data wanted a value beyond
+  // what the candidate allows (a sensor gain of 2.0, a burn rate at twice the nominal on a file
+  // logged in bar), so the effect likely stands in for something else.
+  double search_lo = std::numeric_limits<double>::quiet_NaN(), search_hi = std::numeric_limits<double>::quiet_NaN();
+  bool at_search_limit() const;
+  std::string limit_text() const;  // " (at the end of its search range, LO to HI: ...)", or empty
 };
 
 struct CandidateResult {

@@ -114,7 +114,10 @@ struct ResidualReport {
   double reference_cycle_hz = 0;  // same for p_ref when present
   Diagnostics diagnostics;
   std::vector<std::string> signature;  // plain-language description of the residual
-  MotorChannel motor;                  // filled by the replay (compare.hpp)
+  // What the file itself shows that the replay cannot undo (holes, stale or clipped readings,
+  // another unit): filled by the replay (compare.hpp, log_checks.hpp), said before anything else.
+  std::vector<std::string> log_warnings;
+  MotorChannel motor;  // filled by the replay (compare.hpp)
   ReportSeries series;
 };
 
