@@ -97,6 +97,15 @@ class ModbusServer {
       // time. A TCP request is one small write whose bytes arrive together: 20 ms is plenty, and
       // then that client is dropped. (A serial line's characters do come apart: RTU keeps it.)
       modbus_set_byte_timeout(ctx_, 0, 20000);
+      // A request libmodbus refuses itself (a function code it does not serve, such as 0x41 or
+      // 0x2b, or a read of 0 registers) is answered by modbus_reply only after it has slept the
+      // context's response timeout (0.5 s by default) and flushed what else came, so that the rest
+      // of a bad frame is not read as a new request: on this one thread, every other client
+      // waited 0.5 s per refused request. Over TCP a request is one write, its bytes all in by
+      // then: 1 ms (libmodbus refuses 0). RTU keeps libmodbus' 0.5 s: a serial frame trickles in
+      // (256 bytes take 0.27 s at 9600 baud), the flush must wait for its tail, and the line's
+      // one master waits for that answer anyway.
+      modbus_set_response_timeout(ctx_, 0, 1000);
       port_ = cfg_.port;
       if (!listen()) throw ModbusError(who_ + ": cannot listen: " + std::strerror(errno));
     } else if (modbus_connect(ctx_) == -1) {
