@@ -143,6 +143,18 @@ class ModbusServer {
     clients_.clear();
   }
 
+  // A TCP client just accepted.
+  void add_client(int fd) {
+    // A reply that cannot be sent within 20 ms drops that client (handle() fails): a client that
+    // sends requests and never reads the replies filled its buffers, and then the server's
+    // blocking send held this thread, every other client with it, for as long as that client
+    // stayed (and a SIGTERM of `hilbench plant` waited for it). A reply is one small write into
+    // the socket's buffer; 20 ms, as for a request's bytes.
+    const timeval send_timeout{0, 20000};
+    ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof send_timeout);
+    clients_.push_back(fd);
+  }
+
   void run() {
     std::vector<std::uint8_t> query(MODBUS_MAX_ADU_LENGTH);
     while (!stop_) {
@@ -190,7 +202,7 @@ class ModbusServer {
           if (fd >= FD_SETSIZE || clients_.size() >= kMaxClients) {
             ::close(fd);
           } else {
-            clients_.push_back(fd);
+            add_client(fd);
           }
         }
       }
@@ -202,31 +214,32 @@ class ModbusServer {
         }
         modbus_set_socket(ctx_, fd);
         const int rc = modbus_receive(ctx_, query.data());
-        if (rc == -1) {  // the client left, or sent garbage
+        // -1: the client left or sent garbage; or its reply could not be sent (it does not read).
+        if (rc == -1 || (rc > 0 && !handle(query.data(), rc))) {
           ::close(fd);
           clients_.erase(clients_.begin() + static_cast<std::ptrdiff_t>(i));
           continue;
         }
-        if (rc > 0) handle(query.data(), rc);
         ++i;
       }
     }
   }
 
-  void handle(const std::uint8_t* q, int len) {
+  // False when the reply could not be sent.
+  bool handle(const std::uint8_t* q, int len) {
     ++requests_;
-    if (silent) return;
+    if (silent) return true;
     if (const long long d = delay_us; d > 0) std::this_thread::sleep_for(std::chrono::microseconds(d));
     const std::uint8_t function = q[modbus_get_header_length(ctx_)];
     const bool write = function == 0x06 || function == 0x10 || function == 0x16 || function == 0x17;
     if (const int code = write && write_exception != 0 ? write_exception.load() : exception.load(); code != 0) {
-      modbus_reply_exception(ctx_, q, static_cast<unsigned>(code));
-      return;
+      return modbus_reply_exception(ctx_, q, static_cast<unsigned>(code)) != -1;
     }
     std::lock_guard lock(model_mutex_);
     refresh_(mapping_);
-    modbus_reply(ctx_, q, len, mapping_);
+    const int sent = modbus_reply(ctx_, q, len, mapping_);
     if (write) apply_(mapping_);
+    return sent != -1;
   }
 
   ModbusLinkConfig cfg_;

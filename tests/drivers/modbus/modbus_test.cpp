@@ -450,6 +450,72 @@ TEST(ModbusTcp, ARefusedRequestHoldsTheOthersBriefly) {
   ::close(good);
 }
 
+// A client that sends requests and never reads the replies: once its receive buffer and the
+// server's send buffer were full, the server's send blocked, on the one thread that serves every
+// client, for as long as that client stayed connected (SIGTERM of `hilbench plant` waited for it
+// too). A reply that cannot be sent within 20 ms now drops that client. The flooder pipelines
+// requests until its own sends have made no progress for 200 ms, and stays connected while
+// another client asks: that client is answered within libmodbus' default response timeout
+// (0.5 s). The old server never answered it.
+TEST(ModbusTcp, AClientThatDoesNotReadItsRepliesIsDropped) {
+  TcpTransducer t;
+  const int good = connect_loopback(t.emulator.port());
+  ASSERT_GE(good, 0);
+  const int flooder = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(flooder, 0);
+  const int small_bytes = 4096;  // its replies fill this soon
+  ::setsockopt(flooder, SOL_SOCKET, SO_RCVBUF, &small_bytes, sizeof small_bytes);
+  ::setsockopt(flooder, SOL_SOCKET, SO_SNDBUF, &small_bytes, sizeof small_bytes);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(t.emulator.port()));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::connect(flooder, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::fcntl(flooder, F_SETFL, O_NONBLOCK), 0);
+
+  // Pipelined requests, never a reply read, until the sends stall 200 ms (or the server drops it).
+  std::vector<std::uint8_t> burst;
+  for (int i = 0; i < 64; ++i) {
+    const auto r = read_request(static_cast<std::uint8_t>(i));
+    burst.insert(burst.end(), r.begin(), r.end());
+  }
+  std::size_t at = 0;  // into the burst, so requests stay whole on the wire
+  std::size_t sent_bytes = 0;
+  const auto give_up = std::chrono::steady_clock::now() + 60s;
+  bool stalled = false, dropped = false;
+  while (!stalled && !dropped && std::chrono::steady_clock::now() < give_up) {
+    const ssize_t n = ::send(flooder, burst.data() + at, burst.size() - at, MSG_NOSIGNAL);
+    if (n > 0) {
+      at = (at + static_cast<std::size_t>(n)) % burst.size();
+      sent_bytes += static_cast<std::size_t>(n);
+    } else if (n < 0 && errno == EAGAIN) {
+      pollfd p{flooder, POLLOUT, 0};
+      stalled = ::poll(&p, 1, 200) == 0;
+      dropped = (p.revents & (POLLERR | POLLHUP)) != 0;
+    } else {
+      dropped = true;  // reset by the server
+    }
+  }
+  ASSERT_TRUE(stalled || dropped) << "the flood neither stalled nor was dropped after " << sent_bytes << " bytes";
+
+  // The flooder is still connected (its descriptor open); another client is answered.
+  const auto whole = read_request(200);
+  const auto reply = ask(good, whole.data(), whole.size(), 500ms);
+  EXPECT_GE(reply.size(), 9u) << "no reply within 0.5 s while a client that does not read was connected (" << sent_bytes
+                              << " bytes of requests, " << (stalled ? "stalled" : "dropped") << ")";
+  if (reply.size() >= 9) EXPECT_EQ(reply[1], 200);
+  // That client was let go: end of file or a reset once its unread replies are drained.
+  EXPECT_TRUE(eventually(
+      [&] {
+        std::array<std::uint8_t, 4096> sink{};
+        const ssize_t n = ::recv(flooder, sink.data(), sink.size(), MSG_DONTWAIT);
+        return n == 0 || (n < 0 && errno != EAGAIN);
+      },
+      5s));
+  ::close(flooder);
+  ::close(good);
+}
+
 TEST(ModbusTcp, ExceptionsAreSurfacedByName) {
   TcpTransducer t;
   t.emulator.set_exception(4);
