@@ -7,9 +7,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
@@ -139,7 +142,7 @@ class ModbusServer {
   }
 
   void close_all() {
-    for (int fd : clients_) ::close(fd);
+    for (const Client& c : clients_) ::close(c.fd);
     clients_.clear();
   }
 
@@ -152,7 +155,22 @@ class ModbusServer {
     // the socket's buffer; 20 ms, as for a request's bytes.
     const timeval send_timeout{0, 20000};
     ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof send_timeout);
-    clients_.push_back(fd);
+    if (clients_.size() >= kMaxClients) {
+      // Full: the client idle the longest gives way. Closing the newcomer instead let 64 idle
+      // connections (a tool that opens and forgets them) lock every other master out for good.
+      const auto idlest = std::min_element(clients_.begin(), clients_.end(),
+                                           [](const Client& a, const Client& b) { return a.active < b.active; });
+      ::close(idlest->fd);
+      clients_.erase(idlest);
+      if (!said_full_) {
+        said_full_ = true;
+        std::fprintf(stderr,
+                     "%s: %zu clients connected on port %d, the most it serves: each newcomer takes the place of the "
+                     "one idle the longest (said once)\n",
+                     who_.c_str(), kMaxClients, port_);
+      }
+    }
+    clients_.push_back({fd, std::chrono::steady_clock::now()});
   }
 
   void run() {
@@ -179,7 +197,7 @@ class ModbusServer {
         if (refuse && listen_fd_ >= 0) ::close(listen_fd_), listen_fd_ = -1;
         if (!refuse && listen_fd_ < 0) listen();
         if (listen_fd_ >= 0) add(listen_fd_);
-        for (int fd : clients_) add(fd);
+        for (const Client& c : clients_) add(c.fd);
       } else if (modbus_get_socket(ctx_) >= 0) {
         add(modbus_get_socket(ctx_));
       }
@@ -193,21 +211,8 @@ class ModbusServer {
           modbus_flush(ctx_);
         continue;
       }
-      if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
-        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
-        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
-        // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process), and a
-        // device has few masters: past kMaxClients a newcomer is closed at once.
-        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
-          if (fd >= FD_SETSIZE || clients_.size() >= kMaxClients) {
-            ::close(fd);
-          } else {
-            add_client(fd);
-          }
-        }
-      }
       for (std::size_t i = 0; i < clients_.size();) {
-        const int fd = clients_[i];
+        const int fd = clients_[i].fd;
         if (!FD_ISSET(fd, &rd)) {
           ++i;
           continue;
@@ -220,7 +225,24 @@ class ModbusServer {
           clients_.erase(clients_.begin() + static_cast<std::ptrdiff_t>(i));
           continue;
         }
+        clients_[i].active = std::chrono::steady_clock::now();
         ++i;
+      }
+      // Newcomers after the clients' requests: a client dropped for a newcomer frees its descriptor
+      // number, which a later newcomer may get, and rd would say that one is readable.
+      if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
+        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
+        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
+        // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process): such a
+        // newcomer is closed at once. A device has few masters: past kMaxClients, add_client()
+        // drops the longest idle.
+        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
+          if (fd >= FD_SETSIZE) {
+            ::close(fd);
+          } else {
+            add_client(fd);
+          }
+        }
       }
     }
   }
@@ -251,7 +273,12 @@ class ModbusServer {
   in_addr_t listen_address_ = htonl(INADDR_ANY);
   int port_ = 0;
   static constexpr std::size_t kMaxClients = 64;
-  std::vector<int> clients_;
+  struct Client {
+    int fd;
+    std::chrono::steady_clock::time_point active;  // accepted, or its last request
+  };
+  std::vector<Client> clients_;
+  bool said_full_ = false;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> requests_{0};
   std::mutex model_mutex_;

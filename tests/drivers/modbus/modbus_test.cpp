@@ -279,8 +279,9 @@ TEST(ModbusTcp, CancelEndsAnActivateThatWaitsForTheEnabledBit) {
   }
 }
 
-// More masters than a device takes, and descriptors past FD_SETSIZE: the emulator closes the
-// connections past its cap of 64 and those it could not watch with select(), and goes on serving.
+// More masters than a device takes, and descriptors past FD_SETSIZE: the emulator keeps at most
+// 64 connections (a newcomer past them takes the place of the longest idle), closes those it
+// could not watch with select(), and goes on serving.
 // It used to abort the whole process ("bit out of range 0 - FD_SETSIZE on fd_set") once a
 // descriptor passed 1023. This took 1100 real connections (69 s: the emulator accepted one per
 // round, its backlog of 8 overflowed and each dropped SYN cost a 1 s retry); now the descriptor
@@ -324,7 +325,7 @@ TEST(ModbusTcp, AConnectionFloodDoesNotBringTheEmulatorDown) {
   close_all(high);
   close_all(filler);
 
-  // Past the cap: of 80 idle connections the emulator keeps 64 and closes 16.
+  // Past the cap: of 80 idle connections the emulator keeps 64 and closes 16 (the first ones).
   std::vector<int> flood;
   for (int i = 0; i < 80; ++i) flood.push_back(connect());
   ASSERT_EQ(std::count(flood.begin(), flood.end(), -1), 0);
@@ -514,6 +515,40 @@ TEST(ModbusTcp, AClientThatDoesNotReadItsRepliesIsDropped) {
       5s));
   ::close(flooder);
   ::close(good);
+}
+
+// 64 idle connections (the cap: a device has few masters, and select() watches a bounded set)
+// locked every other master out for as long as they stayed: each newcomer was closed at once. Now
+// a newcomer at the cap takes the place of the client idle the longest, here the first of them.
+// The old server closed the newcomer (end of file, no reply).
+TEST(ModbusTcp, IdleConnectionsAtTheCapGiveWayToANewClient) {
+  TcpTransducer t;
+  std::vector<int> idle;
+  for (int i = 0; i < 64; ++i) {
+    idle.push_back(connect_loopback(t.emulator.port()));
+    ASSERT_GE(idle.back(), 0);
+    if (i == 0) std::this_thread::sleep_for(30ms);  // the first is unambiguously the longest idle
+  }
+  std::this_thread::sleep_for(50ms);  // all 64 accepted
+  const int newcomer = connect_loopback(t.emulator.port());
+  ASSERT_GE(newcomer, 0);
+  const auto whole = read_request(7);
+  const auto reply = ask(newcomer, whole.data(), whole.size(), 500ms);
+  ASSERT_GE(reply.size(), 9u) << "the newcomer was not served";
+  EXPECT_EQ(reply[1], 7);
+  // The longest idle was dropped for it, and only that one.
+  char byte;
+  EXPECT_TRUE(eventually([&] { return ::recv(idle[0], &byte, 1, MSG_DONTWAIT) == 0; }, 5s));
+  std::size_t dropped = 0;
+  for (const int fd : idle) dropped += ::recv(fd, &byte, 1, MSG_DONTWAIT) == 0;
+  EXPECT_EQ(dropped, 1u);
+  // The others are still served.
+  const auto again = read_request(8);
+  const auto answer = ask(idle[1], again.data(), again.size(), 500ms);
+  ASSERT_GE(answer.size(), 9u);
+  EXPECT_EQ(answer[1], 8);
+  for (const int fd : idle) ::close(fd);
+  ::close(newcomer);
 }
 
 TEST(ModbusTcp, ExceptionsAreSurfacedByName) {
