@@ -7,9 +7,12 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
@@ -97,6 +100,15 @@ class ModbusServer {
       // time. A TCP request is one small write whose bytes arrive together: 20 ms is plenty, and
       // then that client is dropped. (A serial line's characters do come apart: RTU keeps it.)
       modbus_set_byte_timeout(ctx_, 0, 20000);
+      // A request libmodbus refuses itself (a function code it does not serve, such as 0x41 or
+      // 0x2b, or a read of 0 registers) is answered by modbus_reply only after it has slept the
+      // context's response timeout (0.5 s by default) and flushed what else came, so that the rest
+      // of a bad frame is not read as a new request: on this one thread, every other client
+      // waited 0.5 s per refused request. Over TCP a request is one write, its bytes all in by
+      // then: 1 ms (libmodbus refuses 0). RTU keeps libmodbus' 0.5 s: a serial frame trickles in
+      // (256 bytes take 0.27 s at 9600 baud), the flush must wait for its tail, and the line's
+      // one master waits for that answer anyway.
+      modbus_set_response_timeout(ctx_, 0, 1000);
       port_ = cfg_.port;
       if (!listen()) throw ModbusError(who_ + ": cannot listen: " + std::strerror(errno));
     } else if (modbus_connect(ctx_) == -1) {
@@ -130,8 +142,35 @@ class ModbusServer {
   }
 
   void close_all() {
-    for (int fd : clients_) ::close(fd);
+    for (const Client& c : clients_) ::close(c.fd);
     clients_.clear();
+  }
+
+  // A TCP client just accepted.
+  void add_client(int fd) {
+    // A reply that cannot be sent within 20 ms drops that client (handle() fails): a client that
+    // sends requests and never reads the replies filled its buffers, and then the server's
+    // blocking send held this thread, every other client with it, for as long as that client
+    // stayed (and a SIGTERM of `hilbench plant` waited for it). A reply is one small write into
+    // the socket's buffer; 20 ms, as for a request's bytes.
+    const timeval send_timeout{0, 20000};
+    ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &send_timeout, sizeof send_timeout);
+    if (clients_.size() >= kMaxClients) {
+      // Full: the client idle the longest gives way. Closing the newcomer instead let 64 idle
+      // connections (a tool that opens and forgets them) lock every other master out for good.
+      const auto idlest = std::min_element(clients_.begin(), clients_.end(),
+                                           [](const Client& a, const Client& b) { return a.active < b.active; });
+      ::close(idlest->fd);
+      clients_.erase(idlest);
+      if (!said_full_) {
+        said_full_ = true;
+        std::fprintf(stderr,
+                     "%s: %zu clients connected on port %d, the most it serves: each newcomer takes the place of the "
+                     "one idle the longest (said once)\n",
+                     who_.c_str(), kMaxClients, port_);
+      }
+    }
+    clients_.push_back({fd, std::chrono::steady_clock::now()});
   }
 
   void run() {
@@ -158,7 +197,7 @@ class ModbusServer {
         if (refuse && listen_fd_ >= 0) ::close(listen_fd_), listen_fd_ = -1;
         if (!refuse && listen_fd_ < 0) listen();
         if (listen_fd_ >= 0) add(listen_fd_);
-        for (int fd : clients_) add(fd);
+        for (const Client& c : clients_) add(c.fd);
       } else if (modbus_get_socket(ctx_) >= 0) {
         add(modbus_get_socket(ctx_));
       }
@@ -172,52 +211,57 @@ class ModbusServer {
           modbus_flush(ctx_);
         continue;
       }
-      if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
-        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
-        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
-        // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process), and a
-        // device has few masters: past kMaxClients a newcomer is closed at once.
-        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
-          if (fd >= FD_SETSIZE || clients_.size() >= kMaxClients) {
-            ::close(fd);
-          } else {
-            clients_.push_back(fd);
-          }
-        }
-      }
       for (std::size_t i = 0; i < clients_.size();) {
-        const int fd = clients_[i];
+        const int fd = clients_[i].fd;
         if (!FD_ISSET(fd, &rd)) {
           ++i;
           continue;
         }
         modbus_set_socket(ctx_, fd);
         const int rc = modbus_receive(ctx_, query.data());
-        if (rc == -1) {  // the client left, or sent garbage
+        // -1: the client left or sent garbage; or its reply could not be sent (it does not read).
+        if (rc == -1 || (rc > 0 && !handle(query.data(), rc))) {
           ::close(fd);
           clients_.erase(clients_.begin() + static_cast<std::ptrdiff_t>(i));
           continue;
         }
-        if (rc > 0) handle(query.data(), rc);
+        clients_[i].active = std::chrono::steady_clock::now();
         ++i;
+      }
+      // Newcomers after the clients' requests: a client dropped for a newcomer frees its descriptor
+      // number, which a later newcomer may get, and rd would say that one is readable.
+      if (listen_fd_ >= 0 && FD_ISSET(listen_fd_, &rd)) {
+        // Every pending connection in this round: one per round (and a backlog of 8) let a burst
+        // of connects overflow the backlog, and each dropped SYN cost its client a 1 s retry.
+        // select() cannot watch a descriptor past FD_SETSIZE (glibc aborts the process): such a
+        // newcomer is closed at once. A device has few masters: past kMaxClients, add_client()
+        // drops the longest idle.
+        for (int fd; (fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC)) >= 0;) {
+          if (fd >= FD_SETSIZE) {
+            ::close(fd);
+          } else {
+            add_client(fd);
+          }
+        }
       }
     }
   }
 
-  void handle(const std::uint8_t* q, int len) {
+  // False when the reply could not be sent.
+  bool handle(const std::uint8_t* q, int len) {
     ++requests_;
-    if (silent) return;
+    if (silent) return true;
     if (const long long d = delay_us; d > 0) std::this_thread::sleep_for(std::chrono::microseconds(d));
     const std::uint8_t function = q[modbus_get_header_length(ctx_)];
     const bool write = function == 0x06 || function == 0x10 || function == 0x16 || function == 0x17;
     if (const int code = write && write_exception != 0 ? write_exception.load() : exception.load(); code != 0) {
-      modbus_reply_exception(ctx_, q, static_cast<unsigned>(code));
-      return;
+      return modbus_reply_exception(ctx_, q, static_cast<unsigned>(code)) != -1;
     }
     std::lock_guard lock(model_mutex_);
     refresh_(mapping_);
-    modbus_reply(ctx_, q, len, mapping_);
+    const int sent = modbus_reply(ctx_, q, len, mapping_);
     if (write) apply_(mapping_);
+    return sent != -1;
   }
 
   ModbusLinkConfig cfg_;
@@ -229,7 +273,12 @@ class ModbusServer {
   in_addr_t listen_address_ = htonl(INADDR_ANY);
   int port_ = 0;
   static constexpr std::size_t kMaxClients = 64;
-  std::vector<int> clients_;
+  struct Client {
+    int fd;
+    std::chrono::steady_clock::time_point active;  // accepted, or its last request
+  };
+  std::vector<Client> clients_;
+  bool said_full_ = false;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> requests_{0};
   std::mutex model_mutex_;

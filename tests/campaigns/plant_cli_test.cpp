@@ -19,18 +19,19 @@ using hil::test::source_path;
 
 namespace {
 
-hil::test::CommandResult plant(const std::string& endpoint) {
-  return run_command(hilbench() + " plant --plant " + source_path("configs/plant/nominal.yaml").string() + " --drive-map " +
-                     source_path("drivers/configs/modbus_drive_map.yaml").string() + " --transducer-map " +
+// `timeout 20`: a plant that does not stop at the end of its --duration-s is killed, and fails.
+hil::test::CommandResult plant(const std::string& endpoint, const std::string& options = "") {
+  return run_command("timeout 20 " + hilbench() + " plant --plant " + source_path("configs/plant/nominal.yaml").string() +
+                     " --drive-map " + source_path("drivers/configs/modbus_drive_map.yaml").string() + " --transducer-map " +
                      source_path("drivers/configs/modbus_transducer_map.yaml").string() + " --modbus " + endpoint +
-                     " --duration-s 0.2 --quiet");
+                     " --duration-s 0.2 --quiet" + options);
 }
 
-void expect_refused(const std::string& endpoint, const std::string& why) {
-  const auto r = plant(endpoint);
-  EXPECT_NE(r.status, 0) << endpoint << "\n" << r.output;
-  EXPECT_NE(r.output.find(why), std::string::npos) << endpoint << "\n" << r.output;
-  EXPECT_EQ(r.output.find("plant: ready"), std::string::npos) << endpoint << "\n" << r.output;
+void expect_refused(const std::string& endpoint, const std::string& why, const std::string& options = "") {
+  const auto r = plant(endpoint, options);
+  EXPECT_NE(r.status, 0) << endpoint << options << "\n" << r.output;
+  EXPECT_NE(r.output.find(why), std::string::npos) << endpoint << options << "\n" << r.output;
+  EXPECT_EQ(r.output.find("plant: ready"), std::string::npos) << endpoint << options << "\n" << r.output;
 }
 
 }  // namespace
@@ -70,4 +71,19 @@ TEST(PlantCli, AnyFreePortsAreSaid) {
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("plant: ready"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("tcp port 0"), std::string::npos) << r.output;  // the real ports, not 0
+}
+
+TEST(PlantCli, PeriodIsWithinTheCampaignsRange) {
+  // --period-ms had no range: 30000 ran a plant SIGINT/SIGTERM could not stop for up to 30 s (the
+  // stop waited out the period), 1e13 overflowed the period's conversion and ran flat out on NaN,
+  // 1e-12 busy-spun, and 0 or -1 failed with "plant service: the period must be > 0", naming no
+  // option. A campaign file's period_ms is 0.01..1000; so is this option.
+  for (const std::string ms : {"30000", "1e13", "1e-12", "0", "-1", "0.009", "1000.5"}) {
+    expect_refused("tcp:127.0.0.1:0", "--period-ms: needs a number in 0.01..1000, got '" + ms + "'", " --period-ms " + ms);
+  }
+  for (const std::string ms : {"0.01", "1000"}) {  // the limits themselves run
+    const auto r = plant("tcp:127.0.0.1:0", " --period-ms " + ms);
+    EXPECT_EQ(r.status, 0) << ms << "\n" << r.output;
+    EXPECT_NE(r.output.find("plant: ready"), std::string::npos) << ms << "\n" << r.output;
+  }
 }

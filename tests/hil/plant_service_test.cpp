@@ -41,6 +41,22 @@ TEST(PlantService, StartsInSteadyStateOnTheOpeningFlank) {
   EXPECT_NEAR(units::rad_to_deg(s.theta_motor_rad - s.theta_valve_rad), 0.5, 1e-9);  // half the 1 deg gap
 }
 
+// stop() (SIGINT/SIGTERM of `hilbench plant`) joined a plant thread asleep until its next
+// deadline: with the longest period a campaign allows, 1 s, it waited up to that long (with an
+// unbounded --period-ms, for ever). The plant thread's wait now ends at stop(). Measured here
+// 50 ms into a 1 s period; the old stop took the remaining 0.95 s.
+TEST(PlantService, StopDoesNotWaitOutThePeriod) {
+  auto config = nominal(1.0);
+  config.period_s = 1.0;
+  bench::PlantService service(config);
+  service.start();
+  std::this_thread::sleep_for(50ms);
+  const auto t0 = std::chrono::steady_clock::now();
+  service.stop();
+  const auto took = std::chrono::steady_clock::now() - t0;
+  EXPECT_LT(took, 300ms) << std::chrono::duration<double, std::milli>(took).count() << " ms";
+}
+
 // Opening the valve by 2 deg through a CiA 402 drive lowers the pressure the transducer reports.
 TEST(PlantService, CanDriveMovesThePlant) {
   bench::PlantService service(nominal(1.0));

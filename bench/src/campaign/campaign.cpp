@@ -329,7 +329,6 @@ void read_controller(const Node& n, ctl::ControllerParams& p) {
 // The longest campaign a run may last: a week at the bench, also what bounds the memory of a
 // random profile's items and of a simulation's report.
 constexpr double kMaxDurationS = 7 * 86400.0;
-constexpr double kMinPeriodMs = 0.01;
 constexpr double kMaxPeriods = kMaxDurationS * 1000;  // 7 days at 1 kHz
 
 // A name that becomes a folder: plain, and never "." or ".." (they would name the parent).
@@ -382,7 +381,8 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   root.at("duration_s").require(c.duration_s > 0 && c.duration_s <= kMaxDurationS, "must be > 0 and at most 604800 s (7 days)");
   const double period_ms = root.number("period_ms", 1.0);
   if (auto p = root.find("period_ms"))
-    p->require(period_ms >= kMinPeriodMs && period_ms <= 1000, "the control period dT must be 0.01..1000 ms (100 kHz to 1 Hz)");
+    p->require(period_ms >= kMinPeriodMs && period_ms <= kMaxPeriodMs,
+               "the control period dT must be 0.01..1000 ms (100 kHz to 1 Hz)");
   c.period_s = period_ms * 1e-3;
   // Loading walks the reference once a period (its reversals): a week at 1 ns a period would
   // hold a server's request thread for hours, so the count is bounded as well as each number.

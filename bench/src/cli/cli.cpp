@@ -6,6 +6,7 @@
 #include <climits>
 #include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 
 namespace hil::bench {
@@ -37,6 +38,18 @@ CLI::Validator non_negative_number() {
         return v >= 0 ? std::string() : "cannot be negative, got " + text;
       },
       ">= 0");
+}
+
+CLI::Validator number_in(double min, double max) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%g..%g", min, max);
+  const std::string range = buf;
+  return CLI::Validator(
+      [min, max, range](std::string& text) {
+        double v = 0;
+        return to_finite(text, v) && v >= min && v <= max ? std::string() : "needs a number in " + range + ", got '" + text + "'";
+      },
+      range);
 }
 
 CLI::Validator path_value() {

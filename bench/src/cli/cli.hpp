@@ -27,6 +27,7 @@ using CommandRun = std::function<int()>;
 // CLI::NonNegativeNumber or CLI::Range: those name their bound as std::to_string(DBL_MAX), 300 digits.
 CLI::Validator finite_number();
 CLI::Validator non_negative_number();
+CLI::Validator number_in(double min, double max);                 // min..max, both included
 CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_MAX: no upper bound
 // For a path option: refuses "" (`--out=`: the files would land in the current folder or fail
 // with a bare "Invalid argument") and a value that is an option (`--out= --quiet` took --quiet

@@ -181,7 +181,7 @@ CommandRun define_plant(CLI::App& cmd) {
       ->capture_default_str();
   args->period_opt = cmd.add_option("--period-ms", args->period_ms, "the plant's step (default: the campaign's, or 1)")
                          ->type_name("MS")
-                         ->check(finite_number());
+                         ->check(number_in(kMinPeriodMs, kMaxPeriodMs));  // a campaign's range
   args->initial_opt = cmd.add_option("--initial-mpa", args->initial_mpa, "the initial pressure (default: the campaign's, or 1.0)")
                           ->type_name("MPA")
                           ->check(finite_number());

@@ -39,12 +39,17 @@ void PlantService::start() {
 }
 
 void PlantService::stop() noexcept {
-  running_ = false;
+  running_ = false;  // seen at the top of the plant thread's next step, even if it never waits
+  // Taken while the plant thread waits (it holds the mutex otherwise): so it is not between its
+  // check of running_ and its wait, and the notification is not lost.
+  { std::lock_guard lock(wake_mutex_); }
+  wake_.notify_all();
   if (thread_.joinable()) thread_.join();
 }
 
 void PlantService::run() noexcept {
-  // Real-time safe from here: the plant steps, mailboxes copy, nothing allocates or waits on a lock.
+  // Real-time safe from here: the plant steps, mailboxes copy, nothing allocates; the one lock,
+  // the wait's, no other thread takes before stop().
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.period_s));
   const plant::Plant& plant = *config_.plant;
   std::vector<std::uint64_t> seen(drives_.size(), 0);  // sized before the loop starts
@@ -53,9 +58,11 @@ void PlantService::run() noexcept {
   double enabled_at_s = -1;
   PlantSample s = sample_.load();
   auto deadline = Clock::now();
+  std::unique_lock wake_lock(wake_mutex_);  // held but while waiting; stop() takes it only to end the run
   while (running_.load(std::memory_order_relaxed)) {
     deadline += period;
-    sleep_until(deadline);
+    // On CLOCK_MONOTONIC (steady_clock: pthread_cond_clockwait), to the absolute deadline as before.
+    if (wake_.wait_until(wake_lock, deadline, [this] { return !running_.load(std::memory_order_relaxed); })) break;
     // The newest command from any drive emulator.
     for (std::size_t i = 0; i < drives_.size(); ++i) {
       const std::uint64_t v = drives_[i]->command_.version();

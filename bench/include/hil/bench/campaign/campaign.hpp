@@ -21,6 +21,11 @@ class Node;
 
 namespace hil::bench {
 
+// A control period's range in ms, 100 kHz to 1 Hz: a campaign's period_ms, and `hilbench plant
+// --period-ms` (unbounded, 1e13 overflowed the plant's clock and 1e-12 busy-spun a core).
+inline constexpr double kMinPeriodMs = 0.01;
+inline constexpr double kMaxPeriodMs = 1000;
+
 struct RunSpec {
   std::string name;
   ctl::ControllerParams controller;  // complete, validated

@@ -10,7 +10,9 @@
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -101,6 +103,11 @@ class PlantService {
   Transducer transducer_{sample_};
   std::atomic<double> gap_override_{plant::kNaN};
   std::atomic<bool> running_{false};
+  // The plant thread waits for its next deadline on wake_, so that stop() ends the wait: a sleep
+  // to the deadline made a stop (SIGINT/SIGTERM of `hilbench plant`) wait out the period. Only
+  // stop() takes the mutex besides the plant thread, so the thread never waits for it mid-run.
+  std::mutex wake_mutex_;
+  std::condition_variable wake_;
   std::thread thread_;
   RtSetup rt_;
 };
