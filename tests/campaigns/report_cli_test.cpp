@@ -1,5 +1,6 @@
 // `hilbench report` as a user runs it on a run folder `hilbench serve` left: an --out that is one
-// of the run's own files is refused naming where, and the run is left as it was.
+// of the run's own files, a config snapshot in run.json that does not load. Each is refused naming
+// where, and the run is left as it was.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -80,6 +81,39 @@ TEST(Cli, ReportRefusesAnOutThatIsOneOfTheRunsOwnFiles) {
     EXPECT_TRUE(fs::exists(run / "report.html"));
   }
   EXPECT_TRUE(slurp(run / "run.json") == record) << "run.json was replaced";
+}
+
+// A run.json whose campaign or plant snapshot does not load: the error names the copy in run.json
+// (its key, and of which file it is the copy), whose line and column they are, not the file on
+// disk, which may be fine.
+TEST(Cli, ReportNamesABadConfigSnapshotAsTheCopyInRunJson) {
+  hil::test::TempDir dir;
+  const fs::path campaign_file = source_path("configs/campaigns/paper_adaptive.yaml");
+  const fs::path run = recorded_run(dir, campaign_file);
+  auto record = hil::bench::read_run_record(run);
+  record.config.campaign_yaml = "name: [review\n";
+  hil::bench::write_run_record(run, record);
+  auto r = run_command(hilbench() + " report " + run.string() + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("hilbench report: " + (run / "run.json").string() + ": config.campaign_yaml:"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("(config.campaign_yaml is the copy of " + campaign_file.string() + " that run.json keeps"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find(": " + campaign_file.string() + ":"), std::string::npos) << r.output;
+
+  const fs::path plant_file = source_path("configs/plant/nominal.yaml");
+  record.config.campaign_yaml = kCampaignYaml;
+  record.config.plant_file = plant_file.string();
+  record.config.plant_yaml = "effects: {backlash: [\n";
+  hil::bench::write_run_record(run, record);
+  r = run_command(hilbench() + " report " + run.string() + " --quiet");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("hilbench report: " + (run / "run.json").string() + ": config.plant_yaml:"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("(config.plant_yaml is the copy of " + plant_file.string() + " that run.json keeps"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(run / "report.html"));
 }
 
 }  // namespace

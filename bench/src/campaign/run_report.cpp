@@ -9,6 +9,7 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/run_record.hpp"
 #include "sim_report.hpp"
+#include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/units.hpp"
 
@@ -18,15 +19,36 @@ namespace {
 using nlohmann::json;
 using plant::kNaN;
 
+// The error of a snapshot in run.json, which cfg names as the file it was copied from
+// ("FILE:LINE:COLUMN: ..."): said as the copy, whose line and column they are, lest the file on
+// disk be blamed (it may be fine, edited since, or gone). Empty when `e` is not about `copied`.
+std::string snapshot_error(const cfg::Error& e, const std::filesystem::path& copied, const std::filesystem::path& record,
+                           const char* key) {
+  const std::string what = e.what(), head = copied.string() + ":";
+  if (copied.empty() || what.rfind(head, 0) != 0) return "";
+  return record.string() + ": " + key + ":" + what.substr(head.size()) + " (" + key + " is the copy of " + copied.string() +
+         " that run.json keeps from the run's start; that file was not read)";
+}
+
 Campaign campaign_of(const RunRecord& run, const std::filesystem::path& dir) {
   const std::string& yaml = run.config.campaign_yaml;
   const std::filesystem::path file = run.config.campaign_file;
   if (yaml.empty() || file.empty()) throw std::runtime_error(dir.string() + "/run.json: the config snapshot has no campaign");
-  // The plant as the run had it; a run.json from before the plant's snapshot names only the
-  // campaign, whose plant path resolves from where the campaign file was.
-  if (!run.config.plant_yaml.empty())
-    return load_campaign_text(yaml, file.filename().string(), file.parent_path(), run.config.plant_yaml, run.config.plant_file);
-  return load_campaign_text(yaml, file.filename().string(), file.parent_path());
+  const std::filesystem::path record = dir / "run.json";
+  try {
+    // The plant as the run had it; a run.json from before the plant's snapshot names only the
+    // campaign, whose plant path resolves from where the campaign file was.
+    if (!run.config.plant_yaml.empty())
+      return load_campaign_text(yaml, file.filename().string(), file.parent_path(), run.config.plant_yaml, run.config.plant_file);
+    return load_campaign_text(yaml, file.filename().string(), file.parent_path());
+  } catch (const cfg::Error& e) {
+    // load_campaign_text names the campaign's text as parent/filename, i.e. `file`.
+    std::string what = snapshot_error(e, file.parent_path() / file.filename(), record, "config.campaign_yaml");
+    if (what.empty() && !run.config.plant_yaml.empty())
+      what = snapshot_error(e, run.config.plant_file, record, "config.plant_yaml");
+    if (what.empty()) throw;  // a plant file on disk (a run.json without the plant's snapshot): its own error
+    throw cfg::Error(what);
+  }
 }
 
 // Reads the runs' telemetry chunk by chunk into their digests, reporting the fraction of all
