@@ -1,6 +1,6 @@
 // `hilbench report` as a user runs it on a run folder `hilbench serve` left: an --out that is one
-// of the run's own files, a config snapshot in run.json that does not load. Each is refused naming
-// where, and the run is left as it was.
+// of the run's own files, a config snapshot in run.json that does not load, telemetry whose
+// observer states are no codes. Each is refused naming where, and the run is left as it was.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -114,6 +114,22 @@ TEST(Cli, ReportNamesABadConfigSnapshotAsTheCopyInRunJson) {
   EXPECT_NE(r.output.find("(config.plant_yaml is the copy of " + plant_file.string() + " that run.json keeps"), std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(run / "report.html"));
+}
+
+// touch_state and motion_intention are the observer's codes -1, 0, 1: any other value is refused
+// with its place (1e300 was converted to an int unchecked, undefined behaviour, and reported).
+TEST(Cli, ReportRefusesAnObserverStateThatIsNoCode) {
+  for (const char* bad : {"1e300", "-1e300", "0.5", "2"}) {
+    hil::test::TempDir dir;
+    const fs::path run = recorded_run(dir, dir.path() / "review.yaml", 502, bad);
+    const auto r = run_command(hilbench() + " report " + run.string() + " --quiet");
+    EXPECT_EQ(r.status, 1) << bad << "\n" << r.output;
+    EXPECT_NE(r.output.find((run / "telemetry.csv").string() + ":502:6: column 'touch_state': must be -1, 0 or 1"),
+              std::string::npos)
+        << bad << "\n"
+        << r.output;
+    EXPECT_FALSE(fs::exists(run / "report.html")) << bad;
+  }
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "hil/bench/campaign/run_report.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <optional>
 #include <stdexcept>
 
@@ -85,6 +86,21 @@ class TelemetryStream {
         const auto& v = t.values[telemetry::index(c)];
         return v.empty() ? fallback : v[i];
       };
+      // The observer's states are codes -1, 0, +1, made ints: any other value is no telemetry of
+      // ours, and one beyond int's range (1e300) was undefined behaviour in the conversion.
+      const auto code = [&](Col c, std::size_t i) {
+        const double v = col(c, i, 0);
+        if (v != -1 && v != 0 && v != 1) {
+          const auto& names = reader.header().names;
+          const auto at = std::find(names.begin(), names.end(), telemetry::name(c));
+          char msg[160];
+          std::snprintf(msg, sizeof msg, "column '%s': must be -1, 0 or 1 (the observer's state), got %.6g",
+                        std::string(telemetry::name(c)).c_str(), v);
+          throw CsvError(csv.string() + ":" + std::to_string(t.lines[i]) + ":" + std::to_string(at - names.begin() + 1) + ": " +
+                         msg);
+        }
+        return static_cast<int>(v);
+      };
       for (std::size_t i = 0; i < t.rows(); ++i) {
         TelemetryRecord rec;
         StepRecord& r = rec.step;
@@ -95,8 +111,8 @@ class TelemetryStream {
         r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
         r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
         r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
-        r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
-        r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
+        r.touch = code(Col::touch_state, i);
+        r.intention = code(Col::motion_intention, i);
         r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
         r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
         // A rig without the chamber's truth: the error is the measured one (IAE then holds the
