@@ -7,6 +7,7 @@
 #include "hil/analysis/compare.hpp"
 #include "hil/analysis/diagnose.hpp"
 #include "hil/line_file.hpp"
+#include "hil/output_path.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
 #include "json_out.hpp"
@@ -383,18 +384,9 @@ namespace {
 // --write-model must not overwrite an input nor be a folder; said before the fit.
 void check_model_output(const DiagnoseOptions& o) {
   if (o.write_model.empty()) return;
-  std::error_code ec;
-  if (std::filesystem::is_directory(o.write_model, ec)) {
-    throw std::invalid_argument("--write-model " + o.write_model.string() + ": is a folder; give the fitted model's file name");
-  }
   std::vector<std::filesystem::path> inputs = o.data_files;
   inputs.push_back(o.model_file);
-  for (const auto& input : inputs) {
-    if (std::filesystem::equivalent(o.write_model, input, ec)) {
-      throw std::invalid_argument("--write-model " + o.write_model.string() + ": is the input " + input.string() +
-                                  ", which it would overwrite; give another file name");
-    }
-  }
+  check_output_file("--write-model", o.write_model, inputs, "the fitted model");
 }
 
 }  // namespace

@@ -941,6 +941,51 @@ TEST(CommandLine, DiagnoseRefusesAFittedModelPathThatIsAnInputOrAFolder) {
   EXPECT_TRUE(fs::is_symlink(link));
 }
 
+// Each --data of diagnose is a run: one file given twice (by another spelling, or a link to it) was
+// fitted as two runs, its rows counted twice; a candidate named twice was ranked twice. Refused
+// before the fit, naming the option and the value.
+TEST(CommandLine, DiagnoseRefusesAFileOrACandidateGivenTwice) {
+  hil::test::TempDir dir;
+  hil::test::LabLog log;
+  log.name = "twice";
+  log.duration_s = 2;
+  const fs::path data = hil::test::make_lab_log(log, dir.path());
+  const fs::path link = dir.path() / "link.csv";
+  fs::create_symlink(data, link);
+  const std::string model = hil::test::nominal_model().string(), out = (dir.path() / "d").string();
+  for (const fs::path& again : {data, data.parent_path() / "." / data.filename(), link}) {
+    const CliRun r = hilbench("diagnose --model " + model + " --data " + data.string() + " --data " + again.string() + " --out " +
+                              out + " --quiet");
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("--data " + again.string() + ": is the file of --data " + data.string() + " again"), std::string::npos)
+        << r.out;
+  }
+  const CliRun r = hilbench("diagnose --model " + model + " --data " + data.string() +
+                            " --candidates backlash_change,sensor_lag,backlash_change --out " + out + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--candidates names 'backlash_change' twice"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir.path() / "d")) << "refused before the fit, nothing written";
+}
+
+// compare takes one file: a second --data was dropped unseen (the last one counted, as for every
+// other option), where one who knows diagnose expects both compared.
+TEST(CommandLine, CompareRefusesASecondDataFileAndPointsToDiagnose) {
+  hil::test::TempDir dir;
+  std::vector<std::string> files;
+  for (const char* name : {"a", "b"}) {
+    hil::test::LabLog log;
+    log.name = name;
+    log.duration_s = 2;
+    files.push_back(hil::test::make_lab_log(log, dir.path()).string());
+  }
+  const CliRun r = hilbench("compare --model " + hil::test::nominal_model().string() + " --data " + files[0] + " --data " +
+                            files[1] + " --out " + (dir.path() / "c").string() + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--data given 2 times: compare takes one file (hilbench diagnose takes several --data"), std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(dir.path() / "c"));
+}
+
 TEST(CommandLine, CompareThenDiagnoseThenCompareTheFittedModel) {
   hil::test::TempDir dir;
   hil::test::Scenario s;

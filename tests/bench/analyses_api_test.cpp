@@ -15,6 +15,7 @@
 
 #include "run_folder.hpp"
 #include "server_process.hpp"
+#include "small_disk.hpp"
 
 using namespace std::chrono_literals;
 using hil::test::ServerProcess;
@@ -436,4 +437,33 @@ TEST(AnalysesApi, ADiagnosisTooLargeForTheServersMemoryIsRefusedWithTheSizes) {
   EXPECT_EQ(compare.status, 202) << compare.body;
   const auto small = api.post("/api/runs/small/analyses", {{"kind", "diagnose"}, {"model", "nominal"}});
   EXPECT_EQ(small.status, 202) << small.body;
+}
+
+// `ctl get` onto a local disk that fills: the error names the local file (it read as the
+// server's disk: "GET ... at 127.0.0.1:PORT: No space left on device"), and the part written is
+// removed (a FILE.part ending mid-line was left for ever).
+TEST(AnalysesApi, CtlGetOntoAFullDiskNamesTheLocalFileAndLeavesNoPart) {
+  ServerProcess server;
+  hil::test::SmallDisk disk(server.dir() / "small", "1m");
+  if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?): the full-disk case needs its own small disk";
+  const auto run = server.runs_dir() / "big";
+  hil::test::write_ended_run(run, "gap_step", "adaptive", kGapStepYaml, hil::test::source_path("configs/campaigns/gap_step.yaml"),
+                             8);
+  std::string rows = "t_s,theta_cmd_deg,p_meas_mpa,theta_motor_deg,p_ref_mpa\n";
+  for (int k = 0; rows.size() < (std::size_t{3} << 20); ++k) rows += std::to_string(k * 1e-3) + ",10.0,1.0,10.0,1.0\n";
+  std::ofstream(run / "telemetry.csv") << rows;
+
+  const auto out = server.dir() / "small" / "t.csv";
+  const CtlResult g = ctl(server, {"get", "big", "telemetry.csv", "--out", out.string()});
+  EXPECT_EQ(g.rc, 1) << g.out;
+  EXPECT_TRUE(has(g.out, out.string() + ": cannot write the download of /api/runs/big/telemetry.csv: No space left on device"))
+      << g.out;
+  EXPECT_FALSE(has(g.out, "at 127.0.0.1")) << g.out;
+  EXPECT_FALSE(std::filesystem::exists(out.string() + ".part"));
+  EXPECT_FALSE(std::filesystem::exists(out));
+  // The same file onto a disk with room: whole.
+  const auto roomy = server.dir() / "t.csv";
+  const CtlResult ok = ctl(server, {"get", "big", "telemetry.csv", "--out", roomy.string()});
+  ASSERT_EQ(ok.rc, 0) << ok.out;
+  EXPECT_EQ(hil::test::slurp(roomy), rows);
 }

@@ -228,6 +228,38 @@ TEST(SimHostileInput, ASecondCtrlCLeavesOnlyWholeLinesAndTheNextSimClearsThem) {
   EXPECT_TRUE(std::filesystem::exists(s.out / "old" / "keep.txt"));
 }
 
+// --runs is a choice of the campaign's runs: a name it does not have is refused with the names it
+// has (none,adaptiv ran only none), and so is a list that names none ('' and ',' ran them all).
+TEST(SimHostileInput, RunsTheCampaignDoesNotHaveOrNoRunAtAllAreRefused) {
+  Sandbox s;
+  const auto file = s.root.write("cfg/c.yaml", campaign_yaml("name: two", "",
+                                                             "  - {name: none, compensation: none}\n"
+                                                             "  - {name: adaptive, compensation: adaptive}\n"));
+  const auto sim = [&](const std::string& runs) {
+    return run_command(hilbench() + " sim " + file.string() + " --out " + s.out.string() + " --quiet --runs " + runs);
+  };
+  struct Case {
+    std::string runs, expect;
+  };
+  const Case cases[] = {
+      {"none,adaptiv", "--runs: campaign 'two' has no run 'adaptiv' (did you mean 'adaptive'?); its runs are none, adaptive"},
+      {"xyzzy,adaptiv", "has no run 'xyzzy', 'adaptiv' (did you mean 'adaptive'?); its runs are none, adaptive"},
+      {"''", "--runs '' names no run: name at least one of none, adaptive, or leave --runs out to run them all"},
+      {",", "--runs ',' names no run"},
+      {"none,none", "--runs names 'none' twice"},
+  };
+  for (const auto& c : cases) {
+    const auto r = sim(c.runs);
+    EXPECT_EQ(r.status, 2) << c.runs << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.runs << "\nwant: " << c.expect << "\ngot: " << r.output;
+    EXPECT_EQ(tree(s.out).size(), 2u) << c.runs;  // old/ and old/keep.txt: nothing ran
+  }
+  const auto r = sim("adaptive");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(s.out / "two" / "adaptive" / "summary.json"));
+  EXPECT_FALSE(std::filesystem::exists(s.out / "two" / "none"));
+}
+
 // The campaign's name picks the folder under --out that a sim replaces: a former sim's output
 // goes, anything else stays and the sim says so before it runs (a campaign named `src` with
 // --out . wiped ./src).

@@ -1,6 +1,7 @@
 #include "hil/bench/campaign/run_report.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <optional>
 #include <stdexcept>
 
@@ -9,6 +10,7 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/run_record.hpp"
 #include "sim_report.hpp"
+#include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
 #include "hil/units.hpp"
 
@@ -18,15 +20,36 @@ namespace {
 using nlohmann::json;
 using plant::kNaN;
 
+// The error of a snapshot in run.json, which cfg names as the file it was copied from
+// ("FILE:LINE:COLUMN: ..."): said as the copy, whose line and column they are, lest the file on
+// disk be blamed (it may be fine, edited since, or gone). Empty when `e` is not about `copied`.
+std::string snapshot_error(const cfg::Error& e, const std::filesystem::path& copied, const std::filesystem::path& record,
+                           const char* key) {
+  const std::string what = e.what(), head = copied.string() + ":";
+  if (copied.empty() || what.rfind(head, 0) != 0) return "";
+  return record.string() + ": " + key + ":" + what.substr(head.size()) + " (" + key + " is the copy of " + copied.string() +
+         " that run.json keeps from the run's start; that file was not read)";
+}
+
 Campaign campaign_of(const RunRecord& run, const std::filesystem::path& dir) {
   const std::string& yaml = run.config.campaign_yaml;
   const std::filesystem::path file = run.config.campaign_file;
   if (yaml.empty() || file.empty()) throw std::runtime_error(dir.string() + "/run.json: the config snapshot has no campaign");
-  // The plant as the run had it; a run.json from before the plant's snapshot names only the
-  // campaign, whose plant path resolves from where the campaign file was.
-  if (!run.config.plant_yaml.empty())
-    return load_campaign_text(yaml, file.filename().string(), file.parent_path(), run.config.plant_yaml, run.config.plant_file);
-  return load_campaign_text(yaml, file.filename().string(), file.parent_path());
+  const std::filesystem::path record = dir / "run.json";
+  try {
+    // The plant as the run had it; a run.json from before the plant's snapshot names only the
+    // campaign, whose plant path resolves from where the campaign file was.
+    if (!run.config.plant_yaml.empty())
+      return load_campaign_text(yaml, file.filename().string(), file.parent_path(), run.config.plant_yaml, run.config.plant_file);
+    return load_campaign_text(yaml, file.filename().string(), file.parent_path());
+  } catch (const cfg::Error& e) {
+    // load_campaign_text names the campaign's text as parent/filename, i.e. `file`.
+    std::string what = snapshot_error(e, file.parent_path() / file.filename(), record, "config.campaign_yaml");
+    if (what.empty() && !run.config.plant_yaml.empty())
+      what = snapshot_error(e, run.config.plant_file, record, "config.plant_yaml");
+    if (what.empty()) throw;  // a plant file on disk (a run.json without the plant's snapshot): its own error
+    throw cfg::Error(what);
+  }
 }
 
 // Reads the runs' telemetry chunk by chunk into their digests, reporting the fraction of all
@@ -63,6 +86,21 @@ class TelemetryStream {
         const auto& v = t.values[telemetry::index(c)];
         return v.empty() ? fallback : v[i];
       };
+      // The observer's states are codes -1, 0, +1, made ints: any other value is no telemetry of
+      // ours, and one beyond int's range (1e300) was undefined behaviour in the conversion.
+      const auto code = [&](Col c, std::size_t i) {
+        const double v = col(c, i, 0);
+        if (v != -1 && v != 0 && v != 1) {
+          const auto& names = reader.header().names;
+          const auto at = std::find(names.begin(), names.end(), telemetry::name(c));
+          char msg[160];
+          std::snprintf(msg, sizeof msg, "column '%s': must be -1, 0 or 1 (the observer's state), got %.6g",
+                        std::string(telemetry::name(c)).c_str(), v);
+          throw CsvError(csv.string() + ":" + std::to_string(t.lines[i]) + ":" + std::to_string(at - names.begin() + 1) + ": " +
+                         msg);
+        }
+        return static_cast<int>(v);
+      };
       for (std::size_t i = 0; i < t.rows(); ++i) {
         TelemetryRecord rec;
         StepRecord& r = rec.step;
@@ -73,8 +111,8 @@ class TelemetryStream {
         r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
         r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
         r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
-        r.touch = static_cast<decltype(r.touch)>(col(Col::touch_state, i, 0));
-        r.intention = static_cast<decltype(r.intention)>(col(Col::motion_intention, i, 0));
+        r.touch = code(Col::touch_state, i);
+        r.intention = code(Col::motion_intention, i);
         r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
         r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
         // A rig without the chamber's truth: the error is the measured one (IAE then holds the

@@ -1,5 +1,7 @@
 // hilbench diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]
 //                   [--candidates a,b] [--threads N] [--quiet]
+#include <algorithm>
+#include <filesystem>
 #include <memory>
 #include <sstream>
 
@@ -35,13 +37,28 @@ CommandRun define_diagnose(CLI::App& cmd) {
   return [args] {
     analysis::DiagnoseOptions o;
     o.model_file = args->model_file;
-    for (const auto& f : args->data_files) o.data_files.emplace_back(f);
+    // Each --data is a run of the rig: one file given twice (or by another name, ./x or a link)
+    // was fitted as two runs, its rows counted twice.
+    for (const auto& f : args->data_files) {
+      for (const auto& earlier : o.data_files) {
+        std::error_code ec;
+        if (earlier == f || std::filesystem::equivalent(earlier, f, ec)) {
+          throw UsageError("--data " + f + ": is the file of --data " + earlier.string() + " again; give each run's file once");
+        }
+      }
+      o.data_files.emplace_back(f);
+    }
     o.out_dir = args->out_dir.empty() ? "out/diagnose-" + o.data_files.front().stem().string() : args->out_dir;
     o.write_model = args->write_model;
     o.quiet = args->quiet;
     std::stringstream names(args->candidates);
-    for (std::string n; std::getline(names, n, ',');)
-      if (!n.empty()) o.settings.candidates.push_back(n);
+    for (std::string n; std::getline(names, n, ',');) {
+      if (n.empty()) continue;
+      // A candidate named twice was fitted and ranked twice.
+      const auto& c = o.settings.candidates;
+      if (std::find(c.begin(), c.end(), n) != c.end()) throw UsageError("--candidates names '" + n + "' twice");
+      o.settings.candidates.push_back(n);
+    }
     o.settings.threads = args->threads;
     analysis::run_diagnose(o);
     return 0;

@@ -1,11 +1,14 @@
 // hilbench report RUN_DIR... [--out FILE] [--quiet]
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "commands.hpp"
 #include "hil/bench/campaign/run_report.hpp"
+#include "hil/output_path.hpp"
 #include "hil/progress_line.hpp"
 
 namespace hil::bench {
@@ -17,9 +20,28 @@ struct ReportArgs {
   bool quiet = false;
 };
 
+// --out must not replace a file of a run the report reads (RUN/run.json made the run unreadable):
+// every file in the run folders is an input, but for a folder's own report.html, which a report
+// of the run replaces. Said before the reading, which takes a while.
+void check_report_output(const std::vector<std::filesystem::path>& run_dirs, const std::filesystem::path& out_file) {
+  std::vector<std::filesystem::path> inputs;
+  for (const auto& dir : run_dirs) {
+    std::error_code ec;
+    const auto own_report = dir / "report.html";
+    for (auto it = std::filesystem::recursive_directory_iterator(dir, ec); !ec && it != std::filesystem::end(it);
+         it.increment(ec)) {
+      std::error_code type_ec;
+      if (it->is_directory(type_ec) || it->path() == own_report) continue;
+      inputs.push_back(it->path());
+    }
+  }
+  check_output_file("--out", out_file, inputs, "the report");
+}
+
 int run_report(const ReportArgs& args) {
   const std::vector<std::filesystem::path> dirs(args.run_dirs.begin(), args.run_dirs.end());
   const std::filesystem::path out = args.out_file.empty() ? dirs.front() / "report.html" : std::filesystem::path(args.out_file);
+  check_report_output(dirs, out);
   RunReportOptions options;
   // SIGINT/SIGTERM: the reading stops at its next chunk of rows and nothing is written.
   options.cancel = &StopSignal::install();

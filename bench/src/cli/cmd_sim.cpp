@@ -1,4 +1,5 @@
 // hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <sstream>
@@ -6,6 +7,7 @@
 #include "commands.hpp"
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
+#include "hil/config.hpp"
 
 namespace hil::bench {
 namespace {
@@ -13,12 +15,42 @@ namespace {
 struct SimArgs {
   std::string campaign_file;
   std::string out_dir = "out";
-  std::string runs;  // comma-separated run names; empty: all
+  std::string runs;                       // comma-separated run names
+  const CLI::Option* runs_opt = nullptr;  // not given: every run
   double sensor_noise_kpa = 0;
   const CLI::Option* sensor_noise = nullptr;  // given: the campaign's sensor noise is overridden
   bool no_telemetry = false;
   bool quiet = false;
 };
+
+// The runs --runs names, checked against the campaign: an empty list (--runs '' or ',') ran every
+// run, the opposite of a choice; an unknown name was dropped (none,adaptiv ran only none).
+std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string& list) {
+  std::vector<std::string> names, unknown, all;
+  for (const auto& r : campaign.runs) all.push_back(r.name);
+  std::stringstream in(list);
+  for (std::string name; std::getline(in, name, ',');) {
+    if (name.empty()) continue;
+    if (std::find(names.begin(), names.end(), name) != names.end()) throw UsageError("--runs names '" + name + "' twice");
+    names.push_back(name);
+    if (std::find(all.begin(), all.end(), name) == all.end()) unknown.push_back(name);
+  }
+  std::string runs;
+  for (const auto& r : all) runs += (runs.empty() ? "" : ", ") + r;
+  if (names.empty()) {
+    throw UsageError("--runs '" + list + "' names no run: name at least one of " + runs +
+                     ", or leave --runs out to run them all");
+  }
+  if (!unknown.empty()) {
+    std::string what;
+    for (const auto& u : unknown) {
+      const std::string hint = cfg::closest(u, all);
+      what += (what.empty() ? "'" : ", '") + u + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)");
+    }
+    throw UsageError("--runs: campaign '" + campaign.name + "' has no run " + what + "; its runs are " + runs);
+  }
+  return names;
+}
 
 int run_sim(const SimArgs& args) {
   // Load and validate everything before anything is written.
@@ -36,10 +68,7 @@ int run_sim(const SimArgs& args) {
   options.progress = !args.quiet;
   // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
   options.cancel = &StopSignal::install();
-  std::stringstream runs(args.runs);
-  for (std::string name; std::getline(runs, name, ',');) {
-    if (!name.empty()) options.only_runs.push_back(name);
-  }
+  if (args.runs_opt->count() > 0) options.only_runs = chosen_runs(campaign, args.runs);
   CampaignOutcome out;
   try {
     out = run_campaign(campaign, options);
@@ -70,7 +99,7 @@ CommandRun define_sim(CLI::App& cmd) {
       ->type_name("DIR")
       ->check(path_value())
       ->capture_default_str();
-  cmd.add_option("--runs", args->runs, "only these runs of the campaign")->type_name("a,b");
+  args->runs_opt = cmd.add_option("--runs", args->runs, "only these runs of the campaign")->type_name("a,b");
   args->sensor_noise =
       cmd.add_option("--sensor-noise-kpa", args->sensor_noise_kpa, "the transducer's noise RMS instead of the campaign's")
           ->type_name("KPA")

@@ -130,36 +130,70 @@ ApiReply ApiClient::post(const std::string& target, const nlohmann::json& body) 
   return request("POST", target, body.dump(), "application/json");
 }
 
+namespace {
+
+// Beast's file keeping the error of a failed write: a download cut because the local disk took no
+// more is the local file's failure, not the server's nor the network's ("GET ... at HOST:PORT: No
+// space left on device" read as the server's disk).
+class LocalFile : public beast::file {
+ public:
+  std::size_t write(const void* data, std::size_t bytes, beast::error_code& ec) {
+    const std::size_t written = beast::file::write(data, bytes, ec);
+    if (ec) write_error = ec;
+    return written;
+  }
+  beast::error_code write_error;
+};
+
+}  // namespace
+
 ApiReply ApiClient::download(const std::string& target, const std::filesystem::path& to) const {
   asio::io_context io;
   auto stream = connect(io, host_, port_, timeout_);
   http::request<http::empty_body> req(http::verb::get, target, 11);
   authorise(req, host_, token_);
   ApiReply reply;
+  const std::filesystem::path tmp = to.string() + ".part";
+  // The part file goes on any failure (a full disk, a cut connection, an exception): a file
+  // ending mid-line beside the download was left for ever.
+  struct RemoveUnlessRenamed {
+    const std::filesystem::path& file;
+    bool opened = false, renamed = false;
+    ~RemoveUnlessRenamed() {
+      std::error_code ec;
+      if (opened && !renamed) std::filesystem::remove(file, ec);
+    }
+  } part{tmp};
+  http::response_parser<http::basic_file_body<LocalFile>> parser;
+  parser.body_limit(boost::none);
+  const auto local_failure = [&](const beast::error_code& ec) {
+    return std::runtime_error(to.string() + ": cannot write the download of " + target + ": " + ec.message() +
+                              " (nothing was kept)");
+  };
   try {
     stream.expires_after(timeout_);
     run_op(io, [&](auto handler) { http::async_write(stream, req, handler); });
     beast::flat_buffer buffer;
-    http::response_parser<http::file_body> parser;
-    parser.body_limit(boost::none);
     beast::error_code ec;
-    const auto tmp = to.string() + ".part";
     parser.get().body().open(tmp.c_str(), beast::file_mode::write, ec);
-    if (ec) throw std::runtime_error("cannot write " + tmp + ": " + ec.message());
+    if (ec) throw local_failure(ec);
+    part.opened = true;
     stream.expires_after(timeout_);
     run_op(io, [&](auto handler) { http::async_read(stream, buffer, parser, handler); });
     reply.status = parser.get().result_int();
     reply.content_type = std::string(parser.get()[http::field::content_type]);
-    parser.get().body().close();
-    // Only a 200 is the file: a 202 (an analysis still running) is a JSON answer like an error.
-    if (reply.status == 200) {
-      std::filesystem::rename(tmp, to);
-    } else {
-      reply.body = hil::read_text_file(tmp);
-      std::filesystem::remove(tmp);
-    }
+    parser.get().body().file().close(ec);
+    if (ec) throw local_failure(ec);
   } catch (const boost::system::system_error& e) {
+    if (const auto& failed = parser.get().body().file().write_error) throw local_failure(failed);
     throw ApiUnreachable("GET " + target + " at " + host_ + ":" + port_ + ": " + e.code().message());
+  }
+  // Only a 200 is the file: a 202 (an analysis still running) is a JSON answer like an error.
+  if (reply.status == 200) {
+    std::filesystem::rename(tmp, to);
+    part.renamed = true;
+  } else {
+    reply.body = hil::read_text_file(tmp);
   }
   return reply;
 }
