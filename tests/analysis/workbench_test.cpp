@@ -635,53 +635,6 @@ TEST(Replay, WithAnEncoderTheDriveIsCheckedSeparately) {
   EXPECT_TRUE(c2.at("motor_channel").at("matches").get<bool>()) << c2.at("motor_channel");
 }
 
-// Every m-th data row of a measurement file (metadata and header kept): a logger at a lower rate.
-fs::path every_mth_row(const fs::path& file, std::size_t m, const fs::path& out) {
-  std::ifstream in(file);
-  std::ofstream o(out);
-  std::string line;
-  std::size_t data_row = 0;
-  bool header_seen = false;
-  while (std::getline(in, line)) {
-    const bool data = header_seen && !line.empty() && line[0] != '#';
-    if (!header_seen && !line.empty() && line[0] != '#') header_seen = true;
-    if (!data || data_row++ % m == 0) o << line << '\n';
-  }
-  return out;
-}
-
-TEST(Replay, ACoarseLogIsReplayedWithoutAMadeUpLag) {
-  // A logger at 100 Hz on a 1 kHz bench: held over a 10 ms step, the row's command came 5 ms late
-  // and the encoder's end angle moved the valve 5 ms early. The replay took that for a sensor lag:
-  // 8.5 ms "found" on a plant without one, a real 20 ms lag fitted as 28.8 +- 0.2 ms. (The
-  // integral controller's command is smooth; a compensator's jumps and boosts between the rows are
-  // lost to a log this coarse whatever the replay does.)
-  hil::test::TempDir dir;
-  hil::test::Scenario s;
-  s.compensation = "none";
-  s.duration_s = 20;
-  s.seed = 31;
-  s.reference_yaml = hil::test::reference_random(5, 0.9, 1.6, 0.6, 1.5);
-  for (const bool encoder : {true, false}) {
-    s.name = encoder ? "nominal" : "nominal_no_encoder";
-    s.encoder = encoder;
-    const auto log_100hz = every_mth_row(hil::test::make_measurement(s, dir.path()), 10, dir.path() / (s.name + "_100hz.csv"));
-    const auto c = hil::test::run_compare(hil::test::nominal_model(), log_100hz, dir.path() / ("cmp_" + s.name));
-    EXPECT_GE(c.at("fit_pct").get<double>(), c.at("noise_floor_fit_pct").get<double>() - 0.1) << s.name;
-    const auto d = hil::test::run_diagnose(hil::test::nominal_model(), log_100hz, dir.path() / ("diag_" + s.name));
-    EXPECT_EQ(d.at("verdict"), "nothing_missing") << s.name << ": " << d.at("summary");
-  }
-  // With the encoder a lag of the pressure reading is told from one of the drive.
-  s.name = "lag";
-  s.encoder = true;
-  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "sensor_lag", "time_constant_s: 0.02"); };
-  const auto lag_100hz = every_mth_row(hil::test::make_measurement(s, dir.path()), 10, dir.path() / "lag_100hz.csv");
-  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), lag_100hz, dir.path() / "diag_lag");
-  ASSERT_EQ(d.at("added").size(), 1u) << d.at("summary");
-  EXPECT_EQ(d.at("added")[0].at("effect"), "sensor_lag");
-  EXPECT_NEAR(hil::test::param(d.at("added")[0], "time_constant_s"), 0.02, 0.001);
-}
-
 // A copy of a measurement file with its pressure column (MPa) changed row by row: f(row, t_s,
 // p_mpa) returns the new value, or NaN to drop the row.
 fs::path with_pressure(const fs::path& file, const fs::path& out, const std::function<double(std::size_t, double, double)>& f) {
@@ -716,6 +669,43 @@ fs::path with_pressure(const fs::path& file, const fs::path& out, const std::fun
     o << '\n';
   }
   return out;
+}
+
+// Every m-th data row of a measurement file (metadata and header kept): a logger at a lower rate.
+fs::path every_mth_row(const fs::path& file, std::size_t m, const fs::path& out) {
+  return with_pressure(file, out, [m](std::size_t k, double, double p) { return k % m == 0 ? p : hil::plant::kNaN; });
+}
+
+TEST(Replay, ACoarseLogIsReplayedWithoutAMadeUpLag) {
+  // A logger at 100 Hz on a 1 kHz bench: held over a 10 ms step, the row's command came 5 ms late
+  // and the encoder's end angle moved the valve 5 ms early. The replay took that for a sensor lag:
+  // 8.5 ms "found" on a plant without one, a real 20 ms lag fitted as 28.8 +- 0.2 ms. (The
+  // integral controller's command is smooth; a compensator's jumps and boosts between the rows are
+  // lost to a log this coarse whatever the replay does.)
+  hil::test::TempDir dir;
+  hil::test::Scenario s;
+  s.compensation = "none";
+  s.duration_s = 20;
+  s.seed = 31;
+  s.reference_yaml = hil::test::reference_random(5, 0.9, 1.6, 0.6, 1.5);
+  for (const bool encoder : {true, false}) {
+    s.name = encoder ? "nominal" : "nominal_no_encoder";
+    s.encoder = encoder;
+    const auto log_100hz = every_mth_row(hil::test::make_measurement(s, dir.path()), 10, dir.path() / (s.name + "_100hz.csv"));
+    const auto c = hil::test::run_compare(hil::test::nominal_model(), log_100hz, dir.path() / ("cmp_" + s.name));
+    EXPECT_GE(c.at("fit_pct").get<double>(), c.at("noise_floor_fit_pct").get<double>() - 0.1) << s.name;
+    const auto d = hil::test::run_diagnose(hil::test::nominal_model(), log_100hz, dir.path() / ("diag_" + s.name));
+    EXPECT_EQ(d.at("verdict"), "nothing_missing") << s.name << ": " << d.at("summary");
+  }
+  // With the encoder a lag of the pressure reading is told from one of the drive.
+  s.name = "lag";
+  s.encoder = true;
+  s.truth = [](const hil::plant::Plant& p) { return hil::test::with_block(p, "sensor_lag", "time_constant_s: 0.02"); };
+  const auto lag_100hz = every_mth_row(hil::test::make_measurement(s, dir.path()), 10, dir.path() / "lag_100hz.csv");
+  const auto d = hil::test::run_diagnose(hil::test::nominal_model(), lag_100hz, dir.path() / "diag_lag");
+  ASSERT_EQ(d.at("added").size(), 1u) << d.at("summary");
+  EXPECT_EQ(d.at("added")[0].at("effect"), "sensor_lag");
+  EXPECT_NEAR(hil::test::param(d.at("added")[0], "time_constant_s"), 0.02, 0.001);
 }
 
 std::string log_warnings_of(const nlohmann::json& compare_json) {

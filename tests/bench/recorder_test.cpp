@@ -151,6 +151,20 @@ RunRecord ended_record() {
   return r;
 }
 
+// The same run's record while it goes: none of the end's keys.
+RunRecord running_record() {
+  RunRecord r = ended_record();
+  r.ended = false;
+  r.trip.reset();
+  r.periods_run.reset();
+  r.loop = nullptr;
+  r.telemetry.reset();
+  r.stop_utc.reset();
+  r.reason.reset();
+  r.outcome = Outcome::running;
+  return r;
+}
+
 }  // namespace
 
 // run.json is written and read through one struct: what goes out comes back, key for key.
@@ -172,15 +186,7 @@ TEST(RunRecord, RoundTripsThroughRunJson) {
 // A record of a run that is still going has none of the end's keys; a count nobody knows (a run
 // found interrupted) is left out rather than written as 0.
 TEST(RunRecord, WritesOnlyWhatIsKnown) {
-  RunRecord r = ended_record();
-  r.ended = false;
-  r.trip.reset();
-  r.periods_run.reset();
-  r.loop = nullptr;
-  r.telemetry.reset();
-  r.stop_utc.reset();
-  r.reason.reset();
-  r.outcome = Outcome::running;
+  RunRecord r = running_record();
   nlohmann::json j = r.to_json();
   for (const char* key : {"trip", "rig_health", "periods_run", "loop", "telemetry", "interrupted"})
     EXPECT_FALSE(j.contains(key)) << key;
@@ -233,16 +239,7 @@ namespace {
 std::filesystem::path crashed_run(const std::filesystem::path& runs, const std::string& name) {
   const auto dir = runs / name;
   std::filesystem::create_directories(dir);
-  RunRecord r = ended_record();
-  r.ended = false;
-  r.trip.reset();
-  r.periods_run.reset();
-  r.loop = nullptr;
-  r.telemetry.reset();
-  r.stop_utc.reset();
-  r.reason.reset();
-  r.outcome = Outcome::running;
-  write_run_record(dir, r);
+  write_run_record(dir, running_record());
   std::ofstream(dir / ".reserve", std::ios::binary) << std::string(1 << 20, '\0');
   std::ofstream(dir / "telemetry.csv") << "t_s,p_meas_mpa\n0,1.2\n0.001,1.2\n0.002,1.2\n";
   return dir;

@@ -504,7 +504,9 @@ TEST(ModbusTcp, AClientThatDoesNotReadItsRepliesIsDropped) {
   const auto reply = ask(good, whole.data(), whole.size(), 500ms);
   EXPECT_GE(reply.size(), 9u) << "no reply within 0.5 s while a client that does not read was connected (" << sent_bytes
                               << " bytes of requests, " << (stalled ? "stalled" : "dropped") << ")";
-  if (reply.size() >= 9) EXPECT_EQ(reply[1], 200);
+  if (reply.size() >= 9) {
+    EXPECT_EQ(reply[1], 200);
+  }
   // That client was let go: end of file or a reset once its unread replies are drained.
   EXPECT_TRUE(eventually(
       [&] {
