@@ -151,7 +151,10 @@ void publish_dir(const std::filesystem::path& tmp_dir, const std::filesystem::pa
   if (errno != EINVAL && errno != ENOSYS)
     throw std::system_error(errno, std::generic_category(),
                             "cannot put " + tmp_dir.string() + " in place of " + final_dir.string());
-  const auto parked = final_dir.parent_path() / ("." + final_dir.filename().string() + ".old-" + std::to_string(::getpid()));
+  std::string parked_name = ".";  // built in place: GCC 12 warns (-Wrestrict, wrongly) on "." + a temporary
+  parked_name += final_dir.filename().string();
+  parked_name += ".old-" + std::to_string(::getpid());
+  const auto parked = final_dir.parent_path() / parked_name;
   std::filesystem::remove_all(parked);
   std::filesystem::rename(final_dir, parked);
   std::filesystem::rename(tmp_dir, final_dir);
