@@ -327,6 +327,22 @@ std::filesystem::path Node::resolve_path(const std::string& relative) const {
   return file_->parent_path() / p;
 }
 
+std::vector<std::string> comma_list(std::string_view text) {
+  std::vector<std::string> items;
+  for (std::size_t from = 0; from <= text.size();) {
+    const std::size_t comma = std::min(text.find(',', from), text.size());
+    if (comma > from) items.emplace_back(text.substr(from, comma - from));
+    from = comma + 1;
+  }
+  return items;
+}
+
+const std::string* repeated(const std::vector<std::string>& items) {
+  for (auto it = items.begin(); it != items.end(); ++it)
+    if (std::find(items.begin(), it, *it) != it) return &*it;
+  return nullptr;
+}
+
 bool plain_name(std::string_view name) {
   if (name.empty() || name.size() > 100 || name.front() == '.') return false;
   return std::all_of(name.begin(), name.end(), [](char ch) {

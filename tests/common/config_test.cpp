@@ -6,6 +6,7 @@
 #include <chrono>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "temp_file.hpp"
 
@@ -130,4 +131,20 @@ TEST(Config, RecursiveAliasIsRefused) {
   for (int i = 0; i < 30; ++i) deep += "[";
   for (int i = 0; i < 30; ++i) deep += "]";
   EXPECT_NO_THROW((void)hil::cfg::Node::load_string(deep, "deep.yaml"));
+}
+
+// One reading of a comma-separated list of names (--runs, --candidates, ?runs=): empty items are
+// no names, so "" and "," name none, which the callers refuse as no choice.
+TEST(Config, CommaListsDropEmptyItemsAndARepeatIsFound) {
+  using V = std::vector<std::string>;
+  EXPECT_EQ(hil::cfg::comma_list("none,adaptive"), (V{"none", "adaptive"}));
+  EXPECT_EQ(hil::cfg::comma_list("a,,b,"), (V{"a", "b"}));
+  EXPECT_EQ(hil::cfg::comma_list(",a"), (V{"a"}));
+  EXPECT_TRUE(hil::cfg::comma_list("").empty());
+  EXPECT_TRUE(hil::cfg::comma_list(",").empty());
+  EXPECT_EQ(hil::cfg::repeated(V{"a", "b"}), nullptr);
+  const V twice{"a", "b", "c", "b", "a"};
+  ASSERT_NE(hil::cfg::repeated(twice), nullptr);
+  EXPECT_EQ(*hil::cfg::repeated(twice), "b");  // the first item that repeats an earlier one
+  EXPECT_EQ(hil::cfg::repeated(twice), &twice[3]);
 }

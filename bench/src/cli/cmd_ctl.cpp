@@ -5,12 +5,12 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <thread>
 
 #include "commands.hpp"
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "hil/config.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/text_file.hpp"
 
@@ -206,13 +206,7 @@ int start(const CtlArgs& a, const ApiClient& api) {
   } else {
     body["campaign"] = a.campaign;
   }
-  if (!a.runs.empty()) {
-    std::stringstream rs(a.runs);
-    body["runs"] = json::array();
-    for (std::string r; std::getline(rs, r, ',');) {
-      if (!r.empty()) body["runs"].push_back(r);
-    }
-  }
+  if (!a.runs.empty()) body["runs"] = cfg::comma_list(a.runs);
   if (a.speed_opt->count() > 0) body["speed"] = a.speed;
   const json j = checked(api.post("/api/start", body));
   std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());

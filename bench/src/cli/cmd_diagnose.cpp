@@ -1,12 +1,11 @@
 // hilbench diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]
 //                   [--candidates a,b] [--threads N] [--quiet]
-#include <algorithm>
 #include <filesystem>
 #include <memory>
-#include <sstream>
 
 #include "commands.hpp"
 #include "hil/analysis/diagnose.hpp"
+#include "hil/config.hpp"
 
 namespace hil::bench {
 
@@ -51,14 +50,10 @@ CommandRun define_diagnose(CLI::App& cmd) {
     o.out_dir = args->out_dir.empty() ? "out/diagnose-" + o.data_files.front().stem().string() : args->out_dir;
     o.write_model = args->write_model;
     o.quiet = args->quiet;
-    std::stringstream names(args->candidates);
-    for (std::string n; std::getline(names, n, ',');) {
-      if (n.empty()) continue;
-      // A candidate named twice was fitted and ranked twice.
-      const auto& c = o.settings.candidates;
-      if (std::find(c.begin(), c.end(), n) != c.end()) throw UsageError("--candidates names '" + n + "' twice");
-      o.settings.candidates.push_back(n);
-    }
+    o.settings.candidates = cfg::comma_list(args->candidates);
+    // A candidate named twice was fitted and ranked twice.
+    if (const std::string* twice = cfg::repeated(o.settings.candidates))
+      throw UsageError("--candidates names '" + *twice + "' twice");
     o.settings.threads = args->threads;
     analysis::run_diagnose(o);
     return 0;

@@ -2,7 +2,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <memory>
-#include <sstream>
 
 #include "commands.hpp"
 #include "hil/bench/campaign/campaign.hpp"
@@ -26,15 +25,12 @@ struct SimArgs {
 // The runs --runs names, checked against the campaign: an empty list (--runs '' or ',') ran every
 // run, the opposite of a choice; an unknown name was dropped (none,adaptiv ran only none).
 std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string& list) {
-  std::vector<std::string> names, unknown, all;
+  std::vector<std::string> unknown, all;
   for (const auto& r : campaign.runs) all.push_back(r.name);
-  std::stringstream in(list);
-  for (std::string name; std::getline(in, name, ',');) {
-    if (name.empty()) continue;
-    if (std::find(names.begin(), names.end(), name) != names.end()) throw UsageError("--runs names '" + name + "' twice");
-    names.push_back(name);
+  const std::vector<std::string> names = cfg::comma_list(list);
+  if (const std::string* twice = cfg::repeated(names)) throw UsageError("--runs names '" + *twice + "' twice");
+  for (const auto& name : names)
     if (std::find(all.begin(), all.end(), name) == all.end()) unknown.push_back(name);
-  }
   std::string runs;
   for (const auto& r : all) runs += (runs.empty() ? "" : ", ") + r;
   if (names.empty()) {

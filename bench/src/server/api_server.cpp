@@ -960,12 +960,7 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
   s.rig = rig_named(rig);
   const std::string warning = rig_warning(s.rig);
   if (yaml_body) {
-    if (const auto runs = option("runs")) {
-      std::stringstream rs(*runs);
-      for (std::string r; std::getline(rs, r, ',');) {
-        if (!r.empty()) s.runs.push_back(r);
-      }
-    }
+    if (const auto runs = option("runs")) s.runs = cfg::comma_list(*runs);
     if (option("speed")) s.speed = query_number(t, "speed", s.speed);
   } else {
     s.runs = field<std::vector<std::string>>(body, "runs", {});
@@ -978,10 +973,8 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
     throw ApiError{http::status::bad_request, "bad field",
                    "'runs' names no run: name at least one, or leave 'runs' out to run them all", "runs"};
   }
-  for (auto r = s.runs.begin(); r != s.runs.end(); ++r) {
-    if (std::find(s.runs.begin(), r, *r) != r)
-      throw ApiError{http::status::bad_request, "bad field", "'runs' names '" + *r + "' twice", "runs"};
-  }
+  if (const std::string* twice = cfg::repeated(s.runs))
+    throw ApiError{http::status::bad_request, "bad field", "'runs' names '" + *twice + "' twice", "runs"};
 
   std::string yaml;
   if (yaml_body) {

@@ -104,4 +104,10 @@ bool parse_number(std::string_view text, double& value);
 // "did you mean" helper, also used for sub-command and effect names.
 std::string closest(std::string_view word, const std::vector<std::string>& candidates);
 
+// The items of a comma-separated list of names ("a,b", an option's or a query's value), empty
+// ones dropped: "a,,b," is a and b, "" and "," are none.
+std::vector<std::string> comma_list(std::string_view text);
+// The first item that a later one repeats (a name given twice is a mistake), or nullptr.
+const std::string* repeated(const std::vector<std::string>& items);
+
 }  // namespace hil::cfg
