@@ -30,14 +30,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
   (void)first_line;
   Replayer rep(quiet);
   const double yhat0 = rep.start(start);
-  LogChecks checks = [&] {
-    try {
-      const auto [lo, hi] = quiet.pressure_range_pa();
-      return LogChecks(lo, hi);
-    } catch (const std::exception&) {
-      return LogChecks(plant::kNaN, plant::kNaN);  // a model without a reach: that check is skipped
-    }
-  }();
+  LogChecks checks(opt.model_lo_pa, opt.model_hi_pa);
   checks.start(start.p0_pa, yhat0, start.motor0_rad);
   if (info) info->start = start;
   ResidualAnalyzer an(opt);
@@ -113,9 +106,10 @@ AnalyzerOptions analyzer_options_for(const plant::Plant& model) {
   AnalyzerOptions o;
   try {
     const auto [lo, hi] = noise_free(model).pressure_range_pa();
+    o.model_lo_pa = lo, o.model_hi_pa = hi;
     if (lo > 0 && hi > lo) o.pressure_lo_pa = 0.5 * lo, o.pressure_hi_pa = 1.5 * hi;
   } catch (const std::exception&) {
-    // keep the defaults: the histogram range only shapes a plot
+    // keep the defaults: the histogram range only shapes a plot; the reach's log check is skipped
   }
   return o;
 }

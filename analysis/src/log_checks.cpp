@@ -21,10 +21,7 @@ void LogChecks::add(double t_s, double p_pa) {
   } else {
     const double dt = t_s - t_prev_s_;
     if (first_dt_s_.size() < kTypicalIntervals) first_dt_s_.push_back(dt);
-    if (dt > kHoleMinS) {
-      ++long_gaps_seen_;
-      if (long_gaps_.size() < kMaxGapsKept) long_gaps_.emplace_back(t_prev_s_, dt);
-    }
+    if (dt > kHoleMinS && long_gaps_.size() < kMaxGapsKept) long_gaps_.emplace_back(t_prev_s_, dt);
     if (p_pa == p_prev_pa_) {
       ++repeats_;
       ++run_;

@@ -42,7 +42,6 @@ class LogChecks {
   double t_prev_s_ = 0, p_prev_pa_ = 0, sum_p_pa_ = 0;
   std::vector<double> first_dt_s_;                    // the first intervals: the typical one
   std::vector<std::pair<double, double>> long_gaps_;  // (t before, length) of intervals over kHoleMinS
-  std::size_t long_gaps_seen_ = 0;
   std::size_t repeats_ = 0, run_ = 1;
   std::vector<std::size_t> run_lengths_;  // count of finished runs by length (last bin: longer)
   double p_max_pa_ = 0, p_min_pa_ = 0;

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -131,9 +132,12 @@ struct ResidualSample {
 
 struct AnalyzerOptions {
   double pressure_lo_pa = 0.2e6, pressure_hi_pa = 5e6;  // histogram range (the model's reach)
-  double expected_duration_s = 0;                       // 0: unknown (windows adapt as data arrives)
-  std::size_t expected_rows = 0;                        // 0: unknown (sizes the spectrum segments)
-  bool keep_series = true;                              // decimated series for plots
+  // The model's reach at any valve angle (Plant::pressure_range_pa; NaN: unknown), which the
+  // histogram range is set from and the log checks compare the file with (log_checks.hpp).
+  double model_lo_pa = std::numeric_limits<double>::quiet_NaN(), model_hi_pa = std::numeric_limits<double>::quiet_NaN();
+  double expected_duration_s = 0;  // 0: unknown (windows adapt as data arrives)
+  std::size_t expected_rows = 0;   // 0: unknown (sizes the spectrum segments)
+  bool keep_series = true;         // decimated series for plots
 };
 
 class ResidualAnalyzer {
