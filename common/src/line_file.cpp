@@ -87,6 +87,14 @@ std::uint64_t trim_to_whole_lines(const std::filesystem::path& file) {
 
 namespace {
 
+// The name of every temporary of `file` starts with this (".<name>.tmp").
+std::string temporary_prefix(const std::filesystem::path& file) {
+  std::string name = ".";  // hidden, and named after its target so a leftover explains itself
+  name += file.filename().string();
+  name += ".tmp";
+  return name;
+}
+
 // Writes `parts` to a new temporary beside `file` and returns its path; on failure removes it and
 // throws naming `file`.
 std::filesystem::path write_temporary(const std::filesystem::path& file, std::span<const std::string_view> parts) {
@@ -95,10 +103,7 @@ std::filesystem::path write_temporary(const std::filesystem::path& file, std::sp
   std::filesystem::path tmp;
   int fd = -1;
   for (int attempt = 0; attempt < 100 && fd < 0; ++attempt) {
-    std::string name = ".";  // hidden, and named after its target so a leftover explains itself
-    name += file.filename().string();
-    name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-    tmp = dir / name;
+    tmp = dir / (temporary_prefix(file) + std::to_string(::getpid()) + "-" + std::to_string(counter++));
     fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);  // the umask applies
     if (fd < 0 && errno != EEXIST) break;
   }
@@ -131,6 +136,10 @@ std::filesystem::path write_temporary(const std::filesystem::path& file, std::sp
 }
 
 }  // namespace
+
+bool is_temporary_of(const std::filesystem::path& candidate, const std::filesystem::path& file) {
+  return candidate.parent_path() == file.parent_path() && candidate.filename().string().starts_with(temporary_prefix(file));
+}
 
 void replace_file(const std::filesystem::path& file, std::span<const std::string_view> parts) {
   const FileText one{file, {parts.begin(), parts.end()}};

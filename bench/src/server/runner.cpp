@@ -729,10 +729,6 @@ json final_event_unrecorded(const std::filesystem::path& events) {
   return last;
 }
 
-}  // namespace
-
-namespace {
-
 // What a server that died left of a replacement of run.json (replace_file writes
 // ".run.json.tmp<pid>-<n>" whole, then renames it over run.json): the newest such file that reads
 // as a run record; every such file is removed. It is the last thing that server said of the run:
@@ -744,7 +740,7 @@ std::optional<RunRecord> take_unrenamed_record(const std::filesystem::path& dir)
   std::vector<std::filesystem::path> leftovers;
   std::error_code ec;
   for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
-    if (f.is_regular_file() && f.path().filename().string().starts_with(".run.json.tmp")) leftovers.push_back(f.path());
+    if (f.is_regular_file() && is_temporary_of(f.path(), dir / "run.json")) leftovers.push_back(f.path());
   }
   for (const auto& file : leftovers) {
     try {

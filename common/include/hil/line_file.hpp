@@ -58,4 +58,8 @@ struct FileText {
 };
 void replace_files(std::span<const FileText> files);
 
+// Whether `candidate` is a temporary replace_file or replace_files wrote for `file` (beside it,
+// ".<name>.tmp<pid>-<n>"): what a process that died before its rename left, whole or not.
+bool is_temporary_of(const std::filesystem::path& candidate, const std::filesystem::path& file);
+
 }  // namespace hil
