@@ -88,6 +88,7 @@ struct Cia402DriveEmulator::Impl {
   std::atomic<std::uint64_t> syncs{0};
   std::atomic<bool> hb_stopped{false}, silent{false};
   std::atomic<bool> freeze_position{false};   // the fault API's frozen encoder
+  std::atomic<bool> refreeze{false};          // freeze_position(true) since: take the position anew
   std::optional<std::int32_t> frozen_counts;  // what it reports while frozen (I/O thread)
   std::atomic<long long> delay_us{0};
 
@@ -384,9 +385,8 @@ struct Cia402DriveEmulator::Impl {
     s = model.sample();
     // What the encoder reports: the motor's position, or while frozen the one it had.
     std::int32_t actual = cfg.units.to_counts(s.position_rad);
-    if (!freeze_position) {
-      frozen_counts.reset();
-    } else {
+    if (!freeze_position || refreeze.exchange(false)) frozen_counts.reset();
+    if (freeze_position) {
       if (!frozen_counts) frozen_counts = actual;
       actual = *frozen_counts;
       s.velocity_rad_s = 0;
@@ -576,7 +576,12 @@ std::optional<Cia402DriveEmulator::RampStart> Cia402DriveEmulator::quick_stop_ra
 
 void Cia402DriveEmulator::stop_heartbeat(bool stopped) { impl_->hb_stopped = stopped; }
 void Cia402DriveEmulator::set_silent(bool silent) { impl_->silent = silent; }
-void Cia402DriveEmulator::freeze_position(bool frozen) { impl_->freeze_position = frozen; }
+void Cia402DriveEmulator::freeze_position(bool frozen) {
+  // Each freeze holds the position of the first SYNC after it, not one a former freeze took (a
+  // freeze, a clear and a freeze with no SYNC between, as between two runs, held the old one).
+  if (frozen) impl_->refreeze = true;
+  impl_->freeze_position = frozen;
+}
 void Cia402DriveEmulator::set_response_delay(std::chrono::microseconds delay) { impl_->delay_us = delay.count(); }
 
 void Cia402DriveEmulator::raise_emcy(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> mfr) {

@@ -313,6 +313,7 @@ struct ModbusDriveEmulator::Impl {
   int bit_enable, bit_reset, bit_enabled, bit_fault;
   std::atomic<std::uint16_t> injected_fault{0};
   std::atomic<bool> freeze_position{false};  // the fault API's frozen encoder
+  std::atomic<bool> refreeze{false};         // freeze_position(true) since: take the position anew
   std::optional<double> frozen_rad;          // what it reports while frozen (server thread)
   std::atomic<bool> wrap_position{false};    // the fault API's wrapping counter
   std::uint16_t last_control = 0;
@@ -345,9 +346,8 @@ struct ModbusDriveEmulator::Impl {
     const std::uint16_t code = injected_fault ? injected_fault.load() : (s.fault ? s.fault_code : 0);
     const bool fault = code != 0 || s.fault;
     const bool enabled = enabled_bit(m) && !fault;
-    if (!freeze_position) {
-      frozen_rad.reset();
-    } else if (!frozen_rad) {
+    if (!freeze_position || refreeze.exchange(false)) frozen_rad.reset();
+    if (freeze_position && !frozen_rad) {
       frozen_rad = s.position_rad;
     }
     const double reported_rad = frozen_rad.value_or(s.position_rad);
@@ -382,7 +382,11 @@ void ModbusDriveEmulator::raise_fault(std::uint16_t code) {
   impl_->model.command(impl_->model.sample().position_rad, false);
 }
 void ModbusDriveEmulator::set_silent(bool s) { impl_->server->silent = s; }
-void ModbusDriveEmulator::freeze_position(bool frozen) { impl_->freeze_position = frozen; }
+void ModbusDriveEmulator::freeze_position(bool frozen) {
+  // Each freeze holds the position of the first read after it, not one a former freeze took.
+  if (frozen) impl_->refreeze = true;
+  impl_->freeze_position = frozen;
+}
 void ModbusDriveEmulator::wrap_position(bool wrap) { impl_->wrap_position = wrap; }
 void ModbusDriveEmulator::set_response_delay(std::chrono::microseconds d) { impl_->server->delay_us = d.count(); }
 void ModbusDriveEmulator::set_exception(int code) { impl_->server->exception = code; }
