@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 #include <fstream>
 #include <functional>
 #include <sstream>
@@ -492,6 +493,33 @@ TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
   EXPECT_NE(p1.find("initial_deg: 2"), std::string::npos) << p1;
   EXPECT_NE(p1.find("to_deg: 2.25"), std::string::npos) << p1;
   EXPECT_EQ(p1.find("adaptive_paper"), std::string::npos) << "only the sweep's runs\n" << p1;
+}
+
+// An increment on an increment depends on the order they are applied in, and two axes relative
+// to each other (a cycle) ran with whatever that order made: both refused at the relative_to,
+// naming the line, before anything runs.
+TEST(Sweep, ARelativeAxisOnAnotherIncrementIsRefused) {
+  TempDir dir;
+  const std::string head = "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\nruns: [adaptive]\naxes:\n";
+  const std::string cycle = head +
+                            "  - path: campaign.gap.initial_deg\n    relative_to: campaign.gap.changes[0].drift.to_deg\n"
+                            "    values: [0.1]\n"
+                            "  - path: campaign.gap.changes[0].drift.to_deg\n    relative_to: campaign.gap.initial_deg\n"
+                            "    values: [0.25]\n";
+  const std::string chain = head +
+                            "  - path: campaign.seed\n    values: [1, 2]\n"
+                            "  - path: campaign.gap.initial_deg\n    relative_to: campaign.duration_s\n    values: [-3.5]\n"
+                            "  - path: campaign.gap.changes[0].drift.to_deg\n    relative_to: campaign.gap.initial_deg\n"
+                            "    values: [0.25]\n";
+  for (const auto& [name, text, line] : {std::tuple{"cycle", cycle, 5}, std::tuple{"chain", chain, 10}}) {
+    const auto sweep = dir.write(std::string(name) + ".yaml", text);
+    const auto out = dir.path() / ("out_" + std::string(name));
+    const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+    EXPECT_NE(r.status, 0) << name << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string(name) + ".yaml:" + std::to_string(line) + ":"), std::string::npos) << name << "\n" << r.output;
+    EXPECT_NE(r.output.find("is itself an increment"), std::string::npos) << name << "\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out / "sweep.csv")) << name;
+  }
 }
 
 // A reference from a CSV file beside the base campaign: the point's campaign, written elsewhere,

@@ -496,6 +496,24 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
     std::string canonical = (p->plant ? "plant" : "campaign") + describe(p->steps, p->steps.size());
     a.at("path").require(seen.insert(canonical).second, "two axes set the same value");
   }
+  // An increment adds to a value an absolute axis set (or the campaign's own): one whose base is
+  // itself an increment would depend on the order the increments are applied in, and two that
+  // name each other (a cycle) ran with whatever that order made.
+  const auto canonical_of = [](const std::string& path) {
+    const auto p = parse_path(path);
+    return (p->plant ? "plant" : "campaign") + describe(p->steps, p->steps.size());
+  };
+  for (std::size_t i = 0; i < plan.axes.size(); ++i) {
+    if (plan.axes[i].relative_to.empty()) continue;
+    const std::string base = canonical_of(plan.axes[i].relative_to);
+    for (const SweepAxis& other : plan.axes) {
+      if (other.relative_to.empty() || canonical_of(other.path) != base) continue;
+      axes.items()[i].at("relative_to").fail("'" + plan.axes[i].relative_to + "' is itself an increment (relative to '" +
+                                             other.relative_to +
+                                             "'): an axis may be relative only to a value no other axis increments "
+                                             "(a chain or cycle of increments has no order)");
+    }
+  }
   const bool random = std::any_of(plan.axes.begin(), plan.axes.end(), [](const SweepAxis& a) { return a.random(); });
   if (auto s = root.find("samples")) {
     s->require(random, "samples are draws of distribution axes (uniform, normal), and this sweep has none");
