@@ -180,6 +180,30 @@ TEST(RunLoop, OverpressureTripsAfterTheDebounce) {
   EXPECT_EQ(h.loop->trip_limit(), 1.8e6);
 }
 
+// An injection that makes the reading no number (a noise or bias of 1e308 kPa overflows to inf,
+// then NaN) was recorded as it was: telemetry.csv held 'nan', and no report or analysis of the run
+// could read it again. Such a reading is a missed one now: held, flagged, counted, and the
+// watchdog ends the run as for a silent sensor. (The API refuses such values: check_injection.)
+TEST(RunLoop, AnInjectionThatMakesTheReadingNoNumberIsAMissedRead) {
+  for (const double bias_pa : {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()}) {
+    LoopHarness h(short_campaign(1.0));
+    for (int i = 0; i < 100; ++i) h.step();
+    ASSERT_TRUE(h.requests.try_push({.kind = LoopRequest::Kind::sensor_fault, .sensor = SensorFault::bias, .value = bias_pa}));
+    while (h.step()) {}
+    const auto rows = h.rows();
+    int missed = 0;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      ASSERT_TRUE(std::isfinite(rows[i].step.p_meas_pa)) << "row " << i;
+      ASSERT_TRUE(std::isfinite(rows[i].step.theta_cmd_rad)) << "row " << i;
+      if (i < 100 || !(rows[i].flags & kFlagReadMissed)) continue;
+      ++missed;
+      ASSERT_EQ(rows[i].step.p_meas_pa, rows[99].step.p_meas_pa) << "row " << i << ": the last reading is held";
+    }
+    EXPECT_GT(missed, 0) << bias_pa;
+    EXPECT_EQ(h.loop->trip(), Trip::watchdog) << bias_pa;
+  }
+}
+
 TEST(RunLoop, SensorFaultsShapeTheReading) {
   LoopHarness h(short_campaign(2.0));
   for (int i = 0; i < 100; ++i) h.step();

@@ -221,6 +221,9 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
       case SensorFault::noise: rd.p_meas_pa += sensor_value_ * rng_.gaussian(); break;
       case SensorFault::none: break;
     }
+    // What an injection made of it must still be a number: the record and the controller take
+    // only numbers (a missed reading is held, and counted, like any other).
+    if (!std::isfinite(rd.p_meas_pa)) missed = true;
   }
   if (missed) {
     rd = last_shown_;  // recorded as held; loop_flags says the reading was missed

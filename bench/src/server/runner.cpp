@@ -226,6 +226,19 @@ void CampaignRunner::wait() {
   if (thread_.joinable()) thread_.join();
 }
 
+std::string speed_problem(double speed, double period_s) {
+  if (!(speed >= kMinSpeed && speed <= kMaxSpeed)) {
+    return fmt::format("speed {} is outside {}..{} (loop periods per control period of wall time)", speed, kMinSpeed,
+                       kMaxSpeed);
+  }
+  if (period_s / speed > kMaxWallPeriodS) {
+    return fmt::format("speed {} paces a {} ms period at {:.3g} s of wall time; at most {} s (the loop reads an abort once a "
+                       "period): use a speed of at least {:.3g}",
+                       speed, period_s * 1e3, period_s / speed, kMaxWallPeriodS, period_s / kMaxWallPeriodS);
+  }
+  return {};
+}
+
 void CampaignRunner::start(StartRequest request) {
   auto a = std::make_shared<Active>();
   std::vector<std::string> names;
@@ -237,7 +250,7 @@ void CampaignRunner::start(StartRequest request) {
                                  (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
     }
   }
-  if (!(request.speed > 0 && request.speed <= 100)) throw BadField("speed", "speed must be in (0, 100]");
+  if (const std::string why = speed_problem(request.speed, request.campaign.period_s); !why.empty()) throw BadField("speed", why);
   // What the rig can do, as its kind declares it (no rig is made, nothing opened).
   const RigCapabilities& can = kind_of(request.rig).capabilities;
   const bool simulated = can.simulated, programmable_gap = can.programmable_gap;
@@ -307,6 +320,26 @@ std::string CampaignRunner::abort(const std::string& reason) {
   return active_->abort_reason;
 }
 
+void check_injection(const LoopRequest& r) {
+  using K = LoopRequest::Kind;
+  const auto within = [](double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; };
+  if (!within(r.duration_s, 0, kMaxInjectionS)) {
+    throw BadField("duration_s", fmt::format("duration {} s is outside 0..{} s (0 = until cleared)", r.duration_s, kMaxInjectionS));
+  }
+  if (r.kind == K::set_gap && !within(r.value, 0, units::deg_to_rad(kMaxInjectedGapDeg))) {
+    throw BadField("gap_deg", fmt::format("gap {} deg is outside 0..{} deg", units::rad_to_deg(r.value), kMaxInjectedGapDeg));
+  }
+  if (r.kind == K::sensor_fault && r.sensor == SensorFault::bias &&
+      !within(r.value, -kMaxSensorBiasKpa * units::kPaPerKpa, kMaxSensorBiasKpa * units::kPaPerKpa)) {
+    throw BadField("bias_kpa", fmt::format("bias {} kPa is outside -{}..{} kPa", r.value / units::kPaPerKpa, kMaxSensorBiasKpa,
+                                           kMaxSensorBiasKpa));
+  }
+  if (r.kind == K::sensor_fault && r.sensor == SensorFault::noise && !within(r.value, 0, kMaxSensorNoiseKpa * units::kPaPerKpa)) {
+    throw BadField("rms_kpa",
+                   fmt::format("noise {} kPa RMS is outside 0..{} kPa", r.value / units::kPaPerKpa, kMaxSensorNoiseKpa));
+  }
+}
+
 void CampaignRunner::inject(const LoopRequest& request) {
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
@@ -320,6 +353,7 @@ void CampaignRunner::inject(const LoopRequest& request) {
     throw std::invalid_argument("rig '" + active_->req.rig.name + "' has hardware (" + active_->req.rig.kind +
                                 "): rig faults are faked by the simulated rig only");
   }
+  check_injection(request);
   if (!active_->requests->try_push(request)) throw Conflict("the loop has not taken the previous requests yet; try again");
 }
 

@@ -56,6 +56,22 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
 // "2026-11-21T06:19:25.123Z": the time stamps of run.json, events and the server's jobs.
 std::string utc_iso(std::chrono::system_clock::time_point t);
 
+// A start's `speed` (loop periods per dT of wall time): from a hundredth of real time to a hundred
+// times it, and never a loop period longer than kMaxWallPeriodS of wall time. The loop waits a
+// whole period before it reads an abort, a stop or SIGTERM, so a slower pace leaves the bench
+// deaf (speed 1e-9 ran a period for 11 days; 1e-300 overflowed the period's conversion).
+inline constexpr double kMinSpeed = 0.01, kMaxSpeed = 100, kMaxWallPeriodS = 1.0;
+// Empty when `speed` can pace a campaign of control period `period_s`; else why not.
+std::string speed_problem(double speed, double period_s);
+
+// What an injection may ask of the loop (API, ctl, console): every value finite and within these,
+// so that what the loop records stays a number (a bias or noise of 1e308 kPa made the reading inf
+// and then NaN, and telemetry.csv held 'nan' that no reader takes).
+inline constexpr double kMaxInjectionS = 86400, kMaxInjectedGapDeg = 10, kMaxSensorBiasKpa = 10000, kMaxSensorNoiseKpa = 1000;
+// Throws BadField (named as the API's field: gap_deg, bias_kpa, rms_kpa, duration_s) for a value
+// outside those.
+void check_injection(const LoopRequest& request);
+
 struct StartRequest {
   Campaign campaign;
   RigConfig rig;
