@@ -66,19 +66,32 @@ extract() {
     }' "$@"
 }
 
-# Why `candidate` is no document of the repository ("" when it is one).
-why_not() {
-  local candidate="$1" resolved rel
-  [[ -e "$candidate" ]] || { echo "no such file"; return; }
-  resolved=$(realpath -- "$candidate")
-  if [[ "$resolved" != "$top" && "$resolved" != "$top"/* ]]; then
-    echo "outside the repository"
-    return
-  fi
-  if $in_git; then
-    rel="${resolved#"$top"}"
-    rel="${rel#/}"
-    [[ -z "$rel" || -n "${tracked[$rel]:-}" ]] || echo "not tracked by git"
+# Sets `why` to why the path `rel` (from the repository's top, may hold . and ..) is no document
+# of the repository, or to "" when it is one. Pure bash: a fork per link is slow on a busy host.
+check() {
+  local seg out=()
+  local -a segs
+  why=""
+  IFS=/ read -ra segs <<<"$1"
+  for seg in "${segs[@]}"; do
+    case "$seg" in
+      "" | .) ;;
+      ..)
+        if ((${#out[@]} == 0)); then
+          why="outside the repository"
+          return
+        fi
+        unset 'out[${#out[@]}-1]'
+        ;;
+      *) out+=("$seg") ;;
+    esac
+  done
+  local IFS=/ norm
+  norm="${out[*]}"
+  if [[ ! -e "$top/$norm" ]]; then
+    why="no such file"
+  elif $in_git && [[ -n "$norm" && -z "${tracked[$norm]:-}" ]]; then
+    why="not tracked by git"
   fi
 }
 
@@ -90,15 +103,16 @@ while IFS=$'\t' read -r file line target kind; do
   [[ -z "$path" ]] && continue  # an anchor in the same document
   path="${path//%20/ }"
   checked=$((checked + 1))
-  here="$(dirname "$file")/$path"
+  folder=.
+  [[ "$file" == */* ]] && folder="${file%/*}"
   if [[ "$kind" == span ]]; then  # a document named in a code span: from here or from the top
-    why=$(why_not "$here")
-    [[ -z "$why" ]] || why=$(why_not "$top/$path")
+    check "$folder/$path"
+    [[ -z "$why" ]] || check "$path"
     [[ -z "$why" ]] || why="$why (a document named in a code span)"
   elif [[ "$path" == /* ]]; then
-    why=$(why_not "$top$path")
+    check "$path"
   else
-    why=$(why_not "$here")
+    check "$folder/$path"
   fi
   if [[ -n "$why" ]]; then
     echo "$file:$line: $target: $why"
