@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs a test binary on a real vcan0. Where the kernel has CAN and we are root, directly on the
-# host; otherwise inside a small qemu VM booted from Debian's own kernel (shared/docs/vcan-in-qemu.md).
+# host; otherwise inside a small qemu VM booted from Debian's own kernel (docs/vcan-in-qemu.md).
 #
 #   run-on-vcan.sh [--cache DIR] [--file PATH]... [--binary PATH]... [--timeout S] [--mode auto|host|vm] -- BINARY [ARGS...]
 #
