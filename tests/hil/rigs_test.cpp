@@ -295,6 +295,37 @@ TEST(DeviceRig, StaleWhenTheDeviceFallsSilent) {
   }
 }
 
+// Issue 38 item 9: the drive's heartbeat stops for longer than its timeout and comes back
+// between two reads of the loop (a 376 ms gap under a 350 ms limit, on a loaded host). The
+// client had quick-stopped the drive for the loss; once the heartbeat was back it reported no
+// fault, so the rig read a drive that "switched itself off during the run without reporting a
+// fault". Now the held fault is a fault, and the rig names its cause, the lost heartbeat.
+TEST(DeviceRig, AHeartbeatLostAndBackBetweenTwoReadsIsReportedAsTheLostHeartbeat) {
+  const auto campaign = short_paper_campaign(2);
+  drv::LoopbackBus bus;
+  SimulatorSide side(campaign, bus.factory());
+  TempDir dir;
+  const auto owned_rig =
+      active_rig(dir, "can", can_rig_yaml(side, {}, "vcan0", "recover", {.heartbeat_ms = 200}), campaign, bus.factory());
+  bench::DeviceRig& rig = *owned_rig;
+  ASSERT_TRUE(run_until(rig, bench::RigStatus::ok)) << rig.health().last_error_text();
+  // No read or write from here until the heartbeat is back: the loop did not look in between.
+  side.can.stop_heartbeat(true);
+  ASSERT_TRUE(wait_state([&] { return !rig.health().connected; })) << rig.health().last_error_text();  // lost
+  side.can.stop_heartbeat(false);
+  ASSERT_TRUE(wait_state([&] { return rig.health().connected; })) << rig.health().last_error_text();  // back
+  ASSERT_TRUE(wait_state([&] {
+    const drv::DriveFeedback fb = rig.drive_feedback();
+    return fb.valid && !fb.enabled;  // the client quick-stopped it for the loss
+  }));
+  bench::RigReading rd;
+  EXPECT_EQ(rig.read(Clock::now(), 1ms, rd), bench::RigStatus::fault);
+  const std::string text(rig.health().last_error_text());
+  EXPECT_NE(text.find("drive: CiA 402 drive node 5 on vcan0: heartbeat lost (none for 200 ms)"), std::string::npos) << text;
+  EXPECT_EQ(text.find("switched itself off"), std::string::npos) << text;
+  rig.deactivate();
+}
+
 // The CAN rig's SYNC period is the campaign's period. Campaigns allow 0.01..1000 ms; the rig used
 // to bend that into 100 us..100 ms without a word, so a 50 us campaign ran a 100 us SYNC (which a
 // 1 Mbit/s bus cannot carry either) and a 200 ms one told the drive 100 ms. Now a period the bus
