@@ -176,7 +176,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {
     l->allow_keys({"following_error_window_deg", "following_error_timeout_ms", "max_profile_velocity_deg_s",
-                   "quick_stop_deceleration_deg_s2"});
+                   "quick_stop_deceleration_deg_s2", "drive_lag_ms"});
     const auto positive = [&](std::string_view key, double& out) {
       if (auto v = l->find(key)) {
         const double x = v->number();
@@ -189,6 +189,11 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     positive("quick_stop_deceleration_deg_s2", c.limits.quick_stop_deceleration_rad_s2);
     c.limits.following_error_timeout =
         l->milliseconds_in("following_error_timeout_ms", c.limits.following_error_timeout, 0, 65535, "0x6066 is 16 bit");
+    if (auto lag = l->find("drive_lag_ms")) {
+      const double ms = lag->number();
+      lag->require(std::isfinite(ms) && ms >= 0 && ms <= 10000, "must be 0..10000 ms");
+      c.limits.drive_lag = std::chrono::microseconds(std::llround(ms * 1000));
+    }
   }
   return c;
 }
@@ -197,6 +202,24 @@ Cia402Config Cia402Config::load(const std::filesystem::path& file) {
   const auto root = cfg::Node::load_file(file);
   if (auto d = root.find("cia402_drive")) return from_yaml(*d);
   return from_yaml(root);
+}
+
+std::string following_window_problem(const Cia402Config& c, double window_rad) {
+  if (!(c.target_velocity_rad_s > 0) || !(window_rad > 0)) return {};
+  const double lag_s = std::chrono::duration<double>(c.limits.drive_lag).count();
+  const double period_s = std::chrono::duration<double>(c.sync_period).count();
+  const double needed_rad = c.target_velocity_rad_s * (lag_s + period_s);
+  if (window_rad >= needed_rad) return {};
+  constexpr double kDeg = 180.0 / std::numbers::pi;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "following error window 0x6065 = %.4g deg is narrower than the following error the bench's targets make by "
+                "themselves: %.4g deg/s x (%.4g ms drive lag%s + %.4g ms SYNC period) = %.4g deg; the drive would fault on "
+                "shaping alone (widen limits.following_error_window_deg, or lower the rig's loop.target_shaping."
+                "max_velocity_deg_s)",
+                window_rad * kDeg, c.target_velocity_rad_s * kDeg, lag_s * 1e3,
+                c.limits.drive_lag.count() == 0 ? ", unknown: limits.drive_lag_ms" : "", period_s * 1e3, needed_rad * kDeg);
+  return text;
 }
 
 std::chrono::microseconds Cia402Config::min_sync_period() const {
@@ -238,7 +261,14 @@ struct Cia402Drive::Impl {
   std::thread thread;
 
   // Shared with other threads.
-  Mailbox<DriveCommand> command;
+  // The newest command and which write() it came with (0: from a setup call).
+  struct NumberedCommand {
+    DriveCommand command;
+    std::uint64_t write = 0;
+  };
+  Mailbox<NumberedCommand> command;
+  std::atomic<std::uint64_t> writes{0};      // write() calls (one writing thread: the loop)
+  std::atomic<std::uint64_t> sent_write{0};  // the write() whose command the last SYNC carried
   Mailbox<DriveFeedback> feedback;
   Mailbox<DeviceHealth> health_box;
   std::atomic<std::uint8_t> target{static_cast<std::uint8_t>(cia402::Target::disabled)};
@@ -650,7 +680,8 @@ struct Cia402Drive::Impl {
   void tick() {
     last_sync = Clock::now();
     if (!pdo_running || bus_off_latched) return;
-    const DriveCommand cmd = command.load();
+    const NumberedCommand numbered = command.load();
+    const DriveCommand& cmd = numbered.command;
     if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
     prev_cmd_reset = cmd.fault_reset;
     const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
@@ -692,6 +723,7 @@ struct Cia402Drive::Impl {
     put_le(&rpdo.data[2], static_cast<std::uint32_t>(pos), 4);
     send(rpdo);
     send(canopen::sync());
+    sent_write.store(numbered.write, std::memory_order_release);
     last_cw = cw;
     ++h.sync_sent;
   }
@@ -994,9 +1026,23 @@ void Cia402Drive::configure() {
   const auto& lim = m.cfg.limits;
   const double rpc = std::abs(m.cfg.units.rad_per_count());
   const auto counts = [rpc](double x) { return static_cast<std::uint32_t>(std::min(std::nearbyint(x / rpc), 4294967294.0)); };
+  // The window in effect: the file's, or the drive's own (0xFFFFFFFF: monitoring off).
+  double window_rad = 0;
   if (lim.following_error_window_rad > 0) {
-    optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
-                   "no following error window to set");
+    if (optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
+                       "no following error window to set")) {
+      window_rad = counts(lim.following_error_window_rad) * rpc;
+    }
+  } else if (m.cfg.target_velocity_rad_s > 0) {
+    try {
+      const std::uint32_t w = sdo_read(cia402::kFollowingErrorWindow, 0);
+      if (w != 0xFFFFFFFFu) window_rad = w * rpc;
+    } catch (const SdoAbortError& e) {
+      if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+    }
+  }
+  if (const std::string problem = following_window_problem(m.cfg, window_rad); !problem.empty()) {
+    throw DriveError(m.who + ": " + problem);
   }
   if (lim.following_error_timeout.count() >= 0) {
     optional_write(cia402::kFollowingErrorTimeout, 0, static_cast<std::uint32_t>(lim.following_error_timeout.count()), 2,
@@ -1012,7 +1058,7 @@ void Cia402Drive::configure() {
   const auto read_time = Clock::now();
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
   no_reboot("while the objects were written");
-  m.command.store({m.cfg.units.to_rad(pos), false, false});
+  m.command.store({{m.cfg.units.to_rad(pos), false, false}, m.writes.load()});
   m.run_on_io([&m, pos, read_time] {
     m.last_pos_counts = pos;
     m.position_read_valid = true;
@@ -1129,7 +1175,7 @@ void Cia402Drive::activate() {
   const Impl::SetupCall call(m, "activate()");
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
-  m.command.store({fb.position_rad, true, false});
+  m.command.store({{fb.position_rad, true, false}, m.writes.load()});
   m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
   bool enabled = false;
@@ -1179,7 +1225,9 @@ std::vector<std::string> Cia402Drive::configure_notes() const { return impl_->no
 DriveFeedback Cia402Drive::read(Clock::time_point, Clock::duration) noexcept { return impl_->feedback.load(); }
 
 void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
-  impl_->command.store(command);
+  const std::uint64_t n = impl_->writes.load(std::memory_order_relaxed) + 1;
+  impl_->writes.store(n, std::memory_order_relaxed);
+  impl_->command.store({command, n});
   if (impl_->kick_fd >= 0) {
     const std::uint64_t one = 1;
     [[maybe_unused]] auto r = ::write(impl_->kick_fd, &one, sizeof one);  // non-blocking eventfd
@@ -1193,6 +1241,10 @@ std::string_view Cia402Drive::missing_reply_text() const noexcept {
 }
 
 DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }
+
+bool Cia402Drive::last_command_sent() const noexcept {
+  return impl_->sent_write.load(std::memory_order_acquire) == impl_->writes.load(std::memory_order_relaxed);
+}
 
 FeedbackFreshness Cia402Drive::freshness() const noexcept {
   return impl_->cfg.sync_source == Cia402Config::SyncSource::loop ? FeedbackFreshness::reply_to_each_write

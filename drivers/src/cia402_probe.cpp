@@ -167,6 +167,15 @@ Cia402Probe probe(Cia402Drive& client) {
                     lim.following_error_window_rad * 180 / std::numbers::pi);
       p.plan.push_back(line);
     }
+    // The window in effect against what the bench's targets make of the drive's lag.
+    const double rpc = std::abs(cfg.units.rad_per_count());
+    const double in_effect = lim.following_error_window_rad > 0 ? std::nearbyint(lim.following_error_window_rad / rpc) * rpc
+                             : *window != 0xFFFFFFFF          ? *window * rpc
+                                                              : 0.0;
+    if (const std::string problem = following_window_problem(cfg, in_effect); !problem.empty()) {
+      p.usable = false;
+      p.refused.push_back(problem);
+    }
   } else {
     p.lacks.push_back("0x6065/0x6066 following error window and timeout (optional: the limits in the drive file are skipped)");
   }
@@ -215,6 +224,7 @@ std::string Cia402Probe::report() const {
   s += "the drive lacks:\n";
   if (lacks.empty()) s += "  (nothing the client uses)\n";
   for (const auto& l : lacks) s += "  - " + l + "\n";
+  for (const auto& l : refused) s += "configure() will refuse: " + l + "\n";
   s += usable ? "verdict: usable by the CAN rig\n" : "verdict: NOT usable by the CAN rig\n";
   return s;
 }

@@ -221,6 +221,8 @@ RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const 
   return RigStatus::ok;
 }
 
+bool DeviceRig::target_sent() const noexcept { return !drive_ || drive_->last_command_sent(); }
+
 drv::DriveFeedback DeviceRig::drive_feedback() const noexcept {
   return drive_ ? drive_->read(Clock::now(), Clock::duration::zero()) : drv::DriveFeedback{};
 }

@@ -98,13 +98,27 @@ struct Cia402Config {
     std::chrono::milliseconds following_error_timeout{-1};  // -1: not written
     double max_profile_velocity_rad_s = 0;                  // 0: not written
     double quick_stop_deceleration_rad_s2 = 0;              // 0: not written
+    // The drive's lag behind a target that moves at a constant speed (its position loop),
+    // measured: the following error at that speed over the speed (not written anywhere).
+    std::chrono::microseconds drive_lag{0};  // 0: unknown
   } limits;
+  // The fastest the bench moves the target: set by the rig from its loop.target_shaping and
+  // safety.rate_limit (no key of the drive file); 0: unknown. With the drive's lag it says what
+  // following error the bench's targets make by themselves (following_window_problem()).
+  double target_velocity_rad_s = 0;
 
   // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.
   static Cia402Config from_yaml(const cfg::Node& node);
   // A file holding that mapping at its top level or under `cia402_drive:`.
   static Cia402Config load(const std::filesystem::path& file);
 };
+
+// The following error the bench's targets make by themselves, target_velocity_rad_s x (the
+// drive's lag + one SYNC period: the drive gets each target a period later), against a following
+// error window 0x6065 of `window_rad`: the text that refuses the window, with the numbers, when it
+// is narrower (the drive would fault on shaping alone); empty when it is wide enough or the
+// target velocity is unknown.
+std::string following_window_problem(const Cia402Config& config, double window_rad);
 
 class DriveError : public std::runtime_error {
  public:
@@ -162,6 +176,8 @@ class Cia402Drive final : public PositionDrive {
   // so a TPDO since the last write is fresh; timer: the SYNC runs on its own clock (polled).
   FeedbackFreshness freshness() const noexcept override;
   std::string_view missing_reply_text() const noexcept override;  // names a TPDO1 that arrives too short
+  // Real-time safe, the thread that writes: a SYNC has carried the newest write's command.
+  bool last_command_sent() const noexcept override;
   cia402::State state() const noexcept;                           // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
