@@ -78,8 +78,8 @@ void check_can_interface_name(const cfg::Node& n) {
 }
 
 Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
-  n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "units", "timeouts", "bus_off",
-                "disable_unused_pdos", "limits"});
+  n.allow_keys({"interface", "node_id", "bitrate", "sync_period_us", "sync_source", "heartbeat", "node_guarding",
+                "bench_heartbeat", "units", "timeouts", "bus_off", "disable_unused_pdos", "limits"});
   Cia402Config c;
   check_can_interface_name(n.at("interface"));
   c.interface = n.text("interface");
@@ -112,6 +112,46 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
       hb->at("timeout_ms").fail("must be longer than producer_ms (" + std::to_string(c.heartbeat_producer.count()) + " ms)");
     }
   }
+  if (auto g = n.find("node_guarding")) {
+    g->allow_keys({"guard_time_ms", "life_time_factor"});
+    c.node_guarding.guard_time = g->milliseconds_in("guard_time_ms", c.node_guarding.guard_time, 1, 65535, "0x100C is 16 bit");
+    c.node_guarding.life_time_factor =
+        static_cast<int>(g->integer_in("life_time_factor", c.node_guarding.life_time_factor, 1, 255, "0x100D is 8 bit"));
+  }
+  if (!n.find("node_guarding")) {
+    // Unset: requests three times per heartbeat timeout at least (the default 100 ms within 350 ms).
+    c.node_guarding.guard_time = std::max(milliseconds(1), std::min(c.node_guarding.guard_time, c.heartbeat_timeout / 3));
+  } else if (c.node_guarding.guard_time >= c.heartbeat_timeout) {
+    n.at("node_guarding")
+        .fail("guard_time_ms (" + std::to_string(c.node_guarding.guard_time.count()) +
+              ") must be shorter than heartbeat.timeout_ms (" + std::to_string(c.heartbeat_timeout.count()) +
+              "): the drive's replies are watched with that timeout");
+  }
+  if (auto bh = n.find("bench_heartbeat")) {
+    bh->allow_keys({"node_id", "producer_ms", "drive_timeout_ms", "on_loss", "required"});
+    auto& b = c.bench_heartbeat;
+    b.node_id = static_cast<std::uint8_t>(bh->integer_in("node_id", b.node_id, 1, 127, "a CANopen node id"));
+    if (auto id = bh->find("node_id")) id->require(b.node_id != c.node_id, "must not be the drive's node id");
+    b.producer = bh->milliseconds_in("producer_ms", b.producer, 1, 65535);
+    b.drive_timeout = bh->milliseconds_in("drive_timeout_ms", b.drive_timeout, 1, 65535, "0x1016 holds the time in 16 bits");
+    if (b.drive_timeout <= b.producer) {
+      bh->at(bh->find("drive_timeout_ms") ? "drive_timeout_ms" : "producer_ms")
+          .fail("drive_timeout_ms (" + std::to_string(b.drive_timeout.count()) + ") must be longer than producer_ms (" +
+                std::to_string(b.producer.count()) + ")");
+    }
+    const std::string loss = bh->text("on_loss", "quick_stop");
+    if (loss == "quick_stop")
+      b.on_loss = 3;
+    else if (loss == "disable_voltage")
+      b.on_loss = 2;
+    else if (loss == "fault")
+      b.on_loss = 1;
+    else
+      bh->at("on_loss").fail("must be quick_stop, disable_voltage or fault (0x6007 = 3, 2, 1), got '" + loss + "'");
+    b.required = bh->boolean("required", b.required);
+  } else if (c.bench_heartbeat.node_id == c.node_id) {
+    n.at("node_id").fail("is the bench's default node id (127): give bench_heartbeat.node_id another one");
+  }
   if (auto u = n.find("units")) c.units = DriveUnits::from_yaml(*u);
   if (auto t = n.find("timeouts")) {
     t->allow_keys({"boot_ms", "sdo_ms", "sdo_retries", "transition_ms"});
@@ -136,7 +176,7 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
   c.disable_unused_pdos = n.boolean("disable_unused_pdos", c.disable_unused_pdos);
   if (auto l = n.find("limits")) {
     l->allow_keys({"following_error_window_deg", "following_error_timeout_ms", "max_profile_velocity_deg_s",
-                   "quick_stop_deceleration_deg_s2"});
+                   "quick_stop_deceleration_deg_s2", "drive_lag_ms"});
     const auto positive = [&](std::string_view key, double& out) {
       if (auto v = l->find(key)) {
         const double x = v->number();
@@ -149,6 +189,11 @@ Cia402Config Cia402Config::from_yaml(const cfg::Node& n) {
     positive("quick_stop_deceleration_deg_s2", c.limits.quick_stop_deceleration_rad_s2);
     c.limits.following_error_timeout =
         l->milliseconds_in("following_error_timeout_ms", c.limits.following_error_timeout, 0, 65535, "0x6066 is 16 bit");
+    if (auto lag = l->find("drive_lag_ms")) {
+      const double ms = lag->number();
+      lag->require(std::isfinite(ms) && ms >= 0 && ms <= 10000, "must be 0..10000 ms");
+      c.limits.drive_lag = std::chrono::microseconds(std::llround(ms * 1000));
+    }
   }
   return c;
 }
@@ -157,6 +202,24 @@ Cia402Config Cia402Config::load(const std::filesystem::path& file) {
   const auto root = cfg::Node::load_file(file);
   if (auto d = root.find("cia402_drive")) return from_yaml(*d);
   return from_yaml(root);
+}
+
+std::string following_window_problem(const Cia402Config& c, double window_rad) {
+  if (!(c.target_velocity_rad_s > 0) || !(window_rad > 0)) return {};
+  const double lag_s = std::chrono::duration<double>(c.limits.drive_lag).count();
+  const double period_s = std::chrono::duration<double>(c.sync_period).count();
+  const double needed_rad = c.target_velocity_rad_s * (lag_s + period_s);
+  if (window_rad >= needed_rad) return {};
+  constexpr double kDeg = 180.0 / std::numbers::pi;
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "following error window 0x6065 = %.4g deg is narrower than the following error the bench's targets make by "
+                "themselves: %.4g deg/s x (%.4g ms drive lag%s + %.4g ms SYNC period) = %.4g deg; the drive would fault on "
+                "shaping alone (widen limits.following_error_window_deg, or lower the rig's loop.target_shaping."
+                "max_velocity_deg_s)",
+                window_rad * kDeg, c.target_velocity_rad_s * kDeg, lag_s * 1e3,
+                c.limits.drive_lag.count() == 0 ? ", unknown: limits.drive_lag_ms" : "", period_s * 1e3, needed_rad * kDeg);
+  return text;
 }
 
 std::chrono::microseconds Cia402Config::min_sync_period() const {
@@ -191,14 +254,21 @@ struct Cia402Drive::Impl {
   asio::io_context io;
   asio::executor_work_guard<asio::io_context::executor_type> work{io.get_executor()};
   std::unique_ptr<CanTransport> tr;
-  asio::steady_timer sync_timer{io}, hb_timer{io}, sdo_timer{io}, bus_timer{io};
+  asio::steady_timer sync_timer{io}, hb_timer{io}, sdo_timer{io}, bus_timer{io}, bench_hb_timer{io}, guard_timer{io};
   int kick_fd = -1;
   asio::posix::stream_descriptor kick{io};
   std::uint64_t kick_buf = 0;
   std::thread thread;
 
   // Shared with other threads.
-  Mailbox<DriveCommand> command;
+  // The newest command and which write() it came with (0: from a setup call).
+  struct NumberedCommand {
+    DriveCommand command;
+    std::uint64_t write = 0;
+  };
+  Mailbox<NumberedCommand> command;
+  std::atomic<std::uint64_t> writes{0};      // write() calls (one writing thread: the loop)
+  std::atomic<std::uint64_t> sent_write{0};  // the write() whose command the last SYNC carried
   Mailbox<DriveFeedback> feedback;
   Mailbox<DeviceHealth> health_box;
   std::atomic<std::uint8_t> target{static_cast<std::uint8_t>(cia402::Target::disabled)};
@@ -228,6 +298,8 @@ struct Cia402Drive::Impl {
   BusStateTracker bus;
   bool pdo_running = false;
   bool expect_heartbeat = false;
+  bool bench_heartbeat_on = false;  // the bench's own heartbeat is produced (from configure() on)
+  bool guarding = false;            // node guarding requests are sent (a drive without 0x1017)
   bool rebooted = false;
   // Set by the first heartbeat saying operational after configure(); a later heartbeat in any
   // other state means the drive stopped processing PDOs (another master's NMT stop, a drive
@@ -304,12 +376,19 @@ struct Cia402Drive::Impl {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
     const bool client_fault = h.heartbeat_lost || rebooted || left_operational || position_jump;
-    h.fault = drive_fault || client_fault || bus_off_latched;
     // The drive's fault latches on its edge only: after a requested reset the drive still shows
     // fault for a SYNC or two, which must not latch the hold again. Bus-off is left to its
     // policy: `wait` and `recover` resume by configuration, and the drive never saw a fault.
-    if ((drive_fault && !was_drive_fault) || client_fault) fault_hold = true;
+    if ((drive_fault && !was_drive_fault) || client_fault) {
+      // The first cause is kept: the message that latched it is the newest error now.
+      if (!fault_hold.exchange(true) || h.fault_cause[0] == '\0') h.fault_cause = h.last_error;
+    }
+    if (!fault_hold) h.fault_cause[0] = '\0';
     was_drive_fault = drive_fault;
+    // The hold is a fault until it is reset: a heartbeat that came back clears heartbeat_lost, but
+    // the client still holds the drive in quick stop, and the rig must see why (it used to see a
+    // drive that "switched itself off" with no fault).
+    h.fault = drive_fault || client_fault || bus_off_latched || fault_hold;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
     fb.fault = h.fault;
@@ -355,10 +434,13 @@ struct Cia402Drive::Impl {
     const std::uint8_t s = f.data[0] & 0x7F;
     h.nmt_state = s;
     nmt_now = s;
+    const Clock::time_point lost_since = h.last_heartbeat;
     h.last_heartbeat = f.rx_time;
     if (h.heartbeat_lost) {
       h.heartbeat_lost = false;
-      error(who + ": heartbeat resumed");
+      const auto gap = std::chrono::duration_cast<milliseconds>(f.rx_time - lost_since).count();
+      error(who + ": heartbeat resumed after " + std::to_string(gap) + " ms" +
+            (fault_hold ? "; the drive stays held (quick stop) until a fault reset" : ""));
     }
     if (s == static_cast<std::uint8_t>(NmtState::boot_up)) {
       ++bootups;
@@ -598,7 +680,8 @@ struct Cia402Drive::Impl {
   void tick() {
     last_sync = Clock::now();
     if (!pdo_running || bus_off_latched) return;
-    const DriveCommand cmd = command.load();
+    const NumberedCommand numbered = command.load();
+    const DriveCommand& cmd = numbered.command;
     if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
     prev_cmd_reset = cmd.fault_reset;
     const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
@@ -640,6 +723,7 @@ struct Cia402Drive::Impl {
     put_le(&rpdo.data[2], static_cast<std::uint32_t>(pos), 4);
     send(rpdo);
     send(canopen::sync());
+    sent_write.store(numbered.write, std::memory_order_release);
     last_cw = cw;
     ++h.sync_sent;
   }
@@ -663,6 +747,49 @@ struct Cia402Drive::Impl {
       if (ec) return;
       tick();
       arm_kick();
+    });
+  }
+
+  // -- the bench's own heartbeat (the drive consumes it: 0x1016) --
+  void start_bench_heartbeat() {
+    if (bench_heartbeat_on) return;
+    bench_heartbeat_on = true;
+    bench_hb_timer.expires_after(milliseconds(0));
+    arm_bench_heartbeat();
+  }
+
+  void arm_bench_heartbeat() {
+    bench_hb_timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      // While bus-off nothing goes out (as SYNC and RPDO); the drive's consumer then acts as on a dead bench.
+      if (!bus_off_latched) send(canopen::heartbeat(cfg.bench_heartbeat.node_id, NmtState::operational));
+      bench_hb_timer.expires_at(bench_hb_timer.expiry() + cfg.bench_heartbeat.producer);
+      if (bench_hb_timer.expiry() < Clock::now()) bench_hb_timer.expires_after(milliseconds(0));  // late: at once, no burst
+      arm_bench_heartbeat();
+    });
+  }
+
+  // -- node guarding (a drive without 0x1017): a remote frame on 0x700 + node every guard time --
+  void start_guarding() {
+    if (guarding) return;
+    guarding = true;
+    guard_timer.expires_after(milliseconds(0));
+    arm_guard();
+  }
+
+  void arm_guard() {
+    guard_timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      if (!bus_off_latched) {
+        CanFrame r;
+        r.id = kHeartbeat + n;
+        r.rtr = true;
+        r.dlc = 1;  // the reply's length
+        send(r);
+      }
+      guard_timer.expires_at(guard_timer.expiry() + cfg.node_guarding.guard_time);
+      if (guard_timer.expiry() < Clock::now()) guard_timer.expires_after(milliseconds(0));
+      arm_guard();
     });
   }
 
@@ -722,7 +849,7 @@ Cia402Drive::~Cia402Drive() {
   auto& m = *impl_;
   asio::post(m.io, [&m] {
     m.tr->stop();
-    m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo_timer.cancel(), m.bus_timer.cancel();
+    m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo_timer.cancel(), m.bus_timer.cancel(), m.bench_hb_timer.cancel(), m.guard_timer.cancel();
     boost::system::error_code ec;
     m.kick.close(ec);
   });
@@ -777,7 +904,14 @@ void Cia402Drive::configure() {
     std::snprintf(buf, sizeof buf, "0x%08X", device_type);
     throw DriveError(m.who + ": not a CiA 402 device (0x1000:00 device type = " + buf + ")");
   }
-  sdo_write(0x1017, 0, static_cast<std::uint32_t>(m.cfg.heartbeat_producer.count()), 2);
+  bool guarding = false;
+  try {
+    sdo_write(0x1017, 0, static_cast<std::uint32_t>(m.cfg.heartbeat_producer.count()), 2);
+  } catch (const SdoAbortError& e) {
+    if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+    guarding = configure_node_guarding();  // CiA 301: node guarding in place of the heartbeat
+  }
+  configure_bench_watch(guarding);
   // PDO mapping, CiA 301 7.5.2.36: invalidate, clear count, map, set count, set type, validate.
   const std::uint32_t rpdo = kRpdo1 + n, tpdo = kTpdo1 + n;
   sdo_write(0x1400, 1, kCobIdInvalid | rpdo, 4);
@@ -813,14 +947,34 @@ void Cia402Drive::configure() {
     }
   };
   if (m.cfg.disable_unused_pdos) {
+    // CiA 301: a PDO is made invalid by setting bit 31 of its own COB-ID (a drive may use other
+    // ids than the predefined connection set, and bits 29/30 say more than the id): read, then
+    // written back with bit 31. It used to write the predefined id with bit 31.
+    const auto invalidate = [&](std::uint16_t comm, const std::string& name) {
+      std::uint32_t cob = 0;
+      try {
+        cob = sdo_read(comm, 1);
+      } catch (const SdoAbortError& e) {
+        if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+        const std::string note = object_name(comm, 1) + " absent: " + name + " does not exist, nothing to disable";
+        m.notes.push_back(note);
+        m.run_on_io([&m, note] {
+          m.error(m.who + ": " + note);
+          m.publish();
+        });
+        return;
+      }
+      if (!(cob & kCobIdInvalid)) sdo_write(comm, 1, cob | kCobIdInvalid, 4);
+    };
     for (std::uint32_t k = 1; k <= 3; ++k) {
-      const auto r = static_cast<std::uint16_t>(0x1400 + k), t = static_cast<std::uint16_t>(0x1800 + k);
-      optional_write(r, 1, kCobIdInvalid | (rpdo + 0x100 * k), 4,
-                     "RPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
-      optional_write(t, 1, kCobIdInvalid | (tpdo + 0x100 * k), 4,
-                     "TPDO" + std::to_string(k + 1) + " does not exist, nothing to disable");
+      invalidate(static_cast<std::uint16_t>(0x1400 + k), "RPDO" + std::to_string(k + 1));
+      invalidate(static_cast<std::uint16_t>(0x1800 + k), "TPDO" + std::to_string(k + 1));
     }
   }
+  // 0x1006 communication cycle period (CiA 301, us): the SYNC period, so that a drive that
+  // watches its SYNC consumer knows the period (optional: a drive may not have it).
+  optional_write(0x1006, 0, static_cast<std::uint32_t>(m.cfg.sync_period.count()), 4,
+                 "the drive does not watch the SYNC period");
   sdo_write(cia402::kModesOfOperation, 0, static_cast<std::uint8_t>(cia402::kModeCsp), 1);
   // The mode display may follow the request some time later: poll it until transition_ms.
   std::int8_t mode = 0;
@@ -872,9 +1026,23 @@ void Cia402Drive::configure() {
   const auto& lim = m.cfg.limits;
   const double rpc = std::abs(m.cfg.units.rad_per_count());
   const auto counts = [rpc](double x) { return static_cast<std::uint32_t>(std::min(std::nearbyint(x / rpc), 4294967294.0)); };
+  // The window in effect: the file's, or the drive's own (0xFFFFFFFF: monitoring off).
+  double window_rad = 0;
   if (lim.following_error_window_rad > 0) {
-    optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
-                   "no following error window to set");
+    if (optional_write(cia402::kFollowingErrorWindow, 0, counts(lim.following_error_window_rad), 4,
+                       "no following error window to set")) {
+      window_rad = counts(lim.following_error_window_rad) * rpc;
+    }
+  } else if (m.cfg.target_velocity_rad_s > 0) {
+    try {
+      const std::uint32_t w = sdo_read(cia402::kFollowingErrorWindow, 0);
+      if (w != 0xFFFFFFFFu) window_rad = w * rpc;
+    } catch (const SdoAbortError& e) {
+      if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+    }
+  }
+  if (const std::string problem = following_window_problem(m.cfg, window_rad); !problem.empty()) {
+    throw DriveError(m.who + ": " + problem);
   }
   if (lim.following_error_timeout.count() >= 0) {
     optional_write(cia402::kFollowingErrorTimeout, 0, static_cast<std::uint32_t>(lim.following_error_timeout.count()), 2,
@@ -890,7 +1058,7 @@ void Cia402Drive::configure() {
   const auto read_time = Clock::now();
   const auto pos = static_cast<std::int32_t>(sdo_read(cia402::kPositionActual, 0));
   no_reboot("while the objects were written");
-  m.command.store({m.cfg.units.to_rad(pos), false, false});
+  m.command.store({{m.cfg.units.to_rad(pos), false, false}, m.writes.load()});
   m.run_on_io([&m, pos, read_time] {
     m.last_pos_counts = pos;
     m.position_read_valid = true;
@@ -921,12 +1089,93 @@ void Cia402Drive::configure() {
   }
 }
 
+// The drive watches the bench: the bench's heartbeat runs from here on, the drive's consumer
+// heartbeat time 0x1016 gets an entry for it and 0x6007 says what the drive does when it stops.
+// A drive without a producer heartbeat time: node guarding (0x100C guard time, 0x100D life time
+// factor), the client's requests every guard time, the replies watched as the heartbeat.
+bool Cia402Drive::configure_node_guarding() {
+  auto& m = *impl_;
+  const auto& g = m.cfg.node_guarding;
+  try {
+    sdo_write(0x100C, 0, static_cast<std::uint32_t>(g.guard_time.count()), 2);
+    sdo_write(0x100D, 0, static_cast<std::uint32_t>(g.life_time_factor), 1);
+  } catch (const SdoAbortError& e) {
+    if (e.code != 0x06020000u && e.code != 0x06090011u) throw;
+    throw DriveError(m.who + ": the drive has neither a producer heartbeat time 0x1017 nor node guarding (0x100C/0x100D, " +
+                     object_name(e.index, e.sub) + " absent): nothing would tell that it stopped answering");
+  }
+  const std::string note = "0x1017:00 absent: node guarding instead (guard time " + std::to_string(g.guard_time.count()) +
+                           " ms, life time factor " + std::to_string(g.life_time_factor) + ": the drive watches the bench for " +
+                           std::to_string(g.guard_time.count() * g.life_time_factor) + " ms)";
+  m.notes.push_back(note);
+  m.run_on_io([&m, note] {
+    m.start_guarding();
+    m.error(m.who + ": " + note);
+    m.publish();
+  });
+  return true;
+}
+
+void Cia402Drive::configure_bench_watch(bool guarding) {
+  auto& m = *impl_;
+  const auto& bw = m.cfg.bench_heartbeat;
+  if (!guarding) m.run_on_io([&m] { m.start_bench_heartbeat(); });
+  const auto lacking = [&](std::uint16_t index, const SdoAbortError& e, const std::string& what) {
+    if (e.code != 0x06020000u && e.code != 0x06090011u) throw e;
+    const std::string text = object_name(index, 0) + " absent: " + what;
+    if (bw.required) {
+      throw DriveError(m.who + ": " + text + "; a drive that cannot watch the bench holds its last target, powered, when the "
+                       "bench dies (bench_heartbeat.required: false runs it anyway)");
+    }
+    m.notes.push_back(text);
+    m.run_on_io([&m, text] {
+      m.error(m.who + ": " + text);
+      m.publish();
+    });
+  };
+  const std::uint32_t entry = (std::uint32_t{bw.node_id} << 16) | static_cast<std::uint32_t>(bw.drive_timeout.count());
+  std::uint32_t entries = 0;
+  try {
+    // With node guarding the drive's life guarding watches the bench: no consumer heartbeat.
+    if (!guarding) entries = sdo_read(0x1016, 0) & 0xFF;
+  } catch (const SdoAbortError& e) {
+    lacking(0x1016, e, "the drive has no consumer heartbeat time, it cannot tell that the bench died");
+  }
+  if (entries > 0) {
+    // The entry already naming the bench's node, else a free one (time or node 0), else the first.
+    std::uint8_t sub = 0, free_sub = 0;
+    std::uint32_t sub_value = 0, free_value = 0, first_value = 0;
+    for (std::uint8_t s = 1; s <= entries; ++s) {
+      const std::uint32_t v = sdo_read(0x1016, s);
+      if (s == 1) first_value = v;
+      if (((v >> 16) & 0xFF) == bw.node_id) {
+        sub = s, sub_value = v;
+        break;
+      }
+      if (free_sub == 0 && ((v & 0xFFFF) == 0 || ((v >> 16) & 0xFF) == 0)) free_sub = s, free_value = v;
+    }
+    if (sub == 0) {
+      sub = free_sub != 0 ? free_sub : 1;
+      sub_value = free_sub != 0 ? free_value : first_value;
+    }
+    // CiA 301: a monitored entry is changed by setting it to 0 first.
+    if ((sub_value & 0xFFFF) != 0 && sub_value != entry) sdo_write(0x1016, sub, 0, 4);
+    sdo_write(0x1016, sub, entry, 4);
+  }
+  try {
+    sdo_write(cia402::kAbortConnectionOption, 0, static_cast<std::uint16_t>(bw.on_loss), 2);
+  } catch (const SdoAbortError& e) {
+    lacking(cia402::kAbortConnectionOption, e,
+            "the drive has no abort connection option code; what it does on a lost bench heartbeat is its maker's choice");
+  }
+}
+
 void Cia402Drive::activate() {
   auto& m = *impl_;
   const Impl::SetupCall call(m, "activate()");
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
-  m.command.store({fb.position_rad, true, false});
+  m.command.store({{fb.position_rad, true, false}, m.writes.load()});
   m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
   bool enabled = false;
@@ -976,7 +1225,9 @@ std::vector<std::string> Cia402Drive::configure_notes() const { return impl_->no
 DriveFeedback Cia402Drive::read(Clock::time_point, Clock::duration) noexcept { return impl_->feedback.load(); }
 
 void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
-  impl_->command.store(command);
+  const std::uint64_t n = impl_->writes.load(std::memory_order_relaxed) + 1;
+  impl_->writes.store(n, std::memory_order_relaxed);
+  impl_->command.store({command, n});
   if (impl_->kick_fd >= 0) {
     const std::uint64_t one = 1;
     [[maybe_unused]] auto r = ::write(impl_->kick_fd, &one, sizeof one);  // non-blocking eventfd
@@ -990,6 +1241,10 @@ std::string_view Cia402Drive::missing_reply_text() const noexcept {
 }
 
 DeviceHealth Cia402Drive::health() const noexcept { return detail::with_age(impl_->health_box); }
+
+bool Cia402Drive::last_command_sent() const noexcept {
+  return impl_->sent_write.load(std::memory_order_acquire) == impl_->writes.load(std::memory_order_relaxed);
+}
 
 FeedbackFreshness Cia402Drive::freshness() const noexcept {
   return impl_->cfg.sync_source == Cia402Config::SyncSource::loop ? FeedbackFreshness::reply_to_each_write

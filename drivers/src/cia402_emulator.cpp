@@ -1,5 +1,6 @@
 #include "hil/drv/cia402_emulator.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
@@ -22,7 +23,7 @@ using cia402::State;
 
 Cia402EmulatorConfig Cia402EmulatorConfig::from_yaml(const cfg::Node& n) {
   n.allow_keys({"interface", "node_id", "units", "pdos", "interpolation_period", "mode_display_delay_ms", "following_error",
-                "quick_stop_ramp"});
+                "quick_stop_ramp", "heartbeat_consumer", "abort_connection_option", "node_guarding", "own_pdo_ids"});
   Cia402EmulatorConfig c;
   if (auto i = n.find("interface")) check_can_interface_name(*i);
   c.interface = n.text("interface", c.interface);
@@ -35,6 +36,10 @@ Cia402EmulatorConfig Cia402EmulatorConfig::from_yaml(const cfg::Node& n) {
   c.mode_display_delay = n.milliseconds_in("mode_display_delay_ms", c.mode_display_delay, 0, 10000);
   c.following_error = n.boolean("following_error", c.following_error);
   c.quick_stop_ramp = n.boolean("quick_stop_ramp", c.quick_stop_ramp);
+  c.heartbeat_consumer = n.boolean("heartbeat_consumer", c.heartbeat_consumer);
+  c.abort_connection_option = n.boolean("abort_connection_option", c.abort_connection_option);
+  c.node_guarding = n.boolean("node_guarding", c.node_guarding);
+  c.own_pdo_ids = n.boolean("own_pdo_ids", c.own_pdo_ids);
   return c;
 }
 
@@ -49,7 +54,9 @@ constexpr std::uint32_t key(std::uint16_t index, std::uint8_t sub) { return (std
 
 constexpr std::uint32_t kAbortNoObject = 0x06020000, kAbortNoSub = 0x06090011, kAbortReadOnly = 0x06010002,
                         kAbortLength = 0x06070010, kAbortCommand = 0x05040001, kAbortState = 0x08000022,
-                        kAbortNotMappable = 0x06040041, kAbortPdoLength = 0x06040042, kAbortValue = 0x06090030;
+                        kAbortNotMappable = 0x06040041, kAbortPdoLength = 0x06040042, kAbortValue = 0x06090030,
+                        kAbortIncompatible = 0x06040043;
+constexpr int kConsumerEntries = 4;  // 0x1016:01..04
 
 std::uint16_t statusword_for(State s) {
   switch (s) {
@@ -80,7 +87,7 @@ struct Cia402DriveEmulator::Impl {
   asio::io_context io;
   asio::executor_work_guard<asio::io_context::executor_type> work{io.get_executor()};
   std::unique_ptr<CanTransport> tr;
-  asio::steady_timer hb_timer{io}, flood_timer{io};
+  asio::steady_timer hb_timer{io}, flood_timer{io}, consumer_timer{io}, own_clock{io};
   std::thread thread;
 
   std::atomic<std::uint8_t> nmt_now{static_cast<std::uint8_t>(NmtState::boot_up)};
@@ -108,6 +115,17 @@ struct Cia402DriveEmulator::Impl {
   Clock::time_point qs_t0{};  // quick stop ramp: start, position, speed
   double qs_p0 = 0, qs_v0 = 0;
   bool qs_started = false;
+  // Heartbeat consumer (0x1016), per entry: monitoring started (a heartbeat came since the entry
+  // was written or the last event) and when the last one came.
+  std::array<bool, kConsumerEntries> consumer_started{};
+  std::array<Clock::time_point, kConsumerEntries> consumer_last{};
+  std::atomic<std::uint64_t> consumer_events{0};
+  std::optional<Cia402DriveEmulator::ConsumerEvent> last_event;
+  // Node guarding: the toggle bit of the next reply; life guarding started (a request came since
+  // the reset or the last event) and when the last request came.
+  bool guard_toggle = false;
+  bool guarded = false;
+  Clock::time_point last_guard{};
 
   Impl(Cia402EmulatorConfig c, DriveModel& m) : cfg(std::move(c)), model(m), n(cfg.node_id) {}
 
@@ -120,7 +138,22 @@ struct Cia402DriveEmulator::Impl {
   void reset_communication() {
     def(0x1000, 0, 0x00020192, 4, false);  // CiA 402, servo drive
     def(0x1001, 0, 0, 1, false);
-    def(0x1017, 0, 0, 2, true);
+    def(0x1006, 0, 0, 4, true);  // communication cycle period, us
+    for (int k = 0; k <= kConsumerEntries; ++k) od.erase(key(0x1016, static_cast<std::uint8_t>(k)));
+    od.erase(key(0x1017, 0)), od.erase(key(0x100C, 0)), od.erase(key(0x100D, 0));
+    if (cfg.node_guarding) {
+      def(0x100C, 0, 0, 2, true);  // guard time, ms
+      def(0x100D, 0, 0, 1, true);  // life time factor
+    } else {
+      def(0x1017, 0, 0, 2, true);
+    }
+    guard_toggle = false;
+    guarded = false;
+    if (cfg.heartbeat_consumer && !cfg.node_guarding) {
+      def(0x1016, 0, kConsumerEntries, 1, false);
+      for (int k = 1; k <= kConsumerEntries; ++k) def(0x1016, static_cast<std::uint8_t>(k), 0, 4, true);
+    }
+    consumer_started = {};
     def(0x1018, 0, 4, 1, false);
     def(0x1018, 1, 0x00000ABC, 4, false);  // vendor (made up)
     def(0x1018, 2, 0x00000402, 4, false);
@@ -133,10 +166,11 @@ struct Cia402DriveEmulator::Impl {
     }
     for (std::uint16_t k = 0; k < static_cast<std::uint16_t>(cfg.pdos); ++k) {
       def(0x1400 + k, 0, 2, 1, false);
-      def(0x1400 + k, 1, kRpdo1 + 0x100u * k + n, 4, true);
+      const bool own = cfg.own_pdo_ids && k > 0;
+      def(0x1400 + k, 1, own ? 0x500u + 0x20u * k + n : kRpdo1 + 0x100u * k + n, 4, true);
       def(0x1400 + k, 2, 0xFF, 1, true);
       def(0x1800 + k, 0, 2, 1, false);
-      def(0x1800 + k, 1, kTpdo1 + 0x100u * k + n, 4, true);
+      def(0x1800 + k, 1, own ? 0x40000000u | (0x480u + 0x20u * k + n) : kTpdo1 + 0x100u * k + n, 4, true);
       def(0x1800 + k, 2, 0xFF, 1, true);
       def(0x1600 + k, 0, k == 0 ? 1 : 0, 1, true);
       def(0x1A00 + k, 0, k == 0 ? 1 : 0, 1, true);
@@ -169,6 +203,7 @@ struct Cia402DriveEmulator::Impl {
       def(cia402::kFollowingErrorTimeout, 0, 10, 2, true);
     }
     def(cia402::kQuickStopOption, 0, cfg.quick_stop_ramp ? 2 : 0, 2, false);
+    if (cfg.abort_connection_option) def(cia402::kAbortConnectionOption, 0, 1, 2, true);
     if (cfg.quick_stop_ramp) def(cia402::kQuickStopDeceleration, 0, 0x7FFFFFFF, 4, true);
     mode_written = {};
     following_out = false;
@@ -202,6 +237,7 @@ struct Cia402DriveEmulator::Impl {
 
   void arm_heartbeat() {
     hb_timer.cancel();
+    if (!od.contains(key(0x1017, 0))) return;  // node guarding only
     const auto period = std::chrono::milliseconds(get(0x1017, 0));
     if (period.count() == 0) return;
     hb_timer.expires_after(period);
@@ -212,10 +248,127 @@ struct Cia402DriveEmulator::Impl {
     });
   }
 
+  // -- heartbeat consumer (0x1016) --
+  void on_heartbeat(const CanFrame& f) {
+    if (f.rtr && f.id == kHeartbeat + n) return on_guard_request();
+    if (!cfg.heartbeat_consumer || cfg.node_guarding || f.rtr || f.dlc < 1) return;
+    const std::uint32_t node = f.id - kHeartbeat;
+    const auto now = Clock::now();
+    for (int k = 0; k < kConsumerEntries; ++k) {
+      const std::uint32_t e = get(0x1016, static_cast<std::uint8_t>(k + 1));
+      if (((e >> 16) & 0xFF) != node || (e & 0xFFFF) == 0) continue;
+      consumer_started[static_cast<std::size_t>(k)] = true;
+      consumer_last[static_cast<std::size_t>(k)] = now;
+    }
+    arm_consumer();
+  }
+
+  // A guarding request: the reply (NMT state, toggle bit), and life guarding from now on.
+  void on_guard_request() {
+    if (!cfg.node_guarding) return;
+    CanFrame r;
+    r.id = kHeartbeat + n;
+    r.dlc = 1;
+    r.data[0] = static_cast<std::uint8_t>((guard_toggle ? 0x80 : 0x00) | (nmt_now.load() & 0x7F));
+    guard_toggle = !guard_toggle;
+    send(r);
+    if (life_time_ms() > 0) {
+      guarded = true;
+      last_guard = Clock::now();
+      arm_consumer();
+    }
+  }
+
+  long long life_time_ms() { return cfg.node_guarding ? static_cast<long long>(get(0x100C, 0)) * get(0x100D, 0) : 0; }
+
+  // Checks at a tenth of the shortest consumer (or life) time (1..10 ms) while anything is watched.
+  void arm_consumer() {
+    if (!cfg.heartbeat_consumer && !cfg.node_guarding) return;
+    long long shortest = guarded ? life_time_ms() : 0;
+    if (!cfg.node_guarding) {
+      for (int k = 0; k < kConsumerEntries; ++k) {
+        const std::uint32_t e = get(0x1016, static_cast<std::uint8_t>(k + 1));
+        if (consumer_started[static_cast<std::size_t>(k)] && (e & 0xFFFF) != 0 && (shortest == 0 || (e & 0xFFFF) < shortest))
+          shortest = e & 0xFFFF;
+      }
+    }
+    if (shortest == 0 || consumer_timer.expiry() > Clock::now()) return;  // nothing to watch, or a check is due already
+    consumer_timer.expires_after(std::chrono::milliseconds(std::clamp(shortest / 10, 1LL, 10LL)));
+    consumer_timer.async_wait([this](const boost::system::error_code& ec) {
+      if (ec) return;
+      check_consumer();
+      arm_consumer();
+    });
+  }
+
+  void check_consumer() {
+    const auto now = Clock::now();
+    if (cfg.node_guarding) {
+      const long long life = life_time_ms();
+      if (guarded && life > 0 && now - last_guard > std::chrono::milliseconds(life)) {
+        guarded = false;  // life guarding starts again with the next request
+        heartbeat_event(0, now - last_guard);
+      }
+      return;
+    }
+    for (int k = 0; k < kConsumerEntries; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      const std::uint32_t e = get(0x1016, static_cast<std::uint8_t>(k + 1));
+      if (!consumer_started[i] || (e & 0xFFFF) == 0) continue;
+      if (now - consumer_last[i] <= std::chrono::milliseconds(e & 0xFFFF)) continue;
+      consumer_started[i] = false;  // CiA 301: monitoring starts again with the node's next heartbeat
+      heartbeat_event(static_cast<std::uint8_t>((e >> 16) & 0xFF), now - consumer_last[i]);
+    }
+  }
+
+  // A heartbeat event: EMCY 0x8130 (life guard error or heartbeat error) and the abort connection
+  // reaction of 0x6007 (CiA 402).
+  void heartbeat_event(std::uint8_t node, Clock::duration silence) {
+    const auto option = static_cast<std::int16_t>(cfg.abort_connection_option ? get(cia402::kAbortConnectionOption, 0) : 1);
+    const bool powered = state == State::ready_to_switch_on || state == State::switched_on ||
+                         state == State::operation_enabled || state == State::quick_stop_active;
+    if (option == 1 || option < 0) {  // fault (a manufacturer-specific option: the fault, the safest)
+      if (state != State::fault) enter_fault(0x8130, 0x11, {});
+    } else {
+      send(emcy(n, Emcy{0x8130, static_cast<std::uint8_t>(get(0x1001, 0) | 0x11), {}}));
+      if (option == 2 && powered) {
+        state = State::switch_on_disabled;
+      } else if (option == 3 && state == State::operation_enabled) {
+        const DriveModelSample smp = model.sample();
+        if (cfg.quick_stop_ramp) {
+          state = State::quick_stop_active;
+          qs_t0 = Clock::now();
+          qs_p0 = smp.position_rad;
+          qs_v0 = smp.velocity_rad_s;
+          qs_started = true;
+          run_own_clock();
+        } else {
+          state = State::switch_on_disabled;
+        }
+      } else if (option == 3 && powered) {
+        state = State::switch_on_disabled;
+      }
+    }
+    app_step();
+    last_event = Cia402DriveEmulator::ConsumerEvent{node, std::chrono::duration_cast<std::chrono::microseconds>(silence), state};
+    ++consumer_events;
+  }
+
+  // A quick stop ramp with no master left to send SYNC: the drive steps itself every millisecond.
+  void run_own_clock() {
+    own_clock.expires_after(std::chrono::milliseconds(1));
+    own_clock.async_wait([this](const boost::system::error_code& ec) {
+      if (ec || state != State::quick_stop_active) return;
+      app_step();
+      run_own_clock();
+    });
+  }
+
   // -- receive --
   void on_frame(const CanFrame& f) {
     if (f.error || silent) return;
     if (f.id == kNmt) return on_nmt(f);
+    if (f.id > kHeartbeat && f.id <= kHeartbeat + 0x7F) return on_heartbeat(f);
     if (nmt() == NmtState::stopped) return;
     if (f.id == kSdoRx + n) return on_sdo(f);
     if (nmt() != NmtState::operational) return;
@@ -464,6 +617,19 @@ struct Cia402DriveEmulator::Impl {
       if (sub == 1 && !(v & kCobIdInvalid) && ((v & kCobIdExtended) || restricted_can_id(v & 0x7FF))) return kAbortValue;
       return 0;
     }
+    if (index == 0x1016 && sub >= 1) {
+      // CiA 301: one entry per node; a second with a time for a node already watched is refused.
+      if ((v & 0xFFFF) == 0 || ((v >> 16) & 0xFF) == 0) return 0;
+      for (int k = 1; k <= kConsumerEntries; ++k) {
+        const std::uint32_t e = get(0x1016, static_cast<std::uint8_t>(k));
+        if (k != sub && (e & 0xFFFF) != 0 && ((e >> 16) & 0xFF) == ((v >> 16) & 0xFF)) return kAbortIncompatible;
+      }
+      return 0;
+    }
+    if (index == cia402::kAbortConnectionOption) {
+      const auto o = static_cast<std::int16_t>(v);
+      return o <= 3 ? 0 : kAbortValue;  // 0..3, or manufacturer-specific (negative)
+    }
     if (index == cia402::kModesOfOperation) {
       const auto m = static_cast<std::int8_t>(v);
       return m == cia402::kModeCsp || m == 0 ? 0 : kAbortValue;
@@ -497,6 +663,7 @@ struct Cia402DriveEmulator::Impl {
     if (index == cia402::kModesOfOperation && v != o.value) mode_written = Clock::now();
     o.value = v;
     if (index == 0x1017) arm_heartbeat();
+    if (index == 0x1016 && sub >= 1) consumer_started[static_cast<std::size_t>(sub - 1)] = false;  // from its next heartbeat
     if (index == cia402::kControlword || index == cia402::kModesOfOperation || index == cia402::kTargetPosition) app_step();
     send_late(sdo_download_ok(n, index, sub));
   }
@@ -531,6 +698,7 @@ Cia402DriveEmulator::Cia402DriveEmulator(Cia402EmulatorConfig config, DriveModel
   const std::uint32_t n = m.n;
   m.tr = transport(m.io, {{kNmt, 0x7FF},
                           {kSync, 0x7FF},
+                          {kHeartbeat, 0x780},  // 0x700..0x77F: the heartbeats 0x1016 may name
                           {kSdoRx + n, 0x7FF},
                           {kRpdo1 + n, 0x7FF},
                           {kRpdo1 + 0x100 + n, 0x7FF},
@@ -547,6 +715,8 @@ Cia402DriveEmulator::~Cia402DriveEmulator() {
     m.tr->stop();
     m.hb_timer.cancel();
     m.flood_timer.cancel();
+    m.consumer_timer.cancel();
+    m.own_clock.cancel();
   });
   m.work.reset();
   m.io.stop();
@@ -572,6 +742,13 @@ std::optional<Cia402DriveEmulator::RampStart> Cia402DriveEmulator::quick_stop_ra
     if (!m.qs_started) return std::nullopt;
     return RampStart{m.qs_p0, m.qs_v0};
   });
+}
+
+std::uint64_t Cia402DriveEmulator::heartbeat_consumer_events() const { return impl_->consumer_events.load(); }
+
+std::optional<Cia402DriveEmulator::ConsumerEvent> Cia402DriveEmulator::last_consumer_event() {
+  auto& m = *impl_;
+  return m.on_io([&m] { return m.last_event; });
 }
 
 void Cia402DriveEmulator::stop_heartbeat(bool stopped) { impl_->hb_stopped = stopped; }

@@ -53,7 +53,19 @@ Cia402Probe probe(Cia402Drive& client) {
   read(0x1018, 3, "revision number", false);
   read(0x1018, 4, "serial number", false);
   const auto modes = read(cia402::kSupportedDriveModes, 0, "supported drive modes", false).value;
-  read(0x1017, 0, "producer heartbeat time", true);
+  // The drive's heartbeat, or node guarding in its place (CiA 301 allows either).
+  const bool heartbeat = read(0x1017, 0, "producer heartbeat time", false).value.has_value();
+  bool guarding = false;
+  if (!heartbeat) {
+    const bool guard_time = read(0x100C, 0, "guard time", false).value.has_value();
+    guarding = read(0x100D, 0, "life time factor", false).value.has_value() && guard_time;
+  }
+  // How the drive watches the bench: its consumer heartbeat time (or, with node guarding, its life
+  // guarding) and what it does when the bench stops (0x6007).
+  const bool watch_required = cfg.bench_heartbeat.required;
+  const bool consumer = heartbeat && read(0x1016, 0, "consumer heartbeat time entries", watch_required).value.has_value();
+  const bool abort_option =
+      read(cia402::kAbortConnectionOption, 0, "abort connection option code", watch_required).value.has_value();
   for (std::uint16_t k = 0; k < 4; ++k) {
     p.rpdos +=
         read(static_cast<std::uint16_t>(0x1400 + k), 1, "RPDO" + std::to_string(k + 1) + " COB-ID", k == 0).value.has_value();
@@ -84,6 +96,12 @@ Cia402Probe probe(Cia402Drive& client) {
       p.lacks.push_back(hex(o.index, 4) + ":" + hex(o.sub, 2).substr(2) + " " + o.name + " (required: configure() will fail)");
     }
   }
+  if (!heartbeat && !guarding) {
+    p.usable = false;
+    p.lacks.push_back(
+        "0x1017 producer heartbeat time, and node guarding 0x100C/0x100D in its place (required, one of them: nothing would "
+        "tell that the drive stopped answering)");
+  }
   p.csp_supported = !modes || (*modes & 0x80);
   if (!p.csp_supported) {
     p.usable = false;
@@ -91,11 +109,41 @@ Cia402Probe probe(Cia402Drive& client) {
   }
   const double deg_per_count = std::abs(cfg.units.rad_per_count()) * 180 / std::numbers::pi;
   char line[256];
+  const auto& bw = cfg.bench_heartbeat;
+  if (heartbeat) {
+    std::snprintf(line, sizeof line, "0x1017 = %lld ms: its heartbeat, lost after %lld ms",
+                  static_cast<long long>(cfg.heartbeat_producer.count()), static_cast<long long>(cfg.heartbeat_timeout.count()));
+    p.plan.push_back(line);
+  } else if (guarding) {
+    const auto& g = cfg.node_guarding;
+    std::snprintf(line, sizeof line,
+                  "node guarding in place of the heartbeat it lacks: 0x100C = %lld ms, 0x100D = %d, a request every %lld ms "
+                  "(replies lost after %lld ms); its life guarding watches the bench for %lld ms",
+                  static_cast<long long>(g.guard_time.count()), g.life_time_factor, static_cast<long long>(g.guard_time.count()),
+                  static_cast<long long>(cfg.heartbeat_timeout.count()),
+                  static_cast<long long>(g.guard_time.count()) * g.life_time_factor);
+    p.plan.push_back(line);
+  }
+  if (consumer) {
+    std::snprintf(line, sizeof line, "0x1016: watch the bench's heartbeat (node %u, every %lld ms) for %lld ms", bw.node_id,
+                  static_cast<long long>(bw.producer.count()), static_cast<long long>(bw.drive_timeout.count()));
+    p.plan.push_back(line);
+  } else if (heartbeat && !watch_required) {
+    p.lacks.push_back("0x1016 consumer heartbeat time (the drive cannot tell that the bench died; bench_heartbeat.required: false)");
+  }
+  if (abort_option) {
+    p.plan.push_back(std::string("0x6007 = ") + std::to_string(bw.on_loss) +
+                     (bw.on_loss == 3 ? " (quick stop)" : bw.on_loss == 2 ? " (disable voltage)" : " (fault)") +
+                     " when the bench stops");
+  } else if (!watch_required) {
+    p.lacks.push_back("0x6007 abort connection option code (what the drive does when the bench stops is its maker's choice)");
+  }
   p.plan.push_back(
       "map RPDO1 = controlword 0x6040 + target position 0x607A, TPDO1 = statusword 0x6041 + position actual "
       "0x6064, both on every SYNC");
   if (cfg.disable_unused_pdos) {
-    std::snprintf(line, sizeof line, "invalidate the other PDOs it has (%d RPDO, %d TPDO of 4 each)", p.rpdos - 1, p.tpdos - 1);
+    std::snprintf(line, sizeof line, "invalidate the other PDOs it has (%d RPDO, %d TPDO of 4 each): bit 31 of their own COB-IDs",
+                  p.rpdos - 1, p.tpdos - 1);
     p.plan.push_back(line);
   }
   p.plan.push_back("0x6060 = 8 (cyclic synchronous position), then poll 0x6061 for up to " +
@@ -118,6 +166,15 @@ Cia402Probe probe(Cia402Drive& client) {
       std::snprintf(line, sizeof line, "write following error window 0x6065 = %.4g deg (from the drive file)",
                     lim.following_error_window_rad * 180 / std::numbers::pi);
       p.plan.push_back(line);
+    }
+    // The window in effect against what the bench's targets make of the drive's lag.
+    const double rpc = std::abs(cfg.units.rad_per_count());
+    const double in_effect = lim.following_error_window_rad > 0 ? std::nearbyint(lim.following_error_window_rad / rpc) * rpc
+                             : *window != 0xFFFFFFFF          ? *window * rpc
+                                                              : 0.0;
+    if (const std::string problem = following_window_problem(cfg, in_effect); !problem.empty()) {
+      p.usable = false;
+      p.refused.push_back(problem);
     }
   } else {
     p.lacks.push_back("0x6065/0x6066 following error window and timeout (optional: the limits in the drive file are skipped)");
@@ -167,6 +224,7 @@ std::string Cia402Probe::report() const {
   s += "the drive lacks:\n";
   if (lacks.empty()) s += "  (nothing the client uses)\n";
   for (const auto& l : lacks) s += "  - " + l + "\n";
+  for (const auto& l : refused) s += "configure() will refuse: " + l + "\n";
   s += usable ? "verdict: usable by the CAN rig\n" : "verdict: NOT usable by the CAN rig\n";
   return s;
 }

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <memory>
 #include <string>
@@ -159,7 +160,58 @@ inline void heartbeat_loss_detected(const CanTransportFactory& f, std::uint8_t n
   EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
   r.emulator.stop_heartbeat(false);
   EXPECT_TRUE(eventually([&] { return !r.client.health().heartbeat_lost; }));
-  EXPECT_FALSE(r.client.read(Clock::now(), 1ms).fault);
+  // Issue 38 item 9: the heartbeat came back, but the client still holds the drive (quick stop /
+  // disable voltage) for the loss: that is a fault, and its cause is kept. It used to read as no
+  // fault at all, so a rig saw a drive that "switched itself off".
+  const auto back = r.client.health();
+  EXPECT_TRUE(back.fault);
+  EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
+  EXPECT_NE(back.fault_cause_text().find("heartbeat lost (none for 1000 ms)"), std::string_view::npos)
+      << back.fault_cause_text();
+  EXPECT_NE(back.last_error_text().find("heartbeat resumed after "), std::string_view::npos) << back.last_error_text();
+  r.client.reset_fault();  // the explicit request ends the hold
+  EXPECT_TRUE(eventually([&] { return !r.client.read(Clock::now(), 1ms).fault; })) << r.client.health().last_error_text();
+  EXPECT_TRUE(r.client.health().fault_cause_text().empty()) << r.client.health().fault_cause_text();
+}
+
+// Issue 38 item 10: the drive watches the bench. configure() writes the drive's consumer
+// heartbeat time 0x1016 (bits 16-23 the bench's node id, bits 0-15 the time in ms) and its abort
+// connection option code 0x6007, and the client produces its heartbeat from then on. A client
+// that stops without a word (its I/O thread gone with it: what a killed bench process looks like
+// on the bus) puts the drive into `want` by 0x6007, no sooner than the consumer time after the
+// bench's last heartbeat. The drive used to hold its last target, powered, for ever.
+inline void drive_watches_the_bench(const CanTransportFactory& f, std::uint8_t node, std::int16_t on_loss, cia402::State want) {
+  auto cfg = test_config(node);
+  cfg.bench_heartbeat.node_id = 100;
+  cfg.bench_heartbeat.producer = 50ms;
+  cfg.bench_heartbeat.drive_timeout = 600ms;  // a loaded machine may starve the client's thread for 100 ms
+  cfg.bench_heartbeat.on_loss = on_loss;
+  FirstOrderServoTestModel model{0.01, 20.0, 0.25};
+  Cia402DriveEmulator emulator(Rig::emulator_config(cfg, {}), model, f);
+  auto client = std::make_unique<Cia402Drive>(cfg, f);
+  client->configure();
+  EXPECT_EQ(emulator.object(0x1016, 1), (100u << 16) | 600u);
+  EXPECT_EQ(emulator.object(0x6007, 0), static_cast<std::uint32_t>(on_loss));
+  client->activate();
+  {
+    TestLoop loop(*client);
+    loop.target_rad = 0.3;
+    ASSERT_TRUE(eventually([&] { return std::abs(loop.position_rad - 0.3) < 1e-3; }));
+    EXPECT_EQ(emulator.state(), cia402::State::operation_enabled);
+    EXPECT_EQ(emulator.heartbeat_consumer_events(), 0u);  // the bench is alive: no event
+  }
+  client.reset();  // the bench dies: no deactivate(), no more frames
+  ASSERT_TRUE(eventually([&] { return emulator.heartbeat_consumer_events() > 0; }, 20s));
+  const auto event = emulator.last_consumer_event();
+  ASSERT_TRUE(event.has_value());
+  EXPECT_EQ(event->node, 100);
+  EXPECT_GE(event->silence, 600ms);  // not before the consumer time
+  EXPECT_EQ(event->state_after, want) << cia402::to_string(event->state_after);
+  EXPECT_TRUE(eventually([&] { return emulator.state() == want; })) << cia402::to_string(emulator.state());
+  EXPECT_EQ(emulator.heartbeat_consumer_events(), 1u);
+  std::printf("bench heartbeat lost: the drive reacted %.1f ms after the bench's last heartbeat (consumer time 600 ms): %s\n",
+              std::chrono::duration<double, std::milli>(event->silence).count(),
+              std::string(cia402::to_string(event->state_after)).c_str());
 }
 
 inline void sdo_abort_names_object(const CanTransportFactory& f, std::uint8_t node) {
@@ -241,6 +293,9 @@ inline void bus_off_policy(const CanTransportFactory& f, std::uint8_t node, BusO
   cfg.bus_off_policy = policy;
   cfg.bus_off_recover_after = 300ms;
   cfg.heartbeat_timeout = 5000ms;  // keep the heartbeat out of this story
+  // And the bench's: a bus-off client sends no heartbeat either, which the drive would take for
+  // a dead bench after drive_timeout (as a real bus-off controller's drive does).
+  cfg.bench_heartbeat.drive_timeout = 5000ms;
   Rig r(f, cfg);
   r.client.configure();
   r.client.activate();

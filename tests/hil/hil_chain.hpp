@@ -119,9 +119,11 @@ struct SimulatorSide {
 // the VM's vCPU) for 100 ms, and a run that is not about heartbeats must not trip on that.
 inline constexpr int kBusyHeartbeatTimeoutMs = 1000;
 inline std::string can_drive_yaml(const std::string& interface = "vcan0", const std::string& bus_off_policy = "recover",
-                                  int heartbeat_timeout_ms = kBusyHeartbeatTimeoutMs, const std::string& limits = "") {
+                                  int heartbeat_timeout_ms = kBusyHeartbeatTimeoutMs, const std::string& limits = "",
+                                  const std::string& bench_heartbeat = "") {
   return "    cia402: {interface: " + interface + ", node_id: 5, units: {counts_per_rev: 131072},\n" +
          (limits.empty() ? std::string() : "             limits: " + limits + ",\n") +
+         (bench_heartbeat.empty() ? std::string() : "             bench_heartbeat: " + bench_heartbeat + ",\n") +
          "             heartbeat: {producer_ms: 20, timeout_ms: " + std::to_string(heartbeat_timeout_ms) +
          "},\n"
          "             timeouts: {boot_ms: 10000, sdo_ms: 500, sdo_retries: 2, transition_ms: 3000},\n"

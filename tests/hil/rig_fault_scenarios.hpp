@@ -157,16 +157,28 @@ inline RigOptions fault_rig(int safe_hold_ms = 200, int watchdog = RigOptions{}.
 }
 
 // The drive stops its heartbeat (TPDOs still flow): the client declares it lost after its timeout
-// (100 ms here) and reports a fault; the loop trips on the first period that reads it.
+// (100 ms here) and reports a fault; the loop trips on the first period that reads it. The
+// heartbeat comes back during the safe hold: the run's record still names the lost heartbeat as
+// the cause (issue 38 item 9: it used to end as a drive that "switched itself off").
 inline void heartbeat_loss(const FaultSetup& s) {
   const auto c = short_paper_campaign(4, 0, s.period_ms);
   SimulatorSide side(c, s.can_transport, s.can_interface);
   Bench b(s.can_transport);
-  const std::string rig = can_rig_yaml(side, fault_rig(), s.can_interface, "recover", {.heartbeat_ms = 100});
+  const std::string rig = can_rig_yaml(side, fault_rig(1000), s.can_interface, "recover", {.heartbeat_ms = 100});
   const RunFiles f = run_with_fault(
-      b, c, rig, "rig fault", [&] { side.can.stop_heartbeat(true); }, [&] { side.can.stop_heartbeat(false); });
+      b, c, rig, "rig fault",
+      [&] {
+        side.can.stop_heartbeat(true);
+        wait_state([&] { return b.runner().status().value("state", "") == "safe"; }, std::chrono::seconds(60));
+        side.can.stop_heartbeat(false);  // back while the safe state holds
+      },
+      [&] { side.can.stop_heartbeat(false); });
   expect_safe_stop(f, "rig fault", "heartbeat lost", c.period_s, RigOptions{}.watchdog_misses);
   EXPECT_NE(f.run["reason"].get<std::string>().find("CiA 402 drive node 5"), std::string::npos) << f.run["reason"];
+  // How the rig ended the run (after the heartbeat came back): the cause, kept.
+  EXPECT_TRUE(f.run["rig_health"]["fault"].get<bool>()) << f.run["rig_health"];
+  EXPECT_NE(f.run["rig_health"]["last_error"].get<std::string>().find("heartbeat lost (none for 100 ms)"), std::string::npos)
+      << f.run["rig_health"];
   expect_next_campaign_completes(b, s, can_rig_yaml(side, {}, s.can_interface, "recover", kRelaxedTimeouts));
 }
 

@@ -221,6 +221,8 @@ RigStatus DeviceRig::write(Clock::time_point now, Clock::duration period, const 
   return RigStatus::ok;
 }
 
+bool DeviceRig::target_sent() const noexcept { return !drive_ || drive_->last_command_sent(); }
+
 drv::DriveFeedback DeviceRig::drive_feedback() const noexcept {
   return drive_ ? drive_->read(Clock::now(), Clock::duration::zero()) : drv::DriveFeedback{};
 }
@@ -249,11 +251,14 @@ RigHealth DeviceRig::health() const noexcept {
   text[0] = '\0';
   char code[8];
   std::snprintf(code, sizeof code, "0x%04X", d.last_emcy_code);
-  if (d.fault && d.last_emcy_code != 0 && std::strstr(d.last_error.data(), code) == nullptr) {
+  // A fault the client holds is told by what latched it (a heartbeat lost, then back, is still
+  // the cause of the drive's quick stop), not by whatever came after.
+  const char* const drive_error = d.fault && d.fault_cause[0] != '\0' ? d.fault_cause.data() : d.last_error.data();
+  if (d.fault && d.last_emcy_code != 0 && std::strstr(drive_error, code) == nullptr) {
     // The newest error is about something else (heartbeat, bus): name the EMCY too.
-    std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", d.last_error.data(), d.last_emcy_code);
+    std::snprintf(text, sizeof text, "drive: %s (last EMCY 0x%04X)", drive_error, d.last_emcy_code);
   } else if (d.fault) {
-    std::snprintf(text, sizeof text, "drive: %s", d.last_error.data());
+    std::snprintf(text, sizeof text, "drive: %s", drive_error);
   } else if (implausible_ == Implausible::position_not_finite) {
     std::snprintf(text, sizeof text, "drive: its position reads as not a number");
   } else if (implausible_ == Implausible::disabled) {

@@ -1,5 +1,6 @@
 #include "hil/bench/rt/rig_config.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "hil/bench/rt/rig_registry.hpp"
@@ -103,6 +104,13 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
   c.devices = devices_from(root, c.kind, kind->devices);
   if (const auto loop = root.find("loop")) c.loop = LoopConfig::from_yaml(*loop);
   c.safety = SafetyConfig::from_yaml(root.at("safety"));
+  // The fastest this rig moves a CAN drive's target: configure() and the probe check the drive's
+  // following error window against it (drv::following_window_problem).
+  if (c.devices.can_drive) {
+    const double rate = c.safety.rate_limit_rad_s;
+    c.devices.can_drive->target_velocity_rad_s =
+        c.loop.target_shaping.enabled() ? std::min(c.loop.target_shaping.max_velocity_rad_s, rate) : rate;
+  }
   return c;
 }
 

@@ -280,7 +280,8 @@ void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept
   }
 
   // Write (a drive that ignores commands keeps the one it had), within the drive's limits.
-  const double target = shaper_.step(drive_fault_ ? drive_frozen_rad_ : cmd, dt);
+  // Shaped per target the drive actually got: one the rig did not send is replaced, not stepped on.
+  const double target = shaper_.step(drive_fault_ ? drive_frozen_rad_ : cmd, dt, rig_.rig().target_sent());
   rig_.write(woke, wall_period_, {target, true, gap_to_rig_ ? gap : kNaN});
   last_sent_rad_ = cmd;
 

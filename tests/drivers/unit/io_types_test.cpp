@@ -136,6 +136,37 @@ TEST(Cia402Config, ValuesTheBusCannotCarryAreRefusedWithFileLineAndKey) {
   EXPECT_EQ(ok.heartbeat_producer.count(), 65535);
 }
 
+// The bench's own heartbeat and what the drive does when it stops (issue 38 item 10).
+TEST(Cia402Config, BenchHeartbeatKeysAndTheirErrors) {
+  const auto c = Cia402Config::from_yaml(cfg::Node::load_string(
+      "interface: vcan0\nnode_id: 2\nbench_heartbeat: {node_id: 100, producer_ms: 20, drive_timeout_ms: 150, on_loss: "
+      "disable_voltage, required: false}\n",
+      "d.yaml"));
+  EXPECT_EQ(c.bench_heartbeat.node_id, 100);
+  EXPECT_EQ(c.bench_heartbeat.producer.count(), 20);
+  EXPECT_EQ(c.bench_heartbeat.drive_timeout.count(), 150);
+  EXPECT_EQ(c.bench_heartbeat.on_loss, 2);
+  EXPECT_FALSE(c.bench_heartbeat.required);
+  const auto d = Cia402Config::from_yaml(cfg::Node::load_string("interface: vcan0\nnode_id: 2\n", "d.yaml"));
+  EXPECT_EQ(d.bench_heartbeat.node_id, 127);
+  EXPECT_EQ(d.bench_heartbeat.on_loss, 3);  // quick stop
+  EXPECT_TRUE(d.bench_heartbeat.required);
+  for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
+           {"node_id: 2\nbench_heartbeat: {node_id: 2}", "d.yaml:3:19: bench_heartbeat.node_id: must not be the drive's node id, got '2'"},
+           {"node_id: 127", "d.yaml:2:1: node_id: is the bench's default node id (127)"},
+           {"node_id: 2\nbench_heartbeat: {producer_ms: 100, drive_timeout_ms: 100}",
+            "bench_heartbeat.drive_timeout_ms: drive_timeout_ms (100) must be longer than producer_ms (100)"},
+           {"node_id: 2\nbench_heartbeat: {drive_timeout_ms: 65536}", "bench_heartbeat.drive_timeout_ms: must be 1..65535 ms"},
+           {"node_id: 2\nbench_heartbeat: {on_loss: nothing}", "bench_heartbeat.on_loss: must be quick_stop, disable_voltage or fault"}}) {
+    try {
+      Cia402Config::from_yaml(cfg::Node::load_string("interface: vcan0\n" + text + "\n", "d.yaml"));
+      ADD_FAILURE() << text;
+    } catch (const cfg::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(want), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(Cia402Config, LimitsInDegreesAndTheirErrors) {
   const auto ok = cfg::Node::load_string(
       "interface: vcan0\nnode_id: 2\nlimits: {following_error_window_deg: 0.5, following_error_timeout_ms: 20,\n"

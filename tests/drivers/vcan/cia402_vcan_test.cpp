@@ -163,6 +163,7 @@ TEST(Cia402Vcan, VariantFollowingError) { variant_following_error(kVcan, 5); }
 TEST(Cia402Vcan, VariantQuickStopRamp) { variant_quick_stop_ramp(kVcan, 5); }
 TEST(Cia402Vcan, ProbeReadsEachVariantWithoutMovingIt) { probe_variants(kVcan, 5); }
 TEST(Cia402Vcan, EmcyTextSurvivesTheFault) { emcy_text_survives_the_fault(kVcan, 5); }
+TEST(Cia402Vcan, ADeadBenchQuickStopsTheDrive) { drive_watches_the_bench(kVcan, 5, 3, cia402::State::switch_on_disabled); }
 TEST(Cia402Vcan, BusOffPolicyReport) { bus_off_policy(kVcan, 5, BusOffPolicy::report); }
 TEST(Cia402Vcan, BusOffPolicyWait) { bus_off_policy(kVcan, 5, BusOffPolicy::wait); }
 TEST(Cia402Vcan, BusOffPolicyRecover) { bus_off_policy(kVcan, 5, BusOffPolicy::recover); }
@@ -195,6 +196,16 @@ TEST(Cia402Wire, ConfigureAndEnableBytesFollowTheStandard) {
   const auto hb = find(log, "605#2B17100032000000");
   ASSERT_NE(hb, std::string::npos) << dump(log);
   EXPECT_NE(find(log, "585#6017100000000000"), std::string::npos);
+  // The drive watches the bench (issue 38 item 10): 0x1016:01 = node 127 (bits 16-23), 500 ms
+  // (bits 0-15), a 4-byte download (cs 0x23); 0x6007 = 3 (quick stop), 2 bytes (cs 0x2B).
+  EXPECT_NE(find(log, "605#23161001F4017F00", hb), std::string::npos) << dump(log);
+  EXPECT_NE(find(log, "605#2B07600003000000", hb), std::string::npos) << dump(log);
+  // Unused PDOs (issue 38 item 12): the drive's own COB-ID read, written back with bit 31
+  // (RPDO2 0x305 -> 0x80000305), and 0x1006 = the SYNC period, 2000 us (4 bytes).
+  const auto rpdo2 = find(log, "605#4001140100000000", hb);
+  ASSERT_NE(rpdo2, std::string::npos) << dump(log);
+  EXPECT_NE(find(log, "605#2301140105030080", rpdo2), std::string::npos) << dump(log);
+  EXPECT_NE(find(log, "605#23061000D0070000", hb), std::string::npos) << dump(log);
   // PDO mapping in the CiA 301 order: invalidate RPDO1, clear count, map, count, type, validate.
   std::size_t at = hb;
   // (bytes: command specifier, index low, index high, sub-index, data little-endian)

@@ -117,6 +117,7 @@ inline constexpr std::uint16_t kVelocityActual = 0x606C;
 inline constexpr std::uint16_t kTargetPosition = 0x607A;
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;
 inline constexpr std::uint16_t kQuickStopOption = 0x605A;
+inline constexpr std::uint16_t kAbortConnectionOption = 0x6007;  // i16: 0 none, 1 fault, 2 disable voltage, 3 quick stop
 inline constexpr std::uint16_t kFollowingErrorWindow = 0x6065;   // u32, position units; 0xFFFFFFFF: off
 inline constexpr std::uint16_t kFollowingErrorTimeout = 0x6066;  // u16, ms
 inline constexpr std::uint16_t kMaxProfileVelocity = 0x607F;     // u32, velocity units

@@ -58,6 +58,15 @@ struct Cia402Config {
   enum class SyncSource { timer, loop } sync_source = SyncSource::timer;  // loop: write() triggers SYNC
   std::chrono::milliseconds heartbeat_producer{100};                      // written to the drive's 0x1017
   std::chrono::milliseconds heartbeat_timeout{350};
+  // Where the drive has no producer heartbeat time 0x1017, node guarding instead (CiA 301 allows
+  // either): the I/O thread sends a guarding request (a remote frame on 0x700 + node) every
+  // guard_time; the drive's replies are watched as its heartbeat (heartbeat_timeout), and the
+  // drive's life guarding (0x100C guard time x 0x100D life time factor) watches the bench in place
+  // of the consumer heartbeat 0x1016, with the same reaction (0x6007).
+  struct NodeGuarding {
+    std::chrono::milliseconds guard_time{100};
+    int life_time_factor = 5;
+  } node_guarding;
   DriveUnits units;
   std::chrono::milliseconds boot_timeout{5000};
   std::chrono::milliseconds sdo_timeout{200};
@@ -66,6 +75,21 @@ struct Cia402Config {
   BusOffPolicy bus_off_policy = BusOffPolicy::wait;
   std::chrono::milliseconds bus_off_recover_after{500};
   bool disable_unused_pdos = true;  // mark RPDO2-4 and TPDO2-4 invalid (those the drive has)
+  // The bench as a node the drive watches, so that a bench that dies (killed, hung) stops the
+  // drive instead of leaving it powered on its last target. From configure() on, the I/O thread
+  // produces a heartbeat (CiA 301: 0x700 + node_id, one byte, NMT state operational 0x05) every
+  // `producer`; configure() writes the drive's consumer heartbeat time 0x1016 (bits 16-23 node id,
+  // 0-15 time in ms) for node_id with `drive_timeout`, and its abort connection option code 0x6007
+  // (CiA 402) = `on_loss`, what the drive does when that heartbeat stops.
+  struct BenchHeartbeat {
+    std::uint8_t node_id = 127;                   // the bench's own node id on this bus (not the drive's)
+    std::chrono::milliseconds producer{100};      // the bench's heartbeat period
+    std::chrono::milliseconds drive_timeout{500}; // 0x1016 consumer time (> producer, 16 bit)
+    std::int16_t on_loss = 3;                     // 0x6007: 1 fault, 2 disable voltage, 3 quick stop
+    // configure() fails when the drive has no 0x1016 or no 0x6007 (it could not tell the bench
+    // died); false: a configure note instead.
+    bool required = true;
+  } bench_heartbeat;
   // Written at configure when set (and skipped, with a note in configure_notes(), when the drive
   // lacks the object; all are optional in CiA 402): following error window 0x6065 and timeout
   // 0x6066, max profile velocity 0x607F, quick stop deceleration 0x6085.
@@ -74,13 +98,27 @@ struct Cia402Config {
     std::chrono::milliseconds following_error_timeout{-1};  // -1: not written
     double max_profile_velocity_rad_s = 0;                  // 0: not written
     double quick_stop_deceleration_rad_s2 = 0;              // 0: not written
+    // The drive's lag behind a target that moves at a constant speed (its position loop),
+    // measured: the following error at that speed over the speed (not written anywhere).
+    std::chrono::microseconds drive_lag{0};  // 0: unknown
   } limits;
+  // The fastest the bench moves the target: set by the rig from its loop.target_shaping and
+  // safety.rate_limit (no key of the drive file); 0: unknown. With the drive's lag it says what
+  // following error the bench's targets make by themselves (following_window_problem()).
+  double target_velocity_rad_s = 0;
 
   // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.
   static Cia402Config from_yaml(const cfg::Node& node);
   // A file holding that mapping at its top level or under `cia402_drive:`.
   static Cia402Config load(const std::filesystem::path& file);
 };
+
+// The following error the bench's targets make by themselves, target_velocity_rad_s x (the
+// drive's lag + one SYNC period: the drive gets each target a period later), against a following
+// error window 0x6065 of `window_rad`: the text that refuses the window, with the numbers, when it
+// is narrower (the drive would fault on shaping alone); empty when it is wide enough or the
+// target velocity is unknown.
+std::string following_window_problem(const Cia402Config& config, double window_rad);
 
 class DriveError : public std::runtime_error {
  public:
@@ -110,7 +148,8 @@ class Cia402Drive final : public PositionDrive {
   Cia402Drive& operator=(Cia402Drive&&) = delete;
 
   // Setup (blocking, throw DriveError/SdoAbortError naming node, object and cause).
-  // NMT reset communication, wait boot-up, check 0x1000, heartbeat 0x1017, map RPDO1/TPDO1,
+  // NMT reset communication, wait boot-up, check 0x1000, heartbeat 0x1017, the bench's own
+  // heartbeat started and watched by the drive (0x1016, 0x6007), map RPDO1/TPDO1,
   // invalidate the other PDOs the drive has, CSP mode (0x6060 = 8, then 0x6061 polled until it
   // shows 8 or transition_ms passes), interpolation period 0x60C2 and limits where the drive has
   // them, NMT start, wait operational and the first TPDO.
@@ -137,6 +176,8 @@ class Cia402Drive final : public PositionDrive {
   // so a TPDO since the last write is fresh; timer: the SYNC runs on its own clock (polled).
   FeedbackFreshness freshness() const noexcept override;
   std::string_view missing_reply_text() const noexcept override;  // names a TPDO1 that arrives too short
+  // Real-time safe, the thread that writes: a SYNC has carried the newest write's command.
+  bool last_command_sent() const noexcept override;
   cia402::State state() const noexcept;                           // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
@@ -158,6 +199,8 @@ class Cia402Drive final : public PositionDrive {
   const Cia402Config& config() const;
 
  private:
+  void configure_bench_watch(bool guarding);
+  bool configure_node_guarding();
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

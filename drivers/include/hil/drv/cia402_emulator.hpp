@@ -37,9 +37,27 @@ struct Cia402EmulatorConfig {
   // down at 0x6085, then switch on disabled. Without it: quick stop option 0 (the drive stops
   // at once and goes to switch on disabled).
   bool quick_stop_ramp = false;
+  // Has 0x1016 (consumer heartbeat time, 4 entries: bits 16-23 node id, bits 0-15 time in ms,
+  // CiA 301) and watches the heartbeats it names: monitoring of a node starts with its first
+  // heartbeat after the entry is written; none for the time -> EMCY 0x8130 (heartbeat error) and
+  // the abort connection reaction of 0x6007 (CiA 402: 1 fault, 2 disable voltage, 3 quick stop,
+  // 0 none), on the drive's own clock (a dead master sends no SYNC either). Monitoring starts
+  // again with the node's next heartbeat.
+  bool heartbeat_consumer = true;
+  bool abort_connection_option = true;  // has 0x6007 (default value 1: fault)
+  // Node guarding instead of the heartbeat (CiA 301 allows either): no 0x1017 or 0x1016, but
+  // guard time 0x100C (ms) and life time factor 0x100D; answers a guarding request (a remote
+  // frame on 0x700 + node) with its NMT state and the toggle bit (bit 7, 0 first after a reset
+  // communication), and, once guarded, reacts to no request for guard time x life time factor
+  // as to a lost heartbeat (life guarding event: EMCY 0x8130 and 0x6007).
+  bool node_guarding = false;
+  // PDO2..4 with the maker's own default COB-IDs instead of the predefined connection set's:
+  // RPDO k+1 at 0x500 + 0x20 k + node, TPDO k+1 at 0x40000000 (no RTR) | 0x480 + 0x20 k + node.
+  bool own_pdo_ids = false;
 
   // `node`: keys interface, node_id, units (as in Cia402Config), and the variant keys pdos,
-  // interpolation_period, mode_display_delay_ms, following_error, quick_stop_ramp.
+  // interpolation_period, mode_display_delay_ms, following_error, quick_stop_ramp,
+  // heartbeat_consumer, abort_connection_option, node_guarding, own_pdo_ids.
   static Cia402EmulatorConfig from_yaml(const cfg::Node& node);
   static Cia402EmulatorConfig load(const std::filesystem::path& file);  // top level or `cia402_emulator:`
 };
@@ -68,6 +86,16 @@ class Cia402DriveEmulator {
     double position_rad = 0, velocity_rad_s = 0;
   };
   std::optional<RampStart> quick_stop_ramp_start();
+  // The heartbeat consumer's events (0x1016), or life guarding's (node 0): how many, and of the last one the node and how long
+  // it had been silent when the drive reacted (its last heartbeat to the reaction, on the drive's
+  // clock), and the state the reaction left the drive in.
+  struct ConsumerEvent {
+    std::uint8_t node = 0;
+    std::chrono::microseconds silence{0};
+    cia402::State state_after = cia402::State::not_ready_to_switch_on;
+  };
+  std::uint64_t heartbeat_consumer_events() const;
+  std::optional<ConsumerEvent> last_consumer_event();
 
   // Misbehaviour on command, thread-safe.
   void stop_heartbeat(bool stopped);

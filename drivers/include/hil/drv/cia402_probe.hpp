@@ -29,6 +29,7 @@ struct Cia402Probe {
   bool csp_supported = false;      // 0x6502 bit 7 (true when 0x6502 is absent: not declared)
   std::vector<std::string> plan;   // what configure() will do with this drive
   std::vector<std::string> lacks;  // what the drive lacks, and what that means
+  std::vector<std::string> refused;  // what configure() will refuse, with the numbers (a following error window too narrow)
   bool usable = true;              // every required object is there and CSP is not ruled out
 
   const Object* find(std::uint16_t index, std::uint8_t sub) const;

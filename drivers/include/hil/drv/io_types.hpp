@@ -82,8 +82,14 @@ struct DeviceHealth {
   std::uint16_t last_emcy_code = 0;
   std::uint8_t last_emcy_register = 0;
   std::array<char, 192> last_error{};  // NUL-terminated; empty when nothing went wrong yet
+  // CAN: what made the client latch the fault it holds the drive in (heartbeat lost, the drive's
+  // fault, a reboot, a position jump), as last_error said it then; kept until the fault is reset,
+  // also when the cause has gone (a heartbeat that came back) and later errors overwrote
+  // last_error. Empty while no fault is held.
+  std::array<char, 192> fault_cause{};
 
   std::string_view last_error_text() const noexcept { return last_error.data(); }
+  std::string_view fault_cause_text() const noexcept { return fault_cause.data(); }
   void set_last_error(std::string_view text) noexcept {
     const std::size_t n = text.size() < last_error.size() - 1 ? text.size() : last_error.size() - 1;
     std::memcpy(last_error.data(), text.data(), n);

@@ -64,6 +64,10 @@ class PositionDrive {
   // Real-time safe: for reply_to_each_write, what a stale period lacks in the bus's own words
   // ("no TPDO since the last SYNC"), for the rig's fault text. Static storage.
   virtual std::string_view missing_reply_text() const noexcept { return "no reply since the last command"; }
+  // Real-time safe: the newest write's command has gone out to the drive (a CAN drive: the SYNC
+  // its I/O thread sent carried it). A client that sends only the newest command replaces one
+  // written before that unsent; the bench shapes the next target from the last one sent.
+  virtual bool last_command_sent() const noexcept { return true; }
 };
 
 class PressureSensor {

@@ -72,6 +72,7 @@ class DeviceRig final : public Rig {
   // Real-time safe; the loop thread (or after it ended): last_error names the part at fault or
   // the stale one, else the newest thing a part reported.
   RigHealth health() const noexcept override;
+  bool target_sent() const noexcept override;  // the drive's last_command_sent()
   // The drive's newest feedback as it stands (position in the drive's frame, rx_time,
   // sequence), without the rig's freshness bookkeeping: for tests and diagnostics. Real-time safe.
   drv::DriveFeedback drive_feedback() const noexcept;

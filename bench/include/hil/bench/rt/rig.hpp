@@ -123,6 +123,10 @@ class Rig {
   virtual RigStatus read(Clock::time_point now, Clock::duration period, RigReading& out) noexcept = 0;
   virtual RigStatus write(Clock::time_point now, Clock::duration period, const RigCommand& command) noexcept = 0;
   virtual RigHealth health() const noexcept = 0;
+  // Real-time safe: the last write's target went out to the drive (a CAN rig: a SYNC carried it).
+  // False when a newer write would replace it unsent; the loop then shapes the next target from
+  // the last one sent (target_shaper.hpp). Rigs that send every write: always true.
+  virtual bool target_sent() const noexcept { return true; }
   // Real-time safe. Returns false when this rig cannot fake that fault.
   virtual bool inject(RigFault /*fault*/, bool /*on*/) noexcept { return false; }
 };

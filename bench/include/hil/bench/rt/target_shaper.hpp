@@ -25,12 +25,25 @@ class TargetShaper {
 
   // Starts at rest at `position_rad` (the drive's own target at the start of a run).
   void reset(double position_rad) noexcept {
-    x_rad_ = position_rad;
-    v_rad_s_ = 0;
+    x_rad_ = x_sent_rad_ = position_rad;
+    v_rad_s_ = v_sent_rad_s_ = 0;
   }
 
   // The next period's target toward `command_rad`. Real-time safe.
-  double step(double command_rad, double dt_s) noexcept {
+  //
+  // `previous_sent`: the last target went out to the drive (a CAN drive: a SYNC carried it). When
+  // it did not (the loop wrote twice before the drive's I/O thread sent one SYNC, on a loaded
+  // host), the drive never sees it: the step is taken again from the last target sent, so that
+  // consecutive targets on the bus differ by one step within the limits. Stepping on from the
+  // unsent one made the drive see two steps between two SYNCs (180 deg/s under a 60 deg/s limit).
+  double step(double command_rad, double dt_s, bool previous_sent = true) noexcept {
+    if (previous_sent) {
+      x_sent_rad_ = x_rad_;
+      v_sent_rad_s_ = v_rad_s_;
+    } else {
+      x_rad_ = x_sent_rad_;
+      v_rad_s_ = v_sent_rad_s_;
+    }
     if (!l_.enabled() || !(dt_s > 0) || !std::isfinite(command_rad)) {
       x_rad_ = command_rad;
       v_rad_s_ = 0;
@@ -58,6 +71,7 @@ class TargetShaper {
  private:
   ShapingLimits l_;
   double x_rad_ = 0, v_rad_s_ = 0;
+  double x_sent_rad_ = 0, v_sent_rad_s_ = 0;  // the last target known to have gone out, and its speed
 };
 
 }  // namespace hil::bench
