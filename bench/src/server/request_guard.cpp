@@ -255,7 +255,7 @@ nlohmann::json parse_request_json(std::string_view text, std::size_t max_depth) 
   try {
     return nlohmann::json::parse(text, check);
   } catch (const nlohmann::json::parse_error& e) {
-    throw JsonRefused(where(text, e.byte) + ": " + parse_reason(e));
+    throw JsonRefused("parse error at " + where(text, e.byte) + ": " + parse_reason(e));
   } catch (const nlohmann::json::out_of_range&) {
     throw JsonRefused("a number is out of range (beyond a double)");
   } catch (const nlohmann::json::exception& e) {
