@@ -105,8 +105,19 @@ TEST(ServerGuard, AForeignHostOrOriginIsRefusedOnEveryRouteAndTheUpgrade) {
   ASSERT_GE(endpoints.size(), 15u);
   std::size_t routes = 0;
   for (const auto& e : endpoints) {
-    std::string path = e["path"];
-    for (std::size_t at; (at = path.find('{')) != std::string::npos;) path.replace(at, path.find('}', at) + 1 - at, "x");
+    // "{name}" segments become "x" (built anew: GCC 12 warns falsely on replace() here, -Wrestrict).
+    const std::string pattern = e["path"];
+    std::string path;
+    for (bool inside = false; const char c : pattern) {
+      if (c == '{') {
+        inside = true;
+        path += 'x';
+      } else if (c == '}') {
+        inside = false;
+      } else if (!inside) {
+        path += c;
+      }
+    }
     const std::string method = e["method"];
     const std::string body = method == "POST" ? "{}" : "";
     for (const auto& [headers, header] : {std::pair{evil_host, "Host"}, std::pair{evil_host + evil_origin, "Host"},
