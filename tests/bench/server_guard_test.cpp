@@ -277,6 +277,8 @@ TEST(ServerGuard, APlantModelThatLinksOutsideItsFolderIsNeverReadNorQuoted) {
   const auto configs = base.path() / "configs";
   std::filesystem::copy(hil::test::source_path("configs"), configs, std::filesystem::copy_options::recursive);
   std::filesystem::create_symlink(secret.file, configs / "plant" / "shadow.yaml");
+  std::filesystem::create_symlink(secret.file, configs / "campaigns" / "shadow.yaml");
+  std::filesystem::create_symlink(secret.file, configs / "rigs" / "shadow.yaml");
   const auto runs = base.path() / "runs";
   const std::string id = "20261127T050000Z_short_adaptive";
   hil::test::write_ended_run(runs / id, "short_adaptive", "adaptive", hil::test::short_campaign_yaml(1),
@@ -300,6 +302,21 @@ TEST(ServerGuard, APlantModelThatLinksOutsideItsFolderIsNeverReadNorQuoted) {
   EXPECT_EQ(csv.status, 422) << csv.body;
   expect_no_secret(csv.body, "POST analyses of a linked telemetry.csv");
   for (const std::string& run : {id, linked_csv}) expect_no_secret(api.get("/api/runs/" + run + "/analyses").body, "analyses");
+  // A campaign or rig file linked the same way: listed with the reason, refused at a start naming the field.
+  for (const std::string list : {"/api/campaigns", "/api/rigs"}) {
+    const auto listed = api.get(list);
+    expect_no_secret(listed.body, list);
+    EXPECT_TRUE(has(listed.body, "shadow.yaml: a symbolic link to a file outside")) << listed.body;
+  }
+  const auto campaign = api.post("/api/start", {{"campaign", "shadow"}});
+  EXPECT_EQ(campaign.status, 409) << campaign.body;
+  EXPECT_EQ(campaign.json().value("field", ""), "campaign") << campaign.body;
+  expect_no_secret(campaign.body, "start shadow");
+  const auto rig = api.post("/api/start", {{"campaign", "paper_fig6"}, {"rig", "shadow"}});
+  EXPECT_EQ(rig.status, 409) << rig.body;
+  EXPECT_EQ(rig.json().value("field", ""), "rig") << rig.body;
+  expect_no_secret(rig.body, "start on rig shadow");
+  EXPECT_EQ(api.get("/api/status").json()["state"], "idle");
   EXPECT_FALSE(std::filesystem::exists(runs / id / "analyses")) << "nothing was queued";
 }
 

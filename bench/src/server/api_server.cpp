@@ -953,6 +953,12 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
         http::status::not_found, "unknown rig",
         "'" + name + "' is not a rig in " + options.rigs_dir.string() + (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
   }
+  if (!resolves_inside(options.rigs_dir / (name + ".yaml"), options.rigs_dir)) {
+    throw ApiError{http::status::conflict, "rig file not read",
+                   (options.rigs_dir / (name + ".yaml")).string() + " is a symbolic link to a file outside " +
+                       options.rigs_dir.string() + ": not read",
+                   "rig"};
+  }
   try {
     return load_rig_config(options.rigs_dir / (name + ".yaml"));
   } catch (const cfg::Error& e) {
@@ -1099,6 +1105,11 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
                            (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
       }
       const auto file = options.campaigns_dir / (name + ".yaml");
+      if (!resolves_inside(file, options.campaigns_dir)) {
+        throw ApiError{http::status::conflict, "campaign file not read",
+                       file.string() + " is a symbolic link to a file outside " + options.campaigns_dir.string() + ": not read",
+                       "campaign"};
+      }
       s.campaign = load_campaign(file);
       s.source = file.string();
     }
