@@ -487,8 +487,8 @@ TEST(ServerGuard, AReadingTelemetryClientOutlivesSeveralIdleTimeouts) {
 }
 
 // The issue: 256 telemetry streams took every connection, and POST /api/abort was closed at
-// accept. Telemetry takes at most its share (256 streams; the rest get 503), so with 1000
-// telemetry clients (plain and Foxglove) connecting, an abort is answered, and fast (the issue
+// accept. Telemetry takes at most its share (256 streams; the other 744 get 503), so with 1000
+// telemetry clients (plain and Foxglove) connected, an abort is answered, and fast (the issue
 // asks 100 ms: best of three, each measured and printed), and the run ends in the safe state.
 TEST(ServerGuard, AbortIsAnsweredWithAThousandTelemetryClientsConnected) {
   rlimit files{};
@@ -513,8 +513,17 @@ TEST(ServerGuard, AbortIsAnsweredWithAThousandTelemetryClientsConnected) {
     ::send(fd, up.data(), up.size(), MSG_NOSIGNAL);
     clients.push_back(fd);
   }
-  // The server has taken its share of streams and refused the rest.
-  for (int i = 0; i < 200 && !has(server.log(), "256 telemetry streams are open"); ++i) std::this_thread::sleep_for(50ms);
+  // The server has taken its share of streams and refused the rest: each client's answer.
+  int upgraded = 0, refused = 0;
+  for (const int fd : clients) {
+    std::string head;
+    char c = 0;
+    while (head.find("\r\n\r\n") == std::string::npos && ::recv(fd, &c, 1, 0) == 1) head.push_back(c);
+    upgraded += status_of(head) == 101;
+    refused += status_of(head) == 503;
+  }
+  EXPECT_EQ(upgraded, 256);
+  EXPECT_EQ(refused, 744);
   EXPECT_TRUE(has(server.log(), "256 telemetry streams are open: refusing more (503)")) << server.log();
   std::vector<double> ms;
   for (int i = 0; i < 3; ++i) {
@@ -524,7 +533,8 @@ TEST(ServerGuard, AbortIsAnsweredWithAThousandTelemetryClientsConnected) {
     EXPECT_EQ(reply.status, 202) << reply.body;
   }
   std::printf("abort with 1000 telemetry clients: %.1f, %.1f, %.1f ms\n", ms[0], ms[1], ms[2]);
-  EXPECT_LT(*std::min_element(ms.begin(), ms.end()), 100.0);
+  EXPECT_LT(*std::min_element(ms.begin(), ms.end()), 100.0);  // best of three: the issue's bound
+  EXPECT_LT(*std::max_element(ms.begin(), ms.end()), 2000.0);  // none waits for the streams (5 s before)
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 30s);
   EXPECT_EQ(s["last"]["outcome"], "aborted") << s.dump(2);
