@@ -39,6 +39,23 @@ bool start_and_reach(const hil::bench::ApiClient& api, double duration_s, double
   return hil::test::status_t(s) > t_s;
 }
 
+// A raw request's "Host: 127.0.0.1" with the server's port: the server answers its own names
+// with its port only (a Host without one is port 80's, and refused as foreign).
+std::string with_port(std::string request, int port) {
+  const std::string bare = "Host: 127.0.0.1\r\n";
+  for (auto at = request.find(bare); at != std::string::npos; at = request.find(bare, at + 1))
+    request.replace(at, bare.size(), "Host: 127.0.0.1:" + std::to_string(port) + "\r\n");
+  return request;
+}
+
+// The port a connected socket's peer listens on.
+int peer_port(int fd) {
+  sockaddr_in addr{};
+  socklen_t len = sizeof addr;
+  if (::getpeername(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return 0;
+  return ntohs(addr.sin_port);
+}
+
 bool ends_with_newline(const std::filesystem::path& file) {
   const std::string text = hil::test::slurp(file);
   return !text.empty() && text.back() == '\n';
@@ -329,7 +346,7 @@ TEST(ServerHardening, TheLiveServerShowsTheEndOfARunWhoseFinalRecordWasNotWritte
 }
 
 // Idle connections by the hundred (a flood took 20 000 descriptors and the next run.json could
-// not be written): past 256 open ones the server closes the longest idle one for each newcomer,
+// not be written): past 320 open ones the server closes the longest idle one for each newcomer,
 // keeps its descriptors, and the operator is answered while the flood is still open (before, the
 // flood locked everyone out until it closed or the 60 s idle timeout ended it).
 TEST(ServerHardening, AConnectionFloodIsCappedAndTheOperatorIsStillAnswered) {
@@ -354,12 +371,12 @@ TEST(ServerHardening, AConnectionFloodIsCappedAndTheOperatorIsStillAnswered) {
   for (int i = 0; i < 200 && server.log().find("closing the longest idle one") == std::string::npos; ++i) {
     std::this_thread::sleep_for(50ms);
   }
-  EXPECT_NE(server.log().find("256 connections are open: closing the longest idle one for each new one"), std::string::npos)
+  EXPECT_NE(server.log().find("320 connections are open: closing the longest idle one for each new one"), std::string::npos)
       << server.log();
   const auto api = server.client();
   EXPECT_EQ(api.get("/api/health").status, 200);  // the flood is still open
   EXPECT_EQ(api.get("/api/status").status, 200);
-  EXPECT_LE(open_fds() - before, 256 + 8);  // the cap, and a few of the server's own
+  EXPECT_LE(open_fds() - before, 320 + 8);  // the cap, and a few of the server's own
   // The oldest of the flood were the ones closed: their peer sees the end of the stream.
   const timeval wait_s{30, 0};  // a failure, not a hang, if it stayed open
   ::setsockopt(sockets.front(), SOL_SOCKET, SO_RCVTIMEO, &wait_s, sizeof wait_s);
@@ -377,9 +394,10 @@ TEST(ServerHardening, WatchersThatNeverReadDoNotCostTheRunAnyRow) {
   const auto runs = base.path() / "runs";
   ServerProcess server({"--runs-dir", runs.string()});
   std::vector<int> watchers;
-  const std::string upgrade =
+  const std::string upgrade = with_port(
       "GET /api/telemetry?rate_hz=5000 HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n",
+      server.port());
   for (int i = 0; i < 250; ++i) {
     const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
     ASSERT_GE(fd, 0);
@@ -437,9 +455,10 @@ int connect_raw(int port, long wait_s = 30) {
 
 // One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
 // status line and headers, and its body.
-std::string raw_exchange(int port, const std::string& request) {
+std::string raw_exchange(int port, const std::string& request_for_host) {
   const int fd = connect_raw(port);
   if (fd < 0) return "no connection";
+  const std::string request = with_port(request_for_host, port);
   ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
   std::string reply;
   char buf[4096];
@@ -1015,7 +1034,8 @@ std::optional<std::pair<int, std::string>> next_message(int fd, std::string& pen
 
 // Sends the upgrade (and anything after it in the same write) and reads the 101's header; the
 // bytes read past it stay in `pending`. False when the answer is not a 101.
-bool open_stream(int fd, const std::string& bytes, std::string& pending) {
+bool open_stream(int fd, const std::string& bytes_for_host, std::string& pending) {
+  const std::string bytes = with_port(bytes_for_host, peer_port(fd));
   if (::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size())) return false;
   while (pending.find("\r\n\r\n") == std::string::npos) {
     if (!fill(fd, pending, pending.size() + 1)) return false;

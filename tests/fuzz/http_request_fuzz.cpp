@@ -1,5 +1,6 @@
 // Fuzz target: one raw HTTP request to the bench server's API, answered as a connection would
-// answer it (ApiServer::answer_raw: parser limits, token, routes, campaign YAML in bodies).
+// answer it (ApiServer::answer_raw: parser limits, Host and Origin, token, routes, campaign YAML and
+// JSON bodies, their nesting and duplicate keys).
 // A finding is a crash, a sanitizer report, a hang, or an answer that is not what its route gives
 // (a JSON object; the console page or the token form as an HTML page; an empty 204) with a status
 // the API documents; a 500 is a finding too (no input is the server's own fault).
@@ -38,6 +39,9 @@ struct Server {
     o.plant_dir = std::filesystem::path(HIL_SOURCE_DIR) / "configs/plant";
     o.runs_dir = runs;
     o.max_body_bytes = 64 * 1024;
+    // The corpus's requests say "Host: x" (port 80): allowed, so that they reach the routes; any
+    // other Host or Origin the fuzzer makes meets the DNS-rebinding check (403/400, JSON).
+    o.allow_hosts = {"x:80"};
     api = std::make_unique<hil::bench::ApiServer>(io, o, *runner, hub);
   }
   ~Server() {

@@ -1,13 +1,15 @@
 // hilbench serve [--listen HOST:PORT] [--token T] [--configs DIR] [--runs-dir DIR] [--port-file F]
-//                [--max-body-kb N] [--max-waiting-jobs N] [--no-mlock]
+//                [--max-body-kb N] [--max-waiting-jobs N] [--no-mlock] [--allow-host NAME]... [--ws-idle-timeout-s N]
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <string>
 #include <memory>
 #include <optional>
 #include <thread>
+#include <vector>
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/post.hpp>
@@ -55,6 +57,8 @@ struct ServeArgs {
   std::size_t max_waiting_jobs = 8;
   std::int64_t max_diagnose_mb = 0;  // 0: a quarter of the machine's memory
   bool no_mlock = false;
+  std::vector<std::string> allow_hosts;
+  double ws_idle_timeout_s = 300;
 };
 
 int run_serve(const ServeArgs& args) {
@@ -69,6 +73,8 @@ int run_serve(const ServeArgs& args) {
   api.version = HIL_VERSION;
   api.max_body_bytes = args.max_body_kb * 1024;
   api.max_waiting_jobs = args.max_waiting_jobs;
+  api.allow_hosts = args.allow_hosts;
+  api.ws_idle_timeout = std::chrono::milliseconds(std::llround(args.ws_idle_timeout_s * 1000));
   if (args.max_diagnose_mb > 0) {
     api.max_diagnose_bytes = static_cast<std::uint64_t>(args.max_diagnose_mb) << 20;
   } else {
@@ -199,6 +205,18 @@ CommandRun define_serve(CLI::App& cmd) {
       ->type_name("N")
       ->check(whole_number(1, std::int64_t{1} << 40));
   cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
+  cmd.add_option("--allow-host", args->allow_hosts,
+                 "a host name (NAME, at the server's port, or NAME:PORT behind a proxy) requests may carry in Host and "
+                 "Origin besides the listen address and 127.0.0.1, localhost, [::1]; repeatable. Any other is refused "
+                 "(403): DNS rebinding")
+      ->type_name("NAME")
+      ->take_all();
+  cmd.add_option("--ws-idle-timeout-s", args->ws_idle_timeout_s,
+                 "a telemetry WebSocket that sends nothing for this long, not even the answer to the server's ping "
+                 "(sent at half this time), is closed; a client that reads answers pings")
+      ->type_name("S")
+      ->check(CLI::Range(0.2, 86400.0))
+      ->capture_default_str();
   return [args] { return run_serve(*args); };
 }
 

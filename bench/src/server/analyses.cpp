@@ -14,6 +14,7 @@
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
 #include "hil/json_file.hpp"
+#include "request_guard.hpp"
 
 namespace hil::bench {
 namespace {
@@ -115,6 +116,13 @@ json run_analysis(const AnalysisSpec& spec, const JobQueue::Progress& progress, 
   fs::create_directories(tmp);
   try {
     json result;
+    refuse_linked_run_files(spec.run_dir);
+    // The model is checked again as the job starts: a link to a file outside the models' folder
+    // made after the request was accepted is refused, never read (its error would quote it).
+    if (!spec.model_dir.empty() && !resolves_inside(spec.model_file, spec.model_dir)) {
+      throw std::runtime_error("model '" + spec.model + "': " + spec.model_file.string() +
+                               " is a symbolic link to a file outside " + spec.model_dir.string() + ": not read");
+    }
     if (spec.kind == "compare") {
       analysis::CompareOptions o;
       o.model_file = spec.model_file;
@@ -168,16 +176,20 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(run_dir / "analyses", ec)) {
     const std::string name = e.path().filename().string();
-    if (e.is_directory() && cfg::plain_name(name) && name.front() != '.') dirs.push_back(e.path());
+    std::error_code ec2;
+    if (e.symlink_status(ec2).type() == fs::file_type::directory && cfg::plain_name(name) && name.front() != '.')
+      dirs.push_back(e.path());
   }
   std::vector<std::pair<std::string, json>> out;
   for (const auto& d : dirs) {
     const std::string id = d.filename().string();
     // A done analysis has analysis.json; a failed one failed.json alone.
-    const bool failed = !fs::exists(d / "analysis.json", ec) && fs::exists(d / "failed.json", ec);
+    const auto present = [&](const char* f) { return fs::symlink_status(d / f, ec).type() != fs::file_type::not_found; };
+    const bool failed = !present("analysis.json") && present("failed.json");
     const std::string file = failed ? "failed.json" : "analysis.json";
     try {
-      json j = read_json_file(d / file);
+      // Not through a link, bounded before it is parsed, and never quoted (request_guard.hpp).
+      json j = read_json_inside(run_dir, {"analyses", id, file});
       if (!j.is_object()) throw std::runtime_error((d / file).string() + ": not a JSON object");
       j["id"] = id;
       if (failed) {
@@ -196,6 +208,17 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
   return list;
 }
 
+void refuse_linked_run_files(const fs::path& run_dir) {
+  for (const char* name : {"run.json", "telemetry.csv", "events.jsonl"}) {
+    std::error_code ec;
+    const auto type = fs::symlink_status(run_dir / name, ec).type();
+    if (type == fs::file_type::not_found) continue;
+    if (type == fs::file_type::symlink)
+      throw std::runtime_error((run_dir / name).string() + ": is a symbolic link (not followed: a run's files stay in its folder)");
+    if (type != fs::file_type::regular) throw std::runtime_error((run_dir / name).string() + ": is not a regular file");
+  }
+}
+
 bool run_report_current(const fs::path& run_dir) {
   std::error_code ec, ec2;
   const auto made = fs::last_write_time(run_dir / "report.html", ec);
@@ -209,6 +232,7 @@ json make_run_report(const fs::path& run_dir, const JobQueue::Progress& progress
   const auto part = run_dir / "report.html.tmp";  // a half-written report is never served or listed
   std::error_code ec;
   try {
+    refuse_linked_run_files(run_dir);
     RunReportOptions options;
     options.progress = progress;
     options.cancel = cancel;

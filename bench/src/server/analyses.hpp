@@ -32,6 +32,7 @@ struct AnalysisSpec {
   std::string kind;  // compare | diagnose
   std::string model;
   std::filesystem::path model_file;
+  std::filesystem::path model_dir;  // set: model_file must resolve inside it when the job runs (a link made since is refused)
 };
 
 std::filesystem::path analysis_dir(const std::filesystem::path& run_dir, const std::string& id);
@@ -73,6 +74,11 @@ nlohmann::json make_run_report(const std::filesystem::path& run_dir, const JobQu
 // Whether RUN_DIR/report.html is that run's report: made after run.json was last written (run.json
 // is rewritten only by the run's end or by a server finding the run interrupted).
 bool run_report_current(const std::filesystem::path& run_dir);
+
+// Throws std::runtime_error naming the file when one of the files a report or an analysis reads
+// in the run folder (run.json, telemetry.csv, events.jsonl) is a symbolic link or not a regular
+// file: it is never followed (a link to /etc/shadow had its first line quoted in the error).
+void refuse_linked_run_files(const std::filesystem::path& run_dir);
 
 // Removes what a server that died during a job left in the run folders: RUN_DIR/report.html.tmp
 // and RUN_DIR/analyses/.*.tmp. Returns how many it removed.

@@ -7,6 +7,7 @@
 #include <boost/beast/websocket.hpp>
 
 #include "hil/text_file.hpp"
+#include "request_guard.hpp"
 
 namespace hil::bench {
 namespace {
@@ -20,6 +21,11 @@ using tcp = asio::ip::tcp;
 }  // namespace
 
 nlohmann::json ApiReply::json() const {
+  // The server's replies nest a run.json (at most 64 levels) in a few of their own.
+  constexpr std::size_t kMaxDepth = 128;
+  if (const auto at = too_deep(body, kMaxDepth))
+    throw std::runtime_error("HTTP " + std::to_string(status) + " with JSON nested deeper than " + std::to_string(kMaxDepth) +
+                             " levels (at byte " + std::to_string(*at + 1) + "): not parsed");
   try {
     return nlohmann::json::parse(body);
   } catch (const nlohmann::json::exception&) {
@@ -48,12 +54,23 @@ namespace {
 
 // Runs one asynchronous operation to its end. Beast's tcp_stream timeouts only apply to
 // asynchronous operations, so the client is synchronous on top of them.
+// Runs until that operation's handler has run, not until the io_context is out of work: the
+// telemetry stream's WebSocket keeps a timer of its own (its idle rule, its pings) armed for good.
 template <class Start>
 void run_op(asio::io_context& io, Start&& start) {
   beast::error_code result;
-  start([&](beast::error_code ec, auto&&...) { result = ec; });
+  bool done = false;
+  start([&](beast::error_code ec, auto&&...) {
+    result = ec;
+    done = true;
+  });
   io.restart();
-  io.run();
+  while (!done) {
+    if (io.run_one() == 0) {
+      if (done) break;
+      throw std::logic_error("the client's operation has no work left and did not complete");
+    }
+  }
   if (result) throw boost::system::system_error(result);
 }
 
@@ -62,7 +79,9 @@ beast::tcp_stream connect(asio::io_context& io, const std::string& host, const s
   beast::tcp_stream stream(io);
   try {
     tcp::resolver resolver(io);
-    const auto endpoints = resolver.resolve(host, port);
+    // "[::1]" is the URL's and the Host header's spelling; the resolver takes the address alone.
+    const bool bracketed = host.size() > 2 && host.front() == '[' && host.back() == ']';
+    const auto endpoints = resolver.resolve(bracketed ? host.substr(1, host.size() - 2) : host, port);
     stream.expires_after(timeout);
     run_op(io, [&](auto handler) { stream.async_connect(endpoints, handler); });
   } catch (const boost::system::system_error& e) {
@@ -71,6 +90,7 @@ beast::tcp_stream connect(asio::io_context& io, const std::string& host, const s
   return stream;
 }
 
+// host: "HOST:PORT", as the server checks it (a Host without its port is port 80's, and refused).
 template <class Request>
 void authorise(Request& req, const std::string& host, const std::string& token) {
   req.set(http::field::host, host);
@@ -87,7 +107,7 @@ ApiReply ApiClient::request(const std::string& method, const std::string& target
   asio::io_context io;
   auto stream = connect(io, host_, port_, timeout_);
   http::request<http::string_body> req(http::string_to_verb(method), target, 11);
-  authorise(req, host_, token_);
+  authorise(req, host_ + ":" + port_, token_);
   if (!body.empty() || method == "POST") {
     req.set(http::field::content_type, content_type);
     req.body() = body;
@@ -151,7 +171,7 @@ ApiReply ApiClient::download(const std::string& target, const std::filesystem::p
   asio::io_context io;
   auto stream = connect(io, host_, port_, timeout_);
   http::request<http::empty_body> req(http::verb::get, target, 11);
-  authorise(req, host_, token_);
+  authorise(req, host_ + ":" + port_, token_);
   ApiReply reply;
   const std::filesystem::path tmp = to.string() + ".part";
   // The part file goes on any failure (a full disk, a cut connection, an exception): a file
@@ -210,9 +230,16 @@ void ApiClient::stream(const std::string& target, const std::function<bool(const
   try {
     beast::get_lowest_layer(ws).expires_after(timeout_);
     run_op(io, [&](auto handler) { ws.async_handshake(res, host_ + ":" + port_, target, handler); });
+    // A stream may be quiet for long (no run, between runs): a timeout per message cut an idle
+    // `ctl telemetry` after 30 s. The WebSocket's own idle rule instead: a ping to the server at
+    // half the timeout without a message, closed only when not even its pong came back.
+    beast::get_lowest_layer(ws).expires_never();
+    websocket::stream_base::timeout timeouts = websocket::stream_base::timeout::suggested(beast::role_type::client);
+    timeouts.idle_timeout = timeout_;
+    timeouts.keep_alive_pings = true;
+    ws.set_option(timeouts);
     beast::flat_buffer buffer;
     for (;;) {
-      beast::get_lowest_layer(ws).expires_after(timeout_);
       run_op(io, [&](auto handler) { ws.async_read(buffer, handler); });
       const std::string message = beast::buffers_to_string(buffer.data());
       buffer.consume(buffer.size());

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdio>
 #include <map>
+#include <mutex>
 #include <cmath>
 #include <deque>
 #include <fstream>
@@ -20,6 +21,7 @@
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/post.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
@@ -29,6 +31,7 @@
 #include "console/assets.hpp"
 #include "foxglove.hpp"
 #include "jobs.hpp"
+#include "request_guard.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/config.hpp"
 #include "hil/config_files.hpp"
@@ -66,7 +69,8 @@ struct Reply {
   http::status status = http::status::ok;
   std::string body;
   std::string content_type = "application/json";
-  std::filesystem::path file;                     // non-empty: send this file
+  std::filesystem::path file;                     // non-empty: send this file (its name, for answer_raw and the log)
+  std::shared_ptr<const int> fd = nullptr;        // with `file`: the file, opened without following a link (open_inside)
   std::string extra_header;                       // Content-Disposition for downloads
   bool no_store = false;                          // Cache-Control: no-store (the console: a new build is a new page)
   std::string allow;                              // Allow, on a 405
@@ -221,15 +225,18 @@ std::vector<std::string> yaml_stems(const std::filesystem::path& dir) {
   return out;
 }
 
+// A request's JSON body: its size is bounded by the parser (--max-body-kb), its nesting here
+// before it is parsed, and a key given twice is refused naming it (request_guard.hpp).
 json parse_json_body(const Request& req) {
   if (req.body().empty()) return json::object();
+  json j;
   try {
-    json j = json::parse(req.body());
-    if (!j.is_object()) throw ApiError{http::status::bad_request, "malformed JSON", "the body must be a JSON object"};
-    return j;
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e400
-    throw ApiError{http::status::bad_request, "malformed JSON", e.what()};
+    j = parse_request_json(req.body());
+  } catch (const JsonRefused& e) {
+    throw ApiError{http::status::bad_request, e.field.empty() ? "malformed JSON" : "duplicate key", e.what(), e.field};
   }
+  if (!j.is_object()) throw ApiError{http::status::bad_request, "malformed JSON", "the body must be a JSON object"};
+  return j;
 }
 
 template <class T>
@@ -330,7 +337,12 @@ void refused_handshake(websocket::response_type& res) {
 // One open client connection, HTTP or WebSocket, counted while it lives: the server takes at
 // most kMaxConnections at once. A flood of idle sockets (20 000 from one client) took every file
 // descriptor the process had, and the next run could not write its run.json.
-constexpr int kMaxConnections = 256;
+// Telemetry streams take at most kMaxStreams of them: 256 streams took every connection, and an
+// abort was closed at accept for as long as they stayed. The other kMaxConnections - kMaxStreams
+// are the operator's requests' (HTTP), where the longest idle one gives way to a newcomer, so a
+// control request always finds a place. A stream past its share is refused 503.
+constexpr int kMaxConnections = 320;
+constexpr int kMaxStreams = 256;
 class ConnectionSlot {
  public:
   explicit ConnectionSlot(std::shared_ptr<std::atomic<int>> open) : open_(std::move(open)) { ++*open_; }
@@ -374,9 +386,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
   // read_ahead: the bytes the HTTP session read past the upgrade request, the client's first frames.
   // session_id: Foxglove's serverInfo.sessionId, the server's (ApiServer::Impl::session_id).
+  // idle_timeout: ApiOptions::ws_idle_timeout. stream_slot: its place in the telemetry share.
   WsSession(tcp::socket&& socket, beast::flat_buffer read_ahead, TelemetryHub& hub, bool foxglove, std::string session_id,
-            ConnectionSlot slot)
-      : ws_(std::move(socket)), hub_(hub), foxglove_(foxglove), session_id_(std::move(session_id)), slot_(std::move(slot)) {
+            ConnectionSlot slot, ConnectionSlot stream_slot, std::chrono::milliseconds idle_timeout)
+      : ws_(std::move(socket)),
+        hub_(hub),
+        foxglove_(foxglove),
+        session_id_(std::move(session_id)),
+        slot_(std::move(slot)),
+        stream_slot_(std::move(stream_slot)),
+        idle_timeout_(idle_timeout) {
     ws_.next_layer().buffer() = std::move(read_ahead);
   }
   WsSession(const WsSession&) = delete;
@@ -390,7 +409,14 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   }
 
   void run(Request req, double rate_hz) {
-    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    // Idle means nothing received, not nothing sent: a client that only reads sends nothing of its
+    // own, and was cut at exactly 300 s (Foxglove, ctl telemetry five minutes into a soak). The
+    // server pings at half the idle time; every WebSocket client answers a ping as it reads, so a
+    // reading client is never idle, and one that is gone (no pong) is closed at the idle time.
+    websocket::stream_base::timeout timeouts = websocket::stream_base::timeout::suggested(beast::role_type::server);
+    timeouts.idle_timeout = idle_timeout_;
+    timeouts.keep_alive_pings = true;
+    ws_.set_option(timeouts);
     ws_.set_option(websocket::stream_base::decorator([foxglove = foxglove_](websocket::response_type& res) {
       res.set(http::field::server, "hilbench");
       if (res.result() != http::status::switching_protocols) return refused_handshake(res);
@@ -541,6 +567,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   const bool foxglove_;
   const std::string session_id_;
   ConnectionSlot slot_;                                 // handed over from the HTTP session it was upgraded from
+  ConnectionSlot stream_slot_;                          // its place in the telemetry streams' share (kMaxStreams)
+  const std::chrono::milliseconds idle_timeout_;
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
   std::deque<Outgoing> queue_;
@@ -737,6 +765,64 @@ std::string new_session_id() {
 
 }  // namespace
 
+namespace {
+
+// A run folder's run.json as a record: opened without following a link, bounded in size and
+// nesting before it is parsed (a run.json nested 20 000 deep held the server 7 s and 800 MB), and
+// an error never quotes the file (request_guard.hpp read_json_inside).
+RunRecord read_record(const std::filesystem::path& dir) {
+  return RunRecord::from_json(read_json_inside(dir.parent_path(), {dir.filename().string(), "run.json"}),
+                              (dir / "run.json").string());
+}
+
+// Whether runs_dir/id is a run folder: a plain name, a folder itself (not a link to one
+// elsewhere), holding a run.json (of any kind: reading it says what is wrong with it).
+bool is_run_dir(const std::filesystem::path& runs_dir, const std::string& id) {
+  if (!cfg::plain_name(id)) return false;
+  std::error_code ec;
+  return std::filesystem::symlink_status(runs_dir / id, ec).type() == std::filesystem::file_type::directory &&
+         std::filesystem::symlink_status(runs_dir / id / "run.json", ec).type() != std::filesystem::file_type::not_found;
+}
+
+// Whether a folder entry is a regular file itself, not a link to one.
+bool plain_file(const std::filesystem::directory_entry& e) {
+  std::error_code ec;
+  return e.symlink_status(ec).type() == std::filesystem::file_type::regular;
+}
+
+// A file below `base` (parts: plain names), opened now without following a symbolic link at any
+// part (open_inside): what is served is the file that was checked, never one a link points at
+// outside the runs folder (a tester's events.jsonl -> /etc/passwd was served). 404 `missing`
+// when it is not there, 403 naming the path (never its content) when it is a link or no file.
+Reply opened_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing) {
+  std::filesystem::path path = base;
+  for (const auto& p : parts) path /= p;
+  bool absent = false;
+  OpenedFile f;
+  try {
+    f = open_inside(base, parts, &absent);
+  } catch (const std::exception& e) {
+    throw ApiError{http::status::forbidden, "file not served", e.what()};
+  }
+  if (absent) throw ApiError{http::status::not_found, "unknown file", missing};
+  Reply r;
+  r.file = path;
+  r.fd = std::shared_ptr<const int>(new int(f.fd), [](const int* fd) {
+    if (*fd >= 0) ::close(*fd);
+    delete fd;
+  });
+  return r;
+}
+
+Reply html_file(const std::filesystem::path& base, const std::vector<std::string>& parts) {
+  Reply r = parts.empty() ? Reply{} : opened_file(base, parts, "no file " + parts.back());
+  r.content_type = "text/html; charset=utf-8";
+  r.extra_header = "inline";
+  return r;
+}
+
+}  // namespace
+
 struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Impl(asio::io_context& io_, ApiOptions o, CampaignRunner& r, TelemetryHub& h)
       : io(io_), options(std::move(o)), runner(r), hub(h), acceptor(io_), jobs(options.max_waiting_jobs) {}
@@ -746,8 +832,22 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   CampaignRunner& runner;
   TelemetryHub& hub;
   tcp::acceptor acceptor;
-  std::string refuse_starts;  // io thread only
+  // Why new campaigns and jobs are refused (shutting down), or empty; read on the io thread and on
+  // the run files' thread (start_analysis).
+  std::string refusing() const {
+    std::lock_guard lock(refuse_mutex);
+    return refuse_starts;
+  }
+  mutable std::mutex refuse_mutex;
+  std::string refuse_starts;  // under refuse_mutex
+  // The thread that answers every request under /api/runs: they read run folders (run.json,
+  // analyses, reports' state), which never happens on the io thread that answers status, abort and
+  // the telemetry streams (a run.json nested 20 000 deep held them all for 7 s). One thread: the
+  // checks and submits of jobs (run_report, start_analysis) keep one order. Joined by ~ApiServer.
+  asio::thread_pool files{1};
   std::shared_ptr<std::atomic<int>> open_connections = std::make_shared<std::atomic<int>>(0);
+  std::shared_ptr<std::atomic<int>> open_streams = std::make_shared<std::atomic<int>>(0);  // telemetry WebSockets
+  std::chrono::steady_clock::time_point last_stream_refusal_logged{};                      // io thread only
   std::chrono::steady_clock::time_point last_refusal_logged{};  // io thread only
   // The HTTP sessions, for evicting the longest-idle one when the connections are at their cap
   // (io thread only; expired ones are pruned there).
@@ -772,6 +872,9 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   void accept();
   bool evict_longest_idle();
   bool authorised(const Request& req, const Target& t) const;
+  // Host and Origin against the names this server answers (request_guard.hpp): the refusal, or nothing.
+  std::optional<Reply> refused_header(const Request& req) const;
+  std::optional<HostGuard> guard;  // set once the port is bound
   // A parsed request's answer: authorisation, the route, errors as replies, the log line.
   Reply answer(const Request& req, const Target& t);
   // The answer to a request the HTTP parser refused.
@@ -799,7 +902,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   // A run folder's record as the API shows it: its run.json, or, while that file still says
   // "running" for a run this server ended, the end the runner keeps (CampaignRunner::unrecorded_end).
   RunRecord record_of(const std::filesystem::path& dir) const {
-    RunRecord r = read_run_record(dir);
+    RunRecord r = read_record(dir);
     if (r.outcome == Outcome::running) {
       if (auto end = runner.unrecorded_end(dir.filename().string())) return std::move(end->record);
     }
@@ -809,30 +912,19 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::optional<json> find_analysis(const std::string& id, const std::string& aid) const;
 };
 
-namespace {
-
-// A request a browser sends for a page of another origin (any web site the operator has open)
-// carries that page's Origin: it may not drive the bench nor watch its stream. The console is
-// served here, so its requests carry this server's own origin, the Host they were sent to.
-// Clients that are no browser (ctl, curl, scripts) send no Origin and are not concerned.
-std::optional<std::string> foreign_origin(const Request& req) {
-  const auto origin = req[http::field::origin];
-  if (origin.empty()) return std::nullopt;
+// A request whose Host or Origin is not this server's (DNS rebinding, a page of another site):
+// its refusal, said in the log. Checked before the token and the route, on every request.
+std::optional<Reply> ApiServer::Impl::refused_header(const Request& req) const {
+  if (!guard) return std::nullopt;
   const auto host = req[http::field::host];
-  const std::string_view o(origin.data(), origin.size()), h(host.data(), host.size());
-  constexpr std::string_view scheme = "http://";
-  const auto lower = [](std::string_view v) {
-    std::string out(v);
-    std::transform(out.begin(), out.end(), out.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return out;
-  };
-  if (!h.empty() && o.size() == scheme.size() + h.size() && lower(o.substr(0, scheme.size())) == scheme &&
-      lower(o.substr(scheme.size())) == lower(h))
-    return std::nullopt;
-  return std::string(o);
+  const auto origin = req[http::field::origin];
+  const auto refusal = guard->check(std::string_view(host.data(), host.size()), req.count(http::field::host),
+                                    std::string_view(origin.data(), origin.size()), req.count(http::field::origin));
+  if (!refusal) return std::nullopt;
+  spdlog::warn("{} {}: refused: {} ({})", std::string(req.method_string()), loggable_target(req.target()), refusal->error,
+               refusal->header);
+  return error_reply(static_cast<http::status>(refusal->status), refusal->error, refusal->detail, refusal->header);
 }
-
-}  // namespace
 
 bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
   if (options.token.empty()) return true;
@@ -860,6 +952,12 @@ RigConfig ApiServer::Impl::rig_named(const std::string& name) const {
     throw ApiError{
         http::status::not_found, "unknown rig",
         "'" + name + "' is not a rig in " + options.rigs_dir.string() + (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
+  }
+  if (!resolves_inside(options.rigs_dir / (name + ".yaml"), options.rigs_dir)) {
+    throw ApiError{http::status::conflict, "rig file not read",
+                   (options.rigs_dir / (name + ".yaml")).string() + " is a symbolic link to a file outside " +
+                       options.rigs_dir.string() + ": not read",
+                   "rig"};
   }
   try {
     return load_rig_config(options.rigs_dir / (name + ".yaml"));
@@ -889,6 +987,10 @@ json ApiServer::Impl::listing(Listings& kept, const std::filesystem::path& dir,
     json j = {{"name", name}, {"file", file.string()}};
     cfg::ReadFiles read;
     try {
+      // A file that is a link to one outside its folder (a model -> /etc/shadow) is not read: a
+      // YAML error would quote its first line to any client.
+      if (!resolves_inside(file, dir))
+        throw std::runtime_error(file.string() + ": a symbolic link to a file outside " + dir.string() + ": not read");
       describe(file, j);
     } catch (const std::exception& e) {
       j["error"] = e.what();
@@ -930,7 +1032,8 @@ Reply ApiServer::Impl::rigs() {
 }
 
 Reply ApiServer::Impl::start(const Request& req, const Target& t) {
-  if (!refuse_starts.empty()) throw ApiError{http::status::service_unavailable, "not accepting campaigns", refuse_starts};
+  if (const std::string why = refusing(); !why.empty())
+    throw ApiError{http::status::service_unavailable, "not accepting campaigns", why};
   const std::string content_type(req[http::field::content_type]);
   const bool yaml_body = content_type.find("yaml") != std::string::npos;
   json body = yaml_body ? json::object() : parse_json_body(req);
@@ -1002,6 +1105,11 @@ Reply ApiServer::Impl::start(const Request& req, const Target& t) {
                            (hint.empty() ? "" : " (did you mean '" + hint + "'?)")};
       }
       const auto file = options.campaigns_dir / (name + ".yaml");
+      if (!resolves_inside(file, options.campaigns_dir)) {
+        throw ApiError{http::status::conflict, "campaign file not read",
+                       file.string() + " is a symbolic link to a file outside " + options.campaigns_dir.string() + ": not read",
+                       "campaign"};
+      }
       s.campaign = load_campaign(file);
       s.source = file.string();
     }
@@ -1106,7 +1214,7 @@ Reply ApiServer::Impl::runs() {
   std::vector<std::filesystem::path> dirs;
   std::error_code ec;
   for (const auto& e : std::filesystem::directory_iterator(options.runs_dir, ec)) {
-    if (e.is_directory() && std::filesystem::exists(e.path() / "run.json")) dirs.push_back(e.path());
+    if (is_run_dir(options.runs_dir, e.path().filename().string())) dirs.push_back(e.path());
   }
   std::sort(dirs.rbegin(), dirs.rend());  // newest first: names start with the UTC time
   for (const auto& d : dirs) {
@@ -1124,18 +1232,21 @@ Reply ApiServer::Impl::runs() {
 
 Reply ApiServer::Impl::run(const std::string& id) {
   const auto dir = options.runs_dir / id;
-  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
+  if (!is_run_dir(options.runs_dir, id)) {
     throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
   }
   json files = json::array();
-  for (const auto& e : std::filesystem::directory_iterator(dir)) {
-    if (e.is_regular_file() && cfg::plain_name(e.path().filename().string()) && e.path().extension() != ".tmp") {
-      files.push_back({{"name", e.path().filename().string()}, {"bytes", e.file_size()}});
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    std::error_code size_ec;
+    const auto bytes = e.file_size(size_ec);
+    if (plain_file(e) && !size_ec && cfg::plain_name(e.path().filename().string()) && e.path().extension() != ".tmp") {
+      files.push_back({{"name", e.path().filename().string()}, {"bytes", bytes}});
     }
   }
   json r;
   try {
-    r = read_json_file(dir / "run.json");
+    r = read_json_inside(options.runs_dir, {id, "run.json"});
   } catch (const std::exception& e) {
     throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
   }
@@ -1149,11 +1260,10 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
   const auto path = options.runs_dir / id / file;
   // A .tmp is an output being made (report.html.tmp): half of one is never served, as the run's
   // file list (run()) never shows one.
-  if (!cfg::plain_name(id) || !cfg::plain_name(file) || path.extension() == ".tmp" || !std::filesystem::is_regular_file(path)) {
+  if (!is_run_dir(options.runs_dir, id) || !cfg::plain_name(file) || path.extension() == ".tmp") {
     throw ApiError{http::status::not_found, "unknown file", "run '" + id + "' has no file '" + file + "'"};
   }
-  Reply r;
-  r.file = path;
+  Reply r = opened_file(options.runs_dir, {id, file}, "run '" + id + "' has no file '" + file + "'");
   const auto ext = path.extension().string();
   r.content_type = ext == ".csv"     ? "text/csv"
                    : ext == ".json"  ? "application/json"
@@ -1165,12 +1275,12 @@ Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) 
 
 std::filesystem::path ApiServer::Impl::ended_run(const std::string& id, RunRecord* record) const {
   const auto dir = options.runs_dir / id;
-  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
+  if (!is_run_dir(options.runs_dir, id)) {
     throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
   }
   RunRecord r;
   try {
-    r = read_run_record(dir);
+    r = read_record(dir);
   } catch (const std::exception& e) {
     throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
   }
@@ -1191,18 +1301,6 @@ std::filesystem::path ApiServer::Impl::ended_run(const std::string& id, RunRecor
   return dir;
 }
 
-namespace {
-
-Reply html_file(const std::filesystem::path& file) {
-  Reply r;
-  r.file = file;
-  r.content_type = "text/html; charset=utf-8";
-  r.extra_header = "inline";
-  return r;
-}
-
-}  // namespace
-
 Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool head) {
   // ?wait= is 0 or 1: any other value (wait=false, wait=no) waited, the opposite of what it says.
   const auto wait = t.query.find("wait");
@@ -1212,15 +1310,20 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool h
                    "wait"};
   }
   const auto dir = ended_run(id);
+  try {
+    refuse_linked_run_files(dir);
+  } catch (const std::exception& e) {
+    throw ApiError{http::status::unprocessable_entity, "file not read", e.what()};
+  }
   // Made once per run, on the job worker, and kept in its folder (analyses.hpp run_report_current).
-  if (run_report_current(dir)) return html_file(dir / "report.html");
+  if (run_report_current(dir)) return html_file(options.runs_dir, {id, "report.html"});
   if (head) {
     // HEAD asks for the header fields, not for the report: making one (seconds for an hour's run,
     // a place in the job queue, a file written) only to drop its body is work nobody asked for.
     // Its length is not known before it is made, and HEAD may leave Content-Length out (RFC 9110
     // 9.3.2); a wrong one (0) would tell the client the report is empty. ?wait=0 changes nothing:
     // no job is queued, so there is none to answer with.
-    Reply r = html_file({});
+    Reply r = html_file({}, {});
     r.length_unknown = true;
     return r;
   }
@@ -1250,7 +1353,8 @@ Reply ApiServer::Impl::run_report(const std::string& id, const Target& t, bool h
   w->run = id;
   w->id = "report";
   w->then = [this, dir, id](const JobStatus& s) -> Reply {
-    if (s.state == JobState::done && std::filesystem::exists(dir / "report.html")) return html_file(dir / "report.html");
+    if (s.state == JobState::done && std::filesystem::exists(dir / "report.html"))
+      return html_file(options.runs_dir, {id, "report.html"});
     jobs.forget(id, "report");
     return error_reply(http::status::unprocessable_entity, "cannot make the report", s.error);
   };
@@ -1290,7 +1394,7 @@ json with_links(json a, const std::string& run) {
 
 Reply ApiServer::Impl::analyses(const std::string& id) {
   const auto dir = options.runs_dir / id;
-  if (!cfg::plain_name(id) || !std::filesystem::exists(dir / "run.json")) {
+  if (!is_run_dir(options.runs_dir, id)) {
     throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
   }
   json list = json::array();
@@ -1307,7 +1411,8 @@ Reply ApiServer::Impl::analyses(const std::string& id) {
 }
 
 Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req) {
-  if (!refuse_starts.empty()) throw ApiError{http::status::service_unavailable, "not accepting jobs", refuse_starts};
+  if (const std::string why = refusing(); !why.empty())
+    throw ApiError{http::status::service_unavailable, "not accepting jobs", why};
   // The body first: a malformed request is named whatever the run.
   const json body = parse_json_body(req);
   allow_fields(body, {"kind", "model"});
@@ -1331,9 +1436,21 @@ Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req)
                        (hint.empty() ? "" : " (did you mean '" + hint + "'?)"),
                    "model"};
   }
+  const auto model_file = options.plant_dir / (model + ".yaml");
+  if (!resolves_inside(model_file, options.plant_dir)) {
+    throw ApiError{http::status::conflict, "model file not read",
+                   "'model': " + model_file.string() + " is a symbolic link to a file outside " + options.plant_dir.string() +
+                       ": not read (the bench reads and quotes no file outside its folders)",
+                   "model"};
+  }
   const auto dir = ended_run(id);
   if (!std::filesystem::is_regular_file(dir / "telemetry.csv")) {
     throw ApiError{http::status::unprocessable_entity, "no measurement", "run '" + id + "' has no telemetry.csv"};
+  }
+  try {
+    refuse_linked_run_files(dir);
+  } catch (const std::exception& e) {
+    throw ApiError{http::status::unprocessable_entity, "file not read", e.what()};
   }
   if (kind == "diagnose") {
     std::error_code ec;
@@ -1362,7 +1479,8 @@ Reply ApiServer::Impl::start_analysis(const std::string& id, const Request& req)
   spec.run_dir = dir;
   spec.kind = kind;
   spec.model = model;
-  spec.model_file = std::filesystem::absolute(options.plant_dir / (model + ".yaml"));
+  spec.model_file = std::filesystem::absolute(model_file);
+  spec.model_dir = std::filesystem::absolute(options.plant_dir);
   spec.id = next_analysis_id(dir, kind, model, live);
   JobStatus s;
   s.run = id;
@@ -1400,13 +1518,11 @@ Reply ApiServer::Impl::analysis_file(const std::string& id, const std::string& a
   if (state == "queued" || state == "running") return json_reply(http::status::accepted, {{"analysis", with_links(*a, id)}});
   if (state != "done") throw ApiError{http::status::unprocessable_entity, "the analysis failed", a->value("error", "")};
   const auto path = analysis_dir(options.runs_dir / id, aid) / file;
-  if (!cfg::plain_name(file) || !std::filesystem::is_regular_file(path)) {
-    throw ApiError{http::status::not_found, "unknown file",
-                   "analysis '" + aid + "' of run '" + id + "' has no file '" + file + "'"};
-  }
-  if (path.extension() == ".html") return html_file(path);
-  Reply r;
-  r.file = path;
+  const std::string missing = "analysis '" + aid + "' of run '" + id + "' has no file '" + file + "'";
+  if (!cfg::plain_name(file)) throw ApiError{http::status::not_found, "unknown file", missing};
+  const std::vector<std::string> parts = {id, "analyses", aid, file};
+  if (path.extension() == ".html") return html_file(options.runs_dir, parts);
+  Reply r = opened_file(options.runs_dir, parts, missing);
   r.content_type = path.extension() == ".json"   ? "application/json"
                    : path.extension() == ".yaml" ? "application/yaml"
                                                  : "text/plain";
@@ -1727,16 +1843,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     // One request's failure is that request's answer, never the server's end: a handler that
     // throws anything gets a 500 for this request, and a running campaign goes on.
     try {
-      if (const auto origin = foreign_origin(req)) {
-        spdlog::warn("{} {}: refused a request of a page of another origin", std::string(req.method_string()),
-                     loggable_target(req.target()));
-        return send(error_reply(http::status::forbidden, "cross-origin request refused",
-                                "the request came from a page of " + printable(*origin, 200) +
-                                    ", not from this server's console; a page of another site may not drive the bench"),
-                    false);
-      }
+      // Before the token and the route, for every request and the WebSocket upgrade.
+      if (auto refused = api_->refused_header(req)) return send(std::move(*refused), false);
       const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
       if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
+      if (!websocket::is_upgrade(req) && target.path.size() >= 2 && target.path[0] == "api" && target.path[1] == "runs")
+        return answer_on_files_thread(std::move(req), target);
       Reply reply = api_->answer(req, target);
       // A refused upgrade ends the connection, as Beast's own refusals of a handshake do: the
       // client asked for a WebSocket, not for more HTTP on this connection.
@@ -1750,6 +1862,26 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
   }
 
+  // A request under /api/runs reads run folders: answered on the run files' thread
+  // (Impl::files), sent from here. The connection waits; the io thread does not.
+  void answer_on_files_thread(Request req, const Target& target) {
+    const bool keep_alive = req.keep_alive();
+    auto asked = std::make_shared<const std::pair<Request, Target>>(std::move(req), target);
+    asio::post(api_->files, [self = shared_from_this(), asked, keep_alive] {
+      Reply reply;
+      try {
+        reply = self->api_->answer(asked->first, asked->second);
+      } catch (const std::exception& e) {
+        spdlog::error("{} {}: {}", std::string(asked->first.method_string()), loggable_target(asked->first.target()), e.what());
+        reply = error_reply(http::status::internal_server_error, "internal error", e.what());
+      } catch (...) {
+        reply = error_reply(http::status::internal_server_error, "internal error");
+      }
+      asio::post(self->stream_.get_executor(),
+                 [self, reply = std::move(reply), keep_alive]() mutable { self->send(std::move(reply), keep_alive); });
+    });
+  }
+
   void upgrade(Request req, const Target& target) {
     if (target.path != std::vector<std::string>{"api", "telemetry"}) {
       return send(error_reply(http::status::not_found, "not found", "WebSocket endpoint is /api/telemetry"), false);
@@ -1761,9 +1893,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     } catch (const ApiError& e) {
       return send(error_reply(e), false);
     }
+    if (*api_->open_streams >= kMaxStreams) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now - api_->last_stream_refusal_logged > std::chrono::minutes(1)) {
+        spdlog::warn("{} telemetry streams are open: refusing more (503) until some close", kMaxStreams);
+        api_->last_stream_refusal_logged = now;
+      }
+      return send(error_reply(http::status::service_unavailable, "too many telemetry streams",
+                              std::to_string(kMaxStreams) +
+                                  " telemetry streams are open, the most this server takes: the other connections are kept "
+                                  "for the operator's requests (abort); try again when one has closed"),
+                  false);
+    }
     const bool foxglove = offers_foxglove(req);
     std::make_shared<WsSession>(stream_.release_socket(), std::move(buffer_), api_->hub, foxglove, api_->session_id,
-                                std::move(slot_))
+                                std::move(slot_), ConnectionSlot(api_->open_streams), api_->options.ws_idle_timeout)
         ->run(std::move(req), rate_hz);
   }
 
@@ -1789,7 +1933,15 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     if (!reply.file.empty()) {
       http::file_body::value_type body;
       beast::error_code ec;
-      body.open(reply.file.c_str(), beast::file_mode::scan, ec);
+      if (reply.fd && *reply.fd >= 0) {
+        // The file opened when it was checked (opened_file), not the path again.
+        beast::file file;
+        file.native_handle(::dup(*reply.fd));
+        if (file.native_handle() < 0) ec = beast::error_code(errno, beast::system_category());
+        if (!ec) body.reset(std::move(file), ec);
+      } else {
+        body.open(reply.file.c_str(), beast::file_mode::scan, ec);
+      }
       if (ec) return send(error_reply(http::status::internal_server_error, "cannot read file", ec.message()), keep_alive);
       auto res = std::make_shared<http::response<http::file_body>>(std::piecewise_construct, std::make_tuple(std::move(body)),
                                                                    std::make_tuple(http::status::ok, 11));
@@ -1936,6 +2088,7 @@ ApiServer::ApiServer(asio::io_context& io, ApiOptions options, CampaignRunner& r
     throw std::runtime_error("cannot listen on " + impl_->options.address + ":" + std::to_string(impl_->options.port) + ": " +
                              ec.message());
   a.listen(asio::socket_base::max_listen_connections);
+  impl_->guard.emplace(impl_->options.address, a.local_endpoint().port(), impl_->options.allow_hosts);
   impl_->accept();
 }
 
@@ -1943,6 +2096,8 @@ ApiServer::~ApiServer() {
   if (impl_) {
     beast::error_code ec;
     impl_->acceptor.close(ec);
+    impl_->files.stop();  // what waits is dropped; what runs is a bounded read
+    impl_->files.join();
     stop_jobs();
   }
 }
@@ -1972,13 +2127,18 @@ ApiServer::RawAnswer ApiServer::answer_raw(std::string_view bytes) {
     reply = impl_->parse_failure(ec);
   } else {
     const Request req = parser.release();
-    reply = impl_->answer(req, parse_target(std::string_view(req.target().data(), req.target().size())));
+    if (auto refused = impl_->refused_header(req)) {
+      reply = std::move(*refused);
+    } else {
+      reply = impl_->answer(req, parse_target(std::string_view(req.target().data(), req.target().size())));
+    }
   }
   return {static_cast<int>(reply.status), reply.file.empty() ? reply.body : "file: " + reply.file.string(), reply.content_type};
 }
 
 void ApiServer::refuse_starts(const std::string& why) {
-  asio::post(impl_->io, [impl = impl_, why] { impl->refuse_starts = why; });
+  std::lock_guard lock(impl_->refuse_mutex);
+  impl_->refuse_starts = why;
 }
 
 }  // namespace hil::bench

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <filesystem>
@@ -36,6 +37,12 @@ struct ApiOptions {
   // A diagnosis that would hold more (analyses.hpp diagnose_memory_bytes) is refused (422): the
   // server's memory is locked, and a bench machine out of memory kills the server mid-run.
   std::uint64_t max_diagnose_bytes = UINT64_MAX;
+  // Host names the server answers besides its listen address and the loopback names (--allow-host
+  // NAME or NAME:PORT; request_guard.hpp): a foreign Host or Origin is refused 403.
+  std::vector<std::string> allow_hosts;
+  // A telemetry WebSocket from which nothing was received for this long is closed; the server
+  // pings it at half this time, and a client that reads answers the ping (--ws-idle-timeout-s).
+  std::chrono::milliseconds ws_idle_timeout = std::chrono::seconds(300);
   std::string version;
 };
 

@@ -1,4 +1,5 @@
 #include "foxglove.hpp"
+#include "request_guard.hpp"
 
 #include <cmath>
 #include <limits>
@@ -124,6 +125,9 @@ std::uint64_t timestamp_ns(double t_s) {
 }
 
 ClientOp parse_client_op(std::string_view text) {
+  // Bounded before it is parsed (a message is at most 64 KiB: 65 536 levels of brackets otherwise).
+  if (too_deep(text, kMaxRequestJsonDepth))
+    return Error{"the message nests objects and arrays deeper than " + std::to_string(kMaxRequestJsonDepth) + " levels"};
   const json j = json::parse(text, nullptr, false);
   if (j.is_discarded()) return Error{"not a JSON text message"};
   if (!j.is_object() || !j.contains("op") || !j["op"].is_string()) return Error{"'op' must be a string"};
