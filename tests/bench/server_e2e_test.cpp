@@ -310,6 +310,15 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
   expect_error(api.post("/api/inject/sensor", {{"mode", "bias"}}), 400, "bias_kpa");
   expect_error(api.post("/api/inject/sensor", {{"mode", "noise"}, {"rms_kpa", 5}, {"duration_s", -2}}), 400, "duration_s");
   expect_error(api.post("/api/inject/wobble", json::object()), 404, "gap, sensor, drive, rig or clear");
+  // A bias or noise of 1e308 kPa was accepted (202) and telemetry.csv held 'nan': refused now,
+  // naming the field (issue 38 item 4).
+  for (const auto& [body, field] : {std::pair{json{{"mode", "bias"}, {"bias_kpa", 1e308}}, "bias_kpa"},
+                                    std::pair{json{{"mode", "noise"}, {"rms_kpa", 1e308}}, "rms_kpa"},
+                                    std::pair{json{{"mode", "bias"}, {"bias_kpa", -10001}}, "bias_kpa"}}) {
+    const auto reply = api.post("/api/inject/sensor", body);
+    expect_error(reply, 400, field);
+    EXPECT_EQ(reply.json().value("field", ""), field) << reply.body;
+  }
   EXPECT_EQ(api.post("/api/inject/sensor", {{"mode", "noise"}, {"rms_kpa", 1}, {"duration_s", 0.1}}).status, 202);
   EXPECT_EQ(api.post("/api/inject/drive", {{"duration_s", 0.05}}).status, 202);
   EXPECT_EQ(api.post("/api/inject/clear", json::object()).status, 202);

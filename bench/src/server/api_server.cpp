@@ -1203,6 +1203,8 @@ Reply ApiServer::Impl::inject(const std::string& what, const json& body) {
     runner.inject(r);
   } catch (const Conflict& e) {
     throw ApiError{http::status::conflict, "nothing to inject into", e.what()};
+  } catch (const BadField& e) {  // a value outside check_injection's table
+    throw ApiError{http::status::bad_request, "bad field", e.what(), e.field};
   } catch (const std::invalid_argument& e) {
     throw ApiError{http::status::bad_request, "not possible on this rig", e.what()};
   }

@@ -341,6 +341,7 @@ void check_injection(const LoopRequest& r) {
 }
 
 void CampaignRunner::inject(const LoopRequest& request) {
+  check_injection(request);  // a value no run could take is the request's fault, running or not
   std::lock_guard lock(mutex_);
   if (!active_) throw Conflict("no campaign is running");
   if (!active_->requests) throw Conflict("no run is in its loop right now (between runs); try again");
@@ -353,7 +354,6 @@ void CampaignRunner::inject(const LoopRequest& request) {
     throw std::invalid_argument("rig '" + active_->req.rig.name + "' has hardware (" + active_->req.rig.kind +
                                 "): rig faults are faked by the simulated rig only");
   }
-  check_injection(request);
   if (!active_->requests->try_push(request)) throw Conflict("the loop has not taken the previous requests yet; try again");
 }
 
