@@ -849,7 +849,8 @@ Cia402Drive::~Cia402Drive() {
   auto& m = *impl_;
   asio::post(m.io, [&m] {
     m.tr->stop();
-    m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo_timer.cancel(), m.bus_timer.cancel(), m.bench_hb_timer.cancel(), m.guard_timer.cancel();
+    m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo_timer.cancel(), m.bus_timer.cancel(), m.bench_hb_timer.cancel(),
+        m.guard_timer.cancel();
     boost::system::error_code ec;
     m.kick.close(ec);
   });
@@ -973,8 +974,7 @@ void Cia402Drive::configure() {
   }
   // 0x1006 communication cycle period (CiA 301, us): the SYNC period, so that a drive that
   // watches its SYNC consumer knows the period (optional: a drive may not have it).
-  optional_write(0x1006, 0, static_cast<std::uint32_t>(m.cfg.sync_period.count()), 4,
-                 "the drive does not watch the SYNC period");
+  optional_write(0x1006, 0, static_cast<std::uint32_t>(m.cfg.sync_period.count()), 4, "the drive does not watch the SYNC period");
   sdo_write(cia402::kModesOfOperation, 0, static_cast<std::uint8_t>(cia402::kModeCsp), 1);
   // The mode display may follow the request some time later: poll it until transition_ms.
   std::int8_t mode = 0;
@@ -1124,7 +1124,8 @@ void Cia402Drive::configure_bench_watch(bool guarding) {
     if (e.code != 0x06020000u && e.code != 0x06090011u) throw e;
     const std::string text = object_name(index, 0) + " absent: " + what;
     if (bw.required) {
-      throw DriveError(m.who + ": " + text + "; a drive that cannot watch the bench holds its last target, powered, when the "
+      throw DriveError(m.who + ": " + text +
+                       "; a drive that cannot watch the bench holds its last target, powered, when the "
                        "bench dies (bench_heartbeat.required: false runs it anyway)");
     }
     m.notes.push_back(text);

@@ -325,8 +325,8 @@ struct Cia402DriveEmulator::Impl {
   // reaction of 0x6007 (CiA 402).
   void heartbeat_event(std::uint8_t node, Clock::duration silence) {
     const auto option = static_cast<std::int16_t>(cfg.abort_connection_option ? get(cia402::kAbortConnectionOption, 0) : 1);
-    const bool powered = state == State::ready_to_switch_on || state == State::switched_on ||
-                         state == State::operation_enabled || state == State::quick_stop_active;
+    const bool powered = state == State::ready_to_switch_on || state == State::switched_on || state == State::operation_enabled ||
+                         state == State::quick_stop_active;
     if (option == 1 || option < 0) {  // fault (a manufacturer-specific option: the fault, the safest)
       if (state != State::fault) enter_fault(0x8130, 0x11, {});
     } else {

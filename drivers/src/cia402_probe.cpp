@@ -129,11 +129,14 @@ Cia402Probe probe(Cia402Drive& client) {
                   static_cast<long long>(bw.producer.count()), static_cast<long long>(bw.drive_timeout.count()));
     p.plan.push_back(line);
   } else if (heartbeat && !watch_required) {
-    p.lacks.push_back("0x1016 consumer heartbeat time (the drive cannot tell that the bench died; bench_heartbeat.required: false)");
+    p.lacks.push_back(
+        "0x1016 consumer heartbeat time (the drive cannot tell that the bench died; bench_heartbeat.required: false)");
   }
   if (abort_option) {
     p.plan.push_back(std::string("0x6007 = ") + std::to_string(bw.on_loss) +
-                     (bw.on_loss == 3 ? " (quick stop)" : bw.on_loss == 2 ? " (disable voltage)" : " (fault)") +
+                     (bw.on_loss == 3   ? " (quick stop)"
+                      : bw.on_loss == 2 ? " (disable voltage)"
+                                        : " (fault)") +
                      " when the bench stops");
   } else if (!watch_required) {
     p.lacks.push_back("0x6007 abort connection option code (what the drive does when the bench stops is its maker's choice)");
@@ -170,8 +173,8 @@ Cia402Probe probe(Cia402Drive& client) {
     // The window in effect against what the bench's targets make of the drive's lag.
     const double rpc = std::abs(cfg.units.rad_per_count());
     const double in_effect = lim.following_error_window_rad > 0 ? std::nearbyint(lim.following_error_window_rad / rpc) * rpc
-                             : *window != 0xFFFFFFFF          ? *window * rpc
-                                                              : 0.0;
+                             : *window != 0xFFFFFFFF            ? *window * rpc
+                                                                : 0.0;
     if (const std::string problem = following_window_problem(cfg, in_effect); !problem.empty()) {
       p.usable = false;
       p.refused.push_back(problem);

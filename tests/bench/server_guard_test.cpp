@@ -72,8 +72,9 @@ json body_of(const std::string& reply) {
 // A request with the given header lines ("Name: value\r\n"), closing the connection.
 std::string request(const std::string& method, const std::string& target, const std::string& headers,
                     const std::string& body = "") {
-  return method + " " + target + " HTTP/1.1\r\n" + headers + "Content-Type: application/json\r\nContent-Length: " +
-         std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+  return method + " " + target + " HTTP/1.1\r\n" + headers +
+         "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" +
+         body;
 }
 
 std::string upgrade(const std::string& headers, const std::string& extra = "") {
@@ -95,7 +96,8 @@ TEST(ServerGuard, AForeignHostOrOriginIsRefusedOnEveryRouteAndTheUpgrade) {
   const std::string evil_origin = "Origin: http://evil.example:" + std::to_string(port) + "\r\n";
 
   // The issue: curl -H 'Host: evil.example:8470' -H 'Origin: http://evil.example:8470' .../api/start answered 202.
-  const std::string started = raw_http(port, request("POST", "/api/start", evil_host + evil_origin, R"({"campaign":"paper_fig6"})"));
+  const std::string started =
+      raw_http(port, request("POST", "/api/start", evil_host + evil_origin, R"({"campaign":"paper_fig6"})"));
   EXPECT_EQ(status_of(started), 403) << started;
   EXPECT_EQ(body_of(started).value("field", ""), "Host") << started;
   EXPECT_TRUE(has(body_of(started).value("detail", ""), "evil.example")) << started;
@@ -120,8 +122,9 @@ TEST(ServerGuard, AForeignHostOrOriginIsRefusedOnEveryRouteAndTheUpgrade) {
     }
     const std::string method = e["method"];
     const std::string body = method == "POST" ? "{}" : "";
-    for (const auto& [headers, header] : {std::pair{evil_host, "Host"}, std::pair{evil_host + evil_origin, "Host"},
-                                         std::pair{own + evil_origin, "Origin"}, std::pair{own + "Origin: null\r\n", "Origin"}}) {
+    for (const auto& [headers, header] :
+         {std::pair{evil_host, "Host"}, std::pair{evil_host + evil_origin, "Host"}, std::pair{own + evil_origin, "Origin"},
+          std::pair{own + "Origin: null\r\n", "Origin"}}) {
       const std::string reply = raw_http(port, request(method, path, headers, body));
       EXPECT_EQ(status_of(reply), 403) << method << " " << path << "\n" << headers << reply;
       EXPECT_EQ(body_of(reply).value("field", ""), header) << method << " " << path << "\n" << reply;
@@ -154,7 +157,8 @@ TEST(ServerGuard, AForeignHostOrOriginIsRefusedOnEveryRouteAndTheUpgrade) {
     EXPECT_EQ(body_of(reply).value("field", ""), "Host") << reply;
   }
   // The server's own names, with its port, and the console's origin.
-  for (const std::string& name : {std::string("127.0.0.1"), std::string("localhost"), std::string("LocalHost"), std::string("[::1]")}) {
+  for (const std::string& name :
+       {std::string("127.0.0.1"), std::string("localhost"), std::string("LocalHost"), std::string("[::1]")}) {
     const std::string at = name + ":" + std::to_string(port);
     EXPECT_EQ(status_of(raw_http(port, request("GET", "/api/health", "Host: " + at + "\r\n"))), 200) << at;
     EXPECT_EQ(status_of(raw_http(port, request("GET", "/api/health", "Host: " + at + "\r\nOrigin: http://" + at + "\r\n"))), 200)
@@ -184,11 +188,12 @@ TEST(ServerGuard, WithATokenAForeignHostIsStillRefusedAndAllowHostAddsANameAtThe
             200);
   EXPECT_EQ(status_of(raw_http(port, request("GET", "/api/health", "Host: bench.example:1\r\n" + auth))), 403);
   // NAME:PORT: that port only (a TLS proxy: no port in Host, https in Origin).
-  EXPECT_EQ(status_of(raw_http(port, request("GET", "/api/health",
-                                             "Host: proxy.example:443\r\nOrigin: https://proxy.example\r\n" + auth))),
+  EXPECT_EQ(status_of(raw_http(
+                port, request("GET", "/api/health", "Host: proxy.example:443\r\nOrigin: https://proxy.example\r\n" + auth))),
             200);
-  EXPECT_EQ(status_of(raw_http(port, request("GET", "/api/health", "Host: proxy.example:" + std::to_string(port) + "\r\n" + auth))),
-            403);
+  EXPECT_EQ(
+      status_of(raw_http(port, request("GET", "/api/health", "Host: proxy.example:" + std::to_string(port) + "\r\n" + auth))),
+      403);
   EXPECT_EQ(server.client().get("/api/status").json()["state"], "idle");
 
   // A value that is no host name stops the server before it listens, naming it.
@@ -533,7 +538,7 @@ TEST(ServerGuard, AbortIsAnsweredWithAThousandTelemetryClientsConnected) {
     EXPECT_EQ(reply.status, 202) << reply.body;
   }
   std::printf("abort with 1000 telemetry clients: %.1f, %.1f, %.1f ms\n", ms[0], ms[1], ms[2]);
-  EXPECT_LT(*std::min_element(ms.begin(), ms.end()), 100.0);  // best of three: the issue's bound
+  EXPECT_LT(*std::min_element(ms.begin(), ms.end()), 100.0);   // best of three: the issue's bound
   EXPECT_LT(*std::max_element(ms.begin(), ms.end()), 2000.0);  // none waits for the streams (5 s before)
   const json s = hil::test::wait_status(
       api, [](const json& x) { return x["state"] == "idle"; }, 30s);

@@ -166,8 +166,7 @@ inline void heartbeat_loss_detected(const CanTransportFactory& f, std::uint8_t n
   const auto back = r.client.health();
   EXPECT_TRUE(back.fault);
   EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);
-  EXPECT_NE(back.fault_cause_text().find("heartbeat lost (none for 1000 ms)"), std::string_view::npos)
-      << back.fault_cause_text();
+  EXPECT_NE(back.fault_cause_text().find("heartbeat lost (none for 1000 ms)"), std::string_view::npos) << back.fault_cause_text();
   EXPECT_NE(back.last_error_text().find("heartbeat resumed after "), std::string_view::npos) << back.last_error_text();
   r.client.reset_fault();  // the explicit request ends the hold
   EXPECT_TRUE(eventually([&] { return !r.client.read(Clock::now(), 1ms).fault; })) << r.client.health().last_error_text();

@@ -119,8 +119,8 @@ inline RunFiles run_with_fault(Bench& b, const bench::Campaign& c, const std::st
         motor_min = std::min(motor_min, f.csv.values[3][i]), motor_max = std::max(motor_max, f.csv.values[3][i]);
         cmd_min = std::min(cmd_min, f.csv.values[2][i]), cmd_max = std::max(cmd_max, f.csv.values[2][i]);
       }
-      std::printf("  rows %zu, fresh readings %zu; motor %.3f..%.3f deg, command %.3f..%.3f deg; loop %s\n", f.csv.rows(),
-                  fresh, motor_min, motor_max, cmd_min, cmd_max, f.run.value("loop", json::object()).dump().substr(0, 400).c_str());
+      std::printf("  rows %zu, fresh readings %zu; motor %.3f..%.3f deg, command %.3f..%.3f deg; loop %s\n", f.csv.rows(), fresh,
+                  motor_min, motor_max, cmd_min, cmd_max, f.run.value("loop", json::object()).dump().substr(0, 400).c_str());
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
   }
@@ -354,24 +354,25 @@ inline void modbus_read_exception(const FaultSetup& s) {
 // interlock's test, not the observer's), the freeze before the start, and a larger, earlier step
 // (3.5 s to move the command 9 deg past a 2 deg limit; before the step it moves only with noise).
 inline bench::Campaign frozen_encoder_campaign(double period_ms) {
-  return bench::load_campaign_text("name: frozen_encoder\n"
-                                   "plant: ../plant/nominal.yaml\n"
-                                   "duration_s: 4\n"
-                                   "period_ms: " +
-                                       std::to_string(period_ms) +
-                                       "\n"
-                                       "seed: 1\n"
-                                       "sensor_noise_kpa: 2.0\n"
-                                       "reference:\n"
-                                       "  initial_mpa: 1.0\n"
-                                       "  profile:\n"
-                                       "    - step: {at_s: 0.5, to_mpa: 1.8}\n"
-                                       "gap:\n"
-                                       "  initial_deg: 1.0\n"
-                                       "runs:\n"
-                                       "  - name: uncompensated\n"
-                                       "    compensation: none\n",
-                                   "frozen_encoder (test)", source_path("configs/campaigns"));
+  return bench::load_campaign_text(
+      "name: frozen_encoder\n"
+      "plant: ../plant/nominal.yaml\n"
+      "duration_s: 4\n"
+      "period_ms: " +
+          std::to_string(period_ms) +
+          "\n"
+          "seed: 1\n"
+          "sensor_noise_kpa: 2.0\n"
+          "reference:\n"
+          "  initial_mpa: 1.0\n"
+          "  profile:\n"
+          "    - step: {at_s: 0.5, to_mpa: 1.8}\n"
+          "gap:\n"
+          "  initial_deg: 1.0\n"
+          "runs:\n"
+          "  - name: uncompensated\n"
+          "    compensation: none\n",
+      "frozen_encoder (test)", source_path("configs/campaigns"));
 }
 
 inline void frozen_encoder(const FaultSetup& s, bool modbus_drive) {

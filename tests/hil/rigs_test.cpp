@@ -671,10 +671,11 @@ TEST(TargetShaping, TheLimitHoldsBetweenConsecutiveTargetsOnTheBus) {
       largest_step = std::max(largest_step, std::abs(step));
       if (i >= 2) largest_dv = std::max(largest_dv, std::abs(step - (rig.bus[i - 1] - rig.bus[i - 2])));
     }
-    std::printf("SYNC pattern %d: %zu targets on the bus, %ld SYNCs missed; largest step between two on the bus %.4f deg "
-                "(limit %.4f deg per SYNC), largest change of step %.5f deg (limit %.5f)\n",
-                pattern, rig.bus.size(), skipped, units::rad_to_deg(largest_step), units::rad_to_deg(v_step),
-                units::rad_to_deg(largest_dv), units::rad_to_deg(a_step));
+    std::printf(
+        "SYNC pattern %d: %zu targets on the bus, %ld SYNCs missed; largest step between two on the bus %.4f deg "
+        "(limit %.4f deg per SYNC), largest change of step %.5f deg (limit %.5f)\n",
+        pattern, rig.bus.size(), skipped, units::rad_to_deg(largest_step), units::rad_to_deg(v_step),
+        units::rad_to_deg(largest_dv), units::rad_to_deg(a_step));
     EXPECT_GT(largest_step, 0.9 * v_step) << "the run never moved at the velocity limit: nothing was tested";
     EXPECT_LE(largest_step, v_step * (1 + 1e-9)) << "pattern " << pattern;
     EXPECT_LE(largest_dv, 2 * a_step * (1 + 1e-9)) << "pattern " << pattern;

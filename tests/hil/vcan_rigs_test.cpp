@@ -127,9 +127,10 @@ TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
     have_previous = true;
     ++enabled_targets;
   }
-  std::printf("candump: %ld targets with enable operation; largest step between two on the bus %.0f counts (limit %.1f: "
-              "60 deg/s x %.3g ms)\n",
-              enabled_targets, largest_step, limit_counts, g_period_ms);
+  std::printf(
+      "candump: %ld targets with enable operation; largest step between two on the bus %.0f counts (limit %.1f: "
+      "60 deg/s x %.3g ms)\n",
+      enabled_targets, largest_step, limit_counts, g_period_ms);
   EXPECT_GT(enabled_targets, 1000);
   EXPECT_LE(largest_step, limit_counts);
   const long periods = r.run["periods_run"].get<long>();
@@ -186,10 +187,11 @@ TEST(VcanCanRig, KillNineOfServeMidRunQuickStopsTheDrive) {
   EXPECT_GE(event->silence, std::chrono::milliseconds(400));
   EXPECT_EQ(event->state_after, drv::cia402::State::switch_on_disabled) << drv::cia402::to_string(event->state_after);
   EXPECT_EQ(side.can.state(), drv::cia402::State::switch_on_disabled);
-  std::printf("kill -9 of hilbench serve mid-run: the drive quick-stopped %.1f ms after the bench's last heartbeat "
-              "(consumer time 400 ms), state %s\n",
-              std::chrono::duration<double, std::milli>(event->silence).count(),
-              std::string(drv::cia402::to_string(side.can.state())).c_str());
+  std::printf(
+      "kill -9 of hilbench serve mid-run: the drive quick-stopped %.1f ms after the bench's last heartbeat "
+      "(consumer time 400 ms), state %s\n",
+      std::chrono::duration<double, std::milli>(event->silence).count(),
+      std::string(drv::cia402::to_string(side.can.state())).c_str());
 }
 
 // `hilbench drive probe --rig FILE` against the emulator as other legal drives on vcan0: it reads

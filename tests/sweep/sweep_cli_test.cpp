@@ -500,7 +500,8 @@ TEST(Sweep, RelativeAxisAddsToTheValueItNames) {
 // naming the line, before anything runs.
 TEST(Sweep, ARelativeAxisOnAnotherIncrementIsRefused) {
   TempDir dir;
-  const std::string head = "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\nruns: [adaptive]\naxes:\n";
+  const std::string head =
+      "campaign: " + source_path("tests/sweep/data/tiny_campaign.yaml").string() + "\nruns: [adaptive]\naxes:\n";
   const std::string cycle = head +
                             "  - path: campaign.gap.initial_deg\n    relative_to: campaign.gap.changes[0].drift.to_deg\n"
                             "    values: [0.1]\n"
@@ -516,7 +517,8 @@ TEST(Sweep, ARelativeAxisOnAnotherIncrementIsRefused) {
     const auto out = dir.path() / ("out_" + std::string(name));
     const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
     EXPECT_NE(r.status, 0) << name << "\n" << r.output;
-    EXPECT_NE(r.output.find(std::string(name) + ".yaml:" + std::to_string(line) + ":"), std::string::npos) << name << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string(name) + ".yaml:" + std::to_string(line) + ":"), std::string::npos) << name << "\n"
+                                                                                                           << r.output;
     EXPECT_NE(r.output.find("is itself an increment"), std::string::npos) << name << "\n" << r.output;
     EXPECT_FALSE(std::filesystem::exists(out / "sweep.csv")) << name;
   }

@@ -508,10 +508,11 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
     const std::string base = canonical_of(plan.axes[i].relative_to);
     for (const SweepAxis& other : plan.axes) {
       if (other.relative_to.empty() || canonical_of(other.path) != base) continue;
-      axes.items()[i].at("relative_to").fail("'" + plan.axes[i].relative_to + "' is itself an increment (relative to '" +
-                                             other.relative_to +
-                                             "'): an axis may be relative only to a value no other axis increments "
-                                             "(a chain or cycle of increments has no order)");
+      axes.items()[i]
+          .at("relative_to")
+          .fail("'" + plan.axes[i].relative_to + "' is itself an increment (relative to '" + other.relative_to +
+                "'): an axis may be relative only to a value no other axis increments "
+                "(a chain or cycle of increments has no order)");
     }
   }
   const bool random = std::any_of(plan.axes.begin(), plan.axes.end(), [](const SweepAxis& a) { return a.random(); });

@@ -214,7 +214,8 @@ void refuse_linked_run_files(const fs::path& run_dir) {
     const auto type = fs::symlink_status(run_dir / name, ec).type();
     if (type == fs::file_type::not_found) continue;
     if (type == fs::file_type::symlink)
-      throw std::runtime_error((run_dir / name).string() + ": is a symbolic link (not followed: a run's files stay in its folder)");
+      throw std::runtime_error((run_dir / name).string() +
+                               ": is a symbolic link (not followed: a run's files stay in its folder)");
     if (type != fs::file_type::regular) throw std::runtime_error((run_dir / name).string() + ": is not a regular file");
   }
 }

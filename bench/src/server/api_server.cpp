@@ -566,8 +566,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   TelemetryHub& hub_;
   const bool foxglove_;
   const std::string session_id_;
-  ConnectionSlot slot_;                                 // handed over from the HTTP session it was upgraded from
-  ConnectionSlot stream_slot_;                          // its place in the telemetry streams' share (kMaxStreams)
+  ConnectionSlot slot_;         // handed over from the HTTP session it was upgraded from
+  ConnectionSlot stream_slot_;  // its place in the telemetry streams' share (kMaxStreams)
   const std::chrono::milliseconds idle_timeout_;
   std::map<std::uint32_t, std::size_t> subscriptions_;  // Foxglove: subscription id -> index in foxglove::channels()
   beast::flat_buffer buffer_;
@@ -848,7 +848,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   std::shared_ptr<std::atomic<int>> open_connections = std::make_shared<std::atomic<int>>(0);
   std::shared_ptr<std::atomic<int>> open_streams = std::make_shared<std::atomic<int>>(0);  // telemetry WebSockets
   std::chrono::steady_clock::time_point last_stream_refusal_logged{};                      // io thread only
-  std::chrono::steady_clock::time_point last_refusal_logged{};  // io thread only
+  std::chrono::steady_clock::time_point last_refusal_logged{};                             // io thread only
   // The HTTP sessions, for evicting the longest-idle one when the connections are at their cap
   // (io thread only; expired ones are pruned there).
   std::vector<std::weak_ptr<HttpSession>> http_sessions;

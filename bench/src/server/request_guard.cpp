@@ -170,9 +170,8 @@ std::optional<HeaderRefusal> HostGuard::check(std::string_view host, std::size_t
     return HeaderRefusal{400, "Host header required", "the request carries no Host header" + why, "Host"};
   }
   if (host_count > 1) {
-    return HeaderRefusal{400, "Host header given twice", "the request carries " + std::to_string(host_count) +
-                                                             " Host headers; which one was meant?",
-                         "Host"};
+    return HeaderRefusal{400, "Host header given twice",
+                         "the request carries " + std::to_string(host_count) + " Host headers; which one was meant?", "Host"};
   }
   const auto h = parse_authority(host, 80);
   if (!h || !allowed(*h)) {
@@ -329,8 +328,8 @@ nlohmann::json read_json_inside(const std::filesystem::path& base, const std::ve
   }
   text.resize(got);
   if (const auto at = too_deep(text, max_depth)) {
-    throw std::runtime_error(name + ": objects and arrays nested deeper than " + std::to_string(max_depth) +
-                             " levels (at byte " + std::to_string(*at + 1) + "): not parsed");
+    throw std::runtime_error(name + ": objects and arrays nested deeper than " + std::to_string(max_depth) + " levels (at byte " +
+                             std::to_string(*at + 1) + "): not parsed");
   }
   try {
     return nlohmann::json::parse(text);

@@ -71,8 +71,8 @@ struct JsonRefused : std::runtime_error {
   std::string field;
 };
 
-inline constexpr std::size_t kMaxRequestJsonDepth = 32;  // a request's body: objects and arrays nested at most this deep
-inline constexpr std::size_t kMaxFileJsonDepth = 64;     // run.json, analysis.json, failed.json
+inline constexpr std::size_t kMaxRequestJsonDepth = 32;     // a request's body: objects and arrays nested at most this deep
+inline constexpr std::size_t kMaxFileJsonDepth = 64;        // run.json, analysis.json, failed.json
 inline constexpr std::size_t kMaxFileJsonBytes = 8u << 20;  // the same files (a run.json is a few kB)
 
 // Where the text nests objects and arrays deeper than max_depth: the byte offset of the bracket

@@ -228,13 +228,13 @@ void CampaignRunner::wait() {
 
 std::string speed_problem(double speed, double period_s) {
   if (!(speed >= kMinSpeed && speed <= kMaxSpeed)) {
-    return fmt::format("speed {} is outside {}..{} (loop periods per control period of wall time)", speed, kMinSpeed,
-                       kMaxSpeed);
+    return fmt::format("speed {} is outside {}..{} (loop periods per control period of wall time)", speed, kMinSpeed, kMaxSpeed);
   }
   if (period_s / speed > kMaxWallPeriodS) {
-    return fmt::format("speed {} paces a {} ms period at {:.3g} s of wall time; at most {} s (the loop reads an abort once a "
-                       "period): use a speed of at least {:.3g}",
-                       speed, period_s * 1e3, period_s / speed, kMaxWallPeriodS, period_s / kMaxWallPeriodS);
+    return fmt::format(
+        "speed {} paces a {} ms period at {:.3g} s of wall time; at most {} s (the loop reads an abort once a "
+        "period): use a speed of at least {:.3g}",
+        speed, period_s * 1e3, period_s / speed, kMaxWallPeriodS, period_s / kMaxWallPeriodS);
   }
   return {};
 }
@@ -324,7 +324,8 @@ void check_injection(const LoopRequest& r) {
   using K = LoopRequest::Kind;
   const auto within = [](double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; };
   if (!within(r.duration_s, 0, kMaxInjectionS)) {
-    throw BadField("duration_s", fmt::format("duration {} s is outside 0..{} s (0 = until cleared)", r.duration_s, kMaxInjectionS));
+    throw BadField("duration_s",
+                   fmt::format("duration {} s is outside 0..{} s (0 = until cleared)", r.duration_s, kMaxInjectionS));
   }
   if (r.kind == K::set_gap && !within(r.value, 0, units::deg_to_rad(kMaxInjectedGapDeg))) {
     throw BadField("gap_deg", fmt::format("gap {} deg is outside 0..{} deg", units::rad_to_deg(r.value), kMaxInjectedGapDeg));

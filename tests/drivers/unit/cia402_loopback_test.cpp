@@ -81,7 +81,9 @@ TEST_F(Cia402Loopback, EmcyTextSurvivesTheFault) { emcy_text_survives_the_fault(
 TEST_F(Cia402Loopback, ADeadBenchQuickStopsTheDrive) {
   drive_watches_the_bench(factory(), 5, 3, cia402::State::switch_on_disabled);
 }
-TEST_F(Cia402Loopback, ADeadBenchDisablesTheDrive) { drive_watches_the_bench(factory(), 5, 2, cia402::State::switch_on_disabled); }
+TEST_F(Cia402Loopback, ADeadBenchDisablesTheDrive) {
+  drive_watches_the_bench(factory(), 5, 2, cia402::State::switch_on_disabled);
+}
 TEST_F(Cia402Loopback, ADeadBenchFaultsTheDrive) { drive_watches_the_bench(factory(), 5, 1, cia402::State::fault); }
 
 // The bench's heartbeat on the bus as CiA 301 has it: 0x700 + its node id, one byte, NMT state
@@ -109,7 +111,7 @@ TEST_F(Cia402Loopback, TheBenchProducesItsHeartbeat) {
     EXPECT_EQ(f.data[0], 0x05);
   }
   EXPECT_EQ(r.emulator.object(0x1016, 1), (127u << 16) | 500u);  // the defaults
-  EXPECT_EQ(r.emulator.object(0x6007, 0), 3u);                     // quick stop
+  EXPECT_EQ(r.emulator.object(0x6007, 0), 3u);                   // quick stop
 }
 
 // A drive with no 0x1016 cannot watch the bench: configure() says so and fails, unless the drive

@@ -152,12 +152,14 @@ TEST(Cia402Config, BenchHeartbeatKeysAndTheirErrors) {
   EXPECT_EQ(d.bench_heartbeat.on_loss, 3);  // quick stop
   EXPECT_TRUE(d.bench_heartbeat.required);
   for (const auto& [text, want] : std::vector<std::pair<std::string, std::string>>{
-           {"node_id: 2\nbench_heartbeat: {node_id: 2}", "d.yaml:3:19: bench_heartbeat.node_id: must not be the drive's node id, got '2'"},
+           {"node_id: 2\nbench_heartbeat: {node_id: 2}",
+            "d.yaml:3:19: bench_heartbeat.node_id: must not be the drive's node id, got '2'"},
            {"node_id: 127", "d.yaml:2:1: node_id: is the bench's default node id (127)"},
            {"node_id: 2\nbench_heartbeat: {producer_ms: 100, drive_timeout_ms: 100}",
             "bench_heartbeat.drive_timeout_ms: drive_timeout_ms (100) must be longer than producer_ms (100)"},
            {"node_id: 2\nbench_heartbeat: {drive_timeout_ms: 65536}", "bench_heartbeat.drive_timeout_ms: must be 1..65535 ms"},
-           {"node_id: 2\nbench_heartbeat: {on_loss: nothing}", "bench_heartbeat.on_loss: must be quick_stop, disable_voltage or fault"}}) {
+           {"node_id: 2\nbench_heartbeat: {on_loss: nothing}",
+            "bench_heartbeat.on_loss: must be quick_stop, disable_voltage or fault"}}) {
     try {
       Cia402Config::from_yaml(cfg::Node::load_string("interface: vcan0\n" + text + "\n", "d.yaml"));
       ADD_FAILURE() << text;

@@ -82,10 +82,10 @@ struct Cia402Config {
   // 0-15 time in ms) for node_id with `drive_timeout`, and its abort connection option code 0x6007
   // (CiA 402) = `on_loss`, what the drive does when that heartbeat stops.
   struct BenchHeartbeat {
-    std::uint8_t node_id = 127;                   // the bench's own node id on this bus (not the drive's)
-    std::chrono::milliseconds producer{100};      // the bench's heartbeat period
-    std::chrono::milliseconds drive_timeout{500}; // 0x1016 consumer time (> producer, 16 bit)
-    std::int16_t on_loss = 3;                     // 0x6007: 1 fault, 2 disable voltage, 3 quick stop
+    std::uint8_t node_id = 127;                    // the bench's own node id on this bus (not the drive's)
+    std::chrono::milliseconds producer{100};       // the bench's heartbeat period
+    std::chrono::milliseconds drive_timeout{500};  // 0x1016 consumer time (> producer, 16 bit)
+    std::int16_t on_loss = 3;                      // 0x6007: 1 fault, 2 disable voltage, 3 quick stop
     // configure() fails when the drive has no 0x1016 or no 0x6007 (it could not tell the bench
     // died); false: a configure note instead.
     bool required = true;
@@ -178,7 +178,7 @@ class Cia402Drive final : public PositionDrive {
   std::string_view missing_reply_text() const noexcept override;  // names a TPDO1 that arrives too short
   // Real-time safe, the thread that writes: a SYNC has carried the newest write's command.
   bool last_command_sent() const noexcept override;
-  cia402::State state() const noexcept;                           // real-time safe
+  cia402::State state() const noexcept;  // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
   std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);

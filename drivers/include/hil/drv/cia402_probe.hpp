@@ -24,13 +24,13 @@ struct Cia402Probe {
     std::string no_answer;  // not empty: neither a value nor an abort came (timeout, segmented reply)
   };
   std::uint32_t device_type = 0;
-  std::vector<Object> objects;     // identity, modes, the client's objects, the limits
-  int rpdos = 0, tpdos = 0;        // PDO communication objects present (0x1400.., 0x1800..)
-  bool csp_supported = false;      // 0x6502 bit 7 (true when 0x6502 is absent: not declared)
-  std::vector<std::string> plan;   // what configure() will do with this drive
-  std::vector<std::string> lacks;  // what the drive lacks, and what that means
+  std::vector<Object> objects;       // identity, modes, the client's objects, the limits
+  int rpdos = 0, tpdos = 0;          // PDO communication objects present (0x1400.., 0x1800..)
+  bool csp_supported = false;        // 0x6502 bit 7 (true when 0x6502 is absent: not declared)
+  std::vector<std::string> plan;     // what configure() will do with this drive
+  std::vector<std::string> lacks;    // what the drive lacks, and what that means
   std::vector<std::string> refused;  // what configure() will refuse, with the numbers (a following error window too narrow)
-  bool usable = true;              // every required object is there and CSP is not ruled out
+  bool usable = true;                // every required object is there and CSP is not ruled out
 
   const Object* find(std::uint16_t index, std::uint8_t sub) const;
   std::string report() const;  // human-readable, one fact a line
