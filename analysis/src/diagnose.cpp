@@ -9,6 +9,7 @@
 #include <limits>
 #include <thread>
 
+#include "criterion.hpp"
 #include "fit.hpp"
 #include "hil/analysis/compare.hpp"
 #include "hil/analysis/replay.hpp"
@@ -79,6 +80,7 @@ struct VariantFit {
   std::vector<double> values, sigma;  // continuous
   double rss_coarse = kInf;           // on the decimated copy
   double rss_full = kInf;             // on every row
+  double wrss_full = kInf;            // on every row, whitened by the noise model (criterion.hpp)
   bool refined = false;
   // The accepted effects' continuous values from the joint refine with this candidate (in the
   // order of apply_added); empty: they were held at their values.
@@ -93,7 +95,20 @@ struct Context {
   const ReplayData& coarse;
   unsigned threads;
   const std::atomic<bool>* cancel;  // looked at before every fit (cancel.hpp)
+  const detail::Criterion& criterion;
 };
+
+// A model on every row: its residual's sum of squares, plain and whitened by the noise model.
+struct Score {
+  double rss = kInf, wrss = kInf;
+};
+Score score_of(const Context& ctx, const plant::Plant& model) {
+  std::vector<double> res;
+  Score sc;
+  sc.rss = rss_of(model, ctx.full, &res);
+  if (std::isfinite(sc.rss)) sc.wrss = ctx.criterion.whitened_rss(res);
+  return sc;
+}
 
 plant::Plant model_for(const plant::Plant& attached, const VariantFit& v, double grid_value) {
   if (v.grid == nullptr) return attached;
@@ -180,7 +195,9 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
   }
   vf.rss_coarse = r.rss;
   if (same) {
-    vf.rss_full = r.rss;
+    const Score sc = score_of(ctx, with_values(m, vf.continuous, vf.values));
+    vf.rss_full = sc.rss, vf.wrss_full = sc.wrss;
+    ++vf.evaluations;
     vf.refined = true;
   }
 }
@@ -189,7 +206,8 @@ void fit_variant(const Context& ctx, const plant::Plant& base, const Candidate& 
 void evaluate_full(const Context& ctx, const plant::Plant& base, const Candidate& cand, VariantFit& vf) {
   throw_if_cancelled(ctx.cancel);
   const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
-  vf.rss_full = rss_of(with_values(m, vf.continuous, vf.values), ctx.full, nullptr);
+  const Score sc = score_of(ctx, with_values(m, vf.continuous, vf.values));
+  vf.rss_full = sc.rss, vf.wrss_full = sc.wrss;
   ++vf.evaluations;
 }
 
@@ -199,7 +217,12 @@ void refine_variant(const Context& ctx, const plant::Plant& base, const Candidat
   const plant::Plant m = model_for(cand.attach(base), vf, vf.grid_value);
   detail::Fitter f(m, vf.continuous, ctx.full);
   const auto r = f.levenberg_marquardt(vf.values, kRefineIter);
-  if (r.ok && r.rss <= vf.rss_full) vf.values = r.values, vf.rss_full = r.rss;
+  if (r.ok && r.rss < vf.rss_full) {
+    vf.values = r.values;
+    const Score sc = score_of(ctx, with_values(m, vf.continuous, vf.values));
+    vf.rss_full = sc.rss, vf.wrss_full = sc.wrss;
+    ++vf.evaluations;
+  }
   vf.sigma = f.uncertainty(vf.values);
   vf.evaluations += f.evaluations();
   vf.refined = true;
@@ -320,7 +343,9 @@ void refine_jointly(const Context& ctx, const plant::Plant& base0, const std::ve
   const auto r = f.levenberg_marquardt(x, kRefineIter);
   vf.evaluations += f.evaluations();
   if (!r.ok || !(r.rss < vf.rss_full)) return;
-  vf.rss_full = r.rss;
+  const Score sc = score_of(ctx, with_values(m, params, r.values));
+  vf.evaluations += 1;
+  vf.rss_full = sc.rss, vf.wrss_full = sc.wrss;
   vf.added_values.assign(r.values.begin(), r.values.begin() + static_cast<std::ptrdiff_t>(n_added));
   vf.values.assign(r.values.begin() + static_cast<std::ptrdiff_t>(n_added), r.values.end());
   const auto sigma = f.uncertainty(r.values);
@@ -445,10 +470,12 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
   const plant::Plant current = apply_added(base0, added);
   const Context& ctx = su.ctx;
   const ReplayData& full = ctx.full;
-  const double N = static_cast<double>(full.size());
   RoundOutcome out;
   Round& rd = out.round;
-  rd.rss_before_pa2 = rss_of(current, full, nullptr);
+  {
+    const Score sc = score_of(ctx, current);
+    rd.rss_before_pa2 = sc.rss, rd.whitened_rss_before = sc.wrss;
+  }
   rd.fit_before_pct = fit_percent(rd.rss_before_pa2, su.spread, full.size());
   evaluations += 1;
 
@@ -487,31 +514,9 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
                  [&](std::size_t i) { evaluate_full(ctx, current, *pool[jobs[todo[i]].candidate], jobs[todo[i]]); });
   }
 
-  // N_eff from the best-fitting variant's residual (the most whitened one), measured again after
-  // the joint refine below (the candidate added, the accepted effects refitted with it).
-  auto measure_n_eff = [&] {
-    const VariantFit* best_fit = nullptr;
-    for (const auto& j : jobs)
-      if (std::isfinite(j.rss_full) && (!best_fit || j.rss_full < best_fit->rss_full)) best_fit = &j;
-    rd.tau_int_samples = 1;
-    if (best_fit) {
-      std::vector<Added> with = added;
-      adopt_joint_values(with, *best_fit);
-      const plant::Plant bm =
-          with_values(model_for(pool[best_fit->candidate]->attach(apply_added(base0, with)), *best_fit, best_fit->grid_value),
-                      best_fit->continuous, best_fit->values);
-      std::vector<double> res;
-      rss_of(bm, full, &res);
-      rd.tau_int_samples = integrated_autocorrelation_time(res);
-      evaluations += 1;
-    }
-    rd.n_eff = N / rd.tau_int_samples;
-  };
-  measure_n_eff();
+  // The criterion counts every row of the residual whitened by the noise model (criterion.hpp).
   auto dbic = [&](const VariantFit& v) {
-    return std::isfinite(v.rss_full)
-               ? rd.n_eff * std::log(v.rss_full / rd.rss_before_pa2) + static_cast<double>(v.k()) * std::log(rd.n_eff)
-               : kInf;
+    return std::isfinite(v.wrss_full) ? ctx.criterion.delta_bic(v.wrss_full, rd.whitened_rss_before, v.k()) : kInf;
   };
   // Best variant per candidate; refine the most promising on every row.
   std::vector<std::size_t> best_variant(pool.size(), jobs.size());
@@ -531,7 +536,6 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     refine_jointly(ctx, base0, added, *pool[v.candidate], v);
   });
   for (const auto& j : jobs) evaluations += j.evaluations;
-  if (!added.empty()) measure_n_eff();
   std::sort(order.begin(), order.end(), by_bic);
 
   const double excess = std::max(rd.rss_before_pa2 - su.noise_rss, 0.0);
@@ -564,7 +568,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
 struct Path {
   std::vector<Added> added;
   std::vector<Round> rounds;
-  double rss = kInf;  // of the path's final model, every row
+  double rss = kInf;   // of the path's final model, every row
+  double wrss = kInf;  // the same whitened by the noise model (criterion.hpp)
 };
 
 std::vector<const Candidate*> remaining(const std::vector<const Candidate*>& pool, const std::vector<Added>& added) {
@@ -584,7 +589,10 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     if (path.added.size() >= 2) joint_refit(su.ctx, base0, path.added, evaluations);
     const plant::Plant current = apply_added(base0, path.added);
     const auto left = remaining(pool, path.added);
-    path.rss = rss_of(current, su.ctx.full, nullptr);
+    {
+      const Score sc = score_of(su.ctx, current);
+      path.rss = sc.rss, path.wrss = sc.wrss;
+    }
     ++evaluations;
     if (left.empty() || static_cast<int>(path.rounds.size()) >= max_rounds) return;
     // At the noise floor nothing can earn its place (it would have to remove 5 % of the noise
@@ -608,6 +616,7 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     }
     if (r.earning.empty()) {
       path.rss = r.round.rss_before_pa2;
+      path.wrss = r.round.whitened_rss_before;
       path.rounds.push_back(std::move(r.round));
       return;
     }
@@ -618,19 +627,18 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
   }
 }
 
-// BIC of a whole model against the same N_eff: N_eff ln RSS + k ln N_eff.
-double path_bic(const std::vector<Added>& added, double rss, double n_eff) {
+// BIC of a whole model (criterion.hpp): N ln W + k ln N, k all added effects' free parameters.
+double path_bic(const Setup& su, const std::vector<Added>& added, double wrss) {
   std::size_t k = 0;
   for (const auto& a : added) k += a.fit.k();
-  return n_eff * std::log(rss) + static_cast<double>(k) * std::log(n_eff);
+  return su.ctx.criterion.bic(wrss, k);
 }
 
-// The path's RSS on every row (into path.rss) and its residual's effective sample size.
-double measure_path(const Setup& su, const plant::Plant& base0, Path& path, int& evaluations) {
-  std::vector<double> res;
-  path.rss = rss_of(apply_added(base0, path.added), su.ctx.full, &res);
+// The path's RSS on every row, plain and whitened (into path.rss, path.wrss).
+void measure_path(const Setup& su, const plant::Plant& base0, Path& path, int& evaluations) {
+  const Score sc = score_of(su.ctx, apply_added(base0, path.added));
+  path.rss = sc.rss, path.wrss = sc.wrss;
   evaluations += 1;
-  return static_cast<double>(su.ctx.full.size()) / integrated_autocorrelation_time(res);
 }
 
 // The best effect in place of `replaced` next to `rest` (the model without it, refitted): a round
@@ -639,7 +647,7 @@ double measure_path(const Setup& su, const plant::Plant& base0, Path& path, int&
 struct InPlace {
   RoundOutcome round;
   std::vector<Added> added;
-  double rss = kInf;
+  double rss = kInf, wrss = kInf;
 };
 InPlace best_in_place_of(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool,
                          const std::vector<Added>& rest, const Candidate& replaced, int& evaluations) {
@@ -654,7 +662,8 @@ InPlace best_in_place_of(const Setup& su, const plant::Plant& base0, const std::
   adopt_joint_values(out.added, out.round.earning.front().fit);
   out.added.push_back(out.round.earning.front());
   joint_refit(su.ctx, base0, out.added, evaluations);
-  out.rss = rss_of(apply_added(base0, out.added), su.ctx.full, nullptr);
+  const Score sc = score_of(su.ctx, apply_added(base0, out.added));
+  out.rss = sc.rss, out.wrss = sc.wrss;
   evaluations += 1;
   return out;
 }
@@ -684,17 +693,17 @@ std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std
   std::vector<Rival> rivals;
   for (int pass = 0; !path.added.empty(); ++pass) {
     const bool may_change = pass < kRevisitPasses;
-    const double n_eff = measure_path(su, base0, path, evaluations);
-    const double bic_found = path_bic(path.added, path.rss, n_eff);
+    measure_path(su, base0, path, evaluations);
+    const double bic_found = path_bic(su, path.added, path.wrss);
     rivals.clear();
     bool changed = false;
     for (std::size_t i = 0; i < path.added.size() && !changed; ++i) {
       std::vector<Added> rest = without(su, base0, path.added, i, evaluations);
       const Added& e = path.added[i];
       if (may_change && path.added.size() >= 2) {
-        const double rss_rest = rss_of(apply_added(base0, rest), su.ctx.full, nullptr);
+        const Score rest_score = score_of(su.ctx, apply_added(base0, rest));
         evaluations += 1;
-        const double dbic = n_eff * std::log(path.rss / rss_rest) + static_cast<double>(e.fit.k()) * std::log(n_eff);
+        const double dbic = su.ctx.criterion.delta_bic(path.wrss, rest_score.wrss, e.fit.k());
         // Only the criterion takes an effect out again: the 5 % share is a bar to enter (a real
         // improvement, not noise fitting), and an effect the others leave a smaller share to but
         // that the file still decisively wants stays (a true 15 ms sensor lag was dropped at dBIC
@@ -703,14 +712,14 @@ std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std
           revisions.push_back("dropped " + e.cand->name + ": refitted without it the others do as well (dBIC " +
                               text::num(dbic, 3) + ")");
           path.added = std::move(rest);
-          path.rss = rss_rest;
+          path.rss = rest_score.rss, path.wrss = rest_score.wrss;
           changed = true;
           break;
         }
       }
       InPlace alt = best_in_place_of(su, base0, pool, rest, *e.cand, evaluations);
       if (alt.added.empty()) continue;
-      const double dbic = path_bic(alt.added, alt.rss, n_eff) - bic_found;
+      const double dbic = path_bic(su, alt.added, alt.wrss) - bic_found;
       const Added& a = alt.added.back();
       if (may_change && dbic < 0) {
         revisions.push_back("replaced " + e.cand->name + " by " + a.cand->name +
@@ -720,7 +729,7 @@ std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std
         r.note = "revisit: in place of " + e.cand->name;
         path.rounds.push_back(std::move(r));
         path.added = std::move(alt.added);
-        path.rss = alt.rss;
+        path.rss = alt.rss, path.wrss = alt.wrss;
         changed = true;
       } else if (dbic < kRivalBic) {
         rivals.push_back({e.cand->name, a.cand->name, a.cand->variants[a.fit.variant].name, dbic,
@@ -751,7 +760,7 @@ bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
   if (path.added.empty()) return any;
   auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
   for (int pass = 0; pass < kVariantPasses; ++pass) {
-    const double n_eff = measure_path(su, base0, path, evaluations);
+    measure_path(su, base0, path, evaluations);
     bool changed = false;
     for (std::size_t i = 0; i < path.added.size(); ++i) {
       const Candidate& cand = *path.added[i].cand;
@@ -786,16 +795,18 @@ bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
         std::vector<Added> trial = path.added;
         trial[i].fit = std::move(f);
         joint_refit(su.ctx, base0, trial, evaluations);
-        const double rss_trial = rss_of(apply_added(base0, trial), su.ctx.full, nullptr);
+        const Score trial_score = score_of(su.ctx, apply_added(base0, trial));
         evaluations += 1;
-        if (path_bic(trial, rss_trial, n_eff) < path_bic(path.added, path.rss, n_eff)) {
+        if (path_bic(su, trial, trial_score.wrss) < path_bic(su, path.added, path.wrss)) {
+          const double rss_trial = trial_score.rss;
           trial[i].fit.rss_full = rss_trial;
+          trial[i].fit.wrss_full = trial_score.wrss;
           trial[i].fit.refined = true;
           revisions.push_back((nested ? "simplified " : "changed ") + cand.name + " from " + current.name + " to " + other.name +
                               (nested ? ": with the others refitted, the simpler form explains the data with a lower BIC"
                                       : ": with the others refitted, this form explains the data with a lower BIC"));
           path.added = std::move(trial);
-          path.rss = rss_trial;
+          path.rss = rss_trial, path.wrss = trial_score.wrss;
           changed = any = true;
           break;
         }
@@ -866,7 +877,10 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   d.noise_floor_fit_pct = fit_percent(noise_rss, spread, full.size());
   d.rmse_before_pa = std::sqrt(rss_before / N);
   d.fit_before_pct = fit_percent(rss_before, spread, full.size());
-  const Setup su{{full, dec > 1 ? coarse : full, threads, s.cancel}, noise_rss, spread, s.progress, t_start};
+  std::vector<NoiseModel> noise;
+  for (const auto& f : d.files) noise.push_back(f.before.noise);
+  const detail::Criterion criterion(full, std::move(noise));
+  const Setup su{{full, dec > 1 ? coarse : full, threads, s.cancel, criterion}, noise_rss, spread, s.progress, t_start};
 
   const std::vector<Candidate> all = candidates_for(base0, s.candidates);
   std::vector<const Candidate*> pool;
@@ -916,19 +930,9 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
       paths.push_back(std::move(p));
       if (done) break;  // this path reaches the noise floor: another cannot beat it without noise fitting
     }
-    // Compare the paths by BIC with N_eff from the best path's residual.
+    // Compare the paths by their whole-model BIC (criterion.hpp).
+    auto bic = [&](const Path& p) { return path_bic(su, p.added, p.wrss); };
     std::size_t best = 0;
-    for (std::size_t i = 1; i < paths.size(); ++i)
-      if (paths[i].rss < paths[best].rss) best = i;
-    std::vector<double> res;
-    rss_of(apply_added(base0, paths[best].added), full, &res);
-    const double n_eff = N / integrated_autocorrelation_time(res);
-    auto bic = [&](const Path& p) {
-      std::size_t k = 0;
-      for (const auto& a : p.added) k += a.fit.k();
-      return n_eff * std::log(p.rss) + static_cast<double>(k) * std::log(n_eff);
-    };
-    best = 0;
     for (std::size_t i = 1; i < paths.size(); ++i)
       if (bic(paths[i]) < bic(paths[best])) best = i;
     for (std::size_t i = 0; i < paths.size(); ++i) {
