@@ -19,7 +19,9 @@
 // after its first step) and keeps the path with the lowest BIC: a two-effect misfit is often
 // mimicked best by a third effect alone. From round 2 on, the top candidates are refitted jointly
 // with every accepted effect (nothing frozen) and judged on that joint fit; when the search stops, a forward-backward revisit drops an effect the others
-// make redundant or swaps it for one that gives a lower BIC (analysis/README.md, Selection).
+// make redundant or swaps it for one that gives a lower BIC, and when that or a revised form
+// changed the model above the noise floor, the search goes forward again (analysis/README.md,
+// Selection).
 // Offline code: allocates, throws, and uses up to `threads` worker threads.
 #pragma once
 
