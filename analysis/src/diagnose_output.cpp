@@ -20,7 +20,7 @@ constexpr double kKpa = units::kPaPerKpa;
 
 nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
+nlohmann::json candidate_json(const CandidateResult& c, std::size_t rows) {
   nlohmann::json params = nlohmann::json::array();
   for (const auto& p : c.parameters) {
     params.push_back({{"block", p.effect},
@@ -44,10 +44,10 @@ nlohmann::json candidate_json(const CandidateResult& c, double n_eff) {
                       {"fit_after_pct", number(c.fit_after_pct)},
                       {"excess_explained_pct", number(100 * c.excess_explained)},
                       {"criterion",
-                       {{"name", "BIC with effective sample size"},
+                       {{"name", "BIC of the residual prewhitened by the noise model"},
                         {"delta_bic", number(c.delta_bic)},
                         {"free_parameters", c.k},
-                        {"effective_samples", number(n_eff)},
+                        {"samples", rows},
                         {"threshold", -10}}},
                       {"earns_place", c.earns_place},
                       {"refined_on_all_rows", c.refined},
@@ -90,6 +90,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                      {"time_origin_s", f.time_origin_s},
                      {"noise_sigma_kpa", number(f.before.noise_sigma_pa / kKpa)},
                      {"noise_floor_fit_pct", number(f.before.noise_floor_fit_pct)},
+                     {"noise_model", detail::noise_model_json(f.before.noise)},
                      {"fit_before_pct", number(f.before.fit_pct)},
                      {"fit_after_pct", number(f.after.fit_pct)},
                      {"signature", d.explained ? f.after.signature : f.before.signature},
@@ -125,21 +126,18 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["noise_floor_fit_pct"] = number(d.noise_floor_fit_pct);
   j["fit_before_pct"] = number(d.fit_before_pct);
   j["fit_after_pct"] = number(d.fit_after_pct);
-  const double n_eff0 = d.rounds.empty() ? 0 : d.rounds.front().n_eff;
   nlohmann::json ranking = nlohmann::json::array();
   if (!d.rounds.empty())
-    for (const auto& c : d.rounds.front().ranking) ranking.push_back(candidate_json(c, n_eff0));
+    for (const auto& c : d.rounds.front().ranking) ranking.push_back(candidate_json(c, d.rows));
   j["ranking"] = ranking;
   nlohmann::json added = nlohmann::json::array();
-  for (const auto& c : d.added) added.push_back(candidate_json(c, plant::kNaN));
+  for (const auto& c : d.added) added.push_back(candidate_json(c, d.rows));
   j["added"] = added;
   nlohmann::json rounds = nlohmann::json::array();
   for (const auto& r : d.rounds) {
     nlohmann::json rk = nlohmann::json::array();
-    for (const auto& c : r.ranking) rk.push_back(candidate_json(c, r.n_eff));
+    for (const auto& c : r.ranking) rk.push_back(candidate_json(c, d.rows));
     rounds.push_back({{"fit_before_pct", number(r.fit_before_pct)},
-                      {"effective_samples", number(r.n_eff)},
-                      {"correlation_time_samples", number(r.tau_int_samples)},
                       {"added", r.added.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.added)},
                       {"note", r.note},
                       {"ranking", rk}});
@@ -181,7 +179,8 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
   j["after"]["regimes"] = detail::residual_to_json(d.after)["regimes"];
   j["method"] = {{"coarse_decimation", d.decimation},
                  {"criterion",
-                  "dBIC = N_eff ln(RSS_c/RSS_model) + k ln(N_eff); earns its place if dBIC < -10, it "
+                  "dBIC = N ln(W_c/W_model) + k ln(N), W the residual's sum of squares whitened by the noise model; "
+                  "earns its place if dBIC < -10, it "
                   "removes >= 25 % of the excess error power over N sigma^2 and >= 5 % of N sigma^2"},
                  {"replays", d.evaluations},
                  {"wall_s", d.wall_s}};
@@ -327,8 +326,8 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
       doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %. Not run: " + r.note + ".");
       continue;
     }
-    doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %; effective samples N_eff = " +
-                  text::num(r.n_eff, 4) + " (correlation time " + text::num(r.tau_int_samples, 3) + " samples). " +
+    doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) +
+                  " %; dBIC on the residual prewhitened by the noise model, every row counted. " +
                   (r.added.empty() ? std::string("Nothing earns its place: the search stops.") : "Added: " + r.added + "."));
     std::vector<std::vector<std::string>> rows;
     std::vector<std::string> cats;

@@ -43,10 +43,22 @@ nlohmann::json binned_json(const Binned& b) {
 
 }  // namespace
 
+nlohmann::json noise_model_json(const NoiseModel& m) {
+  return {{"sigma_kpa", number(m.sigma_pa / kKpa)},
+          {"white_kpa", number(m.white_sigma_pa / kKpa)},
+          {"coloured_kpa", number(m.coloured_sigma_pa / kKpa)},
+          {"phi_per_row", number(m.phi)},
+          {"corner_hz", number(m.corner_hz())},
+          {"innovation_kpa", number(m.innovation_sigma_pa / kKpa)},
+          {"correlation_time_rows", number(m.correlation_time_samples())},
+          {"method", m.method}};
+}
+
 nlohmann::json residual_to_json(const ResidualReport& r) {
   nlohmann::json j = headline_json(r);
   j["t0_s"] = number(r.t0_s);
   j["noise_method"] = r.noise_method;
+  j["noise_model"] = noise_model_json(r.noise);
   j["measured_spread_kpa"] = number(r.y_spread_pa / kKpa);
   nlohmann::json regimes = nlohmann::json::array();
   for (const auto& g : r.regimes) {

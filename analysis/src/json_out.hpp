@@ -15,6 +15,7 @@ class Document;
 namespace hil::analysis::detail {
 
 nlohmann::json residual_to_json(const ResidualReport& r);
+nlohmann::json noise_model_json(const NoiseModel& m);  // compare.json and diagnosis.json: the noise process
 void add_summary_table(report::Document& doc, const ResidualReport& r);
 std::string summary_text(const ResidualReport& r, const std::string& model_name);
 

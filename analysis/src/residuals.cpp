@@ -9,7 +9,6 @@
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
-#include <unordered_map>
 
 #include "fft.hpp"
 #include "hil/minmax_decimator.hpp"
@@ -103,126 +102,6 @@ class SeriesDecimator {
   MinMaxDecimator d_{kSeriesBuckets, 5};
 };
 
-// Histogram of |x| on log-spaced bins, for a streaming median.
-class LogHistogram {
- public:
-  void add(double x) {
-    x = std::abs(x);
-    ++total_;
-    if (x <= kLo) {
-      ++zero_;
-      return;
-    }
-    const int i = std::clamp(static_cast<int>(std::log10(x / kLo) * kPerDecade), 0, kBins - 1);
-    ++bins_[static_cast<std::size_t>(i)];
-  }
-  double median() const {
-    if (total_ == 0) return 0;
-    const double half = 0.5 * static_cast<double>(total_);
-    double cum = static_cast<double>(zero_);
-    if (cum >= half) return 0;
-    for (int i = 0; i < kBins; ++i) {
-      const double c = static_cast<double>(bins_[static_cast<std::size_t>(i)]);
-      if (cum + c >= half) {
-        const double f = c > 0 ? (half - cum) / c : 0.5;  // log-linear inside the bin
-        return kLo * std::pow(10.0, (i + f) / kPerDecade);
-      }
-      cum += c;
-    }
-    return kLo * std::pow(10.0, kBins / kPerDecade);
-  }
-
- private:
-  static constexpr double kLo = 1e-3;  // Pa
-  static constexpr double kPerDecade = 100;
-  static constexpr int kBins = 1000;  // 1e-3 .. 1e7 Pa
-  std::array<std::size_t, kBins> bins_{};
-  std::size_t zero_ = 0, total_ = 0;
-};
-
-// The noise from second differences of the reading (see noise_sigma_from_data). A reading that
-// comes off an ADC in steps of q makes every second difference a multiple of q, and the plain
-// median then sits on a multiple of q: 3 kPa instead of 3.3 kPa for 2 kPa noise in 1 kPa steps, a
-// sigma 10 % low and a noise floor that no model can reach. So the distinct |d2| values are
-// counted exactly while there are few of them; when 99 % of them are multiples of the smallest,
-// the median is read as grouped data (multiple j stands for [(j - 1/2) q, (j + 1/2) q], j = 0 for
-// [0, q/2]), which estimates the noise a perfect model leaves: sigma^2 + q^2/12 (quantisation
-// error included). Fine lattices (a 1 Pa log resolution) overflow the exact count and need no
-// correction.
-class SecondDifferenceNoise {
- public:
-  void add(double d2_pa) {
-    hist_.add(d2_pa);
-    sum2_ += d2_pa * d2_pa;
-    ++n_;
-    if (overflow_) return;
-    ++exact_[std::llround(std::min(std::abs(d2_pa), 1e12) * kKeyPerPa)];
-    if (exact_.size() > kMaxDistinct) overflow_ = true, exact_.clear();
-  }
-  double sigma_pa() const {
-    if (const double q = lattice_step_pa(); q > 0) return 1.4826 * grouped_median(q) / std::sqrt(6.0);
-    const double med = hist_.median();
-    if (med > 0) return 1.4826 * med / std::sqrt(6.0);
-    return n_ > 0 ? std::sqrt(sum2_ / static_cast<double>(n_) / 6.0) : 0.0;
-  }
-  std::string method() const {
-    if (const double q = lattice_step_pa(); q > 0) {
-      char b[200];
-      std::snprintf(b, sizeof b,
-                    "1.4826 * median|second difference of p_meas| / sqrt(6), the median read as grouped data of a "
-                    "reading quantised in %.4g kPa steps",
-                    q / units::kPaPerKpa);
-      return b;
-    }
-    if (hist_.median() > 0) return "1.4826 * median|second difference of p_meas| / sqrt(6)";
-    return "RMS of the second difference of p_meas / sqrt(6) (the reading is too coarsely quantised for the median)";
-  }
-
- private:
-  static constexpr double kKeyPerPa = 1e6;  // exact to a micro-pascal
-  static constexpr std::size_t kMaxDistinct = 4096;
-  // The step q when 99 % of the second differences are multiples of the smallest nonzero one; 0 else.
-  double lattice_step_pa() const {
-    if (overflow_ || exact_.empty()) return 0;
-    long long q = 0;
-    for (const auto& [key, count] : exact_)
-      if (key > 0 && (q == 0 || key < q)) q = key;
-    if (q == 0) return 0;
-    std::size_t on = 0, total = 0;
-    for (const auto& [key, count] : exact_) {
-      const double j = static_cast<double>(key) / static_cast<double>(q);
-      total += count;
-      if (std::abs(j - std::round(j)) < 1e-3) on += count;
-    }
-    return on >= 0.99 * static_cast<double>(total) ? static_cast<double>(q) / kKeyPerPa : 0.0;
-  }
-  double grouped_median(double q_pa) const {
-    std::vector<std::pair<long long, std::size_t>> bins;  // multiple of q, count
-    std::size_t total = 0;
-    for (const auto& [key, count] : exact_) {
-      bins.push_back({std::llround(static_cast<double>(key) / kKeyPerPa / q_pa), count});
-      total += count;
-    }
-    std::sort(bins.begin(), bins.end());
-    const double half = 0.5 * static_cast<double>(total);
-    double cum = 0;
-    for (std::size_t i = 0; i < bins.size(); ++i) {
-      std::size_t c = bins[i].second;
-      while (i + 1 < bins.size() && bins[i + 1].first == bins[i].first) c += bins[++i].second;  // off-lattice strays
-      const double j = static_cast<double>(bins[i].first);
-      const double lo = j == 0 ? 0.0 : (j - 0.5) * q_pa, width = j == 0 ? 0.5 * q_pa : q_pa;
-      if (cum + static_cast<double>(c) >= half) return lo + (half - cum) / static_cast<double>(c) * width;
-      cum += static_cast<double>(c);
-    }
-    return 0;
-  }
-  LogHistogram hist_;
-  double sum2_ = 0;
-  std::size_t n_ = 0;
-  std::unordered_map<long long, std::size_t> exact_;
-  bool overflow_ = false;
-};
-
 std::string fmt(const char* f, double a) {
   char b[512];
   std::snprintf(b, sizeof b, f, a);
@@ -245,12 +124,6 @@ double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n) {
   const double denom = y_spread_pa * std::sqrt(static_cast<double>(n));
   if (!(denom > 0)) return kNaN;
   return 100.0 * (1.0 - std::sqrt(rss_pa2) / denom);
-}
-
-double noise_sigma_from_data(const std::vector<double>& y) {
-  SecondDifferenceNoise noise;
-  for (std::size_t k = 2; k < y.size(); ++k) noise.add(y[k] - 2 * y[k - 1] + y[k - 2]);
-  return noise.sigma_pa();
 }
 
 namespace {
@@ -303,8 +176,7 @@ struct ResidualAnalyzer::Impl {
   double t_first = 0, t_last = 0;
   Acc all;
   double y0 = 0, sy = 0, syy = 0;
-  SecondDifferenceNoise d2;
-  double y_prev1 = kNaN, y_prev2 = kNaN;
+  NoiseEstimator noise;  // the measurement noise as a process (noise_model.hpp)
   std::vector<double> first_dts;
 
   // Motion classification (from the drive angle).
@@ -528,12 +400,7 @@ struct ResidualAnalyzer::Impl {
     all.add(s.t_s, e);
     sy += s.y_pa - y0;
     syy += (s.y_pa - y0) * (s.y_pa - y0);
-    if (std::isfinite(y_prev2)) {
-      const double v = s.y_pa - 2 * y_prev1 + y_prev2;
-      d2.add(v);
-    }
-    y_prev2 = y_prev1;
-    y_prev1 = s.y_pa;
+    noise.add(s.t_s, s.y_pa);
 
     const int motion_class = classify_motion(s.t_s, s.drive_rad);
     track_reference(s.p_ref_pa);
@@ -600,8 +467,9 @@ ResidualReport ResidualAnalyzer::Impl::finish() {
   const double spread2 = std::max(0.0, syy - sy * sy / static_cast<double>(n));
   r.y_spread_pa = std::sqrt(spread2 / static_cast<double>(n));
   r.fit_pct = fit_percent(all.se2, r.y_spread_pa, n);
-  r.noise_sigma_pa = d2.sigma_pa();
-  r.noise_method = d2.method();
+  r.noise = noise.finish();
+  r.noise_sigma_pa = r.noise.sigma_pa;
+  r.noise_method = r.noise.method;
   r.noise_floor_fit_pct = r.y_spread_pa > 0 ? 100.0 * (1.0 - r.noise_sigma_pa / r.y_spread_pa) : kNaN;
 
   // Regimes.
@@ -1023,6 +891,16 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   } else {
     out.push_back(
         fmt("RMS error %.3g kPa is %.3g times the measurement noise (%.3g kPa).", rmse / kpa, rmse / sigma, sigma / kpa));
+  }
+  // A filtered transducer's noise is correlated over a few rows by itself: say so, so that a short
+  // residual correlation time is read as the noise's, not as a missing effect.
+  if (r.noise.coloured()) {
+    const double tau_ms = r.noise.correlation_time_samples() * r.diagnostics.dt_s * 1e3;
+    std::string corner = r.noise.corner_hz() > 0 ? fmt(", corner %.3g Hz: an anti-alias filter?", r.noise.corner_hz()) : "";
+    out.push_back(fmt("The measurement noise is coloured: %.3g kPa of first-order noise (pole %.3g per row", r.noise.coloured_sigma_pa / kpa,
+                      r.noise.phi) +
+                  corner + fmt(") and %.3g kPa white; by itself it keeps the residual correlated for about ", r.noise.white_sigma_pa / kpa) +
+                  fmt("%.3g ms.", tau_ms));
   }
   if (std::abs(r.error.bias_pa) > 0.5 * rmse && rmse > 1.5 * sigma) {
     out.push_back(

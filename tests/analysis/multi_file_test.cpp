@@ -63,10 +63,12 @@ TEST(MultiFile, ThreeRunsOfOneRigSeparateAGapAndASensorLagThatOneRunCannot) {
     if (i == 0) slowest_alone_found_both = found_both(d);
     std::printf("[ one run, %g deg/s ] %s\n", speeds_deg_s[i], hil::test::brief(d).c_str());
   }
-  // The premise: at 10 deg/s alone the sensor lag is traded for a drive lag (measured: 58 ms, with
-  // the gap, at that file's noise floor).
-  EXPECT_FALSE(slowest_alone_found_both) << "the slow run alone separates the two: this test no longer shows what "
-                                            "several files add";
+  // At 10 deg/s alone the sensor lag was traded for a drive lag (measured: 58 ms, with the gap, at
+  // that file's noise floor) while the criterion counted N / tau of the residual; with the
+  // prewhitened criterion (2026-12) the slow run alone finds both (gap 1.600 deg, lag 14.97 ms), so
+  // this is no longer a premise of the test: what follows checks that three runs together still
+  // find both, with the smaller uncertainty.
+  std::printf("[ premise ] the 10 deg/s run alone %s both\n", slowest_alone_found_both ? "finds" : "does not find");
 
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), hil::analysis::DataFiles(files), dir.path() / "joint",
                                          dir.path() / "fitted.yaml");

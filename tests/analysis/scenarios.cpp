@@ -2,6 +2,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
 #include <memory>
 #include <stdexcept>
 
@@ -136,6 +139,64 @@ std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path&
   }
   std::fclose(f);
   return file;
+}
+
+double SensorNoise::total_kpa() const {
+  return std::sqrt(coloured_kpa * coloured_kpa + white_kpa * white_kpa + step_kpa * step_kpa / 12);
+}
+
+void add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n) {
+  std::ifstream in(csv, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + csv.string());
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  in.close();
+  auto split = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    return cells;
+  };
+  std::size_t header = 0;
+  while (header < lines.size() && !lines[header].empty() && lines[header][0] == '#') ++header;
+  if (header >= lines.size()) throw std::runtime_error(csv.string() + ": no header");
+  auto strip = [](std::string c) {
+    while (!c.empty() && (c.back() == '\r' || c.back() == ' ')) c.pop_back();
+    return c;
+  };
+  const auto names = split(lines[header]);
+  std::size_t col_t = names.size(), col_p = names.size();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (strip(names[i]) == "t_s") col_t = i;
+    if (strip(names[i]) == "p_meas_mpa") col_p = i;
+  }
+  if (col_t == names.size() || col_p == names.size()) throw std::runtime_error(csv.string() + ": no t_s or p_meas_mpa");
+  std::mt19937_64 rng(n.seed);
+  std::normal_distribution<double> g(0, 1);
+  double x_kpa = n.coloured_kpa * g(rng);  // stationary from the first row
+  double t_prev = std::nan("");
+  std::ofstream out(csv, std::ios::binary | std::ios::trunc);
+  for (std::size_t li = 0; li < lines.size(); ++li) {
+    if (li <= header || lines[li].empty()) {
+      out << lines[li] << '\n';
+      continue;
+    }
+    const bool crlf = lines[li].back() == '\r';
+    auto cells = split(crlf ? lines[li].substr(0, lines[li].size() - 1) : lines[li]);
+    const double t = std::stod(cells[col_t]);
+    const double dt = std::isfinite(t_prev) ? t - t_prev : 0;
+    t_prev = t;
+    const double phi = n.filter_hz > 0 ? std::exp(-2 * 3.141592653589793 * n.filter_hz * dt) : n.phi;
+    if (dt > 0) x_kpa = phi * x_kpa + std::sqrt(1 - phi * phi) * n.coloured_kpa * g(rng);
+    double v_mpa = std::stod(cells[col_p]) + 1e-3 * (x_kpa + n.white_kpa * g(rng));
+    if (n.step_kpa > 0) v_mpa = 1e-3 * n.step_kpa * std::round(v_mpa / (1e-3 * n.step_kpa));
+    char b[40];
+    std::snprintf(b, sizeof b, "%.7f", v_mpa);
+    cells[col_p] = b;
+    for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
+    out << (crlf ? "\r\n" : "\n");
+  }
+  if (!out) throw std::runtime_error("cannot write " + csv.string());
 }
 
 }  // namespace hil::test

@@ -61,4 +61,20 @@ struct LabLog {
 std::function<double(double)> command_triangle(double lo_deg, double hi_deg, double speed_deg_s, double dwell_s);
 std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path& dir);
 
+// A real transducer's noise, added to the p_meas_mpa column of a file written noise-free
+// (Scenario::noise_kpa = 0, LabLog::noise_kpa = 0): first-order coloured noise (an AR(1) with pole
+// `phi` per row, or a first-order anti-alias filter with corner `filter_hz`, exact for any row
+// spacing: phi = exp(-2 pi f dt)), plus white noise, then the ADC's steps.
+struct SensorNoise {
+  double coloured_kpa = 0;  // RMS of the coloured part
+  double phi = 0;           // its pole per row (used when filter_hz is 0)
+  double filter_hz = 0;     // the anti-alias filter's corner frequency
+  double white_kpa = 0;     // RMS of the white part
+  double step_kpa = 0;      // quantisation step of the reading (0: none)
+  std::uint64_t seed = 1;
+  // RMS of the whole noise a perfect model leaves (quantisation error included).
+  double total_kpa() const;
+};
+void add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n);
+
 }  // namespace hil::test

@@ -3,21 +3,25 @@
 // every extra parameter earn its place; the best one that earns it is added to the model, and
 // the search repeats until nothing more earns its place (greedy forward selection).
 //
-// Criterion (per round, against the current model, N rows):
-//   dBIC = N_eff * ln(RSS_candidate / RSS_model) + k * ln(N_eff)
-// with k the candidate's free parameters and N_eff = N / tau_int, tau_int the integrated
-// autocorrelation time of the best-fitting candidate's residual (correlated residuals carry fewer
-// independent samples, so an extra parameter must explain more). A candidate earns its place when
+// Criterion (per round, against the current model, N rows; src/criterion.hpp): the residual is
+// whitened by the measurement noise's own model (noise_model.hpp: coloured plus white noise,
+// estimated from the data), W its sum of squares, and
+//   dBIC = N * ln(W_candidate / W_model) + k * ln(N)
+// with k the candidate's free parameters: every row counts, the noise's correlation being taken
+// out by the filter (an effective sample size from the residual's own correlation collapsed while
+// a slow misfit remained). A candidate earns its place when
 //   dBIC < -10  (very strong evidence), and
 //   it removes >= 25 % of the model's excess error power (RSS_model - N sigma^2, sigma the
-//   measurement noise), and at least 5 % of N sigma^2 (a real improvement, not noise fitting).
+//   measurement noise's total RMS), and at least 5 % of N sigma^2 (a real improvement, not noise
+//   fitting).
 // When the best single effect of the first round does not reach the noise floor, the search also
 // follows the next two first choices that earn their place (a beam of three paths, each greedy
 // after its first step) and keeps the path with the lowest BIC: a two-effect misfit is often
 // mimicked best by a third effect alone. From round 2 on, the top candidates are refitted jointly
-// with every accepted effect (nothing frozen) and judged on that joint fit, N_eff measured again
-// on its residual; when the search stops, a forward-backward revisit drops an effect the others
-// make redundant or swaps it for one that gives a lower BIC (analysis/README.md, Selection).
+// with every accepted effect (nothing frozen) and judged on that joint fit; when the search stops, a forward-backward revisit drops an effect the others
+// make redundant or swaps it for one that gives a lower BIC, and when that or a revised form
+// changed the model above the noise floor, the search goes forward again (analysis/README.md,
+// Selection).
 // Offline code: allocates, throws, and uses up to `threads` worker threads.
 #pragma once
 
@@ -76,7 +80,7 @@ struct CandidateResult {
 
 struct Round {
   double rss_before_pa2 = 0, fit_before_pct = 0;
-  double n_eff = 0, tau_int_samples = 1;
+  double whitened_rss_before = 0;  // the criterion's: the residual whitened by the noise model
   std::vector<CandidateResult> ranking;  // best first (lowest dBIC)
   std::string added;                     // empty: nothing earned its place
   std::string note;                      // why the round did not fit candidates, if it did not

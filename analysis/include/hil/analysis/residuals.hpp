@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "hil/analysis/noise_model.hpp"
+
 namespace hil::analysis {
 
 // Error statistics of a set of samples; e = measured - model, in Pa.
@@ -91,8 +93,9 @@ struct ResidualReport {
   std::size_t rows = 0;
   double t0_s = 0, duration_s = 0;
   double fit_pct = 0;         // 100 (1 - |y - yhat| / |y - mean(y)|)
-  double noise_sigma_pa = 0;  // measurement noise, from the data (see noise_method)
-  std::string noise_method;
+  NoiseModel noise;           // the measurement noise as a process, from the measured pressure alone
+  double noise_sigma_pa = 0;  // its total RMS (noise.sigma_pa): the error a perfect model leaves
+  std::string noise_method;   // noise.method
   double noise_floor_fit_pct = 0;  // the fit a perfect model would reach with that noise
   double y_spread_pa = 0;          // |y - mean(y)| / sqrt(N)
   ErrorStats error;
@@ -172,10 +175,6 @@ double fit_percent(double rss_pa2, double y_spread_pa, std::size_t n);
 inline constexpr double kChangeRmsRatio = 1.5;
 inline constexpr std::size_t kMaxChangePoints = 6;
 inline constexpr double kSegmentFloorRatio = 1.3;
-
-// Measurement noise from the measured pressure alone: 1.4826 * median|second difference| / sqrt(6)
-// (the second difference of white noise has variance 6 sigma^2; the median ignores transients).
-double noise_sigma_from_data(const std::vector<double>& y_pa);
 
 // Integrated autocorrelation time (samples) of a residual, by FFT, for the selection criterion.
 double integrated_autocorrelation_time(const std::vector<double>& e, std::size_t max_lag = 2000);
