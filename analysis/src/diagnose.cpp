@@ -29,13 +29,13 @@ constexpr double kMinExcessShare = 0.25;  // of the model's excess error power
 constexpr double kMinNoiseShare = 0.05;   // of N sigma^2
 constexpr std::size_t kRefineTop = 2;     // candidates refined on every row per round
 constexpr int kCoarseIter = 12, kGridIter = 2, kRefineIter = 3, kJointIter = 8;
-constexpr double kCompetitive = 1.2;     // variants within 20 % of their best get a full-data look
-constexpr std::size_t kGridCoarse = 16;  // grid values of the zoom search's first level
-constexpr std::size_t kGridZoom = 8;     // values per later level
+constexpr double kCompetitive = 1.2;      // variants within 20 % of their best get a full-data look
+constexpr std::size_t kGridCoarse = 16;   // grid values of the zoom search's first level
+constexpr std::size_t kGridZoom = 8;      // values per later level
 constexpr std::size_t kInPlaceTried = 2;  // effects refitted in an accepted effect's place (revisit)
-constexpr std::size_t kBeam = 3;         // first choices followed when the best one is not enough
-constexpr double kFloorTolerance = 1.1;  // RSS within 10 % of N sigma^2: at the noise floor
-constexpr double kSkipAtFloor = 1.03;    // RSS within 3 %: no candidate can earn its place
+constexpr std::size_t kBeam = 3;          // first choices followed when the best one is not enough
+constexpr double kFloorTolerance = 1.1;   // RSS within 10 % of N sigma^2: at the noise floor
+constexpr double kSkipAtFloor = 1.03;     // RSS within 3 %: no candidate can earn its place
 
 // Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
 template <class Fn>

@@ -222,9 +222,9 @@ struct NoiseEstimator::Impl {
   bool started = false;
   double dt_s = 0;
   std::vector<std::size_t> spacings;
-  std::vector<RobustRms> rms;           // per spacing
-  RobustRms second;                     // second differences at spacing 1 (a coarsely stepped reading)
-  std::vector<double> ring;             // the last 3 a_max + 1 readings
+  std::vector<RobustRms> rms;  // per spacing
+  RobustRms second;            // second differences at spacing 1 (a coarsely stepped reading)
+  std::vector<double> ring;    // the last 3 a_max + 1 readings
   std::size_t head = 0, seen = 0;
 
   void start(double dt) {
@@ -330,13 +330,13 @@ NoiseModel NoiseEstimator::finish() {
   m.innovation_sigma_pa = std::sqrt(g0 / (1 + m.theta * m.theta));
   char b[400];
   if (m.coloured()) {
-    std::snprintf(b, sizeof b,
-                  "noise process from third differences of p_meas at spacings 1-%zu rows (%s): first-order coloured "
-                  "%.3g kPa (phi %.3f per row%s) plus white %.3g kPa",
-                  sp.back(), im.rms.front().how().c_str(), m.coloured_sigma_pa / units::kPaPerKpa, m.phi,
-                  m.corner_hz() > 0 ? (", corner " + std::to_string(static_cast<int>(std::lround(m.corner_hz()))) + " Hz").c_str()
-                                    : "",
-                  m.white_sigma_pa / units::kPaPerKpa);
+    std::snprintf(
+        b, sizeof b,
+        "noise process from third differences of p_meas at spacings 1-%zu rows (%s): first-order coloured "
+        "%.3g kPa (phi %.3f per row%s) plus white %.3g kPa",
+        sp.back(), im.rms.front().how().c_str(), m.coloured_sigma_pa / units::kPaPerKpa, m.phi,
+        m.corner_hz() > 0 ? (", corner " + std::to_string(static_cast<int>(std::lround(m.corner_hz()))) + " Hz").c_str() : "",
+        m.white_sigma_pa / units::kPaPerKpa);
   } else {
     std::snprintf(b, sizeof b,
                   "noise process from third differences of p_meas at spacings 1-%zu rows (%s): white (no colour "

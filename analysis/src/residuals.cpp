@@ -897,10 +897,12 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
   if (r.noise.coloured()) {
     const double tau_ms = r.noise.correlation_time_samples() * r.diagnostics.dt_s * 1e3;
     std::string corner = r.noise.corner_hz() > 0 ? fmt(", corner %.3g Hz: an anti-alias filter?", r.noise.corner_hz()) : "";
-    out.push_back(fmt("The measurement noise is coloured: %.3g kPa of first-order noise (pole %.3g per row", r.noise.coloured_sigma_pa / kpa,
-                      r.noise.phi) +
-                  corner + fmt(") and %.3g kPa white; by itself it keeps the residual correlated for about ", r.noise.white_sigma_pa / kpa) +
-                  fmt("%.3g ms.", tau_ms));
+    out.push_back(
+        fmt("The measurement noise is coloured: %.3g kPa of first-order noise (pole %.3g per row",
+            r.noise.coloured_sigma_pa / kpa, r.noise.phi) +
+        corner +
+        fmt(") and %.3g kPa white; by itself it keeps the residual correlated for about ", r.noise.white_sigma_pa / kpa) +
+        fmt("%.3g ms.", tau_ms));
   }
   if (std::abs(r.error.bias_pa) > 0.5 * rmse && rmse > 1.5 * sigma) {
     out.push_back(

@@ -156,7 +156,8 @@ TEST_F(Files, HealthyFilesSayNothingMissingAtEveryColourAndLevel) {
     s.seed = 300 + i;
     s.encoder = i % 2 == 0;
     s.compensation = i % 3 == 0 ? "adaptive" : (i % 3 == 1 ? "constant" : "none");
-    s.reference_yaml = i % 2 ? hil::test::reference_random(40 + i, 0.8, 1.6, 1.0, 3.5) : hil::test::reference_ramps(0.9, 1.5, 4.0);
+    s.reference_yaml =
+        i % 2 ? hil::test::reference_random(40 + i, 0.8, 1.6, 1.0, 3.5) : hil::test::reference_ramps(0.9, 1.5, 4.0);
     const auto d = diagnose(make(s, noises[i]), s.name);
     const bool ok = d.at("verdict") == "nothing_missing" && d.at("added").empty();
     false_alarms += ok ? 0 : 1;
@@ -199,7 +200,8 @@ TEST_F(Files, AHiddenEffectOnColouredNoiseIsExplainedAtTheFloor) {
   g.compensation = "adaptive";
   g.reference_yaml = hil::test::reference_random(43, 0.9, 1.5, 1.5, 3.0);
   g.truth = [](const Plant& p) { return with_block(p, "backlash_change", "gap_deg: 1.6"); };
-  const auto dg = diagnose(make(g, {.coloured_kpa = 3.0, .filter_hz = 50, .white_kpa = 0.5, .step_kpa = 0.5, .seed = 44}), g.name);
+  const auto dg =
+      diagnose(make(g, {.coloured_kpa = 3.0, .filter_hz = 50, .white_kpa = 0.5, .step_kpa = 0.5, .seed = 44}), g.name);
   EXPECT_EQ(dg.at("verdict"), "explained") << hil::test::brief(dg);
   ASSERT_FALSE(dg.at("added").empty()) << hil::test::brief(dg);
   EXPECT_EQ(dg.at("added")[0].at("effect"), "backlash_change") << hil::test::brief(dg);

@@ -80,7 +80,7 @@ struct CandidateResult {
 
 struct Round {
   double rss_before_pa2 = 0, fit_before_pct = 0;
-  double whitened_rss_before = 0;  // the criterion's: the residual whitened by the noise model
+  double whitened_rss_before = 0;        // the criterion's: the residual whitened by the noise model
   std::vector<CandidateResult> ranking;  // best first (lowest dBIC)
   std::string added;                     // empty: nothing earned its place
   std::string note;                      // why the round did not fit candidates, if it did not

@@ -29,7 +29,7 @@
 
 namespace hil::analysis {
 
-inline constexpr double kNoiseMaxPhi = 0.95;   // beyond this the second difference cannot see the colour
+inline constexpr double kNoiseMaxPhi = 0.95;  // beyond this the second difference cannot see the colour
 
 struct NoiseModel {
   double sigma_pa = 0;           // total RMS: the error a perfect model leaves (the noise floor)

@@ -92,10 +92,10 @@ inline constexpr double kMotorChannelTolDeg = 0.05;  // below this RMS the drive
 struct ResidualReport {
   std::size_t rows = 0;
   double t0_s = 0, duration_s = 0;
-  double fit_pct = 0;         // 100 (1 - |y - yhat| / |y - mean(y)|)
-  NoiseModel noise;           // the measurement noise as a process, from the measured pressure alone
-  double noise_sigma_pa = 0;  // its total RMS (noise.sigma_pa): the error a perfect model leaves
-  std::string noise_method;   // noise.method
+  double fit_pct = 0;              // 100 (1 - |y - yhat| / |y - mean(y)|)
+  NoiseModel noise;                // the measurement noise as a process, from the measured pressure alone
+  double noise_sigma_pa = 0;       // its total RMS (noise.sigma_pa): the error a perfect model leaves
+  std::string noise_method;        // noise.method
   double noise_floor_fit_pct = 0;  // the fit a perfect model would reach with that noise
   double y_spread_pa = 0;          // |y - mean(y)| / sqrt(N)
   ErrorStats error;
