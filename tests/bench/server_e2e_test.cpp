@@ -316,7 +316,7 @@ TEST(ServerEndToEnd, BadRequestsGetClearErrorsAndTheServerKeepsServing) {
                                     std::pair{json{{"mode", "noise"}, {"rms_kpa", 1e308}}, "rms_kpa"},
                                     std::pair{json{{"mode", "bias"}, {"bias_kpa", -10001}}, "bias_kpa"}}) {
     const auto reply = api.post("/api/inject/sensor", body);
-    expect_error(reply, 400, field);
+    expect_error(reply, 400, "is outside");
     EXPECT_EQ(reply.json().value("field", ""), field) << reply.body;
   }
   EXPECT_EQ(api.post("/api/inject/sensor", {{"mode", "noise"}, {"rms_kpa", 1}, {"duration_s", 0.1}}).status, 202);

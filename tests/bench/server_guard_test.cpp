@@ -28,26 +28,10 @@ using nlohmann::json;
 
 bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-int connect_to(int port, long wait_s = 30) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return -1;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  const timeval wait{wait_s, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
-  return fd;
-}
-
 // One raw exchange on its own connection (the request asks to close it, or is refused): the
 // reply's status line, headers and body. An upgrade that succeeds ends the read at its header.
 std::string raw_http(int port, const std::string& request) {
-  const int fd = connect_to(port);
+  const int fd = hil::test::connect_loopback(port);
   if (fd < 0) return "no connection";
   ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
   std::string reply;
@@ -457,7 +441,7 @@ TEST(ServerGuard, AReadingTelemetryClientOutlivesSeveralIdleTimeouts) {
   ServerProcess server({"--ws-idle-timeout-s", "1"});
   const int port = server.port();
   // A client that never answers: pinged, then closed.
-  const int fd = connect_to(port);
+  const int fd = hil::test::connect_loopback(port);
   ASSERT_GE(fd, 0);
   const std::string up = upgrade("Host: 127.0.0.1:" + std::to_string(port) + "\r\n");
   ASSERT_EQ(::send(fd, up.data(), up.size(), MSG_NOSIGNAL), static_cast<ssize_t>(up.size()));
@@ -512,7 +496,7 @@ TEST(ServerGuard, AbortIsAnsweredWithAThousandTelemetryClientsConnected) {
   std::vector<int> clients;
   const std::string host = "Host: 127.0.0.1:" + std::to_string(port) + "\r\n";
   for (int i = 0; i < 1000; ++i) {
-    const int fd = connect_to(port);
+    const int fd = hil::test::connect_loopback(port);
     ASSERT_GE(fd, 0) << i;
     const std::string up = upgrade(host, i % 2 == 0 ? "" : "Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n");
     ::send(fd, up.data(), up.size(), MSG_NOSIGNAL);

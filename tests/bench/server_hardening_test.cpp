@@ -436,27 +436,10 @@ TEST(ServerHardening, WatchersThatNeverReadDoNotCostTheRunAnyRow) {
   EXPECT_EQ(run["telemetry"]["rows_written"], 200000) << run.dump(2);
 }
 
-// A connected socket to the server; reads give up after `wait_s` (a failure, not a hang).
-int connect_raw(int port, long wait_s = 30) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return -1;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  const timeval wait{wait_s, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
-  return fd;
-}
-
 // One raw HTTP exchange on its own connection (the request must ask to close it): the reply's
 // status line and headers, and its body.
 std::string raw_exchange(int port, const std::string& request_for_host) {
-  const int fd = connect_raw(port);
+  const int fd = hil::test::connect_loopback(port);
   if (fd < 0) return "no connection";
   const std::string request = with_port(request_for_host, port);
   ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
@@ -1052,7 +1035,7 @@ TEST(ServerProtocol, TheFoxgloveSessionIdIsTheServersAndNoAddress) {
   std::vector<std::string> ids;
   std::vector<int> fds;
   for (int i = 0; i < 2; ++i) {  // both open at once: two sessions alive at two addresses
-    fds.push_back(connect_raw(server.port()));
+    fds.push_back(hil::test::connect_loopback(server.port()));
     std::string pending;
     ASSERT_TRUE(open_stream(fds.back(), upgrade_request("/api/telemetry", kFoxglove), pending));
     const auto info = next_message(fds.back(), pending);
@@ -1085,7 +1068,7 @@ std::string client_frame(std::uint8_t opcode, std::string_view payload) {
 // ping) is answered: those bytes were read by the HTTP session and lost at the hand-over.
 TEST(ServerProtocol, FramesSentWithTheUpgradeAreRead) {
   ServerProcess server;
-  const int fd = connect_raw(server.port(), 10);
+  const int fd = hil::test::connect_loopback(server.port(), 10);
   std::string pending;
   ASSERT_TRUE(open_stream(fd,
                           upgrade_request("/api/telemetry", kFoxglove) +
@@ -1121,7 +1104,7 @@ TEST(ServerProtocol, FramesSentWithTheUpgradeAreRead) {
 // queue was full of answers to its own bad requests).
 TEST(ServerProtocol, AnswersAClientDidNotReadAreNotCalledDroppedTelemetry) {
   ServerProcess server;  // idle: no telemetry flows at all
-  const int fd = connect_raw(server.port(), 3);
+  const int fd = hil::test::connect_loopback(server.port(), 3);
   const int small = 4096;  // the server's sends stall at once
   ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
   std::string pending;

@@ -5,6 +5,9 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -54,6 +57,24 @@ inline std::optional<int> wait_exit(pid_t pid, std::chrono::milliseconds timeout
 }
 
 inline std::string hilbench_exe() { return HILBENCH_EXE; }
+
+// A connected TCP socket to 127.0.0.1:port (-1 if refused); reads give up after `wait_s` (a
+// failure, not a hang). For raw exchanges the HTTP client would not send.
+inline int connect_loopback(int port, long wait_s = 30) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return -1;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  const timeval wait{wait_s, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &wait, sizeof wait);
+  return fd;
+}
 
 class ServerProcess {
  public:

@@ -11,6 +11,7 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include "hil/json_file.hpp"
 #include "hil/text_file.hpp"
 
 namespace hil::bench {
@@ -68,21 +69,6 @@ std::string parse_reason(const nlohmann::json::parse_error& e) {
   if (colon != std::string::npos) reason = reason.substr(colon + 2);
   if (const auto quote = reason.find("; last read:"); quote != std::string::npos) reason.resize(quote);
   return reason;
-}
-
-// "LINE:COLUMN" of the byte the parser stopped at (1-based; past the end for a cut text).
-std::string where(std::string_view text, std::size_t byte) {
-  const std::size_t at = std::min<std::size_t>(byte > 0 ? byte - 1 : 0, text.size());
-  std::size_t line = 1, column = 1;
-  for (std::size_t i = 0; i < at; ++i) {
-    if (text[i] == '\n') {
-      ++line;
-      column = 1;
-    } else {
-      ++column;
-    }
-  }
-  return std::to_string(line) + ":" + std::to_string(column);
 }
 
 }  // namespace
@@ -254,7 +240,7 @@ nlohmann::json parse_request_json(std::string_view text, std::size_t max_depth) 
   try {
     return nlohmann::json::parse(text, check);
   } catch (const nlohmann::json::parse_error& e) {
-    throw JsonRefused("parse error at " + where(text, e.byte) + ": " + parse_reason(e));
+    throw JsonRefused("parse error at " + json_error_position(text, e.byte) + ": " + parse_reason(e));
   } catch (const nlohmann::json::out_of_range&) {
     throw JsonRefused("a number is out of range (beyond a double)");
   } catch (const nlohmann::json::exception& e) {
@@ -334,7 +320,7 @@ nlohmann::json read_json_inside(const std::filesystem::path& base, const std::ve
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
-    throw std::runtime_error(name + ":" + where(text, e.byte) + ": not JSON: " + parse_reason(e));
+    throw std::runtime_error(name + ":" + json_error_position(text, e.byte) + ": not JSON: " + parse_reason(e));
   } catch (const nlohmann::json::exception&) {  // out_of_range: a number like 1e400
     throw std::runtime_error(name + ": not JSON: a number is out of range");
   }

@@ -16,5 +16,8 @@ nlohmann::json read_json_file(const std::filesystem::path& file);
 
 // The same for text already read; `origin` names it in errors.
 nlohmann::json parse_json_text(std::string_view text, const std::string& origin);
+// "LINE:COLUMN" (1-based) of the byte a JSON parser stopped at (parse_error::byte: 1-based, past
+// the end for a cut text).
+std::string json_error_position(std::string_view text, std::size_t byte);
 
 }  // namespace hil
