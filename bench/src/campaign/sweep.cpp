@@ -490,19 +490,18 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   axes.require(axes.is_sequence() && !axes.items().empty(), "needs a list of axes");
   std::set<std::string> seen;
   const std::string campaign_name = campaign_file.filename().string(), plant_name = base.plant_file.filename().string();
-  for (const Node& a : axes.items()) {
-    plan.axes.push_back(read_axis(a, campaign_tree, plant_tree, campaign_name, plant_name));
-    const auto p = parse_path(plan.axes.back().path);
-    std::string canonical = (p->plant ? "plant" : "campaign") + describe(p->steps, p->steps.size());
-    a.at("path").require(seen.insert(canonical).second, "two axes set the same value");
-  }
-  // An increment adds to a value an absolute axis set (or the campaign's own): one whose base is
-  // itself an increment would depend on the order the increments are applied in, and two that
-  // name each other (a cycle) ran with whatever that order made.
+  // The value a (valid) axis path names, however it is spelled.
   const auto canonical_of = [](const std::string& path) {
     const auto p = parse_path(path);
     return (p->plant ? "plant" : "campaign") + describe(p->steps, p->steps.size());
   };
+  for (const Node& a : axes.items()) {
+    plan.axes.push_back(read_axis(a, campaign_tree, plant_tree, campaign_name, plant_name));
+    a.at("path").require(seen.insert(canonical_of(plan.axes.back().path)).second, "two axes set the same value");
+  }
+  // An increment adds to a value an absolute axis set (or the campaign's own): one whose base is
+  // itself an increment would depend on the order the increments are applied in, and two that
+  // name each other (a cycle) ran with whatever that order made.
   for (std::size_t i = 0; i < plan.axes.size(); ++i) {
     if (plan.axes[i].relative_to.empty()) continue;
     const std::string base = canonical_of(plan.axes[i].relative_to);

@@ -325,19 +325,20 @@ void check_injection(const LoopRequest& r) {
   const auto within = [](double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; };
   if (!within(r.duration_s, 0, kMaxInjectionS)) {
     throw BadField("duration_s",
-                   fmt::format("duration {} s is outside 0..{} s (0 = until cleared)", r.duration_s, kMaxInjectionS));
+                   fmt::format("'duration_s' {} s is outside 0..{} s (0 = until cleared)", r.duration_s, kMaxInjectionS));
   }
   if (r.kind == K::set_gap && !within(r.value, 0, units::deg_to_rad(kMaxInjectedGapDeg))) {
-    throw BadField("gap_deg", fmt::format("gap {} deg is outside 0..{} deg", units::rad_to_deg(r.value), kMaxInjectedGapDeg));
+    throw BadField("gap_deg",
+                   fmt::format("'gap_deg' {} deg is outside 0..{} deg", units::rad_to_deg(r.value), kMaxInjectedGapDeg));
   }
   if (r.kind == K::sensor_fault && r.sensor == SensorFault::bias &&
       !within(r.value, -kMaxSensorBiasKpa * units::kPaPerKpa, kMaxSensorBiasKpa * units::kPaPerKpa)) {
-    throw BadField("bias_kpa", fmt::format("bias {} kPa is outside -{}..{} kPa", r.value / units::kPaPerKpa, kMaxSensorBiasKpa,
-                                           kMaxSensorBiasKpa));
+    throw BadField("bias_kpa", fmt::format("'bias_kpa' {} kPa is outside -{}..{} kPa", r.value / units::kPaPerKpa,
+                                           kMaxSensorBiasKpa, kMaxSensorBiasKpa));
   }
   if (r.kind == K::sensor_fault && r.sensor == SensorFault::noise && !within(r.value, 0, kMaxSensorNoiseKpa * units::kPaPerKpa)) {
     throw BadField("rms_kpa",
-                   fmt::format("noise {} kPa RMS is outside 0..{} kPa", r.value / units::kPaPerKpa, kMaxSensorNoiseKpa));
+                   fmt::format("'rms_kpa' {} kPa RMS is outside 0..{} kPa", r.value / units::kPaPerKpa, kMaxSensorNoiseKpa));
   }
 }
 
