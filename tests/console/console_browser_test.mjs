@@ -216,7 +216,7 @@ async function main() {
   await page.$eval("#gap-deg", (input) => (input.value = "20"));
   await page.click("#inject-gap");
   await page.click("#confirm-yes");
-  await waitFor(page, "the refusal shown with its reason", () => /refused \(400\).*'gap_deg' must be 0\.\.10/.test(document.getElementById("message").textContent));
+  await waitFor(page, "the refusal shown with its reason", () => /refused \(400\).*'gap_deg' 20 deg is outside 0\.\.10 deg/.test(document.getElementById("message").textContent));
   const expectedRefusal = (p) => /inject\/gap/.test(p) && /400/.test(p) || /status of 400/.test(p);
 
   // The true gap in the gap plot's own data, before and after the injection.
