@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
 
 #include "hil/bench/rt/recorder.hpp"
 #include "hil/bench/server/runner.hpp"
@@ -303,4 +304,47 @@ TEST(InterruptedRuns, ARecordLeftInItsTemporaryIsTheRunsRecord) {
     for (const auto& f : std::filesystem::directory_iterator(dir))
       EXPECT_FALSE(f.path().filename().string().starts_with(".run.json.tmp")) << f.path();
   }
+}
+
+// Issue 38 (the scan a server makes at its start): a run folder is hostile input. A folder that is a
+// symbolic link to one outside the runs folder, or a run's telemetry.csv and events.jsonl linked to
+// files elsewhere, were followed: the scan trimmed, counted and appended to the files outside
+// (the server runs as root). A run.json nested 20 000 deep was parsed unbounded. Now none of these
+// is followed or parsed; the run whose files are links is still marked, from what is its own.
+TEST(InterruptedRuns, NoLinkIsFollowedAndNoRunJsonParsedUnbounded) {
+  const hil::test::TempDir runs, outside;
+  // A folder outside, shaped like a crashed run, reached through a link in the runs folder.
+  const auto elsewhere = crashed_run(outside.path(), "elsewhere");
+  std::filesystem::create_directory_symlink(elsewhere, runs.path() / "20261129T080000Z_linked_folder");
+  // A crashed run whose telemetry and events are links to files outside, each with a cut last line.
+  const std::string victim_text = "root:x:0:0:root:/root:/bin/bash\nno newline at the end";
+  for (const char* name : {"victim.csv", "victim.jsonl"}) std::ofstream(outside.path() / name) << victim_text;
+  const auto linked_files = crashed_run(runs.path(), "20261129T080100Z_linked_files");
+  std::filesystem::remove(linked_files / "telemetry.csv");
+  std::filesystem::create_symlink(outside.path() / "victim.csv", linked_files / "telemetry.csv");
+  std::filesystem::create_symlink(outside.path() / "victim.jsonl", linked_files / "events.jsonl");
+  // A run.json nested 20 000 deep.
+  const auto deep = runs.path() / "20261129T080200Z_deep";
+  std::filesystem::create_directories(deep);
+  std::ofstream(deep / "run.json") << std::string(20000, '[') << std::string(20000, ']');
+
+  const auto marked = mark_interrupted_runs(runs.path());
+  ASSERT_EQ(marked.size(), 1u);
+  EXPECT_EQ(marked[0], linked_files);
+  // Nothing outside changed: the linked folder's record still says running, its reserve is kept,
+  // and the victims keep their cut last line and get no appended event.
+  EXPECT_EQ(read_run_record(elsewhere).outcome, Outcome::running);
+  EXPECT_TRUE(std::filesystem::exists(elsewhere / ".reserve"));
+  for (const char* name : {"victim.csv", "victim.jsonl"}) {
+    std::ifstream in(outside.path() / name);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text, victim_text) << name;
+  }
+  // The run with linked files: marked from its own run.json, no rows counted from the link.
+  const RunRecord r = read_run_record(linked_files);
+  EXPECT_EQ(r.outcome, Outcome::interrupted);
+  ASSERT_TRUE(r.telemetry.has_value());
+  EXPECT_EQ(r.telemetry->rows_written, 0u);
+  // The deep run.json is left as it is (unreadable), and not parsed.
+  EXPECT_TRUE(std::filesystem::exists(deep / "run.json"));
 }

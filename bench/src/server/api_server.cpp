@@ -767,14 +767,6 @@ std::string new_session_id() {
 
 namespace {
 
-// A run folder's run.json as a record: opened without following a link, bounded in size and
-// nesting before it is parsed (a run.json nested 20 000 deep held the server 7 s and 800 MB), and
-// an error never quotes the file (request_guard.hpp read_json_inside).
-RunRecord read_record(const std::filesystem::path& dir) {
-  return RunRecord::from_json(read_json_inside(dir.parent_path(), {dir.filename().string(), "run.json"}),
-                              (dir / "run.json").string());
-}
-
 // Whether runs_dir/id is a run folder: a plain name, a folder itself (not a link to one
 // elsewhere), holding a run.json (of any kind: reading it says what is wrong with it).
 bool is_run_dir(const std::filesystem::path& runs_dir, const std::string& id) {
@@ -902,7 +894,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   // A run folder's record as the API shows it: its run.json, or, while that file still says
   // "running" for a run this server ended, the end the runner keeps (CampaignRunner::unrecorded_end).
   RunRecord record_of(const std::filesystem::path& dir) const {
-    RunRecord r = read_record(dir);
+    RunRecord r = read_run_record_inside(dir);
     if (r.outcome == Outcome::running) {
       if (auto end = runner.unrecorded_end(dir.filename().string())) return std::move(end->record);
     }
@@ -1276,7 +1268,7 @@ std::filesystem::path ApiServer::Impl::ended_run(const std::string& id, RunRecor
   }
   RunRecord r;
   try {
-    r = read_record(dir);
+    r = read_run_record_inside(dir);
   } catch (const std::exception& e) {
     throw ApiError{http::status::unprocessable_entity, "unreadable run.json", e.what()};
   }

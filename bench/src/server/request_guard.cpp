@@ -335,4 +335,9 @@ bool resolves_inside(const std::filesystem::path& file, const std::filesystem::p
   return !rel.empty() && *rel.begin() != ".." && rel != ".";
 }
 
+RunRecord read_run_record_inside(const std::filesystem::path& dir) {
+  return RunRecord::from_json(read_json_inside(dir.parent_path(), {dir.filename().string(), "run.json"}),
+                              (dir / "run.json").string());
+}
+
 }  // namespace hil::bench

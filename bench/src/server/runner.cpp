@@ -22,6 +22,7 @@
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
 #include "hil/units.hpp"
+#include "run_folder.hpp"
 
 namespace hil::bench {
 namespace {
@@ -54,29 +55,7 @@ std::string hostname() {
 // Space kept free in each run folder while the run lasts, and given back just before the final
 // run.json is written: so a disk that the telemetry filled still takes the run's honest record.
 constexpr std::uintmax_t kReserveBytes = 1u << 20;
-// The event a run logs when its final run.json cannot be written (its outcome, reason, error).
-constexpr const char* kFinalRecordUnwritten = "final_record_unwritten";
 constexpr double kBytesPerRow = 160;  // a loop telemetry row is about 110-140 characters
-
-// A run folder's `.lock` (a hil::FileLock), held by the process running the run and released when
-// it ends or dies: what tells a run that is running from one whose server is gone.
-std::filesystem::path run_lock_file(const std::filesystem::path& dir) { return dir / ".lock"; }
-
-// Telemetry rows in a CSV on disk: lines that are neither metadata (#) nor the header.
-std::uint64_t csv_rows(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::uint64_t rows = 0;
-  bool header = false;
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    if (!header) {
-      header = true;
-      continue;
-    }
-    ++rows;
-  }
-  return rows;
-}
 
 std::filesystem::path unique_dir(const std::filesystem::path& base) {
   std::filesystem::path p = base;
@@ -748,139 +727,6 @@ std::optional<CampaignRunner::UnrecordedEnd> CampaignRunner::unrecorded_end(cons
                         "restores it from events.jsonl";
   }
   return end;
-}
-
-namespace {
-
-// The last line of a run's events.jsonl when it is the kFinalRecordUnwritten event, else null.
-json final_event_unrecorded(const std::filesystem::path& events) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(events, ec)) return nullptr;
-  const std::string text = read_text_file(events, "an event log");
-  if (text.empty()) return nullptr;
-  const auto from = text.rfind('\n', text.size() - 2);
-  const json last =
-      json::parse(text.begin() + static_cast<long>(from == std::string::npos ? 0 : from + 1), text.end(), nullptr, false);
-  if (last.is_discarded() || !last.is_object() || last.value("kind", "") != kFinalRecordUnwritten) return nullptr;
-  return last;
-}
-
-// What a server that died left of a replacement of run.json (replace_file writes
-// ".run.json.tmp<pid>-<n>" whole, then renames it over run.json): the newest such file that reads
-// as a run record; every such file is removed. It is the last thing that server said of the run:
-// newer than a run.json that still says running, and all there is when the server died before
-// its first rename (the folder then had no run.json and the run was listed nowhere).
-std::optional<RunRecord> take_unrenamed_record(const std::filesystem::path& dir) {
-  std::optional<RunRecord> newest;
-  std::filesystem::file_time_type newest_time{};
-  std::vector<std::filesystem::path> leftovers;
-  std::error_code ec;
-  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
-    if (f.is_regular_file() && is_temporary_of(f.path(), dir / "run.json")) leftovers.push_back(f.path());
-  }
-  for (const auto& file : leftovers) {
-    try {
-      RunRecord r = RunRecord::from_json(read_json_file(file), file.string());
-      const auto t = std::filesystem::last_write_time(file);
-      if (!newest || t > newest_time) newest = std::move(r), newest_time = t;
-    } catch (const std::exception& ex) {
-      spdlog::warn("{}: a half-written run record of a server that died ({}); removed", file.string(), ex.what());
-    }
-    std::filesystem::remove(file, ec);
-  }
-  return newest;
-}
-
-}  // namespace
-
-std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
-  std::vector<std::filesystem::path> marked;
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
-    const auto dir = e.path();
-    if (!e.is_directory() || !FileLock::free(run_lock_file(dir))) continue;  // a live server's run
-    const bool has_record = std::filesystem::is_regular_file(dir / "run.json");
-    std::optional<RunRecord> unrenamed;
-    if (has_record || std::filesystem::exists(dir / ".reserve")) unrenamed = take_unrenamed_record(dir);
-    if (!has_record && !unrenamed) {
-      if (std::filesystem::remove(dir / ".reserve", ec)) {
-        spdlog::warn("{}: a run folder whose server died before it wrote any record of the run; its reserve is freed",
-                     dir.string());
-      }
-      continue;
-    }
-    RunRecord info;
-    try {
-      info = read_run_record(dir);
-    } catch (const std::exception& ex) {
-      if (!unrenamed) {
-        spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
-        continue;
-      }
-    }
-    if (unrenamed && (!has_record || info.outcome == Outcome::running)) {
-      info = std::move(*unrenamed);
-      spdlog::warn("{}: the record its server wrote last was not yet in place; taken as the run's record", dir.string());
-      if (info.outcome != Outcome::running) {
-        std::filesystem::remove(dir / ".reserve", ec);
-        write_run_record(dir, info);
-        continue;  // the run's end, as its server wrote it
-      }
-    }
-    if (info.outcome != Outcome::running) continue;
-    try {
-      // The reserve is freed first: on a full disk it is the room the lines below need.
-      std::filesystem::remove(dir / ".reserve", ec);
-      // What is on disk is the record: a line cut by the crash is removed and counted.
-      json trimmed = json::object();
-      for (const char* file : {"telemetry.csv", "events.jsonl"}) {
-        if (std::filesystem::is_regular_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
-      }
-      const auto csv = dir / "telemetry.csv";
-      const std::uint64_t rows = std::filesystem::is_regular_file(csv) ? csv_rows(csv) : 0;
-      const auto last_write = std::filesystem::is_regular_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
-      const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
-      const std::string found = utc_iso(SysClock::now());
-      const json end = final_event_unrecorded(dir / "events.jsonl");
-      if (!end.is_null()) {  // the run ended; only its final run.json was not written
-        info.outcome = outcome_from(end.value("outcome", "interrupted"));
-        info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +
-                      "its final run.json could not be written (" + end.value("error", "?") +
-                      ") and was restored from events.jsonl by a server started at " + found;
-      } else {
-        info.outcome = Outcome::interrupted;
-        info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
-                      ") ended during the run, or could not write anything at its end; found by a server started at " + found;
-      }
-      info.stop_utc = utc_iso(last_utc);
-      info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
-      // Only what the files show: the counts the dead process kept are unknown, and left out.
-      RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
-      tel.rows_written = rows;
-      if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
-      info.telemetry = tel;
-      if (std::filesystem::is_regular_file(dir / "events.jsonl")) {
-        try {
-          LineFile events(dir / "events.jsonl", /*append=*/true);
-          events.append(
-              json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
-                  .dump() +
-              "\n");
-        } catch (const std::exception& ex) {
-          // The record matters more than the event line: say so in it, and write it.
-          info.interrupted["event_unwritten"] = ex.what();
-          spdlog::error("{}: the interrupted event could not be appended ({}); the run's record says so", dir.string(),
-                        ex.what());
-        }
-      }
-      write_run_record(dir, info);
-      marked.push_back(dir);
-    } catch (const std::exception& ex) {
-      spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());
-    }
-  }
-  std::sort(marked.begin(), marked.end());
-  return marked;
 }
 
 }  // namespace hil::bench

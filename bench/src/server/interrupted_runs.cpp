@@ -1,0 +1,187 @@
+// A server's start: run folders whose run.json still says "running" although no live process
+// holds their lock were left by a server that died. Each is given an honest record of what is on
+// disk. The folder is hostile input like any other: a symbolic link (the folder, its run.json,
+// its telemetry or events) is never followed, so nothing outside the runs folder is read, trimmed
+// or written, and run.json is bounded in size and nesting before it is parsed.
+#include <algorithm>
+
+#include <fstream>
+#include <optional>
+
+#include <spdlog/spdlog.h>
+
+#include "hil/bench/rt/run_record.hpp"
+#include "hil/bench/server/runner.hpp"
+#include "hil/file_lock.hpp"
+#include "hil/json_file.hpp"
+#include "hil/line_file.hpp"
+#include "request_guard.hpp"
+#include "run_folder.hpp"
+
+namespace hil::bench {
+namespace {
+
+using nlohmann::json;
+using SysClock = std::chrono::system_clock;
+
+constexpr std::streamoff kEventTailBytes = 64 * 1024;  // an event line is a few hundred bytes
+
+// A plain file: not a symbolic link (whatever it points to), not a folder.
+bool plain_file(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::symlink_status(p, ec).type() == std::filesystem::file_type::regular;
+}
+
+// Telemetry rows in a CSV on disk: lines that are neither metadata (#) nor the header.
+std::uint64_t csv_rows(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::uint64_t rows = 0;
+  bool header = false;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      header = true;
+      continue;
+    }
+    ++rows;
+  }
+  return rows;
+}
+
+// The last line of a run's events.jsonl when it is the kFinalRecordUnwritten event, else null.
+json final_event_unrecorded(const std::filesystem::path& events) {
+  if (!plain_file(events)) return nullptr;
+  // Only its tail: an event log of a long run is large, and its last line is all that matters.
+  std::ifstream in(events, std::ios::binary);
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff from_byte = std::max<std::streamoff>(0, size - kEventTailBytes);
+  in.seekg(from_byte);
+  std::string text(static_cast<std::size_t>(size - from_byte), '\0');
+  if (!in.read(text.data(), static_cast<std::streamsize>(text.size())) || text.size() < 2) return nullptr;
+  const auto from = text.rfind('\n', text.size() - 2);
+  const json last =
+      json::parse(text.begin() + static_cast<long>(from == std::string::npos ? 0 : from + 1), text.end(), nullptr, false);
+  if (last.is_discarded() || !last.is_object() || last.value("kind", "") != kFinalRecordUnwritten) return nullptr;
+  return last;
+}
+
+// What a server that died left of a replacement of run.json (replace_file writes
+// ".run.json.tmp<pid>-<n>" whole, then renames it over run.json): the newest such file that reads
+// as a run record; every such file is removed. It is the last thing that server said of the run:
+// newer than a run.json that still says running, and all there is when the server died before
+// its first rename (the folder then had no run.json and the run was listed nowhere).
+std::optional<RunRecord> take_unrenamed_record(const std::filesystem::path& dir) {
+  std::optional<RunRecord> newest;
+  std::filesystem::file_time_type newest_time{};
+  std::vector<std::filesystem::path> leftovers;
+  std::error_code ec;
+  for (const auto& f : std::filesystem::directory_iterator(dir, ec)) {
+    if (plain_file(f.path()) && is_temporary_of(f.path(), dir / "run.json")) leftovers.push_back(f.path());
+  }
+  for (const auto& file : leftovers) {
+    try {
+      RunRecord r = RunRecord::from_json(read_json_inside(dir, {file.filename().string()}), file.string());
+      const auto t = std::filesystem::last_write_time(file);
+      if (!newest || t > newest_time) newest = std::move(r), newest_time = t;
+    } catch (const std::exception& ex) {
+      spdlog::warn("{}: a half-written run record of a server that died ({}); removed", file.string(), ex.what());
+    }
+    std::filesystem::remove(file, ec);
+  }
+  return newest;
+}
+
+}  // namespace
+
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
+  std::vector<std::filesystem::path> marked;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
+    const auto dir = e.path();
+    if (e.is_symlink() || !e.is_directory() || !FileLock::free(run_lock_file(dir))) continue;  // a live server's run
+    const bool has_record = plain_file(dir / "run.json");
+    std::optional<RunRecord> unrenamed;
+    if (has_record || std::filesystem::exists(dir / ".reserve")) unrenamed = take_unrenamed_record(dir);
+    if (!has_record && !unrenamed) {
+      if (std::filesystem::remove(dir / ".reserve", ec)) {
+        spdlog::warn("{}: a run folder whose server died before it wrote any record of the run; its reserve is freed",
+                     dir.string());
+      }
+      continue;
+    }
+    RunRecord info;
+    try {
+      info = read_run_record_inside(dir);
+    } catch (const std::exception& ex) {
+      if (!unrenamed) {
+        spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
+        continue;
+      }
+    }
+    if (unrenamed && (!has_record || info.outcome == Outcome::running)) {
+      info = std::move(*unrenamed);
+      spdlog::warn("{}: the record its server wrote last was not yet in place; taken as the run's record", dir.string());
+      if (info.outcome != Outcome::running) {
+        std::filesystem::remove(dir / ".reserve", ec);
+        write_run_record(dir, info);
+        continue;  // the run's end, as its server wrote it
+      }
+    }
+    if (info.outcome != Outcome::running) continue;
+    try {
+      // The reserve is freed first: on a full disk it is the room the lines below need.
+      std::filesystem::remove(dir / ".reserve", ec);
+      // What is on disk is the record: a line cut by the crash is removed and counted.
+      json trimmed = json::object();
+      for (const char* file : {"telemetry.csv", "events.jsonl"}) {
+        if (plain_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
+      }
+      const auto csv = dir / "telemetry.csv";
+      const std::uint64_t rows = plain_file(csv) ? csv_rows(csv) : 0;
+      const auto last_write = plain_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
+      const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
+      const std::string found = utc_iso(SysClock::now());
+      const json end = final_event_unrecorded(dir / "events.jsonl");
+      if (!end.is_null()) {  // the run ended; only its final run.json was not written
+        info.outcome = outcome_from(end.value("outcome", "interrupted"));
+        info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +
+                      "its final run.json could not be written (" + end.value("error", "?") +
+                      ") and was restored from events.jsonl by a server started at " + found;
+      } else {
+        info.outcome = Outcome::interrupted;
+        info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
+                      ") ended during the run, or could not write anything at its end; found by a server started at " + found;
+      }
+      info.stop_utc = utc_iso(last_utc);
+      info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
+      // Only what the files show: the counts the dead process kept are unknown, and left out.
+      RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
+      tel.rows_written = rows;
+      if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
+      info.telemetry = tel;
+      if (plain_file(dir / "events.jsonl")) {
+        try {
+          LineFile events(dir / "events.jsonl", /*append=*/true);
+          events.append(
+              json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
+                  .dump() +
+              "\n");
+        } catch (const std::exception& ex) {
+          // The record matters more than the event line: say so in it, and write it.
+          info.interrupted["event_unwritten"] = ex.what();
+          spdlog::error("{}: the interrupted event could not be appended ({}); the run's record says so", dir.string(),
+                        ex.what());
+        }
+      }
+      write_run_record(dir, info);
+      marked.push_back(dir);
+    } catch (const std::exception& ex) {
+      spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());
+    }
+  }
+  std::sort(marked.begin(), marked.end());
+  return marked;
+}
+
+}  // namespace hil::bench
