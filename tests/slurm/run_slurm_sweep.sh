@@ -5,8 +5,11 @@
 # must report every task and the aggregation COMPLETED), and checks that
 #   - sweep.csv is byte for byte the one a local sweep of the same file writes,
 #   - `hilbench sweep --status` reports every point done and each task's last progress line,
-#   - after one shard's rows are deleted, resubmitting the same command runs that shard only
-#     (the other shards' rows files are not touched) and gives the same sweep.csv again,
+#   - a resubmission with --time and --cpus-per-task reaches Slurm with both (scontrol show job);
+#     its task 1 fails (its rows file lost and a folder in its place): --status exits 1 naming
+#     the task and the aggregation's error, and says the command that resubmits; that command,
+#     once the folder is gone, runs that shard only (the other shards' rows files are not
+#     touched), gives the same sweep.csv again, and the failed attempt's log survives,
 #   - resubmitting a complete sweep submits nothing.
 # The daemons are always stopped; on failure their logs and the jobs' logs are printed.
 #   run_slurm_sweep.sh HILBENCH SOURCE_DIR
@@ -83,10 +86,11 @@ wait_for_queue_empty() {
   fail "$what: jobs still queued or running after $wait_s s: $queue"
 }
 
-# Submits the sweep; sets array_id (empty when nothing was submitted).
+# Submits the sweep (sbatch options after the log's name); sets array_id (empty when nothing was submitted).
 submit() {
   local log=$1
-  "$hilbench" sweep "$here/small.yaml" --out "$slurm_out" --slurm --tasks 3 >"$log.out" 2>"$log.err" ||
+  shift
+  "$hilbench" sweep "$here/small.yaml" --out "$slurm_out" --slurm --tasks 3 "$@" >"$log.out" 2>"$log.err" ||
     fail "hilbench sweep --slurm failed: $(cat "$log.out" "$log.err")"
   cat "$log.out" "$log.err"
   array_id=$(awk '$1 == "array" { print $2 }' "$log.out")
@@ -141,7 +145,7 @@ for task in "0 3" "1 3" "2 2"; do
     fail "--status does not show task $i's last progress line (100 %, $n/$n points)"
 done
 
-echo "== resubmit after losing shard 1's rows"
+echo "== a task that fails: shard 1's rows lost, and a folder where its rows file goes"
 rows=$slurm_out/rows
 for i in 0 1 2; do
   [[ -s "$rows/shard-$i-of-3.jsonl" ]] || fail "no rows file $rows/shard-$i-of-3.jsonl after the array ran"
@@ -150,12 +154,42 @@ before0=$(stat -c '%y %s' "$rows/shard-0-of-3.jsonl")
 before2=$(stat -c '%y %s' "$rows/shard-2-of-3.jsonl")
 shard1_rows=$(wc -l <"$rows/shard-1-of-3.jsonl")
 rm "$rows/shard-1-of-3.jsonl"
-status=$("$hilbench" sweep --status "$slurm_out" 2>&1) || fail "hilbench sweep --status failed: $status"
+mkdir "$rows/shard-1-of-3.jsonl"
+status=$("$hilbench" sweep --status "$slurm_out" 2>&1) && fail "--status exited 0 with points missing: $status"
 echo "$status"
 grep -q "$((8 - shard1_rows)) of 8 points done" <<<"$status" ||
   fail "--status does not report $((8 - shard1_rows))/8 points done after deleting shard 1's rows"
-submit "$work/submit2"
+# sbatch options pass through: a time limit, and two CPUs per task (one on a one-CPU machine).
+cpus=$(($(nproc) >= 2 ? 2 : 1))
+submit "$work/submit2" --time 10 --cpus-per-task "$cpus"
 [[ -n "$array_id" ]] || fail "the resubmission submitted no array job"
+job=$(scontrol show job "$array_id")
+grep -q "TimeLimit=00:10:00" <<<"$job" || fail "--time 10 did not reach the array job: $(grep -o 'TimeLimit=[^ ]*' <<<"$job")"
+grep -q "CPUs/Task=$cpus" <<<"$job" || fail "--cpus-per-task $cpus did not reach the array job: $(grep -o 'CPUs/Task=[^ ]*' <<<"$job")"
+wait_for_queue_empty "the failing resubmission"
+failed_array=$array_id
+failed_log=$slurm_out/slurm/logs/shard-${failed_array}_1.err
+[[ -s "$failed_log" ]] || fail "the failed task left no log $failed_log"
+set +e
+status=$("$hilbench" sweep --status "$slurm_out" 2>&1)
+rc=$?
+set -e
+echo "$status"
+((rc == 1)) || fail "--status exited $rc with a failed task and points missing (expected 1)"
+grep -q "FAILED: array job ${failed_array}_1 FAILED" <<<"$status" || fail "--status does not name the failed task ${failed_array}_1"
+grep -q "aggregation job $aggregate_id said: .*points missing" <<<"$status" || fail "--status does not show the aggregation's error"
+resubmit=$(grep -A1 "to run what is missing:" <<<"$status" | tail -n 1 | sed 's/^ *hilbench //')
+[[ "$resubmit" == "sweep --out "* ]] || fail "--status does not say the command that resubmits: $resubmit"
+grep -q -- "--time '10' --cpus-per-task $cpus" <<<"$resubmit" || fail "the resubmit command lost the sbatch options: $resubmit"
+failed_text=$(cat "$failed_log")
+
+echo "== the resubmit command --status gave, after the cause is removed"
+rmdir "$rows/shard-1-of-3.jsonl"
+eval "\"\$hilbench\" $resubmit" >"$work/submit3.out" 2>"$work/submit3.err" ||
+  fail "the resubmit command failed: $(cat "$work/submit3.out" "$work/submit3.err")"
+array_id=$(awk '$1 == "array" { print $2 }' "$work/submit3.out")
+aggregate_id=$(awk '$1 == "aggregate" { print $2 }' "$work/submit3.out")
+[[ -n "$array_id" ]] || fail "the resubmit command submitted no array job"
 wait_for_queue_empty "resubmission"
 completed "$array_id"
 completed "$aggregate_id"
@@ -166,10 +200,13 @@ completed "$aggregate_id"
 [[ "$(wc -l <"$rows/shard-1-of-3.jsonl")" == "$shard1_rows" ]] ||
   fail "the resubmission did not run shard 1's $shard1_rows points again"
 cmp "$local_out/sweep.csv" "$slurm_out/sweep.csv" || fail "sweep.csv after the resubmission differs from the local one"
+[[ "$(cat "$failed_log")" == "$failed_text" ]] || fail "the failed attempt's log $failed_log did not survive the resubmission"
+status=$("$hilbench" sweep --status "$slurm_out" 2>&1) || fail "--status exited $? on a complete sweep: $status"
+grep -q "task 1: .*\[attempt 3; earlier logs kept\]" <<<"$status" || fail "--status does not say task 1 ran three times: $status"
 
 echo "== resubmit a complete sweep: nothing to run"
 jobs_before=$(scontrol show jobs --oneliner | grep -c '^JobId=')
-submit "$work/submit3"
+submit "$work/submit4"
 [[ -z "$array_id" ]] || fail "a complete sweep was submitted again (array job $array_id)"
 jobs_after=$(scontrol show jobs --oneliner | grep -c '^JobId=')
 ((jobs_after == jobs_before)) || fail "a complete sweep submitted $((jobs_after - jobs_before)) jobs"

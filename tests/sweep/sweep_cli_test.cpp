@@ -248,8 +248,10 @@ TEST(Sweep, DamagedRowLinesAreShownAndTheirPointsRunAgain) {
   std::ofstream(rows, std::ios::binary | std::ios::trunc) << text;
 
   const auto status = run_command(hilbench() + " sweep --status " + q(out));
-  EXPECT_EQ(status.status, 0) << status.output;
+  EXPECT_EQ(status.status, 1) << "a point is missing: " << status.output;
   EXPECT_NE(status.output.find("5 of 6 points done, 1 missing"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("to run what is missing: hilbench sweep --out '" + out.string() + "'"), std::string::npos)
+      << status.output;
   EXPECT_NE(status.output.find("2 line(s) in " + (out / "rows").string() + " are no row of this sweep"), std::string::npos)
       << status.output;
   const auto rerun = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --quiet");
@@ -581,7 +583,7 @@ TEST(Sweep, ShardsAndAggregateGiveTheLocalSweep) {
   ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 1/4 --quiet").status, 0);
   ASSERT_EQ(run_command(hilbench() + " sweep --out " + q(sharded) + " --shard 3/4 --quiet").status, 0);
   const auto status = run_command(hilbench() + " sweep --status " + q(sharded));
-  EXPECT_EQ(status.status, 0);
+  EXPECT_EQ(status.status, 1) << "a point is missing";
   EXPECT_NE(status.output.find("5 of 6 points done, 1 missing"), std::string::npos) << status.output;
   // Shard 2 of 4 (point 2 alone of 0..5) is missing: nothing final is written.
   const auto partial = run_command(hilbench() + " sweep --out " + q(sharded) + " --aggregate");
@@ -625,39 +627,86 @@ TEST(Sweep, SlurmSubmitsAnArrayAndAnAggregationJobAfterIt) {
   const auto log = dir.path() / "sbatch.log";
   dir.write("bin/sbatch",
             "#!/bin/sh\necho \"$@\" >> " + q(log) + "\ncase \"$*\" in *--array*) echo 101;; *) echo '102;cluster';; esac\n");
-  dir.write("bin/squeue", "#!/bin/sh\n[ \"$3\" = 101 ] && { echo RUNNING; echo PENDING; echo PENDING; }\nexit 0\n");
-  fs::permissions(bin / "sbatch", fs::perms::owner_all);
-  fs::permissions(bin / "squeue", fs::perms::owner_all);
+  // squeue -h -r -j ID -o '%i|%T': one line per task still queued; the aggregation job is gone.
+  dir.write("bin/squeue",
+            "#!/bin/sh\ncase \"$*\" in *101*) echo '101_0|RUNNING'; echo '101_2|PENDING'; echo '101_4|PENDING';; esac\nexit 0\n");
+  // No accounting (sacct fails) and slurmctld forgot nothing yet (scontrol fails: no such config).
+  dir.write("bin/sacct", "#!/bin/sh\necho 'sacct: error: Slurm accounting storage is disabled' >&2\nexit 1\n");
+  dir.write("bin/scontrol", "#!/bin/sh\nexit 1\n");
+  for (const char* tool : {"sbatch", "squeue", "sacct", "scontrol"}) fs::permissions(bin / tool, fs::perms::owner_all);
   const std::string env = "PATH=" + q(bin) + ":\"$PATH\" ";
   const auto out = dir.path() / "out";
   const auto sweep = source_path("tests/sweep/small.yaml");
   // Shard 1 of 3 (points 1 and 4) already done: only shards 0 and 2 are submitted.
   ASSERT_EQ(run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(out) + " --shard 1/3 --quiet").status, 0);
   const auto r = run_command(env + hilbench() + " sweep " + q(sweep) + " --out " + q(out) +
-                             " --slurm --tasks 3 --max-parallel 2 --partition debug");
+                             " --slurm --tasks 3 --max-parallel 2 --partition debug --time 1:30:00 --mem 2G --account lab"
+                             " --qos short --cpus-per-task 2 --sbatch-arg=--constraint=avx2");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("array 101"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("aggregate 102"), std::string::npos) << r.output;
   const std::string calls = slurp(log);
-  EXPECT_NE(calls.find("--parsable --partition=debug --array=0,2%2 " + (out / "slurm" / "array.sh").string()), std::string::npos)
+  // The resources go to both jobs; the CPUs per task to the array's tasks only.
+  const std::string resources =
+      "--parsable --partition=debug --time=1:30:00 --mem=2G --account=lab --qos=short --constraint=avx2 ";
+  EXPECT_NE(calls.find(resources + "--cpus-per-task=2 --array=0,2%2 " + (out / "slurm" / "array.sh").string()), std::string::npos)
       << calls;
-  EXPECT_NE(calls.find("--parsable --partition=debug --dependency=afterany:101 " + (out / "slurm" / "aggregate.sh").string()),
-            std::string::npos)
+  EXPECT_NE(calls.find(resources + "--dependency=afterany:101 " + (out / "slurm" / "aggregate.sh").string()), std::string::npos)
       << calls;
   const std::string array = slurp(out / "slurm" / "array.sh");
   EXPECT_NE(array.find(fs::canonical(hilbench()).string()), std::string::npos) << array;
-  EXPECT_NE(array.find("--shard \"${SLURM_ARRAY_TASK_ID}/3\""), std::string::npos) << array;
+  EXPECT_NE(array.find("--shard \"${SLURM_ARRAY_TASK_ID}/3\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\""), std::string::npos) << array;
+  // A log per attempt: a resubmission keeps the failed attempt's error.
+  EXPECT_NE(array.find("shard-%A_%a.err"), std::string::npos) << array;
+  EXPECT_NE(slurp(out / "slurm" / "aggregate.sh").find("aggregate-%j.err"), std::string::npos);
   EXPECT_NE(slurp(out / "slurm" / "aggregate.sh").find("--aggregate"), std::string::npos);
   const auto jobs = nlohmann::json::parse(slurp(out / "slurm" / "jobs.json"));
   EXPECT_EQ(jobs["submissions"][0]["array"], "101");
   EXPECT_EQ(jobs["submissions"][0]["aggregate"], "102");
   const auto status = run_command(env + hilbench() + " sweep --status " + q(out));
-  EXPECT_EQ(status.status, 0);
+  EXPECT_EQ(status.status, 3) << "still running: " << status.output;
   EXPECT_NE(status.output.find("2 of 6 points done, 4 missing"), std::string::npos) << status.output;
   EXPECT_NE(status.output.find("array job 101"), std::string::npos) << status.output;
-  EXPECT_NE(status.output.find("PENDING x2, RUNNING"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("PENDING x2, RUNNING (squeue)"), std::string::npos) << status.output;
   EXPECT_NE(status.output.find("aggregate job 102 (submitted"), std::string::npos) << status.output;
-  EXPECT_NE(status.output.find("not in queue"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("Slurm no longer knows its state"), std::string::npos) << status.output;
+
+  // Finished, one task failed (sacct's final states): --status names the task, its exit code and
+  // the last line of its error log, the aggregation's own error, and the command that resubmits
+  // with the same options; it exits 1.
+  dir.write("bin/sacct",
+            "#!/bin/sh\ncase \"$*\" in *101*) echo '101_0|COMPLETED|0:0'; echo '101_2|FAILED|1:0';; "
+            "*102*) echo '102|FAILED|1:0';; esac\n");
+  dir.write("out/slurm/logs/shard-101_2.err", "sweep small shard 2/3: 0% (0/2 points)\nerror: rows: Is a directory\n");
+  dir.write("out/slurm/logs/aggregate-102.err", "sweep small: 4 of 6 points missing in x; nothing written\n");
+  const auto failed = run_command(env + hilbench() + " sweep --status " + q(out));
+  EXPECT_EQ(failed.status, 1) << failed.output;
+  EXPECT_NE(failed.output.find("COMPLETED, FAILED (sacct)"), std::string::npos) << failed.output;
+  EXPECT_NE(failed.output.find("FAILED: array job 101_2 FAILED (exit 1:0): error: rows: Is a directory"), std::string::npos)
+      << failed.output;
+  EXPECT_NE(failed.output.find("aggregation job 102 said: sweep small: 4 of 6 points missing"), std::string::npos)
+      << failed.output;
+  EXPECT_NE(failed.output.find("hilbench sweep --out '" + out.string() +
+                               "' --slurm --tasks 3 --max-parallel 2 --partition 'debug' --time '1:30:00' --mem '2G' "
+                               "--account 'lab' --qos 'short' --cpus-per-task 2 --sbatch-arg='--constraint=avx2'"),
+            std::string::npos)
+      << failed.output;
+
+  // Options sbatch would refuse, or that take over what the submission sets, are usage errors.
+  for (const auto& [option, says] : std::vector<std::pair<std::string, std::string>>{
+           {"--time 1h", "--time '1h': not a Slurm time limit"},
+           {"--mem 2GB", "--mem '2GB': not a Slurm memory size"},
+           {"--account 'a b'", "--account 'a b': not a Slurm account name"},
+           {"--sbatch-arg=--array=1-3", "--array is set by hilbench sweep --slurm itself"},
+           {"--sbatch-arg=-o/tmp/x", "-o is set by hilbench sweep --slurm itself"},
+           {"--sbatch-arg=constraint", "one sbatch option, as sbatch takes it"}}) {
+    const auto refused = run_command(env + hilbench() + " sweep --out " + q(out) + " --slurm " + option);
+    EXPECT_EQ(refused.status, 2) << option << ": " << refused.output;
+    EXPECT_NE(refused.output.find(says), std::string::npos) << option << ": " << refused.output;
+  }
+  const auto local_only = run_command(hilbench() + " sweep --out " + q(out) + " --cpus-per-task 2");
+  EXPECT_EQ(local_only.status, 2) << local_only.output;
+  EXPECT_NE(local_only.output.find("--cpus-per-task goes with --slurm"), std::string::npos) << local_only.output;
 
   // sbatch refusing: its own words, exit 1.
   dir.write("bin/sbatch", "#!/bin/sh\necho 'sbatch: error: invalid partition specified: nope' >&2\nexit 1\n");

@@ -1,7 +1,8 @@
 // hilbench sweep SWEEP.yaml [--out DIR] [--jobs N] [--quiet]        the points here, on every core
 // hilbench sweep [SWEEP.yaml] --out DIR --shard I/N                     one shard's missing points (a Slurm task)
 // hilbench sweep --out DIR --aggregate                                  the outputs, once every point is in
-// hilbench sweep [SWEEP.yaml] --out DIR --slurm [--partition P] [--max-parallel K] [--tasks N]
+// hilbench sweep [SWEEP.yaml] --out DIR --slurm [--tasks N] [--max-parallel K] [sbatch options: --partition P --time T
+//                  --mem M --account A --qos Q --cpus-per-task C --sbatch-arg OPT...]
 // hilbench sweep --status DIR
 #include <sys/wait.h>
 #include <unistd.h>
@@ -25,6 +26,7 @@
 #include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
+#include "sweep_slurm.hpp"
 
 namespace hil::bench {
 namespace {
@@ -39,18 +41,10 @@ struct SweepArgs {
   std::string shard;  // "I/N"
   bool aggregate = false;
   bool slurm = false;
-  std::string partition;
-  int max_parallel = 0;  // 0: every task at once
-  int tasks = 8;
+  SlurmOptions slurm_options;
   std::string status_dir;
-  const CLI::Option* tasks_option = nullptr;
+  std::vector<const CLI::Option*> slurm_only;  // options that only mean something with --slurm
 };
-
-std::string quoted(const std::string& s) {
-  std::string q = "'";
-  for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
 
 // The plan in DIR, made from SWEEP.yaml when given: a folder planned from another sweep file (or
 // another base campaign or plant) is refused, so rows of two sweeps never mix.
@@ -142,64 +136,11 @@ int aggregate(const std::filesystem::path& dir, const SweepPlan& plan, bool quie
   return 0;
 }
 
-// Runs `argv` through sh, every argument quoted; returns its exit status; stdout into `out`, stderr into `err`.
-int run_program(const std::vector<std::string>& argv, std::string& out, std::string& err, const std::filesystem::path& scratch) {
-  const auto out_file = scratch / ".cmd.out", err_file = scratch / ".cmd.err";
-  std::string cmd;
-  for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + quoted(a);
-  cmd += " >" + quoted(out_file.string()) + " 2>" + quoted(err_file.string()) + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  out = hil::read_text_file(out_file);
-  err = hil::read_text_file(err_file);
-  std::error_code ec;
-  std::filesystem::remove(out_file, ec);
-  std::filesystem::remove(err_file, ec);
-  return raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-}
-
-bool on_path(const std::string& program) {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path != nullptr ? path : "");
-  for (std::string d; std::getline(dirs, d, ':');) {
-    if (!d.empty() && ::access((std::filesystem::path(d) / program).c_str(), X_OK) == 0) return true;
-  }
-  return false;
-}
-
-std::string trimmed(std::string s) {
-  while (!s.empty() && (s.back() == '\n' || s.back() == '\r' || s.back() == ' ')) s.pop_back();
-  return s;
-}
-
-std::string sbatch(const std::vector<std::string>& args, const std::filesystem::path& scratch) {
-  if (!on_path("sbatch"))
-    throw std::runtime_error("sbatch not found on PATH: submitting needs Slurm's client (Debian: slurm-client)");
-  std::vector<std::string> argv{"sbatch", "--parsable"};
-  argv.insert(argv.end(), args.begin(), args.end());
-  std::string out, err;
-  const int status = run_program(argv, out, err, scratch);
-  out = trimmed(out);
-  const std::string id = out.substr(0, out.find(';'));  // "id;cluster" on a federation
-  if (status != 0 || id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
-    std::string cmd;
-    for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + a;
-    throw std::runtime_error(cmd + " failed (exit " + std::to_string(status) + "): " + trimmed(err.empty() ? out : err));
-  }
-  return id;
-}
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-  return buf;
-}
-
 int run_slurm(const SweepArgs& args) {
   std::filesystem::path dir;
   const SweepPlan plan = prepare(args, dir);
   dir = std::filesystem::absolute(dir).lexically_normal();
-  const long tasks = std::min<long>(args.tasks, std::max<long>(1, plan.size()));
+  const long tasks = std::min<long>(args.slurm_options.tasks, std::max<long>(1, plan.size()));
   const auto rows = read_rows(dir, plan);
   std::vector<long> shards;  // those with points still missing
   for (long i = 0; i < tasks; ++i) {
@@ -214,91 +155,7 @@ int run_slurm(const SweepArgs& args) {
     std::printf("sweep %s: every point is in %s; aggregating here, nothing submitted\n", plan.name.c_str(), dir.c_str());
     return aggregate(dir, plan, args.quiet);
   }
-  const auto slurm_dir = dir / "slurm";
-  std::filesystem::create_directories(slurm_dir / "logs");
-  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
-  const std::string head = "#!/bin/sh\n# Written by hilbench sweep --slurm for sweep " + plan.name +
-                           ": the nodes need this binary and the shared folder, nothing else.\n";
-  replace_file(slurm_dir / "array.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
-                                           "\n#SBATCH --output=" + (slurm_dir / "logs" / "shard-%a.out").string() +
-                                           "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%a.err").string() + "\nexec " +
-                                           quoted(exe) + " sweep --out " + quoted(dir.string()) +
-                                           " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
-                                           "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\"\n");
-  replace_file(slurm_dir / "aggregate.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
-                                               "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate.out").string() +
-                                               "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate.err").string() +
-                                               "\nexec " + quoted(exe) + " sweep --out " + quoted(dir.string()) +
-                                               " --aggregate\n");
-  std::filesystem::permissions(slurm_dir / "array.sh", std::filesystem::perms::owner_exec, std::filesystem::perm_options::add);
-  std::filesystem::permissions(slurm_dir / "aggregate.sh", std::filesystem::perms::owner_exec,
-                               std::filesystem::perm_options::add);
-
-  std::string list;
-  for (long i : shards) list += (list.empty() ? "" : ",") + std::to_string(i);
-  const long parallel = args.max_parallel > 0 ? args.max_parallel : static_cast<long>(shards.size());
-  std::vector<std::string> common;
-  if (!args.partition.empty()) common.push_back("--partition=" + args.partition);
-  std::vector<std::string> array_args = common;
-  array_args.push_back("--array=" + list + "%" + std::to_string(parallel));
-  array_args.push_back((slurm_dir / "array.sh").string());
-  const std::string array_id = sbatch(array_args, slurm_dir);
-  std::vector<std::string> aggregate_args = common;
-  aggregate_args.push_back("--dependency=afterany:" + array_id);
-  aggregate_args.push_back((slurm_dir / "aggregate.sh").string());
-  const std::string aggregate_id = sbatch(aggregate_args, slurm_dir);
-
-  json jobs = json::object();
-  if (std::filesystem::exists(slurm_dir / "jobs.json")) {
-    try {
-      jobs = read_json_file(slurm_dir / "jobs.json");
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "sweep: %s; its earlier submissions are forgotten, this one is kept\n", e.what());
-    }
-    if (!jobs.is_object()) jobs = json::object();
-  }
-  if (!jobs.contains("submissions") || !jobs["submissions"].is_array()) jobs["submissions"] = json::array();
-  jobs["submissions"].push_back({{"array", array_id},
-                                 {"aggregate", aggregate_id},
-                                 {"tasks", tasks},
-                                 {"shards", shards},
-                                 {"max_parallel", parallel},
-                                 {"partition", args.partition},
-                                 {"submitted_utc", utc_now()}});
-  replace_file(slurm_dir / "jobs.json", jobs.dump(1) + "\n");
-  std::printf(
-      "sweep %s: %ld of %ld points missing; submitted array job %s (%zu tasks of %ld, at most %ld at once) and "
-      "aggregation job %s\n  %s\n  hilbench sweep --status %s\n",
-      plan.name.c_str(), plan.size() - static_cast<long>(rows.size()), plan.size(), array_id.c_str(), shards.size(), tasks,
-      parallel, aggregate_id.c_str(), (slurm_dir / "jobs.json").c_str(), dir.c_str());
-  std::printf("array %s\naggregate %s\n", array_id.c_str(), aggregate_id.c_str());
-  return 0;
-}
-
-// Each array task's own last progress line (the end of its shard-I.err): how far each shard is,
-// with its ETA, or what it took. A task not started yet has no log; one that failed shows its error.
-void say_task_progress(const std::filesystem::path& logs) {
-  std::error_code ec;
-  std::vector<std::pair<long, std::filesystem::path>> files;
-  for (const auto& e : std::filesystem::directory_iterator(logs, ec)) {
-    const std::string name = e.path().filename().string();
-    if (!name.starts_with("shard-") || e.path().extension() != ".err") continue;
-    char* end = nullptr;
-    const long i = std::strtol(name.c_str() + 6, &end, 10);
-    if (end != name.c_str() + 6 && std::string_view(end) == ".err") files.emplace_back(i, e.path());
-  }
-  std::sort(files.begin(), files.end());  // by task number: shard-10 after shard-9
-  for (const auto& [i, file] : files) {
-    std::string text;
-    try {
-      text = hil::read_text_file(file);
-    } catch (const std::exception& e) {
-      std::printf("  task %ld: %s\n", i, e.what());
-      continue;
-    }
-    const std::string last = trimmed(text.substr(text.find_last_of('\n', text.find_last_not_of(" \r\n")) + 1));
-    std::printf("  task %ld: %s\n", i, last.empty() ? "(no output yet)" : last.c_str());
-  }
+  return submit_to_slurm(plan, dir, shards, tasks, plan.size() - static_cast<long>(rows.size()), args.slurm_options);
 }
 
 int run_status(const SweepArgs& args) {
@@ -317,44 +174,7 @@ int run_status(const SweepArgs& args) {
               : done == plan.size()                 ? "; outputs written"
                                                     : "; the outputs there are out of date (written before points went missing)");
   say_damaged_rows(stdout, dir, damaged);
-  const auto jobs_file = dir / "slurm" / "jobs.json";
-  if (!std::filesystem::exists(jobs_file)) return 0;
-  json jobs;
-  try {
-    jobs = read_json_file(jobs_file);
-  } catch (const std::exception& e) {
-    std::printf("  %s\n", e.what());
-    return 0;
-  }
-  if (!jobs.is_object() || !jobs.contains("submissions") || !jobs["submissions"].is_array()) {
-    std::printf("  %s: no list of submissions\n", jobs_file.c_str());
-    return 0;
-  }
-  const bool squeue = on_path("squeue");
-  for (const auto& s : jobs["submissions"]) {
-    for (const char* kind : {"array", "aggregate"}) {
-      const std::string id = s.value(kind, "");
-      std::string state = "squeue not found";
-      if (squeue && !id.empty()) {
-        std::string out, err;
-        const int status = run_program({"squeue", "-h", "-j", id, "-o", "%T"}, out, err, dir / "slurm");
-        // One line per task still known; gone from the queue: squeue prints nothing (or fails on an old id).
-        std::map<std::string, int> states;
-        std::stringstream lines(out);
-        for (std::string l; std::getline(lines, l);)
-          if (!trimmed(l).empty()) ++states[trimmed(l)];
-        if (status != 0 || states.empty()) {
-          state = "not in queue";
-        } else {
-          state.clear();
-          for (const auto& [st, n] : states) state += (state.empty() ? "" : ", ") + st + (n > 1 ? " x" + std::to_string(n) : "");
-        }
-      }
-      std::printf("  %s job %s (submitted %s): %s\n", kind, id.c_str(), s.value("submitted_utc", "?").c_str(), state.c_str());
-    }
-  }
-  say_task_progress(dir / "slurm" / "logs");
-  return 0;
+  return say_slurm_status(dir, plan.size() - done);
 }
 
 int run_sweep_mode(const SweepArgs& args);
@@ -377,12 +197,18 @@ int run_sweep_mode(const SweepArgs& args) {
   }
   const int modes = (args.aggregate ? 1 : 0) + (args.slurm ? 1 : 0) + (args.shard.empty() ? 0 : 1);
   if (modes > 1) throw UsageError("--shard, --aggregate and --slurm are separate modes: give one");
-  if (!args.slurm && (!args.partition.empty() || args.max_parallel > 0 || args.tasks_option->count() > 0))
-    throw UsageError("--partition, --max-parallel and --tasks go with --slurm");
+  if (!args.slurm) {
+    for (const CLI::Option* o : args.slurm_only) {
+      if (o->count() > 0) throw UsageError(o->get_name() + " goes with --slurm");
+    }
+  }
   if ((args.aggregate || !args.shard.empty()) && args.out_dir.empty()) throw UsageError("--shard and --aggregate need --out DIR");
   if (!args.aggregate && !args.slurm && args.shard.empty() && args.sweep_file.empty() && args.out_dir.empty())
     throw UsageError("needs SWEEP.yaml");
-  if (args.slurm) return run_slurm(args);
+  if (args.slurm) {
+    check_slurm_options(args.slurm_options);
+    return run_slurm(args);
+  }
 
   std::filesystem::path dir;
   if (args.aggregate) {
@@ -444,14 +270,28 @@ CommandRun define_sweep(CLI::App& cmd) {
       ->type_name("I/N");
   cmd.add_flag("--aggregate", args->aggregate, "write sweep.csv, sweep.json and report.html from every shard's rows");
   cmd.add_flag("--slurm", args->slurm, "submit the missing points as a Slurm job array and an aggregation job after it");
-  cmd.add_option("--partition", args->partition, "Slurm partition (--slurm)")->type_name("P");
-  cmd.add_option("--max-parallel", args->max_parallel, "at most K array tasks at once (--slurm)")
-      ->type_name("K")
-      ->check(whole_number(1, 100000));
-  args->tasks_option = cmd.add_option("--tasks", args->tasks, "array tasks, each a shard of the points (--slurm)")
-                           ->type_name("N")
-                           ->check(whole_number(1, 100000))
-                           ->capture_default_str();
+  auto& so = args->slurm_options;
+  args->slurm_only = {
+      cmd.add_option("--partition", so.partition, "Slurm partition (--slurm)")->type_name("P"),
+      cmd.add_option("--max-parallel", so.max_parallel, "at most K array tasks at once (--slurm)")
+          ->type_name("K")
+          ->check(whole_number(1, 100000)),
+      cmd.add_option("--tasks", so.tasks, "array tasks, each a shard of the points (--slurm)")
+          ->type_name("N")
+          ->check(whole_number(1, 100000))
+          ->capture_default_str(),
+      cmd.add_option("--time", so.time, "each job's time limit, as sbatch --time takes it (--slurm)")->type_name("LIMIT"),
+      cmd.add_option("--mem", so.mem, "memory per node, as sbatch --mem takes it (--slurm)")->type_name("SIZE"),
+      cmd.add_option("--account", so.account, "the account charged (--slurm)")->type_name("ACCOUNT"),
+      cmd.add_option("--qos", so.qos, "quality of service (--slurm)")->type_name("QOS"),
+      cmd.add_option("--cpus-per-task", so.cpus_per_task,
+                     "CPUs of each array task; the task runs that many points at once (--slurm)")
+          ->type_name("N")
+          ->check(whole_number(1, 4096)),
+      cmd.add_option("--sbatch-arg", so.sbatch_args, "any other sbatch option, passed as given; repeatable (--slurm)")
+          ->type_name("OPTION")
+          ->allow_extra_args(false),
+  };
   cmd.add_option("--status", args->status_dir, "points done and missing, and the Slurm jobs' state")->type_name("DIR");
   return [args] { return run_sweep_command(*args); };
 }
