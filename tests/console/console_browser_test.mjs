@@ -236,7 +236,7 @@ async function main() {
   await sleep(300);
   if (await page.$('#event-list li[data-kind="gap_change"]')) fail("a gap change was recorded before it was confirmed");
   await page.click("#confirm-yes");
-  await waitFor(page, "gap_change in the events list", (want) => [...document.querySelectorAll('#event-list li[data-kind="gap_change"]')].some((li) => li.textContent.includes("gap_deg " + want)), injectedGapDeg);
+  await waitFor(page, "gap_change in the events list", (want) => [...document.querySelectorAll('#event-list li[data-kind="gap_change"]')].some((li) => li.textContent.includes("gap " + want + " deg")), injectedGapDeg);
   await waitFor(page, "the injected true gap in the gap plot", (want) => {
     const g = window.hilConsole.plots.gap;
     const col = g.getLabels().indexOf("true gap");
