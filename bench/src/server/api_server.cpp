@@ -1633,7 +1633,8 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.analysis_file(a[0], a[1], a[2]);
      }},
-    {http::verb::get, "/api/runs/{id}/events",
+    {http::verb::get,
+     "/api/runs/{id}/events",
      "a run's events from byte ?offset=N of events.jsonl (0 when not given): operator events whole, loop statistics "
      "summarised per second; follow next_offset",
      [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {

@@ -76,7 +76,8 @@ json event_feed(const std::filesystem::path& events_file, std::uint64_t offset, 
     const long long second = static_cast<long long>(std::floor(t_s));
     const auto [it, added] = summary_index.emplace(std::make_pair(kind, second), summaries.size());
     if (added) {
-      summaries.push_back({{"kind", kind}, {"t0_s", second}, {"count", 0}, {"utc", e.contains("utc") ? e["utc"] : json(nullptr)}});
+      summaries.push_back(
+          {{"kind", kind}, {"t0_s", second}, {"count", 0}, {"utc", e.contains("utc") ? e["utc"] : json(nullptr)}});
     }
     json& s = summaries[it->second];
     s["count"] = s["count"].get<std::uint64_t>() + 1;
@@ -88,8 +89,8 @@ json event_feed(const std::filesystem::path& events_file, std::uint64_t offset, 
       }
     }
   }
-  return {{"offset", offset},   {"next_offset", next}, {"size", size},
-          {"events", events},   {"summaries", summaries}, {"unreadable", unreadable}};
+  return {{"offset", offset}, {"next_offset", next},    {"size", size},
+          {"events", events}, {"summaries", summaries}, {"unreadable", unreadable}};
 }
 
 }  // namespace hil::bench

@@ -32,7 +32,7 @@ class OperatorLink {
 
  private:
   std::atomic<Clock::rep> last_heard_ns_{0};
-  std::string run_dir_;        // the run last seen
+  std::string run_dir_;         // the run last seen
   Clock::time_point run_seen_;  // when it was first seen
   bool said_ = false;           // lost() said so for this run: once is enough
 };

@@ -409,6 +409,7 @@
     const il = $("interlocks");
     if (state === "idle") {
       il.textContent = "no campaign running";
+      il.className = "about";  // not the last run's red
     } else {
       const safety = s.safety || {};
       const faults = (s.faults || []).map((f) => Object.entries(f).map(([k, v]) => k + " " + (typeof v === "number" ? +v.toFixed(4) : v)).join(" ")).join("; ");
