@@ -12,7 +12,8 @@
 //    telemetry.csv holds every period it ran;
 //  - events: a run of 10 000 overruns (and operator events among them) read through
 //    GET /api/runs/{id}/events by offset lists every operator event once and the overruns as
-//    one summary per second; the page's event fetches do not grow with the run's length.
+//    one summary per second; the page's event fetches do not grow with the run's length;
+//  - a run's Compare/Diagnose model picker is set to the run's own plant (soak_random: constant_volume).
 // Times (kill to banner, quiet to safe state) and bytes are printed, not asserted: the machine is busy.
 //   node console_link_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
 import { spawn } from "node:child_process";
@@ -192,6 +193,11 @@ async function main() {
   if (!/abort delivered at \d\d:\d\d:\d\d/.test(await text(page, "#message"))) fail("the abort's delivery: " + (await text(page, "#message")));
   await waitFor(page, "idle after the abort", () => document.body.dataset.state === "idle");
   await sleep(1500);
+  await page.screenshot({ path: join(dir, "console-latched-1400.png") });
+  await page.setViewport({ width: 390, height: 844 });
+  await sleep(300);
+  await page.screenshot({ path: join(dir, "console-latched-390.png") });
+  await page.setViewport({ width: 1400, height: 900 });
   if ((await dataset(page)).latched !== "safe" || (await text(page, "#latch")) === "") fail("SAFE did not stay latched after the run ended");
   await page.click("#latch-ack");
   if ((await dataset(page)).latched !== "" || (await text(page, "#latch")) !== "") fail("Acknowledge did not clear the latch");
@@ -295,6 +301,17 @@ async function main() {
   // each byte is fetched once (plus each answer's JSON envelope).
   if (!(total < 2 * fileBytes + 200 * Number((await dataset(watcher)).eventFetches)))
     fail(`the page fetched ${total} B of events for a ${fileBytes} B events.jsonl`);
+
+  // Compare/Diagnose from a run default to the run's own plant: soak_random runs constant_volume.
+  const soak = await call(base, "POST", "/api/start", { campaign: "soak_random", rig: "sim", runs: ["adaptive"], speed: 10 });
+  if (soak.status !== 202 && soak.status !== 200) return fail("start soak_random: " + JSON.stringify(soak));
+  await waitFor(watcher, "soak_random running", () => document.body.dataset.state === "running");
+  await sleep(1000);
+  await call(base, "POST", "/api/abort", { reason: "enough" });
+  await waitFor(watcher, "soak_random's row with its plant chosen", () => {
+    const row = [...document.querySelectorAll("#runs-table tbody tr")].find((tr) => /_soak_random_adaptive$/.test(tr.dataset.run));
+    return row && row.querySelector("select.model") && row.querySelector("select.model").value === "constant_volume";
+  }, undefined, 30_000);
 
   for (const p of problems) fail(p);
   console.log(measured.join("; ") + "; screenshot " + shot);

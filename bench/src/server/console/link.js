@@ -123,12 +123,12 @@ window.hilLink = function hilLink({ $, body, api, ApiRefusal, showMessage, clear
       const reply = await api("POST", "/api/abort", { reason }, controller.signal);
       body.dataset.abort = "delivered";
       showMessage("abort delivered at " + clock(Date.now()) + (abortTries > 1 ? " (attempt " + abortTries + ")" : "") + ": " +
-        reply.reason + (reply.note ? " (" + reply.note + ")" : ""), true, true);
+        reply.reason + (reply.note ? " (" + reply.note + ")" : ""), true);  // clears itself: the latch keeps what matters
     } catch (e) {
       if (e instanceof ApiRefusal) {
         body.dataset.abort = "answered";
         showMessage("abort answered at " + clock(Date.now()) + (abortTries > 1 ? " (attempt " + abortTries + ")" : "") +
-          ": refused (" + e.status + ") " + e.message, e.status === 409, true);
+          ": refused (" + e.status + ") " + e.message, e.status === 409);
       } else {
         body.dataset.abort = "not-delivered";
         showMessage("abort NOT delivered (attempt " + abortTries + ", " + clock(Date.now()) + ": " +
