@@ -209,6 +209,8 @@ async function main() {
   await page.select("#event-filter", "all");
   const shot = join(dir, "console-link-1400.png");
   await page.screenshot({ path: shot });
+  // A lost link is the banner's business: no unhandled error on the page ("console error: Failed to fetch").
+  if ((await dataset(page)).consoleErrors !== "0") fail("the page counted errors: " + (await dataset(page)).consoleErrors);
   await page.close();  // from here no client asks the server anything: the operator link is silent
 
   // require_operator: the only client goes quiet mid-run; the run ends in the safe state with the
@@ -313,6 +315,7 @@ async function main() {
     return row && row.querySelector("select.model") && row.querySelector("select.model").value === "constant_volume";
   }, undefined, 30_000);
 
+  if ((await dataset(watcher)).consoleErrors !== "0") fail("the watching page counted errors: " + (await dataset(watcher)).consoleErrors);
   for (const p of problems) fail(p);
   console.log(measured.join("; ") + "; screenshot " + shot);
 }
