@@ -613,8 +613,11 @@
       const what = (a.kind || "?") + " vs " + (a.model || "?") + ": ";
       if (a.state === "done") {
         const r = a.result || {};
-        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" : (r.verdict || "") +
-          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "");
+        // The fit beside what the sensor's noise allows at best, and the verdict in words.
+        const floor = typeof r.noise_floor_fit_pct === "number" ? " (noise floor " + fmt(r.noise_floor_fit_pct, 1) + " %)" : "";
+        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" + floor : String(r.verdict || "").replaceAll("_", " ") +
+          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "") +
+          (typeof r.fit_after_pct === "number" ? ": fit " + fmt(r.fit_before_pct, 1) + " → " + fmt(r.fit_after_pct, 1) + " %" + floor : "");
         const open = link(a.report, "report", true);
         open.className = "analysis-report";
         li.append(what + figure + " ", open);
