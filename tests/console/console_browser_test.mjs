@@ -236,7 +236,7 @@ async function main() {
   await sleep(300);
   if (await page.$('#event-list li[data-kind="gap_change"]')) fail("a gap change was recorded before it was confirmed");
   await page.click("#confirm-yes");
-  await waitFor(page, "gap_change in the events list", (want) => [...document.querySelectorAll('#event-list li[data-kind="gap_change"]')].some((li) => li.textContent.includes("gap_deg " + want)), injectedGapDeg);
+  await waitFor(page, "gap_change in the events list", (want) => [...document.querySelectorAll('#event-list li[data-kind="gap_change"]')].some((li) => li.textContent.includes("gap " + want + " deg")), injectedGapDeg);
   await waitFor(page, "the injected true gap in the gap plot", (want) => {
     const g = window.hilConsole.plots.gap;
     const col = g.getLabels().indexOf("true gap");
@@ -282,7 +282,7 @@ async function main() {
   await page.click(row + ' button.analyse[data-kind="compare"]');
   if (!(await waitFor(page, "the compare analysis done", (row) => !!document.querySelector(row + ' ul.analyses li[data-kind="compare"][data-state="done"] a.analysis-report'), row, 90_000))) return;
   const analysis = await page.$eval(row + ' ul.analyses li[data-kind="compare"]', (li) => ({ text: li.textContent, href: li.querySelector("a.analysis-report").href }));
-  if (!/compare vs nominal: fit -?\d+(\.\d)? %/.test(analysis.text)) fail("the analysis as shown: " + JSON.stringify(analysis));
+  if (!/compare vs nominal: fit -?\d+(\.\d)? % \(noise floor \d+(\.\d)? %\)/.test(analysis.text)) fail("the analysis as shown: " + JSON.stringify(analysis));
   const analysisPage = await browser.newPage();
   watch(analysisPage, "analysis report");
   const ares = await analysisPage.goto(analysis.href, { waitUntil: "load", timeout: 60_000 });

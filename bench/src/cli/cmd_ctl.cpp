@@ -253,6 +253,7 @@ int analyse(const CtlArgs& a, const ApiClient& api) {
 int telemetry(const CtlArgs& a, const ApiClient& api) {
   std::vector<std::string> columns;
   long rows = 0;
+  std::string last_state;
   char rate[32];
   std::snprintf(rate, sizeof rate, "%g", a.rate_hz);
   // %g writes 1e+06; a '+' in a query is a space (the server answered "got '1e 06'").
@@ -274,6 +275,11 @@ int telemetry(const CtlArgs& a, const ApiClient& api) {
       }
       std::printf("%s\n", line.c_str());
       ++rows;
+    } else if (type == "status") {  // the server's heartbeat, twice a second: a line only when the state changes
+      const std::string state = j.value("state", "");
+      if (state == last_state) return true;
+      last_state = state;
+      std::printf("# %s\n", message.c_str());
     } else {
       std::printf("# %s\n", message.c_str());
     }

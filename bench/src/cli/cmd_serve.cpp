@@ -22,6 +22,8 @@
 #include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "server/api_server.hpp"
+#include "server/operator_link.hpp"
+#include "server/status_stream.hpp"
 
 namespace hil::bench {
 
@@ -128,6 +130,10 @@ int run_serve(const ServeArgs& args) {
     }
   };
   CampaignRunner runner(std::move(ro));
+  // The state on the stream and the operator link's rule (status_stream.hpp, operator_link.hpp).
+  OperatorLink operator_link;
+  api.on_request = [&operator_link] { operator_link.heard(); };
+  StatusStream status_stream(runner, operator_link, [&hub](const nlohmann::json& j) { hub.publish_status(j); });
   ApiServer server(io, api, runner, hub);
 
   const std::string where = "http://" + (api.address.find(':') != std::string::npos ? "[" + api.address + "]" : api.address) +

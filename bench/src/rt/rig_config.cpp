@@ -92,7 +92,7 @@ RigDevices devices_from(const cfg::Node& root, const std::string& kind, const Ri
 }
 
 RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
-  root.allow_keys({"kind", "description", "devices", "loop", "safety"});
+  root.allow_keys({"kind", "description", "devices", "loop", "safety", "require_operator", "operator_timeout_s"});
   RigConfig c;
   c.name = std::move(name);
   c.file = root.file();
@@ -104,6 +104,13 @@ RigConfig from_node(const cfg::Node& root, std::string name, std::string text) {
   c.devices = devices_from(root, c.kind, kind->devices);
   if (const auto loop = root.find("loop")) c.loop = LoopConfig::from_yaml(*loop);
   c.safety = SafetyConfig::from_yaml(root.at("safety"));
+  c.require_operator = root.boolean("require_operator", false);
+  if (const auto t = root.find("operator_timeout_s")) {
+    c.operator_timeout_s = t->number();
+    // Under 0.5 s a console's once-a-second status poll would not keep the link; over an hour is no
+    // watch at all.
+    t->require(c.operator_timeout_s >= 0.5 && c.operator_timeout_s <= 3600, "must be 0.5..3600 s");
+  }
   // The fastest this rig moves a CAN drive's target: configure() and the probe check the drive's
   // following error window against it (drv::following_window_problem).
   if (c.devices.can_drive) {

@@ -28,6 +28,7 @@
 #include <spdlog/spdlog.h>
 
 #include "analyses.hpp"
+#include "event_feed.hpp"
 #include "console/assets.hpp"
 #include "foxglove.hpp"
 #include "jobs.hpp"
@@ -612,12 +613,14 @@ void TelemetryHub::publish_row(const TelemetryRecord& r) { enqueue({r, nullptr})
 
 void TelemetryHub::publish_notice(const json& j) { enqueue({TelemetryRecord{}, std::make_shared<const json>(j)}); }
 
+void TelemetryHub::publish_status(const json& j) { enqueue({TelemetryRecord{}, std::make_shared<const json>(j), true}); }
+
 void TelemetryHub::enqueue(Item item) {
   bool wake = false;
   {
     std::lock_guard lock(inbox_mutex_);
     if (stop_) return;
-    if (inbox_.size() >= kInboxItems) {
+    if (inbox_.size() >= kInboxItems && !item.status) {
       ++inbox_dropped_;
       return;
     }
@@ -678,6 +681,11 @@ void TelemetryHub::fan_out(const std::vector<Item>& items) {
       if (item.notice) {
         t_s = last_t_s_;
         for (auto& s : subs_) {
+          if (item.status) {
+            if (s.foxglove) continue;
+            if (auto session = s.session.lock()) due.push_back({std::move(session), false, 0});
+            continue;
+          }
           s.next_t_s = -1e300;
           if (auto session = s.session.lock()) due.push_back({std::move(session), s.foxglove, 0});
         }
@@ -881,6 +889,7 @@ struct ApiServer::Impl : std::enable_shared_from_this<ApiServer::Impl> {
   Reply runs();
   Reply run(const std::string& id);
   Reply run_file(const std::string& id, const std::string& file);
+  Reply run_events(const std::string& id, const Target& t);
   // head: a HEAD request, answered without making the report.
   Reply run_report(const std::string& id, const Target& t, bool head);
   Reply models();
@@ -1210,6 +1219,9 @@ Reply ApiServer::Impl::runs() {
     try {
       const json r = record_of(d).to_json();
       for (const char* k : {"campaign", "run", "outcome", "reason", "start_utc", "stop_utc"}) j[k] = r[k];
+      // The plant the run ran on (its recorded snapshot's file): the model its analyses default to.
+      if (r.contains("config") && r["config"].is_object() && r["config"].value("plant_file", "") != "")
+        j["plant"] = std::filesystem::path(r["config"].value("plant_file", "")).stem().string();
     } catch (const std::exception& e) {
       j["error"] = e.what();  // names the file, and the line and column
     }
@@ -1242,6 +1254,20 @@ Reply ApiServer::Impl::run(const std::string& id) {
     if (const auto end = runner.unrecorded_end(id)) r = end->record.to_json();
   }
   return json_reply(http::status::ok, {{"id", id}, {"files", files}, {"run", r}});
+}
+
+Reply ApiServer::Impl::run_events(const std::string& id, const Target& t) {
+  if (!is_run_dir(options.runs_dir, id)) {
+    throw ApiError{http::status::not_found, "unknown run", "'" + id + "' is not a run (GET /api/runs lists them)"};
+  }
+  const double offset = query_number(t, "offset", 0);
+  if (!(offset >= 0 && offset <= 9.0e15 && offset == std::floor(offset)))
+    throw ApiError{http::status::bad_request, "bad field", "'offset' must be a whole number of bytes >= 0", "offset"};
+  try {
+    return json_reply(http::status::ok, event_feed(options.runs_dir / id / "events.jsonl", static_cast<std::uint64_t>(offset)));
+  } catch (const BadField& e) {
+    throw ApiError{http::status::bad_request, "bad field", e.what(), e.field};
+  }
 }
 
 Reply ApiServer::Impl::run_file(const std::string& id, const std::string& file) {
@@ -1599,6 +1625,14 @@ const Route kRoutes[] = {
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.analysis_file(a[0], a[1], a[2]);
      }},
+    {http::verb::get,
+     "/api/runs/{id}/events",
+     "a run's events from byte ?offset=N of events.jsonl (0 when not given): operator events whole, loop statistics "
+     "summarised per second; follow next_offset",
+     [](ApiServer::Impl& api, const Request&, const Target& t, const std::vector<std::string>& a) {
+       return api.run_events(a[0], t);
+     },
+     {"offset"}},
     {http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
      [](ApiServer::Impl& api, const Request&, const Target&, const std::vector<std::string>& a) {
        return api.run_file(a[0], a[1]);
@@ -1758,6 +1792,7 @@ Reply ApiServer::Impl::answer(const Request& req, const Target& t) {
     return error_reply(http::status::unauthorized, "unauthorized",
                        "this server requires 'Authorization: Bearer <token>' on every request");
   }
+  if (options.on_request) options.on_request();
   if (websocket::is_upgrade(req)) {
     reply = error_reply(http::status::bad_request, "WebSocket upgrade not possible here", "connect to /api/telemetry over TCP");
   } else {

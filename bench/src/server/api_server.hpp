@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -44,6 +45,9 @@ struct ApiOptions {
   // pings it at half this time, and a client that reads answers the ping (--ws-idle-timeout-s).
   std::chrono::milliseconds ws_idle_timeout = std::chrono::seconds(300);
   std::string version;
+  // Called on every authorised request (any thread): the operator link hears its clients
+  // (operator_link.hpp).
+  std::function<void()> on_request;
 };
 
 class WsSession;
@@ -64,6 +68,10 @@ class TelemetryHub {
 
   void publish_row(const TelemetryRecord& r);
   void publish_notice(const nlohmann::json& j);
+  // The bench's state (status_stream.hpp), to the plain JSON clients only (Foxglove clients have
+  // their own status channel), without resetting their decimation; taken even when the inbox is
+  // full of rows: the state of the bench is what an operator may not miss.
+  void publish_status(const nlohmann::json& j);
   // foxglove: the session speaks foxglove.websocket.v1 (binary frames per channel), else the
   // JSON rows of bench/SERVER.md.
   void subscribe(const std::shared_ptr<WsSession>& s, double rate_hz, bool foxglove);
@@ -85,6 +93,7 @@ class TelemetryHub {
   struct Item {  // a row, or a notice when `notice` is set
     TelemetryRecord row;
     std::shared_ptr<const nlohmann::json> notice;
+    bool status = false;  // publish_status's
   };
   static constexpr std::size_t kInboxItems = 16384;  // 1.6 s of a 10 kHz loop
   void enqueue(Item item);                           // any thread: a lock and a move, never a wait

@@ -643,7 +643,9 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
           {"run", run.name},
           {"dir", dir.filename().string()},
           {"outcome", to_string(outcome)},
-          {"reason", reason_or_null}});
+          {"reason", reason_or_null},
+          // the interlock that ended it, or "operator abort" (the console latches SAFE or TRIPPED on it)
+          {"trip", info.trip ? json(info.trip->reason) : json(nullptr)}});
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
 }
@@ -664,8 +666,11 @@ json CampaignRunner::status() const {
   s["speed"] = a.req.speed;
   s["run"] = a.runs[a.index]->name;
   s["run_index"] = a.index;
+  s["runs"] = json::array();
+  for (const auto* r : a.runs) s["runs"].push_back(r->name);
   s["runs_total"] = a.runs.size();
   s["run_dir"] = a.dir.filename().string();
+  s["operator_link"] = {{"required", a.req.rig.require_operator}, {"timeout_s", a.req.rig.operator_timeout_s}};
   const double per_run = c.duration_s;
   double t = a.run_t_s;
   if (a.loop) {
@@ -680,6 +685,7 @@ json CampaignRunner::status() const {
     s["faults"] = faults_json(snap);
     s["safety"] = {{"safe_state", (snap.flags & kFlagSafeState) != 0},
                    {"trip", snap.trip == Trip::none ? json(nullptr) : json(to_string(snap.trip))}};
+    if (snap.trip == Trip::operator_abort) s["safety"]["reason"] = a.abort_text();
     s["telemetry"] = {
         {"rows_lost", snap.rows_lost},
         {"rows_unwritten", a.recorder ? a.recorder->rows_unwritten() : 0},

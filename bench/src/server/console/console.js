@@ -20,11 +20,21 @@
   window.addEventListener("error", (e) => noteError(String(e.message)));
   window.addEventListener("unhandledrejection", (e) => noteError(String(e.reason && e.reason.message ? e.reason.message : e.reason)));
 
-  function showMessage(text, ok) {
+  // The last message, in green (ok) or red; it clears itself after kMessageMs unless sticky (what
+  // an abort came to), and a restored link clears it (what the lost link made is stale then).
+  const kMessageMs = 10000;
+  let messageTimer = null;
+  function showMessage(text, ok, sticky) {
     const m = $("message");
     m.textContent = text;
     m.className = ok ? "message ok" : "message";
     m.hidden = false;
+    clearTimeout(messageTimer);
+    if (!sticky) messageTimer = setTimeout(() => (m.hidden = true), kMessageMs);
+  }
+  function clearMessages() {
+    clearTimeout(messageTimer);
+    $("message").hidden = true;
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -45,11 +55,11 @@
     }
   }
 
-  async function api(method, path, payload) {
+  async function api(method, path, payload, signal) {
     const headers = {};
     if (token) headers.Authorization = "Bearer " + token;
     if (payload !== undefined) headers["Content-Type"] = "application/json";
-    const res = await fetch(path, { method, headers, body: payload === undefined ? undefined : JSON.stringify(payload) });
+    const res = await fetch(path, { method, headers, body: payload === undefined ? undefined : JSON.stringify(payload), signal });
     const text = await res.text();
     let reply = null;
     try {
@@ -73,12 +83,24 @@
       showMessage(what + ": accepted", true);
       return reply;
     } catch (e) {
+      if (e instanceof TypeError) {  // no answer: the server is unreachable
+        showMessage(what + ": NOT delivered (the server did not answer: " + e.message + "); nothing was done", false);
+        events.add("refused", what + ": not delivered (no answer from the server)", "refused");
+        return null;
+      }
       if (!(e instanceof ApiRefusal)) throw e;
       showMessage(what + ": refused (" + e.status + ") " + e.message, false);
-      addLocalEvent("refused", what + ": " + e.message, "refused");
+      events.add("refused", what + ": " + e.message, "refused");
       return null;
     }
   }
+
+  // The link and the safety state (link.js), the events (events.js).
+  const linkState = window.hilLink({ $, body, api, ApiRefusal, showMessage, clearMessages, onState: (state, m) => reflectState(state, m) });
+  const events = window.hilEvents({ $, body, apiText, ApiRefusal, onMarks: (list) => {
+    marks = list;
+    dirty = true;
+  } });
 
   // ---------------------------------------------------------------------------------------------
   // Live telemetry: a bounded buffer of rows, plots redrawn on a timer (not per message).
@@ -126,7 +148,7 @@
   const view = { mode: "follow", range: null };  // follow | fixed (the operator's zoom) | paused
   let syncing = false;  // our own updates: not the operator zooming or panning
   let shownRange = null;  // the x range we last gave the plots
-  let markTimes = [];   // the current run's events, drawn as lines
+  let marks = [];   // the current run's marked events ({t_s, kind}), drawn as labelled lines
 
   // Y tick labels with the decimals their spacing needs (dygraphs' default rounds to 2 significant
   // digits, so sub-degree ticks of the gap plot printed as "1" and "1"). Dygraphs spaces ticks by
@@ -181,14 +203,21 @@
   function underlay(ctx, area, g) {
     ctx.save();
     ctx.strokeStyle = "rgba(198, 40, 40, 0.55)";
+    ctx.fillStyle = "rgba(198, 40, 40, 0.9)";
+    ctx.font = "10px system-ui, sans-serif";
     ctx.setLineDash([4, 3]);
-    for (const t of markTimes) {
-      const x = g.toDomXCoord(t);
+    let lastLabelX = -Infinity;
+    for (const m of marks) {
+      const x = g.toDomXCoord(m.t_s);
       if (x < area.x || x > area.x + area.w) continue;
       ctx.beginPath();
       ctx.moveTo(x, area.y);
       ctx.lineTo(x, area.y + area.h);
       ctx.stroke();
+      if (x - lastLabelX > 60) {  // labels that would overlap are left to the events list
+        ctx.fillText(m.kind.replaceAll("_", " "), x + 2, area.y + 10);
+        lastLabelX = x;
+      }
     }
     ctx.restore();
   }
@@ -255,12 +284,18 @@
   function connect() {
     const scheme = location.protocol === "https:" ? "wss://" : "ws://";
     ws = new WebSocket(scheme + location.host + withToken("/api/telemetry?rate_hz=30"));
-    ws.onopen = () => ($("conn").textContent = "telemetry: live");
-    ws.onclose = () => {
-      $("conn").textContent = "telemetry: closed, reconnecting";
-      setTimeout(connect, 2000);
+    ws.onopen = () => linkState.opened();
+    let reconnecting = false;
+    const again = () => {
+      if (reconnecting) return;
+      reconnecting = true;
+      linkState.closed();
+      setTimeout(connect, 1000);
     };
+    ws.onclose = again;
+    ws.onerror = again;
     ws.onmessage = (e) => {
+      linkState.heard();
       let m;
       try {
         m = JSON.parse(e.data);
@@ -268,96 +303,25 @@
         return;
       }
       if (m.type === "row") return addRow(m);
-      if (m.type === "run_start") {
+      if (m.type === "status") {
+        linkState.status(m);
+        if (m.run_dir && m.state !== "idle") events.setCurrent(m.run_dir);
+      } else if (m.type === "run_start") {
         rows.length = 0;
-        markTimes = [];
-        if (m.dir) currentRunDir = m.dir;
-        addLocalEvent("run_start", m.campaign + " " + m.run + " (" + m.dir + ")", "");
+        events.setCurrent(m.dir);
       } else if (m.type === "run_end") {
-        addLocalEvent("run_end", m.run + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), m.outcome === "completed" ? "" : "trip");
-        if (m.dir) fetchEvents(m.dir);
+        linkState.runEnd(m);
+        events.add("run_end", m.run + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), m.outcome === "completed" ? "" : "trip");
+        events.follow(m.dir);
         refreshRuns();
       } else if (m.type === "campaign_end") {
-        addLocalEvent("campaign_end", m.campaign + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), "");
+        events.add("campaign_end", m.campaign + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), "");
         refreshRuns();
       } else if (m.type === "dropped") {
         droppedTotal = m.total;
-        addLocalEvent("dropped", m.messages + " telemetry messages dropped (" + m.why + ")", "");
+        events.add("dropped", m.messages + " telemetry messages dropped (" + m.why + ")", "");
       }
     };
-  }
-
-  // ---------------------------------------------------------------------------------------------
-  // Events: the run's events.jsonl (the record, polled while it runs) and what this page saw or did.
-  // What the operator or the interlocks did, marked on the plots (overruns and the like only listed).
-  const kMarked = new Set(["gap_change", "gap_programme", "sensor_fault", "drive_fault", "rig_fault", "fault_expired",
-    "faults_cleared", "stop_request", "abort_request", "trip", "safe_state", "stopped"]);
-  const localEvents = [];
-  const fileEvents = new Map();  // run folder -> its events
-  let currentRunDir = "";
-
-  function addLocalEvent(kind, text, cls) {
-    localEvents.push({ utc: new Date().toISOString(), kind, text, cls, local: true });
-    renderEvents();
-  }
-
-  function describe(e) {
-    const skip = new Set(["utc", "kind", "source", "t_s", "period"]);
-    const parts = [];
-    if (e.reason) parts.push(String(e.reason));
-    for (const [k, v] of Object.entries(e)) {
-      if (skip.has(k) || k === "reason" || v === null) continue;
-      parts.push(k + " " + (typeof v === "object" ? JSON.stringify(v) : typeof v === "number" ? +v.toFixed(6) : v));
-    }
-    return parts.join(", ");
-  }
-
-  function renderEvents() {
-    const all = [...localEvents];
-    for (const [dir, list] of fileEvents) {
-      for (const e of list) {
-        all.push({ utc: String(e.utc || ""), kind: String(e.kind || "?"), t_s: e.t_s, text: describe(e) + (dir === currentRunDir ? "" : " [" + dir + "]"),
-          cls: e.kind === "trip" ? "trip" : "" });
-      }
-    }
-    all.sort((a, b) => (a.utc < b.utc ? 1 : a.utc > b.utc ? -1 : 0));
-    const ol = $("event-list");
-    ol.replaceChildren(...all.slice(0, 300).map((e) => {
-      const li = document.createElement("li");
-      li.className = e.cls || "";
-      li.dataset.kind = e.kind;
-      const t = document.createElement("span");
-      t.className = "t";
-      t.textContent = e.utc.slice(11, 19) + (typeof e.t_s === "number" ? "  t " + e.t_s.toFixed(3) + " s" : "");
-      const k = document.createElement("span");
-      k.className = "kind";
-      k.textContent = e.kind;
-      li.append(t, k, document.createTextNode(e.text));
-      return li;
-    }));
-  }
-
-  async function fetchEvents(dir) {
-    try {
-      const text = await apiText("/api/runs/" + encodeURIComponent(dir) + "/events.jsonl");
-      const list = [];
-      for (const line of text.split("\n")) {
-        if (!line.trim()) continue;
-        try {
-          list.push(JSON.parse(line));
-        } catch (e) {
-          // a line being written: the next poll has it whole
-        }
-      }
-      fileEvents.set(dir, list);
-      if (dir === currentRunDir) {
-        markTimes = list.filter((e) => typeof e.t_s === "number" && kMarked.has(e.kind)).map((e) => e.t_s);
-        dirty = true;
-      }
-      renderEvents();
-    } catch (e) {
-      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // refused or unreachable: the next poll tries again
-    }
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -366,24 +330,47 @@
   const latency = (h) => (h ? fmt(h.p50_us, 1) + " / " + fmt(h.p99_us, 1) + " / " + fmt(h.max_us, 1) + " µs" : "–");
   let lastState = "";
 
+  // The header and the controls follow the stream's status messages (link.js): what runs, and
+  // only the controls that can act enabled. "unknown": the link is lost.
+  const injectButtons = ["inject-gap", "inject-programme", "inject-sensor", "inject-drive", "inject-clear"];
+  let shownCampaign = "";
+  function reflectState(state, m) {
+    const live = state !== "unknown";
+    const active = state === "running" || state === "safe" || state === "tripped" || state === "starting";
+    $("start").disabled = !live || state !== "idle";
+    $("stop").disabled = !live || !active;
+    // ABORT stays live whenever the bench may be running: also with the link lost (it then says
+    // it was not delivered, and retries), and while an abort is being retried.
+    $("abort").disabled = live && !active && !linkState.aborting();
+    for (const id of injectButtons) $(id).disabled = state !== "running";
+    for (const id of ["campaign", "rig"]) $(id).disabled = active;
+    for (const box of $("runs-choice").querySelectorAll("input")) box.disabled = active;
+    if (!m) return;
+    if (state === "idle") {
+      const last = m.last;
+      $("what").textContent = last && last.campaign ? "last: " + last.campaign + ": " + last.outcome + (last.reason ? " (" + last.reason + ")" : "") : "";
+      $("progress").value = 0;
+      shownCampaign = "";
+      return;
+    }
+    $("what").textContent = (m.campaign || "?") + " · " + (m.run || "?") + " (" + ((m.run_index ?? 0) + 1) + "/" + (m.runs_total ?? "?") + ") on " +
+      (m.rig || "?") + " · t " + fmt(m.run_t_s, 1) + "/" + fmt(m.duration_s, 0) + " s";
+    $("progress").value = m.fraction || 0;
+    // The controls show what runs (started here, by another console or through the API).
+    const key = m.campaign + "|" + m.rig + "|" + (m.runs || []).join(",");
+    if (key !== shownCampaign && campaigns.some((c) => c.name === m.campaign)) {
+      shownCampaign = key;
+      $("campaign").value = m.campaign;
+      renderRunsChoice();
+      if (rigs.some((r) => r.name === m.rig)) $("rig").value = m.rig;
+      renderRigAbout();
+      if (Array.isArray(m.runs)) for (const box of $("runs-choice").querySelectorAll("input")) box.checked = m.runs.includes(box.value);
+      for (const box of $("runs-choice").querySelectorAll("input")) box.disabled = true;
+    }
+  }
+
   function renderStatus(s) {
     const state = s.state || "idle";
-    const st = $("state");
-    st.textContent = state;
-    st.className = "state " + state;
-    body.dataset.state = state;
-    const p = s.progress || {};
-    if (state === "idle") {
-      const last = s.last;
-      $("what").textContent = last ? "last: " + last.campaign + " on " + last.rig + ": " + last.outcome + (last.reason ? " (" + last.reason + ")" : "") : "";
-      $("progress").value = 0;
-    } else {
-      $("what").textContent = s.campaign + " · " + s.run + " (" + (s.run_index + 1) + "/" + s.runs_total + ") on " + s.rig +
-        " · t " + fmt(p.t_s, 1) + "/" + fmt(p.duration_s, 0) + " s · remaining " + fmt(p.remaining_s, 0) + " s";
-      $("progress").value = p.fraction || 0;
-    }
-    $("start").disabled = state !== "idle";
-    $("stop").disabled = state === "idle";
 
     const dl = $("health-list");
     const items = [];
@@ -422,6 +409,7 @@
     const il = $("interlocks");
     if (state === "idle") {
       il.textContent = "no campaign running";
+      il.className = "about";  // not the last run's red
     } else {
       const safety = s.safety || {};
       const faults = (s.faults || []).map((f) => Object.entries(f).map(([k, v]) => k + " " + (typeof v === "number" ? +v.toFixed(4) : v)).join(" ")).join("; ");
@@ -430,8 +418,10 @@
       il.className = safety.safe_state ? "about bad" : "about";
     }
 
-    if (s.run_dir && s.run_dir !== currentRunDir) currentRunDir = s.run_dir;
-    if (state !== "idle" && currentRunDir) fetchEvents(currentRunDir);
+    if (state !== "idle" && s.run_dir) {
+      events.setCurrent(s.run_dir);
+      events.follow(s.run_dir);
+    }
     if (state !== lastState && (state === "idle" || lastState === "")) refreshRuns();
     lastState = state;
   }
@@ -440,8 +430,7 @@
     try {
       renderStatus(await api("GET", "/api/status"));
     } catch (e) {
-      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // TypeError: the server is unreachable
-      $("conn").textContent = "server: " + e.message;
+      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // unreachable: the link's banner says so
     } finally {
       setTimeout(pollStatus, 1000);
     }
@@ -509,16 +498,21 @@
     if (reply) {
       if (reply.warning) {
         showMessage("start " + payload.campaign + " on " + payload.rig + ": accepted; warning: " + reply.warning, false);
-        addLocalEvent("warning", reply.warning, "trip");
+        events.add("warning", reply.warning, "trip");
       }
       setView("follow", null);
-      renderStatus(reply.status);
     }
   });
   $("stop").addEventListener("click", () => act("stop", "POST", "/api/stop", {}));
-  $("abort").addEventListener("click", async () => {
-    const reply = await act("abort", "POST", "/api/abort", { reason: "from the operator console" });
-    if (reply) addLocalEvent("abort_request", reply.reason + (reply.note ? " (" + reply.note + ")" : ""), "trip");
+  // ABORT, by the button or the Escape key (Escape first closes an open confirm step).
+  $("abort").addEventListener("click", () => linkState.abort("from the operator console"));
+  document.addEventListener("keydown", (e) => {
+    if (e.key !== "Escape" || e.repeat) return;
+    if (!$("confirm").hidden) {
+      $("confirm-no").click();
+      return;
+    }
+    if (!$("abort").disabled) linkState.abort("from the operator console (Escape key)");
   });
 
   // Each injection asks first, in the page (window.confirm would block the page and its tests).
@@ -541,8 +535,8 @@
   });
   const numberIn = (id) => Number($(id).value);
   async function inject(kind, payload, text) {
-    const reply = await act("inject " + kind, "POST", "/api/inject/" + kind, payload);
-    if (reply) addLocalEvent("inject", text, "");
+    // The file records the injection (events.js lists it once): the page adds no copy of its own.
+    if (await act("inject " + kind, "POST", "/api/inject/" + kind, payload)) showMessage("inject " + text + ": accepted", true);
   }
   $("inject-gap").addEventListener("click", () => {
     const gap = numberIn("gap-deg");
@@ -598,9 +592,14 @@
     models = (await api("GET", "/api/models")).models.filter((m) => !m.error);
     for (const sel of document.querySelectorAll("#runs-table select.model")) fillModels(sel);
   }
+  // The run's own plant (its recorded snapshot's, GET /api/runs "plant") first, else nominal: a run
+  // compared against another plant than it ran on reads as a bad fit (soak_random: 18 % against
+  // nominal, 91 % against its own constant_volume).
   function fillModels(sel) {
-    const keep = sel.value;
-    sel.replaceChildren(...models.map((m) => new Option(m.name, m.name, false, m.name === (keep || "nominal"))));
+    const own = sel.dataset.plant && models.some((m) => m.name === sel.dataset.plant) ? sel.dataset.plant : "nominal";
+    const keep = sel.value || own;
+    sel.replaceChildren(...models.map((m) => new Option(m.name + (m.name === sel.dataset.plant ? " (the run's plant)" : ""), m.name, false,
+      m.name === keep)));
   }
 
   function renderAnalyses(runId) {
@@ -614,8 +613,11 @@
       const what = (a.kind || "?") + " vs " + (a.model || "?") + ": ";
       if (a.state === "done") {
         const r = a.result || {};
-        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" : (r.verdict || "") +
-          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "");
+        // The fit beside what the sensor's noise allows at best, and the verdict in words.
+        const floor = typeof r.noise_floor_fit_pct === "number" ? " (noise floor " + fmt(r.noise_floor_fit_pct, 1) + " %)" : "";
+        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" + floor : String(r.verdict || "").replaceAll("_", " ") +
+          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "") +
+          (typeof r.fit_after_pct === "number" ? ": fit " + fmt(r.fit_before_pct, 1) + " → " + fmt(r.fit_after_pct, 1) + " %" + floor : "");
         const open = link(a.report, "report", true);
         open.className = "analysis-report";
         li.append(what + figure + " ", open);
@@ -657,6 +659,7 @@
     const sel = document.createElement("select");
     sel.className = "model";
     sel.title = "the plant model (configs/plant)";
+    if (r.plant) sel.dataset.plant = r.plant;
     fillModels(sel);
     const buttons = ["compare", "diagnose"].map((kind) => {
       const b = document.createElement("button");

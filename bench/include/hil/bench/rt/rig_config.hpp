@@ -39,6 +39,10 @@ struct RigConfig {
   RigDevices devices;  // empty for sim
   LoopConfig loop;
   SafetyConfig safety;
+  // The run needs a console or ctl client: none heard for operator_timeout_s and it goes to its
+  // safe state, reason "operator link lost" (server/operator_link.hpp). Off by default.
+  bool require_operator = false;
+  double operator_timeout_s = 5.0;
   std::string yaml_text;  // the file as loaded, for the run's snapshot
 };
 
