@@ -315,15 +315,16 @@ void RunChecks::add(const TelemetryRecord& rec) noexcept {
     const CheckSpec& s = *specs_[i];
     if (!s.signal_check) continue;
     Window& w = windows_[i];
+    // The window opens delay_s after the event or, with from_reversal, after the Nth reversal
+    // since the event (the estimate is fitted a little after a reversal's contact).
     if (events & s.after) {
-      w.event_t_s = r.t_s;
+      w.event_t_s = s.from_reversal > 0 ? kNaN : r.t_s;
       w.reversals_since = 0;
     }
-    if (reversal && !(events & s.after & ~kEventReversal)) ++w.reversals_since;
+    if (reversal && !(events & s.after & ~kEventReversal) && ++w.reversals_since == s.from_reversal) w.event_t_s = r.t_s;
     if (!std::isfinite(w.event_t_s)) continue;
     const double since = r.t_s - w.event_t_s;
     if (since < s.delay_s - 1e-9 || since >= s.delay_s + s.for_s - 1e-9) continue;
-    if (s.from_reversal > 0 && w.reversals_since < s.from_reversal) continue;
     double v = kNaN;
     const double p_err = std::abs(r.p_meas_pa - r.p_ref_pa);
     const double gap_err = std::abs(r.gap_est_rad - r.gap_true_rad);

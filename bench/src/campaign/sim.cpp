@@ -344,8 +344,8 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
     e.outcome.checks = e.checks->finish(e.outcome.summary, e.interlock_trips, other);
     if (!c.checks.empty()) e.summary["checks"] = checks_json(e.outcome.checks);
     replace_file(tmp_dir / runs[i]->name / "summary.json", e.summary.dump(2) + "\n");
-    outcome.runs[i] = std::move(e.outcome);
   }
+  for (std::size_t i = 0; i < runs.size(); ++i) outcome.runs[i] = std::move(executed[i].outcome);
   for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
   write_sim_report(c, outcome.runs, tmp_dir / "report.html");
   require_replaceable_output(final_dir);  // again: something may have come in the meantime

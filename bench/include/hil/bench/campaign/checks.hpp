@@ -68,7 +68,7 @@ struct CheckSpec {
   CheckMetric metric = CheckMetric::iae_mpa_s;
   CheckSignal signal = CheckSignal::pressure_error_mpa;
   // Metric: the first reversal counted (1-based; 0: the metric's default). Signal: the window
-  // opens only from this reversal after its event on (0: at once).
+  // opens at this reversal after its event (0: at the event), plus delay_s.
   int from_reversal = 0;
   int to_reversal = 0;  // metric: the last reversal counted (0: the run's last)
   CheckReduce reduce = CheckReduce::mean;
@@ -138,7 +138,7 @@ class RunChecks {
 
  private:
   struct Window {
-    double event_t_s = std::numeric_limits<double>::quiet_NaN();  // the last event (NaN: none yet)
+    double event_t_s = std::numeric_limits<double>::quiet_NaN();  // the window's start (NaN: not open)
     int reversals_since = 0;
     double worst = -std::numeric_limits<double>::infinity(), worst_t_s = 0;
     long samples = 0, valued = 0;
