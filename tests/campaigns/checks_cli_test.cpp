@@ -5,6 +5,8 @@
 
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <sstream>
+#include <vector>
 #include <string>
 
 #include "hil/bench/campaign/checks.hpp"
@@ -122,6 +124,37 @@ TEST(ChecksCli, ACheckSetToFailExitsNonZeroWithValueAndLimit) {
     const std::string message = c["message"];
     EXPECT_TRUE(std::regex_search(message, std::regex("stall_s_per_reversal = [0-9.]+ > max 0\\.001"))) << message;
   }
+}
+
+// A sweep point is its campaign run by `hilbench sim`'s code: a check of the campaign that fails
+// fails the point, with no threshold in the sweep file. paper_fig6's stall per reversal grows with
+// the gap: 0.13 s at 0.2 deg, 0.78 s at 2 deg, against a limit of 0.5 s.
+TEST(ChecksCli, AFailedCheckIsAFailedSweepPoint) {
+  hil::test::TempDir dir;
+  campaign_copy(dir, "paper_fig6", [](std::string t) {
+    t.resize(t.find("\nchecks:") + 1);
+    return t + "checks:\n  - {name: small_stall, metric: stall_s_per_reversal, max: 0.5}\n";
+  });
+  const auto sweep = dir.write("gaps.yaml",
+                               "name: gaps\ncampaign: paper_fig6.yaml\naxes:\n"
+                               "  - path: campaign.gap.initial_deg\n    values: [0.2, 2]\n");
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(dir.path() / "out") + " --jobs 1");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string csv = slurp(dir.path() / "out" / "sweep.csv");
+  const auto lines = [&] {
+    std::vector<std::string> out;
+    std::stringstream in(csv);
+    for (std::string line; std::getline(in, line);) out.push_back(line);
+    return out;
+  }();
+  ASSERT_EQ(lines.size(), 3u) << csv;
+  EXPECT_NE(lines[0].find(",none.checks_failed,pass"), std::string::npos) << lines[0];
+  EXPECT_EQ(lines[1].substr(0, 6), "0,0.2,");
+  EXPECT_EQ(lines[1].substr(lines[1].size() - 7), ",0,pass") << lines[1];
+  EXPECT_EQ(lines[2].substr(0, 4), "1,2,");
+  EXPECT_EQ(lines[2].substr(lines[2].size() - 7), ",1,fail") << lines[2];
+  // The report's worst points say why the point fails.
+  EXPECT_NE(slurp(dir.path() / "out" / "report.html").find("none: 1 checks failed"), std::string::npos);
 }
 
 // Names and messages with every character XML reserves, and controls XML 1.0 cannot hold, stay one

@@ -137,6 +137,33 @@ std::string sweep_csv_row(const SweepPlan& plan, long p, const std::vector<doubl
   return s + (point_passes(plan, metrics) ? ",pass\n" : ",fail\n");
 }
 
+namespace {
+
+// Why a point fails, in words: each threshold it misses ("adaptive.stall_vs_none = 0.61 > 0.5") and
+// each run with failed checks of its campaign ("adaptive: 3 checks failed", `hilbench sim` on the
+// point's campaign names them).
+std::string failing_text(const SweepPlan& plan, const std::vector<std::string>& names, const std::vector<double>& metrics) {
+  std::string out;
+  const auto add = [&](const std::string& s) { out += (out.empty() ? "" : "; ") + s; };
+  for (const auto& t : plan.thresholds) {
+    const std::size_t i = index_of(names, t.metric);
+    const double v = i < metrics.size() ? metrics[i] : std::numeric_limits<double>::quiet_NaN();
+    if (!std::isfinite(v)) add(t.metric + " unknown");
+    if (t.max && v > *t.max) add(t.metric + " = " + number_text(v) + " > " + number_text(*t.max));
+    if (t.min && v < *t.min) add(t.metric + " = " + number_text(v) + " < " + number_text(*t.min));
+  }
+  static constexpr std::string_view kChecksFailed = ".checks_failed";
+  for (std::size_t i = 0; i < names.size() && i < metrics.size(); ++i) {
+    const std::string& n = names[i];
+    if (n.size() > kChecksFailed.size() && n.compare(n.size() - kChecksFailed.size(), kChecksFailed.size(), kChecksFailed) == 0 &&
+        metrics[i] != 0)
+      add(n.substr(0, n.size() - kChecksFailed.size()) + ": " + number_text(metrics[i]) + " checks failed");
+  }
+  return out;
+}
+
+}  // namespace
+
 SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan) {
   const auto rows = read_rows(dir, plan);
   const long missing = plan.size() - static_cast<long>(rows.size());
@@ -206,13 +233,14 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
   doc.heading("Worst points by " + plan.worst_by);
   std::vector<std::string> header{"point"};
   for (const auto& a : plan.axes) header.push_back(a.path);
-  header.insert(header.end(), {plan.worst_by, "pass", "reproduce"});
+  header.insert(header.end(), {plan.worst_by, "pass", "fails on", "reproduce"});
   std::vector<std::vector<std::string>> table;
   for (long p : order) {
     std::vector<std::string> row{std::to_string(p)};
     for (const auto& v : plan.points[static_cast<std::size_t>(p)]) row.push_back(v);
     row.push_back(number_text(rows.at(p)[wi]));
     row.push_back(pass[static_cast<std::size_t>(p)] ? "pass" : "fail");
+    row.push_back(failing_text(plan, names, rows.at(p)));
     row.push_back("hilbench sim " + (dir / "points" / std::to_string(p) / "campaign.yaml").string());
     table.push_back(std::move(row));
   }
@@ -221,7 +249,8 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
       "Metrics per run: iae_mpa_s (integral of |Pg - Pref|), stall_s_per_reversal (mean valve stall over the reference "
       "reversals), stall_vs_none (that over the none run's), touch_changes_per_reversal, gap_error_deg (mean |gap estimate - "
       "true gap| at reversals 2..n, deg), interlock_trips (debounced over/underpressure trips of the bench's default safety "
-      "limits on the measured pressure; the simulation itself runs without interlocks).");
+      "limits on the measured pressure; the simulation itself runs without interlocks), checks_failed (the campaign's "
+      "checks that failed on the run: a point with one fails; `hilbench sim` on the point's campaign names them).");
 
   for (long p : order) {
     const auto folder = dir / "points" / std::to_string(p);
