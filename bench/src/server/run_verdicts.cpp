@@ -24,6 +24,7 @@ Recorder::RowSink RunVerdicts::sink() {
       metrics_.add(s);
     }
     checks_.add(r);
+    ++rows_;
     if (downstream_) downstream_(r);
   };
 }
@@ -36,7 +37,15 @@ nlohmann::json RunVerdicts::finish(bool pressure_trip, const RunChecks::OtherRun
     summary_.stall_s_total = summary_.stall_fraction = kNaN;
     for (auto& r : summary_.reversals) r.stall_s = kNaN;
   }
-  return checks_json(checks_.finish(summary_, pressure_trip ? 1 : 0, other));
+  std::vector<CheckResult> results = checks_.finish(summary_, pressure_trip ? 1 : 0, other);
+  if (rows_ == 0) {
+    for (auto& r : results) {  // an IAE of 0 over no period passes nothing
+      r.verdict = Verdict::skipped;
+      r.value = std::numeric_limits<double>::quiet_NaN();
+      r.message = "the run recorded no period";
+    }
+  }
+  return checks_json(results);
 }
 
 }  // namespace hil::bench

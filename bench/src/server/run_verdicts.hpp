@@ -30,6 +30,7 @@ class RunVerdicts {
 
  private:
   bool active_, knows_truth_;
+  long rows_ = 0;  // rows seen (none: the run never reached its loop, every check is skipped)
   RunMetrics metrics_;
   RunChecks checks_;
   Recorder::RowSink downstream_;
