@@ -141,7 +141,7 @@ CommandRun define_sim(CLI::App& cmd) {
   auto args = std::make_shared<SimArgs>();
   cmd.add_option("campaign", args->campaign_files, "the campaign files, run one after the other")
       ->required()
-      ->type_name("CAMPAIGN.yaml...");
+      ->type_name("CAMPAIGN.yaml");
   cmd.add_option("--out", args->out_dir, "where OUT/<campaign>/ is written")
       ->type_name("DIR")
       ->check(path_value())
