@@ -157,6 +157,35 @@ TEST(ChecksCli, AFailedCheckIsAFailedSweepPoint) {
   EXPECT_NE(slurp(dir.path() / "out" / "report.html").find("none: 1 checks failed"), std::string::npos);
 }
 
+// A sweep map's cells each stand for several points (here 2 seeds); the report counts how many of
+// them fail, per cell: all at a 2 deg gap (stall about 0.78 s > 0.5 s), none at 0.2 deg.
+TEST(ChecksCli, SweepMapCountsFailingPointsPerCell) {
+  hil::test::TempDir dir;
+  campaign_copy(dir, "paper_fig6", [](std::string t) {
+    t.resize(t.find("\nchecks:") + 1);
+    return t + "checks:\n  - {name: small_stall, metric: stall_s_per_reversal, max: 0.5}\n";
+  });
+  const auto sweep =
+      dir.write("gaps.yaml",
+                "name: gaps\ncampaign: paper_fig6.yaml\naxes:\n"
+                "  - {path: campaign.gap.initial_deg, values: [0.2, 2]}\n"
+                "  - {path: campaign.sensor_noise_kpa, values: [0, 1]}\n"
+                "  - {path: campaign.seed, values: [1, 2]}\n"
+                "maps:\n"
+                "  - {metric: none.stall_s_per_reversal, x: campaign.gap.initial_deg, y: campaign.sensor_noise_kpa}\n");
+  const auto r = run_command(hilbench() + " sweep " + q(sweep) + " --out " + q(dir.path() / "out") + " --jobs 1");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string html = slurp(dir.path() / "out" / "report.html");
+  const auto count = [&](const std::string& what) {
+    long n = 0;
+    for (auto at = html.find(what); at != std::string::npos; at = html.find(what, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("Failing points per cell of none.stall_s_per_reversal"), 1);
+  EXPECT_EQ(count(">2 of 2<"), 2) << "the 2 deg column, both noises";
+  EXPECT_EQ(count(">0 of 2<"), 2) << "the 0.2 deg column, both noises";
+}
+
 // Names and messages with every character XML reserves, and controls XML 1.0 cannot hold, stay one
 // well-formed document with the text as it was.
 TEST(ChecksCli, JunitEscapesEverything) {

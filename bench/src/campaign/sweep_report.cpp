@@ -74,6 +74,7 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
   h.y_ticks = ys;
   std::vector<std::vector<std::vector<double>>> cell(ys.size(), std::vector<std::vector<double>>(xs.size()));
   std::vector<std::vector<bool>> any_fail(ys.size(), std::vector<bool>(xs.size(), false));
+  std::vector<std::vector<long>> failing(ys.size(), std::vector<long>(xs.size(), 0));  // points that fail, per cell
   for (const auto& [p, metrics] : rows) {
     const auto& values = plan.points[static_cast<std::size_t>(p)];
     bool in_slice = true;
@@ -82,7 +83,7 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
     const std::size_t x = index_of(xs, values[xi]), y = index_of(ys, values[yi]);
     if (x >= xs.size() || y >= ys.size()) continue;
     cell[y][x].push_back(metrics[mi]);
-    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true;
+    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true, ++failing[y][x];
   }
   const SweepBound* bound = bound_of(plan, map.metric);
   h.values.assign(ys.size(), std::vector<double>(xs.size(), std::numeric_limits<double>::quiet_NaN()));
@@ -119,6 +120,19 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
   doc.paragraph(bound != nullptr
                     ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
                     : "Marked x: a point of the cell fails the thresholds (" + map.metric + " has none of its own).");
+  // How many of each cell's points fail (thresholds or checks): a cell's colour is one reduced
+  // value, this is where and how often the points behind it fail.
+  std::vector<std::string> header{map.y + " \\ " + map.x};
+  header.insert(header.end(), xs.begin(), xs.end());
+  std::vector<std::vector<std::string>> table;
+  for (std::size_t y = 0; y < ys.size(); ++y) {
+    std::vector<std::string> row{ys[y]};
+    for (std::size_t x = 0; x < xs.size(); ++x)
+      row.push_back(std::to_string(failing[y][x]) + " of " + std::to_string(cell[y][x].size()));
+    table.push_back(std::move(row));
+  }
+  doc.paragraph("Failing points per cell of " + map.metric + " (thresholds or the campaign's checks):");
+  doc.table(header, table);
 }
 
 }  // namespace
