@@ -4,7 +4,8 @@
 #   scripts/setup.sh --test   also what the test suites use (Chromium, qemu for vcan, socat, pymodbus, mbpoll,
 #                             clang 14 with its sanitizer and libFuzzer runtimes and llvm-symbolizer, Node.js
 #                             and npm for the Foxglove client and console browser tests, slurm-wlm and munge
-#                             for the single-node Slurm of tests/slurm)
+#                             for the single-node Slurm of tests/slurm, python3-junitparser to read the
+#                             JUnit XML of `hilbench sim --junit` as a CI would)
 #   scripts/setup.sh --bench  also what the benchmarks compare against (rt-tests for cyclictest)
 set -euo pipefail
 
@@ -12,7 +13,7 @@ build_pkgs=(build-essential cmake ninja-build ccache pkg-config git libjs-dygrap
   libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
-  python3 python3-pymodbus python3-serial python3-serial-asyncio mbpoll procps
+  python3 python3-pymodbus python3-serial python3-serial-asyncio python3-junitparser mbpoll procps
   clang-14 libclang-rt-14-dev llvm-14 clang-format-14 nodejs npm
   slurm-wlm munge)
 bench_pkgs=(rt-tests)

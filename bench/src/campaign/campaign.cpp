@@ -341,7 +341,7 @@ void require_plain_name(const Node& where, const std::string& name) {
 Campaign load(const Node& root, const std::filesystem::path& file, const std::string& text,
               const std::filesystem::path& plants_root, const Node* plant_root = nullptr, const std::string& plant_text = {}) {
   root.allow_keys({"name", "description", "plant", "duration_s", "period_ms", "seed", "sensor_noise_kpa", "reference", "gap",
-                   "controller", "runs"});
+                   "controller", "runs", "checks"});
   Campaign c;
   c.file = file;
   c.yaml_text = text;
@@ -499,6 +499,11 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     c.runs.push_back(std::move(spec));
   }
   runs.require(!c.runs.empty(), "needs at least one run");
+  if (auto checks = root.find("checks")) {
+    std::vector<std::string> names;
+    for (const auto& r : c.runs) names.push_back(r.name);
+    c.checks = parse_checks(*checks, names);
+  }
   c.plant = std::make_shared<const plant::Plant>(std::move(truth));
   return c;
 }

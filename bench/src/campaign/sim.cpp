@@ -66,10 +66,21 @@ class ReportDecimator {
   std::array<double, std::size(kReportColumns)> values_{};
 };
 
-RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
-                   std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
+// A run as execute() leaves it: its outcome, and what its checks need once every run is through
+// (stall_vs_none reads the `none` run's summary).
+struct Executed {
+  RunOutcome outcome;
+  nlohmann::json summary;  // summary.json, without the checks yet
+  std::unique_ptr<RunChecks> checks;
+  long interlock_trips = 0;
+};
+
+Executed execute(const Campaign& c, const RunSpec& run, const std::filesystem::path& dir, bool telemetry,
+                 std::atomic<long>& steps_done, const std::atomic<bool>* cancel) {
   const auto t0 = Clock::now();
   RunDigest digest(c);
+  auto checks = std::make_unique<RunChecks>(c, run.name);
+  InterlockCounter interlocks;
   std::unique_ptr<CsvWriter> csv;
   if (telemetry) {
     csv = std::make_unique<CsvWriter>(
@@ -81,6 +92,8 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
       c, run,
       [&](const TelemetryRecord& r) {
         digest.add(r);
+        checks->add(r);
+        interlocks.add(r);
         if (csv) csv->row({row.data(), telemetry_row(r, ColumnSet::sim, row)});
         if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) throw Cancelled("cancelled");
       },
@@ -97,8 +110,7 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
   summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
   summary["wall_s"] = out.wall_s;
-  replace_file(dir / "summary.json", summary.dump(2) + "\n");
-  return out;
+  return {std::move(out), std::move(summary), std::move(checks), interlocks.trips()};
 }
 
 // The lock a sim holds on its unpublished folder ".NAME.tmp-PID" while it works, beside it (not
@@ -208,7 +220,7 @@ void RunDigest::add(const TelemetryRecord& r) {
 }
 
 RunOutcome RunDigest::finish(std::string run_name) {
-  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0};
+  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0, {}};
 }
 
 SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)
@@ -270,6 +282,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
 
   CampaignOutcome outcome;
   outcome.runs.resize(runs.size());
+  std::vector<Executed> executed(runs.size());
   std::atomic<long> steps_done{0};
   const long steps_total = std::lround(c.duration_s / c.period_s) * static_cast<long>(runs.size());
   std::vector<std::exception_ptr> errors(runs.size());
@@ -277,7 +290,7 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   auto worker = [&] {
     for (std::size_t i; (i = next.fetch_add(1)) < runs.size();) {
       try {
-        outcome.runs[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
+        executed[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
       } catch (...) {
         errors[i] = std::current_exception();
       }
@@ -319,6 +332,20 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   for (auto& e : errors) {
     if (e) std::rethrow_exception(e);
   }
+  // The verdicts, once every run is through (a check may compare with another run), into each
+  // run's summary.json.
+  const auto other = [&](const std::string& name) -> const RunSummary* {
+    for (const auto& e : executed)
+      if (e.outcome.name == name) return &e.outcome.summary;
+    return nullptr;
+  };
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    Executed& e = executed[i];
+    e.outcome.checks = e.checks->finish(e.outcome.summary, e.interlock_trips, other);
+    if (!c.checks.empty()) e.summary["checks"] = checks_json(e.outcome.checks);
+    replace_file(tmp_dir / runs[i]->name / "summary.json", e.summary.dump(2) + "\n");
+  }
+  for (std::size_t i = 0; i < runs.size(); ++i) outcome.runs[i] = std::move(executed[i].outcome);
   for (const auto& r : outcome.runs) outcome.simulated_s += r.summary.duration_s;
   write_sim_report(c, outcome.runs, tmp_dir / "report.html");
   require_replaceable_output(final_dir);  // again: something may have come in the meantime

@@ -260,7 +260,7 @@ void require_metric(const Node& where, const std::string& metric, const std::vec
   const std::string hint = cfg::closest(metric, metrics);
   where.fail("no metric '" + metric + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
              "; metrics are <run>.iae_mpa_s, .stall_s_per_reversal, .stall_vs_none, .touch_changes_per_reversal, "
-             ".gap_error_deg, .interlock_trips");
+             ".gap_error_deg, .interlock_trips, .checks_failed");
 }
 
 const SweepAxis& grid_axis(const Node& where, const std::string& path, const std::vector<SweepAxis>& axes) {
@@ -288,7 +288,7 @@ std::vector<std::string> SweepPlan::metric_names() const {
   std::vector<std::string> names;
   for (const auto& r : runs) {
     for (const char* m : {"iae_mpa_s", "stall_s_per_reversal", "stall_vs_none", "touch_changes_per_reversal", "gap_error_deg",
-                          "interlock_trips"}) {
+                          "interlock_trips", "checks_failed"}) {
       if (std::string_view(m) == "stall_vs_none" && !has_none) continue;
       names.push_back(r + "." + m);
     }
@@ -752,6 +752,28 @@ PointYaml PointMaker::yaml(long p) const {
     }
   }
   campaign["runs"] = runs;
+  // And only the checks of those runs (a check of a run the sweep leaves out would name no run).
+  const YAML::Node checks = static_cast<const YAML::Node&>(campaign)["checks"];
+  if (checks && checks.IsSequence()) {
+    const auto swept = [&](const std::string& r) { return std::find(plan.runs.begin(), plan.runs.end(), r) != plan.runs.end(); };
+    YAML::Node kept(YAML::NodeType::Sequence);
+    for (const YAML::Node& check : checks) {
+      YAML::Node copy = YAML::Clone(check);
+      const YAML::Node& read = copy;
+      if (read.IsMap() && read["metric"] && read["metric"].IsScalar() && read["metric"].as<std::string>() == "stall_vs_none" &&
+          !swept("none"))
+        continue;
+      if (read.IsMap() && read["runs"] && read["runs"].IsSequence()) {
+        YAML::Node names(YAML::NodeType::Sequence);
+        for (const YAML::Node& n : read["runs"])
+          if (n.IsScalar() && swept(n.as<std::string>())) names.push_back(n);
+        if (names.size() == 0) continue;
+        copy["runs"] = names;
+      }
+      kept.push_back(copy);
+    }
+    campaign["checks"] = kept;
+  }
   // A reference read from a CSV file: from where the base campaign found it, wherever the point's
   // campaign is written.
   // (Read through const nodes, tested before use: a mutable node's operator[] would add the keys
@@ -801,29 +823,29 @@ std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) con
     throw std::runtime_error("sweep point " + std::to_string(p) + ": the campaign's runs are not the plan's");
   struct PerRun {
     double iae = 0, stall = kNoValue, touch = kNoValue, gap_err = kNoValue;
-    long trips = 0;
+    long trips = 0, checks_failed = 0;
   };
   std::vector<PerRun> out;
+  std::vector<RunSummary> summaries;
+  std::vector<std::unique_ptr<RunChecks>> checks;
   double none_stall = kNoValue;
   for (const RunSpec& run : c.runs) {
-    // What the bench's default interlocks would have tripped on: the simulation has none, so a
-    // trip is counted each time the pressure check, debounced as on the bench, starts tripping.
-    Safety safety{SafetyConfig{}};
-    long trips = 0;
-    bool tripping = false;
+    // What the bench's default interlocks would have tripped on (the simulation has none), and
+    // the campaign's checks, as `hilbench sim` evaluates them.
+    InterlockCounter interlocks;
+    checks.push_back(std::make_unique<RunChecks>(c, run.name));
+    RunChecks& run_checks = *checks.back();
     long step = 0;
     const RunSummary s = summarise_run(c, run, [&](const TelemetryRecord& r) {
       if ((++step & 1023) == 0 && cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
         throw Cancelled("sweep point " + std::to_string(p) + " abandoned");
       }
-      double value = 0, limit = 0;
-      const bool trip = safety.check(false, false, r.step.p_meas_pa, value, limit) != Trip::none;
-      if (trip && !tripping) ++trips;
-      tripping = trip;
+      interlocks.add(r);
+      run_checks.add(r);
     });
     PerRun m;
     m.iae = s.iae_mpa_s;
-    m.trips = trips;
+    m.trips = interlocks.trips();
     const std::size_t n = s.reversals.size();
     if (n > 0) {
       double stall = 0;
@@ -838,6 +860,16 @@ std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) con
     }
     if (run.name == "none") none_stall = m.stall;
     out.push_back(m);
+    summaries.push_back(s);
+  }
+  // The checks once every run is through: a check may compare with another run (stall_vs_none).
+  const auto other = [&](const std::string& name) -> const RunSummary* {
+    for (std::size_t i = 0; i < c.runs.size(); ++i)
+      if (c.runs[i].name == name) return &summaries[i];
+    return nullptr;
+  };
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i].checks_failed = tally(checks[i]->finish(summaries[i], out[i].trips, other)).failed;
   }
   const bool has_none = std::find(plan.runs.begin(), plan.runs.end(), "none") != plan.runs.end();
   std::vector<double> metrics;
@@ -848,12 +880,20 @@ std::vector<double> PointMaker::run(long p, const std::atomic<bool>* cancel) con
     metrics.push_back(m.touch);
     metrics.push_back(m.gap_err);
     metrics.push_back(static_cast<double>(m.trips));
+    metrics.push_back(static_cast<double>(m.checks_failed));
   }
   return metrics;
 }
 
 bool point_passes(const SweepPlan& plan, const std::vector<double>& metrics) {
   const auto names = plan.metric_names();
+  // A failed check of the point's campaign is a failed point, whatever the thresholds say.
+  static constexpr std::string_view kChecksFailed = ".checks_failed";
+  for (std::size_t i = 0; i < names.size() && i < metrics.size(); ++i) {
+    const std::string_view n = names[i];
+    if (n.size() > kChecksFailed.size() && n.substr(n.size() - kChecksFailed.size()) == kChecksFailed && metrics[i] != 0)
+      return false;
+  }
   for (const auto& t : plan.thresholds) {
     const auto at = std::find(names.begin(), names.end(), t.metric);
     if (at == names.end()) return false;

@@ -74,6 +74,7 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
   h.y_ticks = ys;
   std::vector<std::vector<std::vector<double>>> cell(ys.size(), std::vector<std::vector<double>>(xs.size()));
   std::vector<std::vector<bool>> any_fail(ys.size(), std::vector<bool>(xs.size(), false));
+  std::vector<std::vector<long>> failing(ys.size(), std::vector<long>(xs.size(), 0));  // points that fail, per cell
   for (const auto& [p, metrics] : rows) {
     const auto& values = plan.points[static_cast<std::size_t>(p)];
     bool in_slice = true;
@@ -82,7 +83,7 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
     const std::size_t x = index_of(xs, values[xi]), y = index_of(ys, values[yi]);
     if (x >= xs.size() || y >= ys.size()) continue;
     cell[y][x].push_back(metrics[mi]);
-    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true;
+    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true, ++failing[y][x];
   }
   const SweepBound* bound = bound_of(plan, map.metric);
   h.values.assign(ys.size(), std::vector<double>(xs.size(), std::numeric_limits<double>::quiet_NaN()));
@@ -119,6 +120,19 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
   doc.paragraph(bound != nullptr
                     ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
                     : "Marked x: a point of the cell fails the thresholds (" + map.metric + " has none of its own).");
+  // How many of each cell's points fail (thresholds or checks): a cell's colour is one reduced
+  // value, this is where and how often the points behind it fail.
+  std::vector<std::string> header{map.y + " \\ " + map.x};
+  header.insert(header.end(), xs.begin(), xs.end());
+  std::vector<std::vector<std::string>> table;
+  for (std::size_t y = 0; y < ys.size(); ++y) {
+    std::vector<std::string> row{ys[y]};
+    for (std::size_t x = 0; x < xs.size(); ++x)
+      row.push_back(std::to_string(failing[y][x]) + " of " + std::to_string(cell[y][x].size()));
+    table.push_back(std::move(row));
+  }
+  doc.paragraph("Failing points per cell of " + map.metric + " (thresholds or the campaign's checks):");
+  doc.table(header, table);
 }
 
 }  // namespace
@@ -136,6 +150,33 @@ std::string sweep_csv_row(const SweepPlan& plan, long p, const std::vector<doubl
   for (double v : metrics) (s += ',') += number_text(v);
   return s + (point_passes(plan, metrics) ? ",pass\n" : ",fail\n");
 }
+
+namespace {
+
+// Why a point fails, in words: each threshold it misses ("adaptive.stall_vs_none = 0.61 > 0.5") and
+// each run with failed checks of its campaign ("adaptive: 3 checks failed", `hilbench sim` on the
+// point's campaign names them).
+std::string failing_text(const SweepPlan& plan, const std::vector<std::string>& names, const std::vector<double>& metrics) {
+  std::string out;
+  const auto add = [&](const std::string& s) { out += (out.empty() ? "" : "; ") + s; };
+  for (const auto& t : plan.thresholds) {
+    const std::size_t i = index_of(names, t.metric);
+    const double v = i < metrics.size() ? metrics[i] : std::numeric_limits<double>::quiet_NaN();
+    if (!std::isfinite(v)) add(t.metric + " unknown");
+    if (t.max && v > *t.max) add(t.metric + " = " + number_text(v) + " > " + number_text(*t.max));
+    if (t.min && v < *t.min) add(t.metric + " = " + number_text(v) + " < " + number_text(*t.min));
+  }
+  static constexpr std::string_view kChecksFailed = ".checks_failed";
+  for (std::size_t i = 0; i < names.size() && i < metrics.size(); ++i) {
+    const std::string& n = names[i];
+    if (n.size() > kChecksFailed.size() && n.compare(n.size() - kChecksFailed.size(), kChecksFailed.size(), kChecksFailed) == 0 &&
+        metrics[i] != 0)
+      add(n.substr(0, n.size() - kChecksFailed.size()) + ": " + number_text(metrics[i]) + " checks failed");
+  }
+  return out;
+}
+
+}  // namespace
 
 SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPlan& plan) {
   const auto rows = read_rows(dir, plan);
@@ -206,13 +247,14 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
   doc.heading("Worst points by " + plan.worst_by);
   std::vector<std::string> header{"point"};
   for (const auto& a : plan.axes) header.push_back(a.path);
-  header.insert(header.end(), {plan.worst_by, "pass", "reproduce"});
+  header.insert(header.end(), {plan.worst_by, "pass", "fails on", "reproduce"});
   std::vector<std::vector<std::string>> table;
   for (long p : order) {
     std::vector<std::string> row{std::to_string(p)};
     for (const auto& v : plan.points[static_cast<std::size_t>(p)]) row.push_back(v);
     row.push_back(number_text(rows.at(p)[wi]));
     row.push_back(pass[static_cast<std::size_t>(p)] ? "pass" : "fail");
+    row.push_back(failing_text(plan, names, rows.at(p)));
     row.push_back("hilbench sim " + (dir / "points" / std::to_string(p) / "campaign.yaml").string());
     table.push_back(std::move(row));
   }
@@ -221,7 +263,8 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
       "Metrics per run: iae_mpa_s (integral of |Pg - Pref|), stall_s_per_reversal (mean valve stall over the reference "
       "reversals), stall_vs_none (that over the none run's), touch_changes_per_reversal, gap_error_deg (mean |gap estimate - "
       "true gap| at reversals 2..n, deg), interlock_trips (debounced over/underpressure trips of the bench's default safety "
-      "limits on the measured pressure; the simulation itself runs without interlocks).");
+      "limits on the measured pressure; the simulation itself runs without interlocks), checks_failed (the campaign's "
+      "checks that failed on the run: a point with one fails; `hilbench sim` on the point's campaign names them).");
 
   for (long p : order) {
     const auto folder = dir / "points" / std::to_string(p);

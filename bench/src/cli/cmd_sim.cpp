@@ -1,4 +1,5 @@
-// hilbench sim CAMPAIGN.yaml [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
+// hilbench sim CAMPAIGN.yaml... [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
+//              [--junit FILE]
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -7,12 +8,18 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/config.hpp"
+#include "hil/line_file.hpp"
 
 namespace hil::bench {
 namespace {
 
+// The exit code of a sim whose runs all completed but a campaign's check failed: not 1 (an error
+// in a file or a job), so a CI script can tell a regression from a broken setup.
+constexpr int kChecksFailedExit = 3;
+
 struct SimArgs {
-  std::string campaign_file;
+  std::vector<std::string> campaign_files;
+  std::string junit;  // empty: no JUnit XML
   std::string out_dir = "out";
   std::string runs;                       // comma-separated run names
   const CLI::Option* runs_opt = nullptr;  // not given: every run
@@ -48,14 +55,40 @@ std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string
   return names;
 }
 
-int run_sim(const SimArgs& args) {
-  // Load and validate everything before anything is written.
-  Campaign campaign = load_campaign(args.campaign_file);
+Campaign load_for_sim(const SimArgs& args, const std::string& file) {
+  Campaign campaign = load_campaign(file);
   if (args.sensor_noise->count() > 0) {
     try {
       campaign = with_sensor_noise(std::move(campaign), args.sensor_noise_kpa);
     } catch (const std::invalid_argument& e) {  // beyond the sensor effect's range
       throw UsageError("--sensor-noise-kpa " + args.sensor_noise->as<std::string>() + ": " + e.what());
+    }
+  }
+  return campaign;
+}
+
+// The verdict lines of a campaign's runs; returns how many checks failed.
+long print_checks(const CampaignOutcome& out, bool quiet) {
+  long failed = 0;
+  for (const auto& r : out.runs) {
+    for (const auto& c : r.checks) {
+      if (c.verdict == Verdict::fail) ++failed;
+      if (!quiet || c.verdict == Verdict::fail)
+        std::printf("  %-7s %s/%s: %s\n", to_string(c.verdict), r.name.c_str(), c.check.c_str(), c.message.c_str());
+    }
+  }
+  return failed;
+}
+
+int run_sim(const SimArgs& args) {
+  // Load and validate every campaign before anything is written.
+  std::vector<Campaign> campaigns;
+  for (const auto& file : args.campaign_files) {
+    campaigns.push_back(load_for_sim(args, file));
+    for (std::size_t i = 0; i + 1 < campaigns.size(); ++i) {
+      if (campaigns[i].name == campaigns.back().name)
+        throw UsageError("campaigns " + args.campaign_files[i] + " and " + file + " are both named '" + campaigns.back().name +
+                         "' (one output folder each): give one a different 'name:'");
     }
   }
   SimOptions options;
@@ -64,33 +97,51 @@ int run_sim(const SimArgs& args) {
   options.progress = !args.quiet;
   // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
   options.cancel = &StopSignal::install();
-  if (args.runs_opt->count() > 0) options.only_runs = chosen_runs(campaign, args.runs);
-  CampaignOutcome out;
-  try {
-    out = run_campaign(campaign, options);
-  } catch (const Cancelled&) {
-    std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(), StopSignal::name(),
-                 options.out_dir.c_str());
-    return StopSignal::exit_code();
-  }
-  if (!args.quiet) {
-    std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
-                out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
-    std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
-    for (const auto& r : out.runs) {
-      std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s, r.summary.stall_s_total,
-                  r.summary.gap_est_final_deg, r.summary.touch_state_changes, r.summary.compensation_events);
+  std::vector<JunitSuite> suites;
+  long failed = 0;
+  for (const Campaign& campaign : campaigns) {
+    options.only_runs.clear();
+    if (args.runs_opt->count() > 0) options.only_runs = chosen_runs(campaign, args.runs);
+    CampaignOutcome out;
+    try {
+      out = run_campaign(campaign, options);
+    } catch (const Cancelled&) {
+      std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(), StopSignal::name(),
+                   options.out_dir.c_str());
+      return StopSignal::exit_code();
     }
-    std::printf("  report: %s\n", (out.dir / "report.html").c_str());
+    if (!args.quiet) {
+      std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
+                  out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
+      std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
+      for (const auto& r : out.runs) {
+        std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s, r.summary.stall_s_total,
+                    r.summary.gap_est_final_deg, r.summary.touch_state_changes, r.summary.compensation_events);
+      }
+      std::printf("  report: %s\n", (out.dir / "report.html").c_str());
+    }
+    const long campaign_failed = print_checks(out, args.quiet);
+    if (campaign_failed > 0) std::printf("%s: %ld check(s) failed\n", campaign.name.c_str(), campaign_failed);
+    failed += campaign_failed;
+    JunitSuite suite{campaign.name, std::filesystem::absolute(out.dir / "report.html").string(), out.wall_s, {}};
+    for (const auto& r : out.runs) suite.runs.push_back({r.name, r.wall_s, r.checks});
+    suites.push_back(std::move(suite));
   }
-  return 0;
+  if (!args.junit.empty()) {
+    const std::filesystem::path junit(args.junit);
+    if (junit.has_parent_path()) std::filesystem::create_directories(junit.parent_path());
+    replace_file(junit, junit_xml(suites));
+  }
+  return failed > 0 ? kChecksFailedExit : 0;
 }
 
 }  // namespace
 
 CommandRun define_sim(CLI::App& cmd) {
   auto args = std::make_shared<SimArgs>();
-  cmd.add_option("campaign", args->campaign_file, "the campaign file")->required()->type_name("CAMPAIGN.yaml");
+  cmd.add_option("campaign", args->campaign_files, "the campaign files, run one after the other")
+      ->required()
+      ->type_name("CAMPAIGN.yaml");
   cmd.add_option("--out", args->out_dir, "where OUT/<campaign>/ is written")
       ->type_name("DIR")
       ->check(path_value())
@@ -101,7 +152,12 @@ CommandRun define_sim(CLI::App& cmd) {
           ->type_name("KPA")
           ->check(non_negative_number());
   cmd.add_flag("--no-telemetry", args->no_telemetry, "no telemetry.csv per run (summaries and report only)");
-  cmd.add_flag("--quiet", args->quiet, "no progress and no table of results");
+  cmd.add_flag("--quiet", args->quiet, "no progress and no table of results (failed checks are still shown)");
+  cmd.add_option("--junit", args->junit,
+                 "write the campaigns' checks as JUnit XML (a testsuite per campaign, a testcase per run and check); "
+                 "the exit code is 3 when a check fails")
+      ->type_name("FILE")
+      ->check(path_value());
   return [args] { return run_sim(*args); };
 }
 

@@ -138,6 +138,7 @@ json RunRecord::to_json() const {
     j["telemetry"] = t;
   }
   if (!interrupted.is_null()) j["interrupted"] = interrupted;
+  if (!checks.is_null()) j["checks"] = checks;
   return j;
 }
 
@@ -195,6 +196,7 @@ RunRecord RunRecord::from_json(const json& j, const std::string& origin) {
     rec.telemetry = tel;
   }
   if (const json* i = r.find("interrupted")) rec.interrupted = *i;
+  if (const json* c = r.find("checks")) rec.checks = *c;
   return rec;
 }
 

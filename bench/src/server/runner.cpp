@@ -23,6 +23,7 @@
 #include "hil/text_file.hpp"
 #include "hil/units.hpp"
 #include "run_folder.hpp"
+#include "run_verdicts.hpp"
 
 namespace hil::bench {
 namespace {
@@ -176,6 +177,7 @@ struct CampaignRunner::Active {
   // record is still being written), so progress never goes back.
   double run_t_s = 0;
   json finished = json::array();
+  std::vector<std::pair<std::string, RunSummary>> summaries;  // of finished runs, for checks against another run
 };
 
 CampaignRunner::CampaignRunner(RunnerOptions options) : o_(std::move(options)) {}
@@ -438,13 +440,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   }
 
   std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
+  RunVerdicts verdicts(c, run, rig->knows_truth(), o_.on_row);  // outlives the recorder, which feeds it
   Recorder rec(dir,
                {{"source", "hilbench serve"},
                 {"campaign", c.name},
                 {"run", run.name},
                 {"rig", rc.name},
                 {"start_utc", utc_iso(start_utc)}},
-               static_cast<std::size_t>(rc.loop.ring_rows), o_.on_row, std::chrono::milliseconds(100), rig->knows_truth(),
+               static_cast<std::size_t>(rc.loop.ring_rows), verdicts.sink(), std::chrono::milliseconds(100), rig->knows_truth(),
                rc.loop.cpu);
   rec.log({{"kind", "run_start"},
            {"source", "bench"},
@@ -616,6 +619,16 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   if (!write_error.empty()) tel.write_error = write_error;
   info.telemetry = tel;
   {
+    const auto other = [&a](const std::string& name) -> const RunSummary* {
+      for (const auto& [n, summary] : a.summaries)
+        if (n == name) return &summary;
+      return nullptr;
+    };
+    const bool pressure_trip = loop && (loop->trip() == Trip::overpressure || loop->trip() == Trip::underpressure);
+    info.checks = verdicts.finish(pressure_trip, other);
+    if (!info.checks.is_null()) a.summaries.emplace_back(run.name, verdicts.summary());
+  }
+  {
     std::error_code ec;
     std::filesystem::remove(dir / ".reserve", ec);  // its room is for this last write
   }
@@ -636,16 +649,18 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   }
   run_lock.reset();
   const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
-  const json summary = {
+  json summary = {
       {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", reason_or_null}};
-  notice({{"type", "run_end"},
-          {"campaign", c.name},
-          {"run", run.name},
-          {"dir", dir.filename().string()},
-          {"outcome", to_string(outcome)},
-          {"reason", reason_or_null},
-          // the interlock that ended it, or "operator abort" (the console latches SAFE or TRIPPED on it)
-          {"trip", info.trip ? json(info.trip->reason) : json(nullptr)}});
+  json end = {{"type", "run_end"},
+              {"campaign", c.name},
+              {"run", run.name},
+              {"dir", dir.filename().string()},
+              {"outcome", to_string(outcome)},
+              {"reason", reason_or_null},
+              // the interlock that ended it, or "operator abort" (the console latches SAFE or TRIPPED on it)
+              {"trip", info.trip ? json(info.trip->reason) : json(nullptr)}};
+  if (!info.checks.is_null()) summary["checks"] = end["checks"] = info.checks;
+  notice(end);
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
 }

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "hil/bench/campaign/checks.hpp"
 #include "hil/bench/campaign/schedule.hpp"
 #include "hil/ctl/controller.hpp"
 #include "hil/plant/plant.hpp"
@@ -47,8 +48,9 @@ struct Campaign {
   std::vector<double> reversals_s;  // reference reversals (the first movement is reversal 1)
   long reference_moves = 0;         // steps and ramps of the reference, either direction
   std::vector<RunSpec> runs;
-  std::string yaml_text;        // the file as loaded, for the run's snapshot
-  std::string plant_yaml_text;  // the plant file as loaded, for the run's snapshot
+  std::vector<CheckSpec> checks;  // the campaign's verdicts (checks.hpp); empty: none asked
+  std::string yaml_text;          // the file as loaded, for the run's snapshot
+  std::string plant_yaml_text;    // the plant file as loaded, for the run's snapshot
   // Other files the campaign read (a csv reference item's file): a sweep's plan fingerprints
   // their contents, since every point reads them again.
   std::vector<std::filesystem::path> data_files;

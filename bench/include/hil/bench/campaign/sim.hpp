@@ -94,6 +94,7 @@ struct RunOutcome {
   RunSummary summary;
   std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true, target
   double wall_s = 0;
+  std::vector<CheckResult> checks;  // the campaign's checks of this run (`hilbench sim`; empty: none)
 };
 
 // What a run's report and summary are made of, gathered from its records one period at a time:

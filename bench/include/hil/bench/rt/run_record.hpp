@@ -63,6 +63,9 @@ struct RunRecord {
   };
   std::optional<Telemetry> telemetry;
   nlohmann::json interrupted;  // found_utc, last_write_utc, bytes_trimmed (null: not interrupted)
+  // The campaign's verdicts on the run (campaign/checks.hpp, checks_json): written at the end when
+  // the campaign has checks (null: none asked).
+  nlohmann::json checks;
 
   nlohmann::json to_json() const;
   // Throws std::runtime_error naming `origin` and the key that is missing or of the wrong type.
