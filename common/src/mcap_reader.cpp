@@ -116,7 +116,8 @@ void Reader::take(std::uint8_t opcode, std::string_view body, std::uint64_t at) 
       r.record = "schema";
       Schema s;
       std::string_view data;
-      if (!r.num(s.id) || !r.str(s.name) || !r.str(s.encoding) || !r.str(data)) fail(at, r.short_of("id, name, encoding or data"));
+      if (!r.num(s.id) || !r.str(s.name) || !r.str(s.encoding) || !r.str(data))
+        fail(at, r.short_of("id, name, encoding or data"));
       s.data.assign(data);
       if (s.id == 0) return;  // "invalid and should be ignored by readers"
       schemas_[s.id] = std::move(s);
@@ -170,7 +171,8 @@ bool Reader::next(Message& m) {
       if (chunk_.size() - chunk_pos_ < 9) fail(at, "a record inside a chunk runs past the chunk's end");
       const auto op = static_cast<std::uint8_t>(chunk_[chunk_pos_]);
       std::uint64_t n = 0;
-      for (int i = 0; i < 8; ++i) n |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(chunk_[chunk_pos_ + 1 + i])) << (8 * i);
+      for (int i = 0; i < 8; ++i)
+        n |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(chunk_[chunk_pos_ + 1 + i])) << (8 * i);
       if (n > chunk_.size() - chunk_pos_ - 9) fail(at, "a record inside a chunk runs past the chunk's end");
       const std::string_view body(chunk_.data() + chunk_pos_ + 9, n);
       chunk_pos_ += 9 + n;

@@ -162,9 +162,8 @@ void Recorder::log(const nlohmann::json& event) {
     if (!failed_.load()) {
       events_file_->append(line);
       events_written_.fetch_add(1);
-      const std::uint64_t t_ns = event.contains("t_s") && event["t_s"].is_number()
-                                     ? row_time_ns(event["t_s"].get<double>())
-                                     : last_row_ns_.load(std::memory_order_relaxed);
+      const std::uint64_t t_ns = event.contains("t_s") && event["t_s"].is_number() ? row_time_ns(event["t_s"].get<double>())
+                                                                                   : last_row_ns_.load(std::memory_order_relaxed);
       std::lock_guard mcap_lock(mcap_mutex_);
       if (mcap_) mcap_->message(mcap_events_channel_, t_ns, std::string_view(line).substr(0, line.size() - 1));
       return;

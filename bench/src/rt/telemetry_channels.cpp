@@ -21,7 +21,9 @@ const std::vector<TelemetryChannel>& telemetry_channels() {
   static const std::vector<TelemetryChannel> kChannels = [] {
     std::vector<TelemetryChannel> c = {
         {1, "/hilbench/pressure", {Col::t_s, Col::p_ref_mpa, Col::p_meas_mpa, Col::p_chamber_mpa}},
-        {2, "/hilbench/angles", {Col::t_s, Col::theta_cmd_deg, Col::theta_target_deg, Col::theta_motor_deg, Col::theta_valve_deg}},
+        {2,
+         "/hilbench/angles",
+         {Col::t_s, Col::theta_cmd_deg, Col::theta_target_deg, Col::theta_motor_deg, Col::theta_valve_deg}},
         {3,
          "/hilbench/observer",
          {Col::t_s, Col::touch_state, Col::motion_intention, Col::gap_est_deg, Col::gap_true_deg, Col::comp_deg}},

@@ -68,7 +68,7 @@ class Writer {
     std::uint64_t offset, length, log_time_ns, size;
     std::string name, media_type;
   };
-  void put(std::string_view bytes);  // to the file, counting the offset; throws naming the file
+  void put(std::string_view bytes);                                  // to the file, counting the offset; throws naming the file
   std::uint64_t record(std::uint8_t opcode, std::string_view body);  // returns the record's offset
 
   std::filesystem::path path_;
@@ -101,7 +101,7 @@ struct Message {
   std::uint16_t channel_id = 0;
   std::uint32_t sequence = 0;
   std::uint64_t log_time_ns = 0, publish_time_ns = 0;
-  std::string_view data;  // valid until the next call of next()
+  std::string_view data;     // valid until the next call of next()
   std::uint64_t offset = 0;  // of its record in the file (inside its chunk: chunks are uncompressed)
 };
 
@@ -119,7 +119,7 @@ class Reader {
   bool next(Message& m);
   const std::map<std::uint16_t, Schema>& schemas() const { return schemas_; }
   const std::map<std::uint16_t, Channel>& channels() const { return channels_; }
-  const std::vector<std::pair<std::string, KeyValues>>& metadata() const { return metadata_; }  // seen so far
+  const std::vector<std::pair<std::string, KeyValues>>& metadata() const { return metadata_; }          // seen so far
   const std::vector<std::pair<std::string, std::string>>& attachments() const { return attachments_; }  // name, data
   bool truncated() const { return truncated_; }
   std::uint64_t bytes_read() const { return offset_; }
@@ -129,7 +129,7 @@ class Reader {
  private:
   [[noreturn]] void fail(std::uint64_t offset, const std::string& what) const;
   bool read_record(std::uint8_t& opcode, std::string& body, std::uint64_t& at);  // false at the end
-  void take(std::uint8_t opcode, std::string_view body, std::uint64_t at);     // schema, channel, metadata...
+  void take(std::uint8_t opcode, std::string_view body, std::uint64_t at);       // schema, channel, metadata...
 
   std::filesystem::path path_;
   std::FILE* f_ = nullptr;

@@ -90,7 +90,7 @@ class Recorder {
   TelemetryChannel mcap_telemetry_;
   std::uint16_t mcap_rows_channel_ = 0, mcap_events_channel_ = 0;
   std::atomic<std::uint64_t> last_row_ns_{0};  // the time stamp of an event that has no t_s
-  std::mutex events_mutex_;  // log() is called from any thread
+  std::mutex events_mutex_;                    // log() is called from any thread
   RowSink on_row_;
   std::chrono::milliseconds flush_period_;
   bool with_truth_;
