@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -46,10 +47,10 @@ TableReader::TableReader(const std::filesystem::path& file, CsvRequest request, 
   mcap_ = std::make_unique<mcap::Reader>(file);
   header_.file = file;
   // Up to the first row of the topic (or the end): its channel record is known by then.
-  const auto find_channel = [&] {
+  const auto find_channel = [&]() -> std::optional<std::uint16_t> {  // 0 is a channel id like any other
     for (const auto& [id, c] : mcap_->channels())
       if (c.topic == topic_) return id;
-    return std::uint16_t{0};
+    return std::nullopt;
   };
   while (mcap_->next(pending_)) {
     if (mcap_->channels().at(pending_.channel_id).topic == topic_) {
@@ -57,12 +58,13 @@ TableReader::TableReader(const std::filesystem::path& file, CsvRequest request, 
       break;
     }
   }
-  channel_ = find_channel();
-  if (channel_ == 0) {
+  const auto found = find_channel();
+  if (!found) {
     std::string have;
     for (const auto& [id, c] : mcap_->channels()) have += (have.empty() ? "" : ", ") + c.topic.substr(0, 80);
     throw mcap::McapError(file.string() + ": no channel '" + topic_ + "' (the file has: " + (have.empty() ? "none" : have) + ")");
   }
+  channel_ = *found;
   const mcap::Channel& ch = mcap_->channels().at(channel_);
   if (ch.message_encoding != "json")
     throw mcap::McapError(file.string() + ": channel '" + topic_ + "': message encoding '" + ch.message_encoding.substr(0, 40) +

@@ -58,9 +58,14 @@ async function start(base, speed) {
     body: JSON.stringify({ campaign: "paper_adaptive", runs: ["adaptive"], speed }) });
   if (r.status !== 202) throw new Error("start: " + r.status + " " + (await r.text()));
 }
-async function newestRun(base) {
-  const runs = (await (await fetch(`${base}/api/runs`)).json()).runs;
-  return join(dir, "runs", runs[0].id);
+// The folder of the run under way, from the server's status.
+async function runningRun(base) {
+  for (let i = 0; i < 600; ++i) {
+    const s = await (await fetch(`${base}/api/status`)).json();
+    if (s.run_dir) return join(dir, "runs", s.run_dir);
+    await sleep(50);
+  }
+  throw new Error("no run under way");
 }
 
 // telemetry.csv: its column names and its rows as text cells ("# key: value" lines skipped).
@@ -138,6 +143,7 @@ function sameRows(label, telemetry, csv, wantAll) {
 
 async function completedRun(base) {
   await start(base, 10);
+  const run = await runningRun(base);
   let status;
   for (let i = 0; i < 1200; ++i) {
     status = await (await fetch(`${base}/api/status`)).json();
@@ -145,7 +151,6 @@ async function completedRun(base) {
     await sleep(100);
   }
   if (status.last?.outcome !== "completed") throw new Error("the run did not complete: " + JSON.stringify(status));
-  const run = await newestRun(base);
   const file = readFileSync(join(run, "telemetry.mcap"));
   const csv = readCsv(join(run, "telemetry.csv"));
   const events = readFileSync(join(run, "events.jsonl"), "utf8").split("\n").filter((l) => l).map((l) => JSON.parse(l));
@@ -205,7 +210,7 @@ async function completedRun(base) {
 
 async function killedRun(base) {
   await start(base, 1);
-  const run = await newestRun(base);
+  const run = await runningRun(base);
   // Killed once the CSV holds 1.5 s of rows (it and the MCAP are flushed together).
   for (let i = 0; i < 600; ++i) {
     const csv = existsSync(join(run, "telemetry.csv")) ? readCsv(join(run, "telemetry.csv")) : { rows: [] };
