@@ -64,17 +64,14 @@ void MeasurementRows::append(const MeasurementRows& o) {
   cat(p_ref_pa, o.p_ref_pa);
 }
 
-MeasurementReader::MeasurementReader(const std::filesystem::path& file) : file_(file), reader_(file, measurement_request()) {
+MeasurementReader::MeasurementReader(const std::filesystem::path& file)
+    : file_(file), reader_(file, measurement_request(), telemetry::kTopic) {
   has_encoder_ = reader_.header().present[3];
   has_reference_ = reader_.header().present[4];
 }
 
 void MeasurementReader::fail_at(std::size_t line, std::string_view column, const std::string& what) const {
-  const auto& names = reader_.header().names;
-  const auto it = std::find(names.begin(), names.end(), column);
-  const std::size_t col = it == names.end() ? 1 : static_cast<std::size_t>(it - names.begin()) + 1;
-  throw CsvError(file_.string() + ":" + std::to_string(line) + ":" + std::to_string(col) + ": column '" + std::string(column) +
-                 "': " + what);
+  throw CsvError(reader_.where(line, column) + ": " + what);
 }
 
 // Per row, in file units (before the conversion to SI), so the messages quote the file.

@@ -10,9 +10,11 @@ constexpr std::size_t kFlushBytes = 1 << 16;
 constexpr double kPow10[] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
 constexpr unsigned long long kPow10U[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000, 1000000000};
 
-// Fixed-point text of v with `decimals` digits: as a scaled integer when it fits (about 4x faster
-// than std::to_chars with a precision, which dominated writing telemetry); a value too large for
-// that gets its shortest exact form instead (1e+300 in fixed notation is 300 digits).
+}  // namespace
+
+// As a scaled integer when it fits (about 4x faster than std::to_chars with a precision, which
+// dominated writing telemetry); a value too large for that gets its shortest exact form instead
+// (1e+300 in fixed notation is 300 digits).
 char* format_fixed(char* out, char* end, double v, int decimals) {
   if (decimals >= 0 && decimals <= 9 && std::abs(v) * kPow10[decimals] < 9e15) {
     long long scaled = std::llround(v * kPow10[decimals]);
@@ -29,7 +31,6 @@ char* format_fixed(char* out, char* end, double v, int decimals) {
   }
   return std::to_chars(out, end, v).ptr;
 }
-}  // namespace
 
 CsvWriter::CsvWriter(const std::filesystem::path& file, std::vector<CsvColumn> columns,
                      const std::vector<std::pair<std::string, std::string>>& metadata)

@@ -134,7 +134,7 @@ TEST(ServerHardening, APostedCampaignCannotReadFilesOutsideTheBench) {
 
 TEST(ServerHardening, AFullDiskIsATripAndTheRecordStaysHonest) {
   hil::test::TempDir base;
-  hil::test::SmallDisk disk(base.path() / "runs", "8m");
+  hil::test::SmallDisk disk(base.path() / "runs", "24m");  // room for 20 s of telemetry.csv and telemetry.mcap
   if (!disk.mounted()) GTEST_SKIP() << "cannot mount a tmpfs here (not root?): the full-disk case needs its own small disk";
   ServerProcess server({"--runs-dir", (base.path() / "runs").string()});
   const auto api = server.client();

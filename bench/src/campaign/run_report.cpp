@@ -12,10 +12,19 @@
 #include "sim_report.hpp"
 #include "hil/config.hpp"
 #include "hil/csv_reader.hpp"
+#include "hil/table_reader.hpp"
 #include "hil/units.hpp"
 
 namespace hil::bench {
 namespace {
+
+// A run's telemetry: telemetry.csv, or telemetry.mcap where the CSV is not kept (same rows).
+std::filesystem::path telemetry_file(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::exists(dir / "telemetry.csv", ec) && std::filesystem::exists(dir / "telemetry.mcap", ec))
+    return dir / "telemetry.mcap";
+  return dir / "telemetry.csv";
+}
 
 using nlohmann::json;
 using plant::kNaN;
@@ -75,7 +84,7 @@ class TelemetryStream {
     request.increasing = std::string(telemetry::name(Col::t_s));
     for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k)
       (k <= telemetry::index(Col::p_ref_mpa) ? request.required : request.optional).emplace_back(telemetry::kColumns[k].name);
-    CsvReader reader(csv, request);
+    TableReader reader(csv, request, telemetry::kTopic);
     const auto present = [&](Col c) { return static_cast<bool>(reader.header().present[telemetry::index(c)]); };
     const bool chamber_known = present(Col::p_chamber_mpa), valve_known = present(Col::theta_valve_deg);
     RunDigest digest(c);
@@ -91,13 +100,9 @@ class TelemetryStream {
       const auto code = [&](Col c, std::size_t i) {
         const double v = col(c, i, 0);
         if (v != -1 && v != 0 && v != 1) {
-          const auto& names = reader.header().names;
-          const auto at = std::find(names.begin(), names.end(), telemetry::name(c));
-          char msg[160];
-          std::snprintf(msg, sizeof msg, "column '%s': must be -1, 0 or 1 (the observer's state), got %.6g",
-                        std::string(telemetry::name(c)).c_str(), v);
-          throw CsvError(csv.string() + ":" + std::to_string(t.lines[i]) + ":" + std::to_string(at - names.begin() + 1) + ": " +
-                         msg);
+          char msg[120];
+          std::snprintf(msg, sizeof msg, ": must be -1, 0 or 1 (the observer's state), got %.6g", v);
+          throw CsvError(reader.where(t.lines[i], telemetry::name(c)) + msg);
         }
         return static_cast<int>(v);
       };
@@ -149,7 +154,7 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
                                           const std::filesystem::path& out_file, const RunReportOptions& options) {
   if (run_dirs.empty()) throw std::invalid_argument("no run folder given");
   std::vector<std::filesystem::path> files;
-  for (const auto& dir : run_dirs) files.push_back(dir / "telemetry.csv");
+  for (const auto& dir : run_dirs) files.push_back(telemetry_file(dir));
   TelemetryStream telemetry(files, options);
   std::vector<RecordedRun> runs;
   std::optional<Campaign> campaign;
@@ -169,7 +174,7 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     for (const auto& other : runs) {
       if (other.digest.name == name) name += " (" + dir.filename().string() + ")";
     }
-    r.digest = telemetry.digest(c, dir / "telemetry.csv", name);
+    r.digest = telemetry.digest(c, telemetry_file(dir), name);
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;

@@ -1,4 +1,4 @@
-// hilbench compare --model MODEL.yaml --data FILE.csv [--out DIR] [--quiet]
+// hilbench compare --model MODEL.yaml --data FILE.csv|telemetry.mcap [--out DIR] [--quiet]
 #include <memory>
 #include <string>
 #include <vector>
@@ -18,7 +18,7 @@ CommandRun define_compare(CLI::App& cmd) {
   cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
   // Every --data kept, not the last (the rule elsewhere): a second file must not be dropped
   // unseen, as one who knows diagnose would expect both compared.
-  cmd.add_option("--data", args->data_files, "the measurement (docs/physics.md section 4)")
+  cmd.add_option("--data", args->data_files, "the measurement (docs/physics.md section 4), or a run's telemetry.mcap")
       ->required()
       ->type_name("FILE.csv")
       ->allow_extra_args(false)

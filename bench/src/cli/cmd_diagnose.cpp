@@ -19,7 +19,8 @@ CommandRun define_diagnose(CLI::App& cmd) {
   auto args = std::make_shared<DiagnoseArgs>();
   cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
   // One file per --data, every one kept: several runs of one rig are fitted together.
-  cmd.add_option("--data", args->data_files, "a measurement; several (runs of one rig) are fitted with shared parameters")
+  cmd.add_option("--data", args->data_files,
+                 "a measurement (CSV, or a run's telemetry.mcap); several (runs of one rig) are fitted with shared parameters")
       ->required()
       ->type_name("FILE.csv")
       ->allow_extra_args(false)

@@ -88,15 +88,52 @@ Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair
       csv_(std::make_unique<CsvWriter>(dir / "telemetry.csv",
                                        telemetry_columns(with_truth ? ColumnSet::all : ColumnSet::measured), csv_metadata)),
       events_file_(std::make_unique<LineFile>(dir / "events.jsonl")),
+      mcap_(std::make_unique<mcap::Writer>(dir / "telemetry.mcap", "")),
+      mcap_telemetry_(telemetry_channel(with_truth ? ColumnSet::all : ColumnSet::measured)),
       on_row_(std::move(on_row)),
       flush_period_(flush_period),
       with_truth_(with_truth),
       batch_(4096) {
   csv_->flush();  // the header is on disk before the first row
+  for (const TelemetryChannel* c : {static_cast<const TelemetryChannel*>(&mcap_telemetry_), &events_channel()}) {
+    const std::uint16_t schema = mcap_->add_schema(schema_name(*c), "jsonschema", schema_json(*c));
+    (c == &mcap_telemetry_ ? mcap_rows_channel_ : mcap_events_channel_) = mcap_->add_channel(schema, c->topic, "json");
+  }
+  mcap_->metadata("telemetry", csv_metadata);  // what telemetry.csv's "# key: value" lines say
+  mcap_->flush_chunk();
   thread_ = std::thread([this, avoid_cpu] { writer(avoid_cpu); });
 }
 
-Recorder::~Recorder() { finish(); }
+Recorder::~Recorder() {
+  finish();
+  seal("");
+}
+
+void Recorder::metadata(const std::string& name, const mcap::KeyValues& values) {
+  try {
+    std::lock_guard lock(mcap_mutex_);
+    if (mcap_ && !failed_.load()) mcap_->metadata(name, values);
+  } catch (const std::exception& e) {
+    fail(e);
+  }
+}
+
+std::string Recorder::seal(const std::string& run_json) {
+  std::unique_ptr<mcap::Writer> w;
+  {
+    std::lock_guard lock(mcap_mutex_);
+    w = std::move(mcap_);  // events logged from now on go to events.jsonl only
+  }
+  if (!w) return "";
+  try {
+    if (failed_.load()) return error_;  // the writer's destructor keeps what is whole
+    if (!run_json.empty()) w->attachment("run.json", "application/json", run_json, last_row_ns_.load());
+    w->close();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
 
 void Recorder::fail(const std::exception& e) {
   bool first = false;
@@ -125,6 +162,10 @@ void Recorder::log(const nlohmann::json& event) {
     if (!failed_.load()) {
       events_file_->append(line);
       events_written_.fetch_add(1);
+      const std::uint64_t t_ns = event.contains("t_s") && event["t_s"].is_number() ? row_time_ns(event["t_s"].get<double>())
+                                                                                   : last_row_ns_.load(std::memory_order_relaxed);
+      std::lock_guard mcap_lock(mcap_mutex_);
+      if (mcap_) mcap_->message(mcap_events_channel_, t_ns, std::string_view(line).substr(0, line.size() - 1));
       return;
     }
   } catch (const std::exception& e) {
@@ -148,6 +189,12 @@ bool Recorder::drain() {
           TelemetryRow row;
           const std::size_t n = telemetry_row(batch_[i], with_truth_ ? ColumnSet::all : ColumnSet::measured, row);
           csv_->row(std::span<const double>(row.data(), n));
+          // The same row in telemetry.mcap: the same columns and decimals (payload_json).
+          const TelemetryRow full = telemetry_row(batch_[i]);
+          const std::uint64_t t_ns = row_time_ns(batch_[i].step.t_s);
+          last_row_ns_.store(t_ns, std::memory_order_relaxed);
+          std::lock_guard mcap_lock(mcap_mutex_);  // released before a catch: fail() takes events_mutex_
+          if (mcap_) mcap_->message(mcap_rows_channel_, t_ns, payload_json(mcap_telemetry_, full));
         } catch (const std::exception& e) {
           fail(e);
         }
@@ -182,6 +229,8 @@ void Recorder::writer(int avoid_cpu) {
     if (now - last_flush >= flush_period_ && !failed_.load()) {
       try {
         csv_->flush();
+        std::lock_guard mcap_lock(mcap_mutex_);
+        if (mcap_) mcap_->flush_chunk();  // a whole chunk per flush: what a crash leaves readable
       } catch (const std::exception& e) {
         fail(e);
       }
@@ -193,6 +242,8 @@ void Recorder::writer(int avoid_cpu) {
   while (drain()) {}
   try {
     csv_->close();  // after a failure its buffer holds only rows from before it, if any
+    std::lock_guard mcap_lock(mcap_mutex_);
+    if (mcap_ && !failed_.load()) mcap_->flush_chunk();
   } catch (const std::exception& e) {
     fail(e);
   }

@@ -8,25 +8,6 @@ namespace hil::bench::foxglove {
 namespace {
 
 using nlohmann::json;
-using telemetry::Col;
-
-constexpr std::uint32_t kEventsChannel = 5;
-
-// A JSON Schema for a channel: every column a number (null where the rig cannot know it), with
-// the schema's meaning as its description, so the tool shows what each field is.
-std::string schema_of(const Channel& c) {
-  json properties = json::object();
-  if (c.columns.empty()) {
-    properties["type"] = {{"type", "string"}, {"description", "start, injection, trip, end, ..."}};
-    return json{{"type", "object"}, {"properties", properties}, {"required", {"type"}}}.dump();
-  }
-  for (const Col col : c.columns) {
-    properties[std::string(telemetry::name(col))] = {{"type", {"number", "null"}},
-                                                     {"description", std::string(telemetry::column(col).meaning)}};
-  }
-  return json{{"type", "object"}, {"properties", properties}}.dump();
-}
-
 // Integers in a client's message: JSON numbers that are whole and fit 32 bits unsigned.
 bool as_u32(const json& j, std::uint32_t& out) {
   if (j.is_number_unsigned() && j.get<std::uint64_t>() <= std::numeric_limits<std::uint32_t>::max()) {
@@ -38,18 +19,7 @@ bool as_u32(const json& j, std::uint32_t& out) {
 
 }  // namespace
 
-const std::vector<Channel>& channels() {
-  static const std::vector<Channel> kChannels = {
-      {1, "/hilbench/pressure", {Col::t_s, Col::p_ref_mpa, Col::p_meas_mpa, Col::p_chamber_mpa}},
-      {2, "/hilbench/angles", {Col::t_s, Col::theta_cmd_deg, Col::theta_target_deg, Col::theta_motor_deg, Col::theta_valve_deg}},
-      {3,
-       "/hilbench/observer",
-       {Col::t_s, Col::touch_state, Col::motion_intention, Col::gap_est_deg, Col::gap_true_deg, Col::comp_deg}},
-      {4, "/hilbench/loop", {Col::t_s, Col::wake_latency_us, Col::compute_us, Col::loop_flags}},
-      {kEventsChannel, "/hilbench/events", {}},
-  };
-  return kChannels;
-}
+const std::vector<Channel>& channels() { return telemetry_channels(); }
 
 const Channel* channel(std::uint32_t id) {
   for (const auto& c : channels())
@@ -71,8 +41,8 @@ json advertise() {
     list.push_back({{"id", c.id},
                     {"topic", c.topic},
                     {"encoding", "json"},
-                    {"schemaName", "hilbench" + c.topic.substr(c.topic.rfind('/'))},
-                    {"schema", schema_of(c)},
+                    {"schemaName", schema_name(c)},
+                    {"schema", schema_json(c)},
                     {"schemaEncoding", "jsonschema"}});
   }
   return {{"op", "advertise"}, {"channels", list}};
@@ -91,12 +61,7 @@ std::vector<std::string> payloads(const TelemetryRecord& r) {
       out.emplace_back();
       continue;
     }
-    json j = json::object();
-    for (const Col col : c.columns) {
-      const double v = row[telemetry::index(col)];
-      j[std::string(telemetry::name(col))] = std::isfinite(v) ? json(v) : json(nullptr);
-    }
-    out.push_back(j.dump());
+    out.push_back(payload_json(c, row));
   }
   return out;
 }
@@ -104,7 +69,7 @@ std::vector<std::string> payloads(const TelemetryRecord& r) {
 Frame events_frame(std::uint64_t timestamp_ns, std::string event_json) {
   Frame f{timestamp_ns, std::vector<std::string>(channels().size())};
   for (std::size_t i = 0; i < channels().size(); ++i)
-    if (channels()[i].id == kEventsChannel) f.payloads[i] = std::move(event_json);
+    if (channels()[i].id == events_channel().id) f.payloads[i] = std::move(event_json);
   return f;
 }
 
@@ -118,11 +83,7 @@ std::string message_data(std::uint32_t subscription_id, std::uint64_t timestamp_
   return out;
 }
 
-std::uint64_t timestamp_ns(double t_s) {
-  if (!(t_s > 0)) return 0;
-  if (t_s >= 1.8e10) return std::numeric_limits<std::uint64_t>::max();  // 570 years: beyond any run
-  return static_cast<std::uint64_t>(std::llround(t_s * 1e9));
-}
+std::uint64_t timestamp_ns(double t_s) { return row_time_ns(t_s); }
 
 ClientOp parse_client_op(std::string_view text) {
   // Bounded before it is parsed (a message is at most 64 KiB: 65 536 levels of brackets otherwise).

@@ -1,6 +1,7 @@
 // The Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1) spoken on the telemetry
 // endpoint, so Foxglove and Lichtblick can watch a run: JSON channels with JSON Schema, one per
-// group of telemetry columns, plus the run's events. What is pure protocol lives here (the
+// group of telemetry columns, one with every column (as telemetry.mcap records it), plus the run's
+// events. What is pure protocol lives here (the
 // channel table, the server's messages, the Message Data frame, the client's requests checked
 // as hostile input); the session that carries it is in api_server.cpp.
 #pragma once
@@ -13,19 +14,17 @@
 
 #include <nlohmann/json.hpp>
 
+#include "hil/bench/rt/telemetry_channels.hpp"
 #include "hil/bench/rt/telemetry_record.hpp"
 
 namespace hil::bench::foxglove {
 
 inline constexpr std::string_view kSubprotocol = "foxglove.websocket.v1";
 
-struct Channel {
-  std::uint32_t id;
-  std::string topic;
-  std::vector<telemetry::Col> columns;  // empty: the events channel
-};
+// The channels of telemetry_channels.hpp (the same as a recorded telemetry.mcap has).
+using Channel = TelemetryChannel;
 
-// pressure, angles, observer, loop, events: fixed ids, the same for every connection.
+// pressure, angles, observer, loop, events, telemetry: fixed ids, the same for every connection.
 const std::vector<Channel>& channels();
 const Channel* channel(std::uint32_t id);
 
@@ -46,7 +45,7 @@ Frame events_frame(std::uint64_t timestamp_ns, std::string event_json);
 
 // Message Data: opcode 0x01, subscription id and timestamp (ns) little-endian, then the payload.
 std::string message_data(std::uint32_t subscription_id, std::uint64_t timestamp_ns, std::string_view payload);
-// The timestamp of a record at t_s seconds since the run's start (negative and NaN give 0).
+// The timestamp of a record at t_s seconds since the run's start: row_time_ns (t_s as telemetry.csv has it).
 std::uint64_t timestamp_ns(double t_s);
 
 // A client's text message, checked. Anything not understood is an Error whose text names the

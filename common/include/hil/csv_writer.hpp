@@ -19,6 +19,10 @@ struct CsvColumn {
   int decimals;      // fixed-point digits after the decimal point
 };
 
+// Fixed-point text of a finite v with `decimals` digits into [out, end) (room for 32 characters),
+// as telemetry.csv writes it (and telemetry.mcap, so both carry the same numbers); returns the end.
+char* format_fixed(char* out, char* end, double v, int decimals);
+
 class CsvWriter {
  public:
   // Opens `file` for writing (truncating), writes the "# key: value" metadata lines, then the header.

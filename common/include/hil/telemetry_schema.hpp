@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string_view>
+#include <utility>
 
 namespace hil::telemetry {
 
@@ -65,5 +66,19 @@ inline constexpr std::size_t kLoopColumns = kColumns.size();
 constexpr std::size_t index(Col c) noexcept { return static_cast<std::size_t>(c); }
 constexpr const Column& column(Col c) noexcept { return kColumns[index(c)]; }
 constexpr std::string_view name(Col c) noexcept { return column(c).name; }
+
+// A column's unit, read off its name's suffix (the names carry their units); "" for codes and flags.
+constexpr std::string_view unit(Col c) noexcept {
+  const std::string_view n = name(c);
+  constexpr std::pair<std::string_view, std::string_view> kSuffixes[] = {
+      {"_s", "s"}, {"_deg", "deg"}, {"_mpa", "MPa"}, {"_us", "us"}};
+  for (const auto& [suffix, u] : kSuffixes)
+    if (n.size() > suffix.size() && n.substr(n.size() - suffix.size()) == suffix) return u;
+  return "";
+}
+
+// The topic of the telemetry (every column of a row in one message) in the live Foxglove stream
+// and in telemetry.mcap; the readers of a run's MCAP look for it.
+inline constexpr std::string_view kTopic = "/hilbench/telemetry";
 
 }  // namespace hil::telemetry

@@ -1,7 +1,8 @@
 // Measurement files (physics.md section 4): t_s, theta_cmd_deg, p_meas_mpa required; the motor
 // encoder theta_motor_deg and the reference p_ref_mpa optional; any other column is ignored.
-// Read through hil::CsvReader, so a missing column, a non-numeric cell or time going backwards
-// is a CsvError naming file:line:column. Values are converted to SI here, once, and checked
+// Read through hil::TableReader (a CSV, or a run's telemetry.mcap: the same rows from its
+// telemetry topic), so a missing column, a non-numeric cell or time going backwards is a CsvError
+// naming file:line:column (in an MCAP: the record's byte offset). Values are converted to SI here, once, and checked
 // against what a log of this rig can hold (MeasurementLimits), so that nonsense is refused by
 // file:line:column here instead of producing an overflow, a NaN metric or a hang further on.
 // Setup/offline code: allocates and throws.
@@ -16,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "hil/csv_reader.hpp"
+#include "hil/table_reader.hpp"
 
 namespace hil::analysis {
 
@@ -68,7 +69,7 @@ class MeasurementReader {
 
  private:
   std::filesystem::path file_;
-  CsvReader reader_;
+  TableReader reader_;
   CsvChunk chunk_;
   bool has_encoder_ = false, has_reference_ = false;
   std::size_t first_line_ = 0, rows_read_ = 0, first_data_line_ = 0;

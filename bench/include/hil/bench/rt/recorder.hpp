@@ -4,6 +4,10 @@
 // WebSocket stream). Memory is bounded by the rings; the loop counts what does not fit. Both
 // files only ever hold whole lines (LineFile). The first write error stops the writing, sets
 // failed() for the loop to see, and every row after it is counted as not written.
+// Beside them, telemetry.mcap (telemetry_channels.hpp): the rows on the telemetry topic and the
+// events on the events topic, in uncompressed chunks closed at every flush (a crash loses what
+// the CSV loses), snapshots as metadata records (metadata()), and, once the run's record is
+// final, run.json as an attachment and the summary (seal()).
 #pragma once
 
 #include <atomic>
@@ -21,7 +25,9 @@
 #include <nlohmann/json.hpp>
 
 #include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/rt/telemetry_channels.hpp"
 #include "hil/line_file.hpp"
+#include "hil/mcap.hpp"
 
 namespace hil::bench {
 
@@ -47,9 +53,17 @@ class Recorder {
   // An event from outside the loop (run start/end, rig setup, operator requests). Any thread.
   void log(const nlohmann::json& event);
 
-  // Drains both rings, stops the writer thread and closes the files. Call after the loop thread
-  // has ended. Returns the first write error ("" when none); never throws.
+  // A Metadata record in telemetry.mcap (the run's campaign, plant, rig). Any thread.
+  void metadata(const std::string& name, const mcap::KeyValues& values);
+
+  // Drains both rings, stops the writer thread and closes the CSV (telemetry.mcap stays open for
+  // seal). Call after the loop thread has ended. Returns the first write error ("" when none);
+  // never throws.
   std::string finish();
+  // After finish: run.json (its final text) as an attachment of telemetry.mcap, then its summary
+  // and footer. The destructor seals without an attachment when this was not called. Returns the
+  // write error ("" when none); never throws.
+  std::string seal(const std::string& run_json);
 
   std::uint64_t rows_written() const noexcept { return rows_written_.load(); }  // on disk
   // Taken from the ring but not on disk: refused by the disk, or arrived after the first failure.
@@ -71,7 +85,12 @@ class Recorder {
   SpscRing<LoopEvent> events_;
   std::unique_ptr<CsvWriter> csv_;
   std::unique_ptr<LineFile> events_file_;
-  std::mutex events_mutex_;  // log() is called from any thread
+  std::unique_ptr<mcap::Writer> mcap_;
+  std::mutex mcap_mutex_;  // the writer thread (rows) and log() (events) both write it
+  TelemetryChannel mcap_telemetry_;
+  std::uint16_t mcap_rows_channel_ = 0, mcap_events_channel_ = 0;
+  std::atomic<std::uint64_t> last_row_ns_{0};  // the time stamp of an event that has no t_s
+  std::mutex events_mutex_;                    // log() is called from any thread
   RowSink on_row_;
   std::chrono::milliseconds flush_period_;
   bool with_truth_;

@@ -1,0 +1,238 @@
+#include <cerrno>
+#include <cstring>
+
+#include "hil/mcap.hpp"
+
+namespace hil::mcap {
+namespace {
+
+constexpr std::string_view kMagic("\x89MCAP0\r\n", 8);
+
+// A bounds-checked cursor over a record's body: every read past its end is a "field X: the
+// record ends early" error, never a read out of bounds.
+struct Fields {
+  std::string_view b;
+  std::size_t pos = 0;
+  const char* record;  // its name, for the message
+  std::string short_of(const char* field) const {
+    return std::string(record) + " record: field '" + field + "' runs past the record's end";
+  }
+  template <class T>
+  bool num(T& v) {
+    if (b.size() - pos < sizeof(T)) return false;
+    std::uint64_t x = 0;
+    for (std::size_t i = 0; i < sizeof(T); ++i) x |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(b[pos + i])) << (8 * i);
+    v = static_cast<T>(x), pos += sizeof(T);
+    return true;
+  }
+  bool bytes(std::uint64_t n, std::string_view& out) {
+    if (b.size() - pos < n) return false;
+    out = b.substr(pos, n), pos += n;
+    return true;
+  }
+  bool str(std::string_view& out) {
+    std::uint32_t n = 0;
+    return num(n) && bytes(n, out);
+  }
+  bool str(std::string& out) {
+    std::string_view v;
+    if (!str(v)) return false;
+    out.assign(v);
+    return true;
+  }
+  bool kv(KeyValues& out) {
+    std::string_view m;
+    if (!str(m)) return false;
+    Fields inner{m, 0, record};
+    while (inner.pos < m.size()) {
+      std::string k, v;
+      if (!inner.str(k) || !inner.str(v)) return false;
+      out.emplace_back(std::move(k), std::move(v));
+    }
+    return true;
+  }
+};
+
+}  // namespace
+
+Reader::Reader(const std::filesystem::path& file) : path_(file) {
+  f_ = std::fopen(file.c_str(), "rb");
+  if (f_ == nullptr) throw McapError(file.string() + ": cannot open: " + std::strerror(errno));
+  std::error_code ec;
+  file_bytes_ = std::filesystem::file_size(file, ec);
+  char magic[8];
+  if (std::fread(magic, 1, 8, f_) != 8 || std::string_view(magic, 8) != kMagic) {
+    std::fclose(f_), f_ = nullptr;
+    throw McapError(file.string() + ": at byte 0: not an MCAP file (its first 8 bytes are not the MCAP magic, version 0)");
+  }
+  offset_ = 8;
+  std::uint8_t op = 0;
+  std::uint64_t at = 0;
+  if (!read_record(op, record_, at) || op != 0x01) {
+    std::fclose(f_), f_ = nullptr;
+    throw McapError(file.string() + ": at byte 8: the MCAP header record must follow the magic");
+  }
+}
+
+Reader::~Reader() {
+  if (f_ != nullptr) std::fclose(f_);
+}
+
+void Reader::fail(std::uint64_t offset, const std::string& what) const {
+  throw McapError(path_.string() + ": record at byte " + std::to_string(offset) + ": " + what);
+}
+
+// One top-level record; false at the end of the file or where it is cut short (truncated_).
+bool Reader::read_record(std::uint8_t& opcode, std::string& body, std::uint64_t& at) {
+  unsigned char head[9];
+  at = offset_;
+  const std::size_t got = std::fread(head, 1, 9, f_);
+  if (got < 9) {
+    truncated_ = got > 0;
+    return false;
+  }
+  opcode = head[0];
+  std::uint64_t n = 0;
+  for (int i = 0; i < 8; ++i) n |= static_cast<std::uint64_t>(head[1 + i]) << (8 * i);
+  // Past the file's end: a record cut short by a crash (the file ends inside it). Checked before
+  // anything is allocated, so a hostile length costs nothing.
+  if (n > file_bytes_ || at + 9 + n > file_bytes_) {
+    truncated_ = true;
+    return false;
+  }
+  body.resize(n);
+  if (n > 0 && std::fread(body.data(), 1, n, f_) != n) {
+    truncated_ = true;
+    return false;
+  }
+  offset_ = at + 9 + n;
+  return true;
+}
+
+void Reader::take(std::uint8_t opcode, std::string_view body, std::uint64_t at) {
+  Fields r{body, 0, ""};
+  switch (opcode) {
+    case 0x03: {
+      r.record = "schema";
+      Schema s;
+      std::string_view data;
+      if (!r.num(s.id) || !r.str(s.name) || !r.str(s.encoding) || !r.str(data))
+        fail(at, r.short_of("id, name, encoding or data"));
+      s.data.assign(data);
+      if (s.id == 0) return;  // "invalid and should be ignored by readers"
+      schemas_[s.id] = std::move(s);
+      return;
+    }
+    case 0x04: {
+      r.record = "channel";
+      Channel c;
+      if (!r.num(c.id) || !r.num(c.schema_id) || !r.str(c.topic) || !r.str(c.message_encoding) || !r.kv(c.metadata))
+        fail(at, r.short_of("id, schema_id, topic, message_encoding or metadata"));
+      if (c.schema_id != 0 && schemas_.count(c.schema_id) == 0)
+        fail(at, "channel " + std::to_string(c.id) + " ('" + c.topic.substr(0, 80) + "') names schema " +
+                     std::to_string(c.schema_id) + ", which no earlier schema record defines");
+      channels_[c.id] = std::move(c);
+      return;
+    }
+    case 0x0C: {
+      r.record = "metadata";
+      std::string name;
+      KeyValues kv;
+      if (!r.str(name) || !r.kv(kv)) fail(at, r.short_of("name or metadata"));
+      metadata_.emplace_back(std::move(name), std::move(kv));
+      return;
+    }
+    case 0x09: {
+      r.record = "attachment";
+      std::uint64_t log_time = 0, create_time = 0, size = 0;
+      std::string_view name, media, data;
+      std::uint32_t crc = 0;
+      if (!r.num(log_time) || !r.num(create_time) || !r.str(name) || !r.str(media) || !r.num(size) || !r.bytes(size, data))
+        fail(at, r.short_of("log_time, create_time, name, media_type or data"));
+      const std::size_t before_crc = r.pos;
+      if (!r.num(crc)) fail(at, r.short_of("crc"));
+      if (crc != 0 && crc != crc32(body.substr(0, before_crc)))
+        fail(at, "attachment '" + std::string(name.substr(0, 80)) + "': its CRC-32 does not match its content");
+      attachments_.emplace_back(std::string(name), std::string(data));
+      return;
+    }
+    default: return;  // indexes, statistics and unknown opcodes carry no messages: skipped, as the spec asks
+  }
+}
+
+bool Reader::next(Message& m) {
+  for (;;) {
+    if (in_chunk_) {
+      if (chunk_pos_ >= chunk_.size()) {
+        in_chunk_ = false;
+        continue;
+      }
+      const std::uint64_t at = chunk_data_at_ + chunk_pos_;
+      if (chunk_.size() - chunk_pos_ < 9) fail(at, "a record inside a chunk runs past the chunk's end");
+      const auto op = static_cast<std::uint8_t>(chunk_[chunk_pos_]);
+      std::uint64_t n = 0;
+      for (int i = 0; i < 8; ++i)
+        n |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(chunk_[chunk_pos_ + 1 + i])) << (8 * i);
+      if (n > chunk_.size() - chunk_pos_ - 9) fail(at, "a record inside a chunk runs past the chunk's end");
+      const std::string_view body(chunk_.data() + chunk_pos_ + 9, n);
+      chunk_pos_ += 9 + n;
+      if (op == 0x05) {
+        Fields r{body, 0, "message"};
+        if (!r.num(m.channel_id) || !r.num(m.sequence) || !r.num(m.log_time_ns) || !r.num(m.publish_time_ns))
+          fail(at, r.short_of("channel_id, sequence, log_time or publish_time"));
+        if (channels_.count(m.channel_id) == 0)
+          fail(at, "a message on channel " + std::to_string(m.channel_id) + ", which no earlier channel record defines");
+        m.data = body.substr(r.pos), m.offset = at;
+        return true;
+      }
+      if (op == 0x03 || op == 0x04) {
+        take(op, body, at);
+        continue;
+      }
+      fail(at, "opcode " + std::to_string(op) + " inside a chunk (only schema, channel and message records may be there)");
+    }
+    if (done_ || f_ == nullptr) return false;
+    std::uint8_t op = 0;
+    std::uint64_t at = 0;
+    if (!read_record(op, record_, at)) {
+      done_ = true;
+      return false;
+    }
+    if (op == 0x0F || op == 0x02) {  // Data End (or a footer without one): the messages are over
+      done_ = true;
+      return false;
+    }
+    if (op == 0x05) {
+      Fields r{record_, 0, "message"};
+      if (!r.num(m.channel_id) || !r.num(m.sequence) || !r.num(m.log_time_ns) || !r.num(m.publish_time_ns))
+        fail(at, r.short_of("channel_id, sequence, log_time or publish_time"));
+      if (channels_.count(m.channel_id) == 0)
+        fail(at, "a message on channel " + std::to_string(m.channel_id) + ", which no earlier channel record defines");
+      m.data = std::string_view(record_).substr(r.pos), m.offset = at;
+      return true;
+    }
+    if (op == 0x06) {
+      Fields r{record_, 0, "chunk"};
+      std::uint64_t start = 0, end = 0, size = 0, records_size = 0;
+      std::uint32_t crc = 0;
+      std::string_view compression, records;
+      if (!r.num(start) || !r.num(end) || !r.num(size) || !r.num(crc) || !r.str(compression) || !r.num(records_size) ||
+          !r.bytes(records_size, records))
+        fail(at, r.short_of("message_start_time .. records"));
+      if (!compression.empty())
+        fail(at, "chunk compressed with '" + std::string(compression.substr(0, 40)) +
+                     "': this reader reads uncompressed chunks only (hilbench writes them so)");
+      if (size != records.size())
+        fail(at, "chunk: uncompressed_size " + std::to_string(size) + " but its records hold " + std::to_string(records.size()) +
+                     " bytes");
+      if (crc != 0 && crc != crc32(records)) fail(at, "chunk: its CRC-32 does not match its records (a damaged file)");
+      chunk_.assign(records);
+      chunk_pos_ = 0, in_chunk_ = true;
+      chunk_data_at_ = at + 9 + r.pos - records.size();
+      continue;
+    }
+    take(op, record_, at);
+  }
+}
+
+}  // namespace hil::mcap
