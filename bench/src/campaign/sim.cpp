@@ -91,10 +91,8 @@ RunOutcome execute(const Campaign& c, const RunSpec& run, const std::filesystem:
   nlohmann::json summary = out.summary.to_json();
   summary["campaign"] = c.name;
   summary["run"] = run.name;
-  summary["compensation"] = run.controller.compensation == ctl::Compensation::none       ? "none"
-                            : run.controller.compensation == ctl::Compensation::constant ? "constant"
-                                                                                         : "adaptive";
-  summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
+  summary["compensation"] = ctl::compensation_name(run.controller.compensation);
+  summary["compensator"] = run.controller.compensator;
   summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
   summary["wall_s"] = out.wall_s;
   replace_file(dir / "summary.json", summary.dump(2) + "\n");
