@@ -86,8 +86,8 @@ TEST(CompensatorPart, CampaignRunsItWithTheParametersOfItsBlock) {
     // Half the known gap (1 deg), in the direction of the new intention.
     EXPECT_EQ(jump_deg, 0.5 * std::stoi(rows[i][intention])) << "row " << i;
   }
-  EXPECT_GE(jumps, 4);       // the square wave's four reversals at least
-  EXPECT_EQ(jumps, flips);   // one jump per flip of the intention, none elsewhere
+  EXPECT_GE(jumps, 4);      // the square wave's four reversals at least
+  EXPECT_EQ(jumps, flips);  // one jump per flip of the intention, none elsewhere
   const auto summary = nlohmann::json::parse(slurp(dir.path() / "part/jump/summary.json"));
   EXPECT_EQ(summary["compensator"], "test_known_gap");
   EXPECT_EQ(summary["compensation_events"], jumps);
@@ -105,8 +105,9 @@ TEST(CompensatorPart, CampaignErrorsNameTheKeyAndTheRange) {
     }
     return std::string("accepted");
   };
-  EXPECT_NE(load("jump_scale: 0.5", "jump_scale: 3").find("part.yaml:10:36: controller.test_known_gap.jump_scale: the jump, "
-                                                           "as a fraction of the known gap: must be in [0, 2]"),
+  EXPECT_NE(load("jump_scale: 0.5", "jump_scale: 3")
+                .find("part.yaml:14:20: controller.test_known_gap.jump_scale: the jump, "
+                      "as a fraction of the known gap: must be in [0, 2]"),
             std::string::npos)
       << load("jump_scale: 0.5", "jump_scale: 3");
   EXPECT_NE(load("jump_scale: 0.5", "jump_scal: 0.5").find("did you mean 'jump_scale'"), std::string::npos);
@@ -146,7 +147,9 @@ TEST(CompensatorPart, SweepSelectsItPerPoint) {
   for (std::size_t i = 1; i < rows.size(); ++i) {
     stall_vs_none[rows[i][who]][rows[i][scale]] = std::stod(rows[i][ratio]);
     // The test compensator's estimate is the known gap: off by the drift (none here).
-    if (rows[i][who] == "test_known_gap") EXPECT_NEAR(std::stod(rows[i][gap]), 0, 1e-9);
+    if (rows[i][who] == "test_known_gap") {
+      EXPECT_NEAR(std::stod(rows[i][gap]), 0, 1e-9);
+    }
   }
   // No jump: the command of the `none` run exactly, so exactly its stall.
   EXPECT_EQ(stall_vs_none["test_known_gap"]["0"], 1.0);

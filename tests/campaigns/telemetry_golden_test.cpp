@@ -35,9 +35,9 @@ std::uint64_t fnv1a64(const std::string& bytes) {
 
 TEST(TelemetryGolden, RegisteredCompensatorsWriteTheTelemetryOfBefore) {
   TempDir out;
-  for (const char* campaign : {"configs/campaigns/paper_adaptive.yaml", "configs/campaigns/paper_constant.yaml",
-                               "configs/campaigns/paper_fig6.yaml", "configs/campaigns/gap_shrink.yaml",
-                               "tests/campaigns/data/robust_params.yaml"}) {
+  for (const char* campaign :
+       {"configs/campaigns/paper_adaptive.yaml", "configs/campaigns/paper_constant.yaml", "configs/campaigns/paper_fig6.yaml",
+        "configs/campaigns/gap_shrink.yaml", "tests/campaigns/data/robust_params.yaml"}) {
     const auto r = run_command(hilbench() + " sim " + source_path(campaign).string() + " --out " + out.path().string());
     ASSERT_EQ(r.status, 0) << campaign << ": " << r.output;
   }

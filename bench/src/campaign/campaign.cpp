@@ -255,8 +255,8 @@ ctl::Compensation compensation_of(const Node& n) {
 // named after it (`robust: {detect_sigmas: 4}`): a campaign may set several, each run uses its
 // compensator's. `observer:` is the older name of `compensator:`.
 std::vector<std::string> controller_keys() {
-  std::vector<std::string> keys = {"compensator",   "observer",    "compensation",  "known_gap_deg",
-                                   "initial_gap_deg", "damping_ratio", "use_encoder", "traverse_boost"};
+  std::vector<std::string> keys = {"compensator",     "observer",      "compensation", "known_gap_deg",
+                                   "initial_gap_deg", "damping_ratio", "use_encoder",  "traverse_boost"};
   for (auto& name : ctl::compensator_names()) keys.push_back(std::move(name));
   return keys;
 }

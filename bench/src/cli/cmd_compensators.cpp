@@ -16,7 +16,7 @@ CommandRun define_compensators(CLI::App&) {
       std::printf("%-12s %s\n", name.c_str(), std::string(info->doc).c_str());
       for (const ParamSpec& p : info->specs) {
         const std::string fallback = std::isnan(p.fallback) ? "required" : "default " + param_number_text(p.fallback);
-        std::printf("  %-26s %-24s %-16s %s\n", std::string(p.key).c_str(), param_range_text(p).c_str(), fallback.c_str(),
+        std::printf("  %-24s %-28s %-16s %s\n", std::string(p.key).c_str(), param_range_text(p).c_str(), fallback.c_str(),
                     std::string(p.doc).c_str());
       }
     }

@@ -90,8 +90,8 @@ class RobustCompensator final : public CompensatorOf<RobustCompensator, RobustSt
       out.comp_rad = d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + contact_overlap_rad_);  // past the flank ahead
       s.gap_pos_rad += out.comp_rad;
       // The drive needs the crossing at its slew limit plus a few lags to really get there.
-      s.presume_wait = std::lround(
-          (std::abs(out.comp_rad) / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) / setup_.period_s);
+      s.presume_wait = std::lround((std::abs(out.comp_rad) / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) /
+                                   setup_.period_s);
     }
     s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
 
@@ -100,8 +100,6 @@ class RobustCompensator final : public CompensatorOf<RobustCompensator, RobustSt
     out.gap_est_rad = s.gap_est_rad;
     out.gap_measured = obs.gap_measured;
   }
-
-  const RobustObserver& observer() const noexcept { return observer_; }
 
  private:
   static RobustObserverParams observer_params(const CompensatorSetup& setup, std::span<const double> v) {

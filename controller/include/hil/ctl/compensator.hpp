@@ -51,20 +51,20 @@ struct CompensatorSetup {
 
 // One period's inputs, from the integral controller.
 struct CompensatorInputs {
-  double cmd_step_rad;     // the integral controller's increment this step, KI*dT*dPg
-  double error_pa;         // dPg = Pg_meas - Pg_ref: its sign is the command's direction
-  double p_meas_pa;        // measured chamber pressure
-  double motor_rad;        // motor angle: encoder, or the controller's motor model
-  double tau_s;            // nominal chamber time constant now (the KI schedule's)
-  double volume_m3;        // estimated free volume now
+  double cmd_step_rad;  // the integral controller's increment this step, KI*dT*dPg
+  double error_pa;      // dPg = Pg_meas - Pg_ref: its sign is the command's direction
+  double p_meas_pa;     // measured chamber pressure
+  double motor_rad;     // motor angle: encoder, or the controller's motor model
+  double tau_s;         // nominal chamber time constant now (the KI schedule's)
+  double volume_m3;     // estimated free volume now
 };
 
 struct CompensatorOutputs {
-  double comp_rad = 0;       // delta_b: the jump added to the command this step
-  int touch = 0;             // Tf: -1 negative touch, 0 transition, +1 positive touch
-  int intention = 0;         // Mf: -1, 0, +1
-  double gap_est_rad = 0;    // the gap the law uses (sigma or sigma_r; observe-only with none)
-  bool gap_measured = false; // a gap measurement completed this step
+  double comp_rad = 0;        // delta_b: the jump added to the command this step
+  int touch = 0;              // Tf: -1 negative touch, 0 transition, +1 positive touch
+  int intention = 0;          // Mf: -1, 0, +1
+  double gap_est_rad = 0;     // the gap the law uses (sigma or sigma_r; observe-only with none)
+  bool gap_measured = false;  // a gap measurement completed this step
   // The motion intention flipped: the controller's traverse boost restarts at
   // traverse_boost x comp_rad (0 without a jump) and is taken back as the motor arrives.
   bool reversed = false;
@@ -109,11 +109,6 @@ class CompensatorOf : public Compensator {
   void step(CompensatorState& state, const CompensatorInputs& in, CompensatorOutputs& out) const noexcept override {
     static_cast<const Derived&>(*this).step(static_cast<Box&>(state).s, in, out);
   }
-  // The state of a controller's compensator of this kind (tests); nullptr for another kind.
-  static const State* state_of(const CompensatorState* state) noexcept {
-    const auto* box = dynamic_cast<const Box*>(state);
-    return box == nullptr ? nullptr : &box->s;
-  }
 };
 
 struct CompensatorInfo {
@@ -135,11 +130,13 @@ std::shared_ptr<const Compensator> make_compensator(std::string_view name, const
 }  // namespace hil::ctl
 
 // Registers Class (kName, kSpecs, a constructor (const CompensatorSetup&, std::span<const double>)).
-#define HIL_REGISTER_COMPENSATOR(Class, doc_text)                                                                   \
-  namespace {                                                                                                       \
-  [[maybe_unused]] const bool registered_compensator_##Class = ::hil::ctl::register_compensator(                    \
-      {Class::kName, Class::kSpecs,                                                                                 \
-       [](const ::hil::ctl::CompensatorSetup& setup, std::span<const double> values)                                \
-           -> std::shared_ptr<const ::hil::ctl::Compensator> { return std::make_shared<const Class>(setup, values); }, \
-       doc_text});                                                                                                  \
+#define HIL_REGISTER_COMPENSATOR(Class, doc_text)                                                                              \
+  namespace {                                                                                                                  \
+  [[maybe_unused]] const bool registered_compensator_##Class =                                                                 \
+      ::hil::ctl::register_compensator({Class::kName, Class::kSpecs,                                                           \
+                                        [](const ::hil::ctl::CompensatorSetup& setup,                                          \
+                                           std::span<const double> values) -> std::shared_ptr<const ::hil::ctl::Compensator> { \
+                                          return std::make_shared<const Class>(setup, values);                                 \
+                                        },                                                                                     \
+                                        doc_text});                                                                            \
   }

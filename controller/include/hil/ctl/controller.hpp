@@ -26,13 +26,13 @@ namespace hil::ctl {
 struct ControllerParams {
   double period_s = 1e-3;
   Compensation compensation = Compensation::adaptive;
-  std::string compensator = "robust";       // a registered compensator (compensator.hpp)
+  std::string compensator = "robust";      // a registered compensator (compensator.hpp)
   std::vector<double> compensator_params;  // its parameters, its specs' order and units; empty: the defaults
-  double gap_known_rad = 0;                              // constant mode: the known sigma
-  double gap_initial_rad = 0;                            // adaptive mode: sigma_r(0)
-  double damping_ratio = 0.7;                            // zeta of the KI schedule
-  double traverse_boost = 1.0;                           // extra command while crossing the gap, x the jump
-  double cmd_min_rad = -0.0873;                          // command limits (the valve travel plus the largest gap)
+  double gap_known_rad = 0;                // constant mode: the known sigma
+  double gap_initial_rad = 0;              // adaptive mode: sigma_r(0)
+  double damping_ratio = 0.7;              // zeta of the KI schedule
+  double traverse_boost = 1.0;             // extra command while crossing the gap, x the jump
+  double cmd_min_rad = -0.0873;            // command limits (the valve travel plus the largest gap)
   double cmd_max_rad = 0.6109;
   bool use_encoder = true;  // motor angle from the drive; otherwise from `motor`
   double volume_initial_m3 = 2e-3;
