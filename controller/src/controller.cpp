@@ -17,17 +17,19 @@ void ControllerParams::validate() const {
   check(gap_initial_rad >= 0, "initial gap estimate must be >= 0");
   check(damping_ratio > 0, "damping ratio must be > 0");
   check(traverse_boost >= 0 && traverse_boost <= 5, "traverse boost must be in [0, 5]");
-  check(contact_overlap_rad >= 0, "contact overlap must be >= 0");
   check(cmd_min_rad < cmd_max_rad, "command limits must have min < max");
   check(volume_initial_m3 > 0, "initial volume must be > 0");
   check(motor.time_constant_s > 0 && motor.rate_limit_rad_s > 0, "motor model needs positive lag and rate limit");
   chamber.validate();
-  robust.validate();
+  make_compensator(compensator, compensator_setup(), compensator_params);  // checks its parameters
+}
+
+CompensatorSetup ControllerParams::compensator_setup() const {
+  return {period_s, compensation, gap_known_rad, gap_initial_rad, chamber, motor};
 }
 
 namespace {
-ControllerParams validated(ControllerParams p) {
-  p.robust.period_s = p.period_s;
+const ControllerParams& validated(const ControllerParams& p) {
   p.validate();
   return p;
 }
@@ -35,18 +37,15 @@ ControllerParams validated(ControllerParams p) {
 
 Controller::Controller(const ControllerParams& params)
     : p_(validated(params)),
-      robust_(p_.robust, p_.chamber),
+      compensator_(make_compensator(p_.compensator, p_.compensator_setup(), p_.compensator_params)),
       motor_keep_(physics::servo_keep(p_.period_s, p_.motor.time_constant_s)) {}
 
-ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
+ControllerState Controller::initial_state(double theta_cmd_rad, double p_meas_pa, int touch) const {
   ControllerState s;
   s.theta_cmd_rad = theta_cmd_rad;
-  s.gap_est_rad = p_.compensation == Compensation::constant ? p_.gap_known_rad : p_.gap_initial_rad;
   s.volume_m3 = p_.volume_initial_m3;
   s.motor_model_rad = theta_cmd_rad;
-  s.gap_pos_rad = touch * s.gap_est_rad / 2;
-  s.paper = paper_.initial_state(touch, p_meas_pa);
-  s.robust = robust_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad);
+  s.compensator = CompensatorStateBox(compensator_->initial_state(theta_cmd_rad, p_meas_pa, touch));
   return s;
 }
 
@@ -71,52 +70,13 @@ void Controller::step(ControllerState& s, const ControllerInputs& in, Controller
   double cmd_step = out.ki_rad_per_pa_s * p_.period_s * (in.p_meas_pa - in.p_ref_pa);
   const double motor_rad = p_.use_encoder && std::isfinite(in.theta_motor_rad) ? in.theta_motor_rad : s.motor_model_rad;
 
-  // The play model presumes the motor pushed a flank when it sits within the intention's
-  // dead-band of it (a reversal is only seen after that retreat); with no gap known, or while a
-  // jump may still be under way in the drive, nothing.
-  const double gap_before = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;
-  const bool gap_known = p_.compensation == Compensation::constant || s.gap_measurements > 0;
-  const double near = gap_before / 2 - p_.robust.intention_deadband_rad - 1e-12;
-  if (s.presume_wait > 0) --s.presume_wait;
-  const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
-  const ObserverInputs obs_in{cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad, tau_s, s.volume_m3, presumed};
-  const ObserverOutputs obs = p_.observer == ObserverKind::paper ? paper_.step(s.paper, obs_in) : robust_.step(s.robust, obs_in);
-
-  // The estimate: law (10) for the paper observer, measured gaps for the robust one. With
-  // compensation `none` it is still learned (observe only) so telemetry shows what it would do.
-  if (p_.compensation != Compensation::constant) {
-    if (p_.observer == ObserverKind::paper) {
-      s.gap_est_rad += obs.transition_travel_rad;
-    } else if (obs.gap_measured) {
-      // The first measurement, and one showing a real change, replace the estimate; the others
-      // move it part way (averaging the measurement noise).
-      const double innovation = obs.gap_measured_rad - s.gap_est_rad;
-      const bool jump = std::abs(innovation) > p_.robust.jump_fraction * s.gap_est_rad;
-      const double gain = s.gap_measurements++ == 0 || jump ? 1.0 : p_.robust.learn_gain;
-      const double before = s.gap_est_rad;
-      s.gap_est_rad += gain * innovation;
-      // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
-      if (before > 0) s.gap_pos_rad *= s.gap_est_rad / before;
-    }
+  // The compensator: touch state, motion intention, the gap and the jump delta_b.
+  CompensatorOutputs comp;
+  if (CompensatorState* cs = s.compensator.get()) {
+    compensator_->step(*cs, {cmd_step, in.p_meas_pa - in.p_ref_pa, in.p_meas_pa, motor_rad, tau_s, s.volume_m3}, comp);
   }
-  if (p_.observer == ObserverKind::paper) {
-    // Eq. (7) with sigma (constant) or sigma_r (adaptive) as it was before this step's law (10).
-    if (p_.compensation != Compensation::none) out.comp_rad = obs.kick * gap_before;
-  } else {
-    const double gap = p_.compensation == Compensation::constant ? p_.gap_known_rad : s.gap_est_rad;  // as updated
-    s.gap_pos_rad += cmd_step;
-    if (obs.reversed) s.boost_rad = 0;
-    if (p_.compensation != Compensation::none && obs.reversed) {
-      const int d = obs.intention;
-      out.comp_rad = d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + p_.contact_overlap_rad);  // past the flank ahead
-      s.gap_pos_rad += out.comp_rad;
-      s.boost_rad = p_.traverse_boost * out.comp_rad;
-      // The drive needs the crossing at its slew limit plus a few lags to really get there.
-      s.presume_wait =
-          std::lround((std::abs(out.comp_rad) / p_.motor.rate_limit_rad_s + 3 * p_.motor.time_constant_s) / p_.period_s);
-    }
-    s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
-  }
+  out.comp_rad = comp.comp_rad;
+  if (comp.reversed) s.boost_rad = p_.traverse_boost * comp.comp_rad;
   s.theta_cmd_rad = std::clamp(s.theta_cmd_rad + cmd_step + out.comp_rad, p_.cmd_min_rad, p_.cmd_max_rad);
   // Take the boost back when the motor will reach the jump's target within this step.
   const double step_reach = p_.motor.rate_limit_rad_s * p_.period_s;
@@ -132,10 +92,10 @@ void Controller::step(ControllerState& s, const ControllerInputs& in, Controller
   }
 
   out.theta_cmd_rad = cmd;
-  out.touch_state = obs.touch;
-  out.motion_intention = obs.intention;
-  out.gap_est_rad = s.gap_est_rad;
-  out.gap_measured = obs.gap_measured;
+  out.touch_state = comp.touch;
+  out.motion_intention = comp.intention;
+  out.gap_est_rad = comp.gap_est_rad;
+  out.gap_measured = comp.gap_measured;
 }
 
 }  // namespace hil::ctl

@@ -112,7 +112,8 @@ TEST(CampaignConfig, ReferenceOutsideThePlantsReach) {
 
 TEST(CampaignConfig, UnknownProfileItemAndBadChoice) {
   expect_error(load_with("    - square:", "    - squares:"), "reference.profile[0]", "unknown profile item 'squares'");
-  expect_error(load_with("observer: robust ", "observer: fast "), "controller.observer", "must be paper or robust");
+  expect_error(load_with("observer: robust ", "observer: fast "), "controller.observer",
+               "must be a registered compensator: paper, robust");
 }
 
 TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {

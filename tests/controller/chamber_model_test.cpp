@@ -16,7 +16,7 @@ TEST(ChamberModel, OperatingPointsOfPhysicsMd) {
 }
 
 TEST(ChamberModel, KiScheduleIs74DegPerMpaSecondAt1MpaAnd2L) {
-  hil::ctl::Controller c(hil::test::nominal_params(hil::ctl::Compensation::none, hil::ctl::ObserverKind::robust));
+  hil::ctl::Controller c(hil::test::nominal_params(hil::ctl::Compensation::none, "robust"));
   const double ki_deg_per_mpa_s = c.ki_rad_per_pa_s(1e6, 2e-3) * 180 / M_PI * 1e6;
   EXPECT_NEAR(ki_deg_per_mpa_s, 74, 1.0);  // physics.md: "~ 74 deg/(MPa s) at 1 MPa, 2 L"
   // More volume -> slower chamber -> smaller gain; higher pressure -> stronger plant -> smaller gain.

@@ -1,6 +1,8 @@
 // The controller's step: real-time safe, and the jumps it makes.
 #include <gtest/gtest.h>
 
+#include <string>
+
 #include "alloc_counter.hpp"
 #include "nominal_model.hpp"
 
@@ -13,21 +15,53 @@ constexpr double kDeg = M_PI / 180;
 
 static_assert(noexcept(std::declval<const Controller&>().step(std::declval<ControllerState&>(), ControllerInputs{})));
 
-TEST(Controller, StepAllocatesNothing) {
-  for (auto obs : {ObserverKind::paper, ObserverKind::robust}) {
-    const Controller c(nominal_params(Compensation::adaptive, obs));
-    auto s = c.initial_state(11 * kDeg, 1e6, +1);
-    const long before = hil::test::allocations();
-    for (int k = 0; k < 20000; ++k) {
-      const double p = 1e6 + 5e4 * std::sin(k * 1e-3 * 3) + (k % 7) * 300.0;
-      c.step(s, {p, 1e6, s.theta_cmd_rad});
+// Every registered compensator (this program links the library whole, so every one shipped),
+// under every law, through reversals: the square wave of the error makes the intention flip.
+TEST(Controller, StepAllocatesNothingWithEveryCompensator) {
+  const auto names = compensator_names();
+  ASSERT_GE(names.size(), 2u);
+  for (const auto& name : names) {
+    for (auto law : {Compensation::none, Compensation::constant, Compensation::adaptive}) {
+      SCOPED_TRACE(name + " " + compensation_name(law));
+      const Controller c(nominal_params(law, name.c_str()));
+      auto s = c.initial_state(11 * kDeg, 1e6, +1);
+      int reversals = 0, last = 0;
+      const long before = hil::test::allocations();
+      for (int k = 0; k < 20000; ++k) {
+        const double p = 1e6 + ((k / 500) % 2 == 0 ? 5e4 : -5e4) + 3e4 * std::sin(k * 1e-3 * 3) + (k % 7) * 300.0;
+        const auto out = c.step(s, {p, 1e6, s.motor_model_rad});
+        if (out.motion_intention != 0 && out.motion_intention != last) ++reversals;
+        if (out.motion_intention != 0) last = out.motion_intention;
+      }
+      EXPECT_EQ(hil::test::allocations() - before, 0);
+      EXPECT_GE(reversals, 10);  // the period's branches of a reversal ran
     }
-    EXPECT_EQ(hil::test::allocations() - before, 0);
+  }
+}
+
+TEST(Controller, UnknownCompensatorOrParameterIsRejectedNamingIt) {
+  auto p = nominal_params(Compensation::adaptive, "nonesuch");
+  try {
+    Controller{p};
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no compensator 'nonesuch'; registered: paper, robust"), std::string::npos) << e.what();
+  }
+  p = nominal_params(Compensation::adaptive, "robust");
+  p.compensator_params = param_defaults(find_compensator("robust")->specs);
+  p.compensator_params[7] = 2.5;  // confirm_samples
+  try {
+    Controller{p};
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("compensator robust.confirm_samples = 2.5: must be a whole number in [1, 1000]"),
+              std::string::npos)
+        << e.what();
   }
 }
 
 TEST(Controller, IntegralLawHasTheStabilisingSign) {
-  const Controller c(nominal_params(Compensation::none, ObserverKind::robust));
+  const Controller c(nominal_params(Compensation::none, "robust"));
   auto s = c.initial_state(11 * kDeg, 1e6, +1);
   const double ki = c.ki_rad_per_pa_s(1e6, 2e-3);
   const auto out = c.step(s, {1.01e6, 1e6, 11 * kDeg});
@@ -36,7 +70,7 @@ TEST(Controller, IntegralLawHasTheStabilisingSign) {
 }
 
 TEST(Controller, PaperConstantJumpsExactlySigma) {
-  const Controller c(nominal_params(Compensation::constant, ObserverKind::paper));
+  const Controller c(nominal_params(Compensation::constant, "paper"));
   auto s = c.initial_state(11 * kDeg, 1e6, +1);
   const auto out = c.step(s, {0.99e6, 1e6, 11 * kDeg});  // too low: close, leaving the + flank
   EXPECT_NEAR(out.comp_rad, -1 * kDeg, 1e-15);
@@ -44,7 +78,7 @@ TEST(Controller, PaperConstantJumpsExactlySigma) {
 }
 
 TEST(Controller, RobustJumpCrossesToTheFlankAheadAndBoostsTheCrossing) {
-  auto p = nominal_params(Compensation::constant, ObserverKind::robust);
+  auto p = nominal_params(Compensation::constant, "robust");
   const Controller c(p);
   auto s = c.initial_state(11 * kDeg, 1e6, +1);  // resting on the opening flank
   ControllerOutputs out;
@@ -57,23 +91,33 @@ TEST(Controller, RobustJumpCrossesToTheFlankAheadAndBoostsTheCrossing) {
   // The jump covers what the gap has left ahead (sigma minus what the integral already walked)
   // plus the contact overlap.
   const double walked = 11 * kDeg - (s.theta_cmd_rad - out.comp_rad);
-  EXPECT_NEAR(-out.comp_rad, 1 * kDeg - walked + p.contact_overlap_rad, 1e-9);
-  EXPECT_NEAR(s.gap_pos_rad, -0.5 * kDeg, 1e-12);  // now on the closing flank
+  const double overlap = 0.02 * kDeg;  // the robust compensator's contact_overlap_deg default
+  EXPECT_NEAR(-out.comp_rad, 1 * kDeg - walked + overlap, 1e-9);
   // The drive is asked for twice the jump until the motor gets there.
   EXPECT_NEAR(out.theta_cmd_rad - s.theta_cmd_rad, out.comp_rad, 1e-12);
   for (int i = 0; i < 60; ++i) out = c.step(s, {0.95e6, 1e6, s.motor_model_rad});
   EXPECT_EQ(s.boost_rad, 0.0);
   EXPECT_DOUBLE_EQ(out.theta_cmd_rad, s.theta_cmd_rad);
+  // Now on the closing flank: the reversal back crosses the whole gap, less what the integral
+  // walks before the reversal shows.
+  const double at_reversal = s.theta_cmd_rad;
+  for (k = 0; k < 200; ++k) {
+    out = c.step(s, {1.05e6, 1e6, s.motor_model_rad});  // 50 kPa high: open
+    if (out.comp_rad != 0) break;
+  }
+  ASSERT_LT(k, 200);
+  const double walked_back = (s.theta_cmd_rad - out.comp_rad) - at_reversal;
+  EXPECT_NEAR(out.comp_rad, 1 * kDeg - walked_back + overlap, 1e-9);
 }
 
 TEST(Controller, InvalidParametersAreRejected) {
-  auto p = nominal_params(Compensation::constant, ObserverKind::robust);
+  auto p = nominal_params(Compensation::constant, "robust");
   p.period_s = 0;
   EXPECT_THROW(Controller{p}, std::invalid_argument);
-  p = nominal_params(Compensation::constant, ObserverKind::robust);
+  p = nominal_params(Compensation::constant, "robust");
   p.gap_known_rad = -0.1;
   EXPECT_THROW(Controller{p}, std::invalid_argument);
-  p = nominal_params(Compensation::constant, ObserverKind::robust);
+  p = nominal_params(Compensation::constant, "robust");
   p.chamber.pressure_exponent = 1.0;
   EXPECT_THROW(Controller{p}, std::invalid_argument);
 }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <string>
 
 #include "hil/ctl/controller.hpp"
 
@@ -21,10 +22,10 @@ inline ctl::ChamberModel nominal_chamber() {
   return m;
 }
 
-inline ctl::ControllerParams nominal_params(ctl::Compensation c, ctl::ObserverKind o) {
+inline ctl::ControllerParams nominal_params(ctl::Compensation c, const char* compensator) {
   ctl::ControllerParams p;
   p.compensation = c;
-  p.observer = o;
+  p.compensator = compensator;
   p.chamber = nominal_chamber();
   p.gap_known_rad = 1 * M_PI / 180;
   return p;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <optional>
 #include <stdexcept>
 
@@ -244,67 +245,43 @@ void add_items(ScheduleBuilder& b, const std::optional<Node>& list, AddItem add)
   }
 }
 
-ctl::ObserverKind observer_of(const Node& n) {
-  const std::string s = n.text();
-  n.require(s == "paper" || s == "robust", "must be paper or robust");
-  return s == "paper" ? ctl::ObserverKind::paper : ctl::ObserverKind::robust;
-}
-
 ctl::Compensation compensation_of(const Node& n) {
   const std::string s = n.text();
   n.require(s == "none" || s == "constant" || s == "adaptive", "must be none, constant or adaptive");
   return s == "none" ? ctl::Compensation::none : s == "constant" ? ctl::Compensation::constant : ctl::Compensation::adaptive;
 }
 
-// Robust observer settings in config units (ms, deg, kPa), each with its physical range.
-struct RobustKey {
-  const char* key;
-  double ctl::RobustObserverParams::*field;
-  double scale;  // SI per config unit
-  double lo, hi;
-};
-const RobustKey kRobustKeys[] = {
-    {"pressure_noise_kpa", &ctl::RobustObserverParams::pressure_noise_rms_pa, units::kPaPerKpa, 0, 1e4},
-    {"intention_deadband_deg", &ctl::RobustObserverParams::intention_deadband_rad, units::kRadPerDeg, 0, 10},
-    {"intention_sigmas", &ctl::RobustObserverParams::intention_sigmas, 1.0, 0, 1e3},
-    {"filter_time_constant_ms", &ctl::RobustObserverParams::filter_time_constant_s, 1e-3, 1e-3, 1e4},
-    {"hold_smoothing", &ctl::RobustObserverParams::hold_smoothing, 1.0, 1, 100},
-    {"time_constant_scale", &ctl::RobustObserverParams::time_constant_scale, 1.0, 1e-3, 2},
-    {"detect_sigmas", &ctl::RobustObserverParams::detect_sigmas, 1.0, 1e-3, 1e3},
-    {"fit_lead_ms", &ctl::RobustObserverParams::fit_lead_s, 1e-3, 0, 500},
-    {"fit_after_ms", &ctl::RobustObserverParams::fit_after_s, 1e-3, 1, 500},
-    {"learn_gain", &ctl::RobustObserverParams::learn_gain, 1.0, 1e-3, 1},
-    {"jump_fraction", &ctl::RobustObserverParams::jump_fraction, 1.0, 1e-3, 10},
-    {"gap_max_deg", &ctl::RobustObserverParams::gap_max_rad, units::kRadPerDeg, 1e-3, 90},
-};
-
-void read_robust(const Node& n, ctl::RobustObserverParams& r) {
-  std::vector<std::string> keys{"confirm_samples", "fit_tries"};
-  for (const auto& k : kRobustKeys) keys.emplace_back(k.key);
-  n.allow_keys(keys);
-  for (const auto& k : kRobustKeys) {
-    if (auto v = n.find(k.key)) {
-      char why[96];
-      std::snprintf(why, sizeof why, "must be in [%g, %g]", k.lo, k.hi);
-      v->require(v->number() >= k.lo && v->number() <= k.hi, why);
-      r.*k.field = v->number() * k.scale;
-    }
-  }
-  for (auto [key, field] : {std::pair{"confirm_samples", &ctl::RobustObserverParams::confirm_samples},
-                            std::pair{"fit_tries", &ctl::RobustObserverParams::fit_tries}}) {
-    if (auto v = n.find(key)) {
-      v->require(v->integer() >= 1 && v->integer() <= 1000, "must be a whole number in [1, 1000]");
-      r.*field = static_cast<int>(v->integer());
-    }
-  }
+// The controller block's keys: its own, and one block of parameters per registered compensator,
+// named after it (`robust: {detect_sigmas: 4}`): a campaign may set several, each run uses its
+// compensator's. `observer:` is the older name of `compensator:`.
+std::vector<std::string> controller_keys() {
+  std::vector<std::string> keys = {"compensator",     "observer",      "compensation", "known_gap_deg",
+                                   "initial_gap_deg", "damping_ratio", "use_encoder",  "traverse_boost"};
+  for (auto& name : ctl::compensator_names()) keys.push_back(std::move(name));
+  return keys;
 }
 
-const std::vector<std::string> kControllerKeys = {"observer",      "compensation", "known_gap_deg",  "initial_gap_deg",
-                                                  "damping_ratio", "use_encoder",  "traverse_boost", "robust"};
+// Parameter values per compensator name, in its specs' order and units.
+using CompensatorParams = std::map<std::string, std::vector<double>, std::less<>>;
 
-// Applies controller keys of `n` (campaign defaults or one run) onto `p`.
-void read_controller(const Node& n, ctl::ControllerParams& p) {
-  if (auto v = n.find("observer")) p.observer = observer_of(*v);
+// Applies controller keys of `n` (campaign defaults or one run) onto `p` and `params`.
+void read_controller(const Node& n, ctl::ControllerParams& p, CompensatorParams& params) {
+  n.require(!(n.has("compensator") && n.has("observer")), "give 'compensator' or its older name 'observer', not both");
+  for (const char* key : {"compensator", "observer"}) {
+    if (auto v = n.find(key)) {
+      std::string known;
+      for (const auto& name : ctl::compensator_names()) known += (known.empty() ? "" : ", ") + name;
+      v->require(ctl::find_compensator(v->text()) != nullptr, "must be a registered compensator: " + known);
+      p.compensator = v->text();
+    }
+  }
+  for (const auto& name : ctl::compensator_names()) {
+    if (auto block = n.find(name)) {
+      const auto& specs = ctl::find_compensator(name)->specs;
+      auto [it, added] = params.try_emplace(name, param_defaults(specs));
+      apply_params(*block, specs, it->second);
+    }
+  }
   if (auto v = n.find("compensation")) p.compensation = compensation_of(*v);
   if (auto v = n.find("known_gap_deg")) {
     v->require(v->number() >= 0, "a gap cannot be negative");
@@ -323,7 +300,6 @@ void read_controller(const Node& n, ctl::ControllerParams& p) {
     v->require(v->number() >= 0 && v->number() <= 5, "must be in [0, 5] (a fraction of the jump)");
     p.traverse_boost = v->number();
   }
-  if (auto v = n.find("robust")) read_robust(*v, p.robust);
 }
 
 // The longest campaign a run may last: a week at the bench, also what bounds the memory of a
@@ -473,14 +449,16 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
   base.cmd_min_rad = deg_to_rad(param_of(truth, "backlash", "valve_min_deg")) - gap_max_rad;
   base.cmd_max_rad = deg_to_rad(param_of(truth, "backlash", "valve_max_deg")) + gap_max_rad;
   base.gap_known_rad = c.gap_rad.initial();
+  const std::vector<std::string> keys_of_controller = controller_keys();
+  CompensatorParams base_params;
   if (auto ctl = root.find("controller")) {
-    ctl->allow_keys(kControllerKeys);
-    read_controller(*ctl, base);
+    ctl->allow_keys(keys_of_controller);
+    read_controller(*ctl, base, base_params);
   }
 
   const Node runs = root.at("runs");
   for (const Node& run : runs.items()) {
-    std::vector<std::string> keys = kControllerKeys;
+    std::vector<std::string> keys = keys_of_controller;
     keys.insert(keys.end(), {"name", "description"});
     run.allow_keys(keys);
     RunSpec spec;
@@ -488,7 +466,9 @@ Campaign load(const Node& root, const std::filesystem::path& file, const std::st
     require_plain_name(run.at("name"), spec.name);
     for (const auto& other : c.runs) run.at("name").require(other.name != spec.name, "two runs have this name");
     spec.controller = base;
-    read_controller(run, spec.controller);
+    CompensatorParams params = base_params;
+    read_controller(run, spec.controller, params);
+    if (auto it = params.find(spec.controller.compensator); it != params.end()) spec.controller.compensator_params = it->second;
     run.require(run.has("compensation") || (root.has("controller") && root.at("controller").has("compensation")),
                 "missing required key 'compensation' (none, constant or adaptive)");
     try {

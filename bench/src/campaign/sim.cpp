@@ -104,10 +104,8 @@ Executed execute(const Campaign& c, const RunSpec& run, const std::filesystem::p
   nlohmann::json summary = out.summary.to_json();
   summary["campaign"] = c.name;
   summary["run"] = run.name;
-  summary["compensation"] = run.controller.compensation == ctl::Compensation::none       ? "none"
-                            : run.controller.compensation == ctl::Compensation::constant ? "constant"
-                                                                                         : "adaptive";
-  summary["observer"] = run.controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
+  summary["compensation"] = ctl::compensation_name(run.controller.compensation);
+  summary["compensator"] = run.controller.compensator;
   summary["sensor_noise_kpa"] = c.sensor_noise_rms_pa / units::kPaPerKpa;
   summary["wall_s"] = out.wall_s;
   return {std::move(out), std::move(summary), std::move(checks), interlocks.trips()};

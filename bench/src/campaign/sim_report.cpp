@@ -80,18 +80,15 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     const RunSpec* spec = nullptr;
     for (const auto& rs : c.runs)
       if (rs.name == r.name || r.name.rfind(rs.name + " (", 0) == 0) spec = &rs;  // "adaptive (its folder)"
-    const char* comp = !spec                                                          ? "?"
-                       : spec->controller.compensation == ctl::Compensation::none     ? "none"
-                       : spec->controller.compensation == ctl::Compensation::constant ? "constant"
-                                                                                      : "adaptive";
-    const char* observer = !spec ? "?" : spec->controller.observer == ctl::ObserverKind::paper ? "paper" : "robust";
-    rows.push_back({r.name, comp, observer, fmt("%.4f", s.iae_mpa_s), fmt("%.4f", s.rmse_mpa), fmt("%.3f", s.stall_s_total),
+    const char* comp = !spec ? "?" : ctl::compensation_name(spec->controller.compensation);
+    const std::string compensator = !spec ? "?" : spec->controller.compensator;
+    rows.push_back({r.name, comp, compensator, fmt("%.4f", s.iae_mpa_s), fmt("%.4f", s.rmse_mpa), fmt("%.3f", s.stall_s_total),
                     fmt("%.1f", 100 * s.stall_fraction),
                     fmt("%.2f", s.reversals.empty() ? 0.0 : double(s.touch_state_changes) / s.reversals.size()),
                     std::to_string(s.compensation_events), fmt("%.3f", s.gap_est_final_deg), fmt("%.3f", s.gap_true_final_deg)});
   }
   doc.heading("Summary");
-  doc.table({"run", "compensation", "observer", "IAE [MPa s]", "RMSE [MPa]", "stall [s]", "stall % of motion",
+  doc.table({"run", "compensation", "compensator", "IAE [MPa s]", "RMSE [MPa]", "stall [s]", "stall % of motion",
              "touch changes / reversal", "jumps", "gap est. final [deg]", "gap true final [deg]"},
             rows);
   doc.paragraph(

@@ -51,16 +51,11 @@ std::string characterise_table(const std::filesystem::path& campaigns_dir) {
         const RunSummary s = summarise_run(c, run);
         const double stall = mean_stall(c, s);
         if (run.controller.compensation == ctl::Compensation::none) none_stall = stall;
-        const char* comp = run.controller.compensation == ctl::Compensation::none       ? "none"
-                           : run.controller.compensation == ctl::Compensation::constant ? "constant"
-                                                                                        : "adaptive";
+        const char* comp = ctl::compensation_name(run.controller.compensation);
         const bool baseline = run.controller.compensation == ctl::Compensation::none;
         t << "| " << name << " | " << fmt("%g kPa", noise_kpa) << " | " << run.name << " | " << comp << " | "
-          << (baseline                                              ? "-"
-              : run.controller.observer == ctl::ObserverKind::paper ? "paper"
-                                                                    : "robust")
-          << " | " << fmt("%.3f", s.iae_mpa_s) << " | " << fmt("%.3f", stall) << " | "
-          << (baseline || none_stall <= 0 ? std::string("-") : fmt("%.0f %%", 100 * stall / none_stall)) << " | "
+          << (baseline ? "-" : run.controller.compensator) << " | " << fmt("%.3f", s.iae_mpa_s) << " | " << fmt("%.3f", stall)
+          << " | " << (baseline || none_stall <= 0 ? std::string("-") : fmt("%.0f %%", 100 * stall / none_stall)) << " | "
           << fmt("%.1f", s.reversals.empty() ? 0.0 : double(s.touch_state_changes) / s.reversals.size()) << " | "
           << s.compensation_events << " | "
           << (baseline ? std::string("-") : fmt("%.2f", s.gap_est_final_deg) + fmt(" (%.2f)", s.gap_true_final_deg)) << " |\n";

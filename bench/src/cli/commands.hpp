@@ -13,6 +13,7 @@ namespace hil::bench {
 CommandRun define_sim(CLI::App& cmd);
 CommandRun define_sweep(CLI::App& cmd);
 CommandRun define_effects(CLI::App& cmd);
+CommandRun define_compensators(CLI::App& cmd);
 CommandRun define_serve(CLI::App& cmd);
 CommandRun define_ctl(CLI::App& cmd);
 CommandRun define_compare(CLI::App& cmd);

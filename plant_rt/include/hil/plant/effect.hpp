@@ -10,12 +10,9 @@
 #include <string_view>
 #include <vector>
 
+#include "hil/param_spec.hpp"
 #include "hil/plant/rng.hpp"
 #include "hil/plant/signals.hpp"
-
-namespace hil::cfg {
-class Node;
-}
 
 namespace hil::plant {
 
@@ -34,14 +31,10 @@ enum class Stage : int {
   sensor_noise,     // random noise, last so it is never filtered
 };
 
-// One scalar parameter, in the unit its YAML key names (degrees, mm², kPa...).
-struct ParamSpec {
-  std::string_view key;   // YAML key, carries the unit: "gap_deg"
-  double lo, hi;          // physically possible range
-  bool lo_open, hi_open;  // whether lo/hi themselves are excluded
-  double fallback;        // used when the key is absent; NaN = required
-  std::string_view doc;   // one line, used in error messages and in docs
-};
+// Parameter specs, their YAML reader and checker: one type for every registered part.
+using ::hil::check_params;
+using ::hil::ParamSpec;
+using ::hil::read_params;
 
 struct Param {
   std::string key;
@@ -77,12 +70,6 @@ class Effect {
   // List-valued parameters (tables); default none.
   virtual std::vector<Table> tables() const { return {}; }
 };
-
-// Reads and validates the scalar params of `specs` from a YAML block (located errors).
-std::vector<double> read_params(const cfg::Node& block, std::span<const ParamSpec> specs,
-                                std::span<const std::string_view> extra_keys = {});
-// Validates values against specs (for fitting and programmatic construction).
-void check_params(std::string_view kind, std::span<const ParamSpec> specs, std::span<const double> values);
 
 // Convenience base for effects whose parameters are all scalars: stores values, implements
 // params(), specs(), with_params(). Derived(std::vector<double>) must be a constructor.
