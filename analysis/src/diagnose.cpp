@@ -538,9 +538,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     evaluations += 1;
   };
   auto choice = [&](const VariantFit& v) {
-    return std::isfinite(v.wrss_full)
-               ? detail::Criterion::choice_delta_bic(v.wrss_full, rd.whitened_rss_before, v.k(), n_choice)
-               : kInf;
+    return std::isfinite(v.wrss_full) ? detail::Criterion::choice_delta_bic(v.wrss_full, rd.whitened_rss_before, v.k(), n_choice)
+                                      : kInf;
   };
   measure_n_choice();
   // Best variant per candidate; refine the most promising on every row.
