@@ -61,9 +61,12 @@ Candidate backlash_change(const plant::Plant& base) {
   c.name = "backlash_change";
   c.description = "the gap differs from the model's: constant, drifting, or stepping once at an unknown time";
   c.attach = [gap](const plant::Plant& p) { return add_block(p, "backlash_change", "gap_deg: " + num(gap)); };
-  const FreeParam g{"backlash_change", "gap_deg", 0.0, 10.0, 0.2, {gap, 0.5 * gap, 2 * gap}};
+  FreeParam g{"backlash_change", "gap_deg", 0.0, 10.0, 0.2, {gap, 0.5 * gap, 2 * gap}};
   const FreeParam drift{"backlash_change", "drift_deg_per_s", -0.5, 0.5, 0.005, {0.0}};
-  const FreeParam size{"backlash_change", "step_deg", -5.0, 5.0, 0.2, {0.5, -0.5}};
+  FreeParam size{"backlash_change", "step_deg", -5.0, 5.0, 0.2, {0.5, -0.5}};
+  // Wear and assembly change a gear's play by a fraction of it, not by multiples.
+  g.credible_lo = 0, g.credible_hi = 3 * gap, g.credible_why = "three times the model's gap of " + num(gap) + " deg";
+  size.credible_lo = -2 * gap, size.credible_hi = 2 * gap, size.credible_why = "twice the model's gap of " + num(gap) + " deg";
   FreeParam when{"backlash_change", "step_time_s", 0.0, 1e7, 1.0, {}, true, step_times};
   c.variants = {{"constant gap", {g}}, {"drifting gap", {g, drift}}, {"gap step", {g, size, when}}};
   return c;

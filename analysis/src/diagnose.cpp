@@ -244,6 +244,9 @@ CandidateResult describe(const Candidate& cand, const VariantFit& vf, const plan
                             value_of(base, p.effect, p.key), false});
     c.parameters.back().search_lo = p.lo;
     c.parameters.back().search_hi = p.hi;
+    c.parameters.back().credible_lo = p.credible_lo;
+    c.parameters.back().credible_hi = p.credible_hi;
+    c.parameters.back().credible_why = p.credible_why;
   }
   if (vf.grid) {
     c.parameters.push_back(
@@ -368,6 +371,7 @@ std::string param_text(const FittedParam& p) {
   if (std::isfinite(p.sigma) && !p.at_search_limit()) s += " +- " + text::num(p.sigma, 2);
   s += p.span_text();
   s += p.limit_text();
+  s += p.plausibility_text();
   if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
   return s;
 }
@@ -872,6 +876,12 @@ std::string FittedParam::limit_text() const {
   return " (at the end of its search range, " + text::num(search_lo, 4) + " to " + text::num(search_hi, 4) +
          ": no measured value; the data want one beyond it, so this effect likely stands in for another, or the file's units "
          "or scaling are off)";
+}
+
+std::string FittedParam::plausibility_text() const {
+  if (!implausible()) return {};
+  return " (implausible: beyond " + credible_why +
+         ", what the nominal plant makes credible; a real fault, or this effect stands in for another)";
 }
 
 std::string FittedParam::span_text() const {
