@@ -312,6 +312,9 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   binned(d.vs_burned, "Residual against burned propellant (model)");
   binned(d.vs_dpdt, "Residual against dPg/dt (model)");
   binned(d.vs_pressure, "Residual against measured pressure");
+  // A drive that never moved leaves no angle bins (an empty plot would be a blank box).
+  if (!d.vs_drive_angle.x.empty())
+    binned(d.vs_drive_angle, "Residual against drive angle (a ripple with the angle: a gear or coupling error)");
   doc.columns_end();
   if (!d.peaks.empty()) {
     std::vector<std::vector<std::string>> rows;

@@ -11,6 +11,16 @@
 // a drifting gap still missing, and an effect whose removal cost 1.8 times the noise power could
 // not earn its place). Fitting only noise lowers W by about one per parameter, against ln N.
 // Several files: each segment is whitened by its own file's noise model.
+//
+// Which of several candidates that earn their place is added first is a different question: the
+// order of choice. There the residual still holds the large misfit of everything missing, and
+// counted on every row any small difference in fit between two stand-ins (a sensor offset and gain
+// for a valve offset) outweighs a parameter more (ln N ~ 10 whitened units against thousands); the
+// greedy search then took the wrong one first and ended at the floor with two effects for one
+// (pair_offset_delay: sensor bias + burn-rate refit + delay for offset + delay). So the order is by
+// the same BIC counted on the whitened residual's effective rows, N / tau of the best candidate's
+// whitened residual (choice_delta_bic): while structure remains it weighs a parameter as much as
+// the structure's own independent pieces, and at the floor (tau ~ 1) it is the criterion itself.
 #pragma once
 
 #include <cmath>
@@ -20,6 +30,7 @@
 
 #include "hil/analysis/noise_model.hpp"
 #include "hil/analysis/replay.hpp"
+#include "hil/analysis/residuals.hpp"
 
 namespace hil::analysis::detail {
 
@@ -45,6 +56,19 @@ class Criterion {
   // Adding k parameters that take W from `before` to `after`.
   double delta_bic(double whitened_rss_after, double whitened_rss_before, std::size_t k) const {
     return rows() * std::log(whitened_rss_after / whitened_rss_before) + static_cast<double>(k) * std::log(rows());
+  }
+  // The whitened residual's effective rows, N / tau_int (the order of choice, above).
+  double effective_rows(std::span<const double> residual_pa) const {
+    std::vector<double> w(residual_pa.size());
+    for (std::size_t i = 0; i < data_.segments.size(); ++i) {
+      const std::size_t b = data_.segment_begin(i), e = data_.segment_end(i);
+      noise_[i].whiten(residual_pa.subspan(b, e - b), std::span<double>(w).subspan(b, e - b));
+    }
+    return rows() / integrated_autocorrelation_time(w);
+  }
+  // The order of choice between candidates: the same BIC on `n_eff` effective rows.
+  static double choice_delta_bic(double whitened_rss_after, double whitened_rss_before, std::size_t k, double n_eff) {
+    return n_eff * std::log(whitened_rss_after / whitened_rss_before) + static_cast<double>(k) * std::log(n_eff);
   }
   const NoiseModel& noise(std::size_t file) const { return noise_[file]; }
 

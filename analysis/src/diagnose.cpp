@@ -244,6 +244,9 @@ CandidateResult describe(const Candidate& cand, const VariantFit& vf, const plan
                             value_of(base, p.effect, p.key), false});
     c.parameters.back().search_lo = p.lo;
     c.parameters.back().search_hi = p.hi;
+    c.parameters.back().credible_lo = p.credible_lo;
+    c.parameters.back().credible_hi = p.credible_hi;
+    c.parameters.back().credible_why = p.credible_why;
   }
   if (vf.grid) {
     c.parameters.push_back(
@@ -368,6 +371,7 @@ std::string param_text(const FittedParam& p) {
   if (std::isfinite(p.sigma) && !p.at_search_limit()) s += " +- " + text::num(p.sigma, 2);
   s += p.span_text();
   s += p.limit_text();
+  s += p.plausibility_text();
   if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
   return s;
 }
@@ -519,17 +523,40 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
   auto dbic = [&](const VariantFit& v) {
     return std::isfinite(v.wrss_full) ? ctx.criterion.delta_bic(v.wrss_full, rd.whitened_rss_before, v.k()) : kInf;
   };
+  // The order of choice counts the effective rows of the best-fitting variant's whitened residual
+  // (criterion.hpp: every row made a stand-in with a parameter more win the first choice),
+  // measured again after the joint refine below (the candidate added, the accepted effects refitted).
+  double n_choice = ctx.criterion.rows();
+  auto measure_n_choice = [&] {
+    const VariantFit* best_fit = nullptr;
+    for (const auto& j : jobs)
+      if (std::isfinite(j.wrss_full) && (!best_fit || j.wrss_full < best_fit->wrss_full)) best_fit = &j;
+    if (best_fit == nullptr) return;
+    std::vector<Added> with = added;
+    adopt_joint_values(with, *best_fit);
+    const plant::Plant bm =
+        with_values(model_for(pool[best_fit->candidate]->attach(apply_added(base0, with)), *best_fit, best_fit->grid_value),
+                    best_fit->continuous, best_fit->values);
+    std::vector<double> res;
+    if (std::isfinite(rss_of(bm, full, &res))) n_choice = ctx.criterion.effective_rows(res);
+    evaluations += 1;
+  };
+  auto choice = [&](const VariantFit& v) {
+    return std::isfinite(v.wrss_full) ? detail::Criterion::choice_delta_bic(v.wrss_full, rd.whitened_rss_before, v.k(), n_choice)
+                                      : kInf;
+  };
+  measure_n_choice();
   // Best variant per candidate; refine the most promising on every row.
   std::vector<std::size_t> best_variant(pool.size(), jobs.size());
   for (std::size_t i = 0; i < jobs.size(); ++i) {
     auto& b = best_variant[jobs[i].candidate];
-    if (b == jobs.size() || dbic(jobs[i]) < dbic(jobs[b])) b = i;
+    if (b == jobs.size() || choice(jobs[i]) < choice(jobs[b])) b = i;
   }
   std::vector<std::size_t> order;
   for (std::size_t ci = 0; ci < pool.size(); ++ci)
     if (best_variant[ci] < jobs.size()) order.push_back(best_variant[ci]);
-  auto by_bic = [&](std::size_t a, std::size_t b) { return dbic(jobs[a]) < dbic(jobs[b]); };
-  std::sort(order.begin(), order.end(), by_bic);
+  auto by_choice = [&](std::size_t a, std::size_t b) { return choice(jobs[a]) < choice(jobs[b]); };
+  std::sort(order.begin(), order.end(), by_choice);
   const std::size_t refine_n = std::min(kRefineTop, order.size());
   parallel_for(refine_n, ctx.threads, [&](std::size_t i) {
     VariantFit& v = jobs[order[i]];
@@ -537,7 +564,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     refine_jointly(ctx, base0, added, *pool[v.candidate], v);
   });
   for (const auto& j : jobs) evaluations += j.evaluations;
-  std::sort(order.begin(), order.end(), by_bic);
+  if (!added.empty()) measure_n_choice();
+  std::sort(order.begin(), order.end(), by_choice);
 
   const double excess = std::max(rd.rss_before_pa2 - su.noise_rss, 0.0);
   for (std::size_t i : order) {
@@ -848,6 +876,12 @@ std::string FittedParam::limit_text() const {
   return " (at the end of its search range, " + text::num(search_lo, 4) + " to " + text::num(search_hi, 4) +
          ": no measured value; the data want one beyond it, so this effect likely stands in for another, or the file's units "
          "or scaling are off)";
+}
+
+std::string FittedParam::plausibility_text() const {
+  if (!implausible()) return {};
+  return " (implausible: beyond " + credible_why +
+         ", what the nominal plant makes credible; a real fault, or this effect stands in for another)";
 }
 
 std::string FittedParam::span_text() const {

@@ -35,6 +35,10 @@ nlohmann::json candidate_json(const CandidateResult& c, std::size_t rows) {
       params.back()["search_range"] = {p.search_lo, p.search_hi};
       params.back()["at_search_limit"] = p.at_search_limit();
     }
+    if (std::isfinite(p.credible_lo) || std::isfinite(p.credible_hi)) {
+      params.back()["credible_range"] = {number(p.credible_lo), number(p.credible_hi)};
+      params.back()["implausible"] = p.implausible();
+    }
   }
   nlohmann::json j = {{"effect", c.effect},
                       {"variant", c.variant},
@@ -63,6 +67,7 @@ std::string params_text(const CandidateResult& c) {
     if (std::isfinite(p.sigma) && !p.at_search_limit()) s += " \u00b1 " + text::num(p.sigma, 2);
     s += p.span_text();
     s += p.limit_text();
+    s += p.plausibility_text();
     if (p.file >= 0) s += " (file " + std::to_string(p.file + 1) + ")";
   }
   return s;

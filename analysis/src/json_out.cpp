@@ -128,7 +128,12 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
                       {"vs_time", binned_json(d.vs_time)},
                       {"vs_burned_mass", binned_json(d.vs_burned)},
                       {"vs_dpdt", binned_json(d.vs_dpdt)},
-                      {"vs_pressure", binned_json(d.vs_pressure)}};
+                      {"vs_pressure", binned_json(d.vs_pressure)},
+                      {"vs_drive_angle", binned_json(d.vs_drive_angle)},
+                      {"angle_ripple",
+                       {{"period_deg", number(d.angle_ripple_period_deg)},
+                        {"amplitude_kpa", number(d.angle_ripple_kpa)},
+                        {"share", number(d.angle_ripple_share)}}}};
   j["signature"] = r.signature;
   j["log_warnings"] = r.log_warnings;
   if (r.motor.present) {

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "angle_signature.hpp"
 #include "fft.hpp"
 #include "hil/minmax_decimator.hpp"
 #include "hil/units.hpp"
@@ -169,6 +170,7 @@ void find_segments(ResidualReport& r);  // change points of the residual's level
 }  // namespace
 
 struct ResidualAnalyzer::Impl {
+  detail::AngleProfile angle;  // the residual against the drive angle
   AnalyzerOptions opt;
 
   // Totals.
@@ -402,6 +404,7 @@ struct ResidualAnalyzer::Impl {
     syy += (s.y_pa - y0) * (s.y_pa - y0);
     noise.add(s.t_s, s.y_pa);
 
+    angle.add(units::rad_to_deg(s.drive_rad), e);
     const int motion_class = classify_motion(s.t_s, s.drive_rad);
     track_reference(s.p_ref_pa);
     motion[static_cast<std::size_t>(motion_class)].add(s.t_s, e);
@@ -695,6 +698,11 @@ void ResidualAnalyzer::Impl::finish_diagnostics(ResidualReport& r) {
     push(d.vs_time, r.windows[i].t0_s + 0.5 * win_width, windows[i].e);
     push(d.vs_burned, windows[i].burned_kg, windows[i].e);
   }
+  d.vs_drive_angle = angle.binned();
+  const detail::AngleRipple ripple = angle.ripple(r.noise_sigma_pa);
+  d.angle_ripple_period_deg = ripple.period_deg;
+  d.angle_ripple_kpa = ripple.amplitude_pa / units::kPaPerKpa;
+  d.angle_ripple_share = ripple.power_share;
 }
 
 void ResidualAnalyzer::Impl::name_peaks(ResidualReport& r) {
@@ -946,6 +954,13 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
     if (pk.power_share < 0.05) continue;
     out.push_back(fmt("Spectrum: %.0f %% of the residual power in a peak at %.3g Hz", 100 * pk.power_share, pk.hz) + ": " +
                   pk.name + ".");
+  }
+  if (rmse > 1.5 * sigma && d.angle_ripple_period_deg > 0) {
+    out.push_back(
+        fmt("Periodic in the drive angle (the encoder's, or the command's without one): a ripple of %.3g kPa with a "
+            "%.3g deg period (%.0f %% of the residual's variation with the angle once slower trends are removed): a "
+            "gear or coupling error (one period per tooth or per turn)? No candidate holds it: write it as an effect.",
+            d.angle_ripple_kpa, d.angle_ripple_period_deg, 100 * d.angle_ripple_share));
   }
   if (rmse > 1.5 * sigma && d.low_frequency_share > 0.5) {
     out.push_back(fmt("Slow: %.0f %% of the residual power lies below 0.5 Hz (static or slowly varying error).",

@@ -40,12 +40,12 @@ Plant::Plant(std::vector<std::shared_ptr<const Effect>> effects) : effects_(std:
       }
     }
   }
+  // Each required stage needs an effect that makes its signal; more effects at one stage run in
+  // the order given and modify it (a user's stiction after the backlash, which diagnose attaches
+  // last: analysis/README.md, user effects).
   for (Stage need : kRequired) {
     const auto n = std::count_if(effects_.begin(), effects_.end(), [&](const auto& e) { return e->stage() == need; });
-    if (n != 1) {
-      throw std::invalid_argument("plant: needs exactly one " + std::string(stage_name(need)) + " effect, has " +
-                                  std::to_string(n));
-    }
+    if (n < 1) throw std::invalid_argument("plant: needs a " + std::string(stage_name(need)) + " effect, has none");
   }
   first_sensor_ = effects_.size();
   for (std::size_t i = 0; i < effects_.size(); ++i) {
@@ -174,11 +174,14 @@ const Effect* Plant::find(std::string_view kind) const {
 }
 
 Plant Plant::with(std::shared_ptr<const Effect> effect) const {
-  std::vector<std::shared_ptr<const Effect>> out;
-  for (const auto& e : effects_) {
-    if (e->kind() != effect->kind()) out.push_back(e);
-  }
-  out.push_back(std::move(effect));
+  // In place when the kind is there: effects of one stage run in their order, and a refitted
+  // backlash must stay before a stiction that modifies its output. A new kind goes last.
+  std::vector<std::shared_ptr<const Effect>> out = effects_;
+  const auto it = std::find_if(out.begin(), out.end(), [&](const auto& e) { return e->kind() == effect->kind(); });
+  if (it != out.end())
+    *it = std::move(effect);
+  else
+    out.push_back(std::move(effect));
   return Plant(std::move(out));
 }
 

@@ -1,6 +1,7 @@
-// An effect outside the candidate list, for the "unexplained" test: a combustion-driven pressure
-// oscillation in the chamber (a limit cycle the lumped model cannot have). Its parameters have no
-// defaults, so diagnose does not pick it up as a user candidate: it stays truly unknown.
+// Effects outside the candidate list, for the "unexplained" tests: a combustion-driven pressure
+// oscillation in the chamber (a limit cycle the lumped model cannot have), and a gear's
+// transmission error (a ripple periodic in the motor angle). Their parameters have no defaults, so
+// diagnose does not pick them up as user candidates: they stay truly unknown.
 #include <cmath>
 #include <numbers>
 
@@ -25,5 +26,30 @@ class ChamberOscillation final : public ScalarEffect<ChamberOscillation> {
 };
 
 HIL_REGISTER_EFFECT(ChamberOscillation, "test only: combustion pressure oscillation (not a candidate)")
+
+// A gear's transmission error: the valve leads or lags the ideal gear by a ripple with one period
+// per tooth of the motor's pinion, amplitude_deg sin(2 pi theta_motor / pitch_deg), after the backlash.
+class GearRipple final : public ScalarEffect<GearRipple> {
+ public:
+  static constexpr std::string_view kKind = "test_gear_ripple";
+  static constexpr Stage kStage = Stage::transmission;
+  static constexpr ParamSpec kSpecs[] = {
+      {"amplitude_deg", 0, 5, false, false, kNaN, "transmission error amplitude"},
+      {"pitch_deg", 0, 90, true, false, kNaN, "motor angle per tooth"},
+  };
+  using ScalarEffect::ScalarEffect;
+  void settle(std::span<double>, Signals& s) const override { apply(s); }
+  void step(std::span<double>, Signals& s, double, Rng&) const noexcept override { apply(s); }
+
+ private:
+  void apply(Signals& s) const noexcept {
+    const double error_rad =
+        units::deg_to_rad(value(0)) * std::sin(2 * std::numbers::pi * s.theta_motor_rad / units::deg_to_rad(value(1)));
+    s.theta_valve_rad += error_rad;
+    s.theta_throat_rad = s.theta_valve_rad;
+  }
+};
+
+HIL_REGISTER_EFFECT(GearRipple, "test only: a gear's transmission error, periodic in the motor angle (not a candidate)")
 
 }  // namespace hil::plant

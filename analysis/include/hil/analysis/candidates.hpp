@@ -13,6 +13,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,12 @@ struct FreeParam {
   // steps, so the cost has a ripple finer than a sample; a step of 1 % of `scale` (50 us for a
   // lag) measures the ripple's slope, not the trend's, and LM stalls on the lag + delay ridge.
   bool sample_step = false;
+  // What the nominal plant makes credible (NaN: anything in [lo, hi]) and why: a fitted value
+  // outside it is flagged in the result (FittedParam::implausible), not refused: the file may
+  // show a real fault, or the effect may stand in for another (a 4.2 deg gap stepping by 3.15 deg
+  // in the first two seconds for a slow drive, issue 37).
+  double credible_lo = std::numeric_limits<double>::quiet_NaN(), credible_hi = std::numeric_limits<double>::quiet_NaN();
+  std::string credible_why = {};
 };
 
 struct Variant {

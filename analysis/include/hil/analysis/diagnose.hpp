@@ -62,6 +62,11 @@ struct FittedParam {
   double search_lo = std::numeric_limits<double>::quiet_NaN(), search_hi = std::numeric_limits<double>::quiet_NaN();
   bool at_search_limit() const;
   std::string limit_text() const;  // " (at the end of its search range, LO to HI: ...)", or empty
+  // What the nominal plant makes credible (candidates.hpp FreeParam::credible_*; NaN: no bound).
+  double credible_lo = std::numeric_limits<double>::quiet_NaN(), credible_hi = std::numeric_limits<double>::quiet_NaN();
+  std::string credible_why;
+  bool implausible() const { return std::isfinite(value) && (value < credible_lo || value > credible_hi); }
+  std::string plausibility_text() const;  // " (implausible: beyond ...)", or empty
 };
 
 struct CandidateResult {

@@ -71,6 +71,11 @@ struct Diagnostics {
   // and into closing.
   std::vector<double> since_reversal_s, after_opening_mean_pa, after_closing_mean_pa;
   Binned vs_pressure, vs_dpdt, vs_burned, vs_time;
+  // Against the drive angle (encoder when logged, else the command), and the strongest ripple
+  // periodic in it (src/angle_signature.hpp; period 0: none): what a gear's or coupling's error
+  // looks like, which no candidate holds.
+  Binned vs_drive_angle;
+  double angle_ripple_period_deg = 0, angle_ripple_kpa = 0, angle_ripple_share = 0;
 };
 
 struct TimeSeries {  // min/max-decimated for plots (each bucket keeps its extremes, in time order)

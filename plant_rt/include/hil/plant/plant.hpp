@@ -30,7 +30,9 @@ struct PlantState {
 
 class Plant {
  public:
-  // Sorts by stage. Requires exactly one effect each for motor, transmission, throat and chamber.
+  // Sorts by stage (stable: effects of one stage keep their order). Requires at least one effect
+  // each for motor, transmission, throat and chamber; a second one at such a stage modifies what
+  // the first made (a user's stiction after the backlash).
   explicit Plant(std::vector<std::shared_ptr<const Effect>> effects);
   // A plant file: top-level key `effects`, one block per effect name. Errors name file:line:key.
   static Plant from_yaml(const cfg::Node& root);
