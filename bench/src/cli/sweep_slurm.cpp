@@ -152,8 +152,9 @@ std::string task_of(const std::string& job_id) {
 }
 
 // The states of job `id` (each array task by its index, "" for a plain job), and where they came
-// from: squeue while anything is queued, then sacct (accounting), then scontrol (slurmctld keeps a
-// finished job for MinJobAge, 300 s by default). Empty when no source knows the job any more.
+// from, asked in this order: sacct (accounting: queued and finished jobs), scontrol (slurmctld
+// knows queued jobs and keeps a finished one for MinJobAge, 300 s by default), squeue (queued
+// only). Empty when no source knows the job any more.
 std::map<std::string, JobState> job_states(const std::string& id, const std::filesystem::path& scratch, std::string& source) {
   std::map<std::string, JobState> states;
   std::string out, err;

@@ -34,8 +34,7 @@ void check_slurm_options(const SlurmOptions& o);
 int submit_to_slurm(const SweepPlan& plan, const std::filesystem::path& dir, const std::vector<long>& shards, long tasks,
                     long missing, const SlurmOptions& o);
 
-// The jobs of DIR/slurm/jobs.json with their states (squeue while queued; sacct, else scontrol,
-// once finished), each task's last progress line from the newest attempt's log, the aggregation
+// The jobs of DIR/slurm/jobs.json with their states (sacct, else scontrol, else squeue), each task's last progress line from the newest attempt's log, the aggregation
 // job's error, and the command that resubmits what is missing. Returns the exit status of
 // `--status`: 0 when no point is missing, 3 while jobs still run and none failed, 1 when a task
 // or the aggregation failed or points are missing with nothing left to run them.

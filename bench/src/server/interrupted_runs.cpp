@@ -13,7 +13,6 @@
 #include "hil/bench/rt/run_record.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "hil/file_lock.hpp"
-#include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
 #include "request_guard.hpp"
 #include "run_folder.hpp"
