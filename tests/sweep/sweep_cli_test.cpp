@@ -260,6 +260,11 @@ TEST(Sweep, DamagedRowLinesAreShownAndTheirPointsRunAgain) {
       << rerun.output;
   EXPECT_EQ(slurp(out / "sweep.csv"), expected);
   EXPECT_EQ(lines_in(rows), 8) << "the point is appended again; the damaged lines stay as they were";
+  // The warning is a log line: --log-level error leaves it out, and changes nothing else.
+  const auto quiet_log = run_command(hilbench() + " --log-level error sweep " + q(sweep) + " --out " + q(out) + " --quiet");
+  EXPECT_EQ(quiet_log.status, 0) << quiet_log.output;
+  EXPECT_EQ(quiet_log.output.find("are no row of this sweep"), std::string::npos) << quiet_log.output;
+  EXPECT_EQ(slurp(out / "sweep.csv"), expected);
 }
 
 TEST(Sweep, ChangedSweepFileIsRefusedForAPlannedFolder) {

@@ -7,6 +7,8 @@
 #include <optional>
 #include <thread>
 
+#include <spdlog/spdlog.h>
+
 #include "commands.hpp"
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
@@ -231,13 +233,13 @@ int analyse(const CtlArgs& a, const ApiClient& api) {
     const std::string state = job.value("state", "?");
     if (state == "done" || state == "failed") break;
     const std::string line = state + (member(job, "progress").is_number() ? " " + analysis_headline(job) : "");
-    if (line != last_line) std::fprintf(stderr, "%s: %s\n", id.c_str(), line.c_str());
+    if (line != last_line) spdlog::info("{}: {}", id, line);
     last_line = line;
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
     job = checked(api.get(base + "/" + id)).value("analysis", json::object());
   }
   if (job.value("state", "") == "failed") {
-    std::fprintf(stderr, "%s failed: %s\n", id.c_str(), job.value("error", "").c_str());
+    spdlog::error("{} failed: {}", id, job.value("error", ""));
     return 3;
   }
   std::printf("%s done: %s\n", id.c_str(), analysis_headline(job).c_str());

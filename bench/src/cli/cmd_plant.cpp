@@ -15,6 +15,7 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "commands.hpp"
 #include "hil/bench/campaign/campaign.hpp"
@@ -100,7 +101,7 @@ int run_plant(const PlantArgs& args) {
   // threads run SCHED_FIFO too (they inherit it from this thread while it lasts), so they answer
   // at once, as a device would.
   std::optional<ScopedRealtime> io_sched(std::in_place, args.rt_priority);
-  if (!io_sched->warning().empty()) std::fprintf(stderr, "plant: %s\n", io_sched->warning().c_str());
+  if (!io_sched->warning().empty()) spdlog::warn("plant: {}", io_sched->warning());
   std::unique_ptr<drv::Cia402DriveEmulator> can;
   std::unique_ptr<drv::ModbusDriveEmulator> mb_drive;
   std::unique_ptr<drv::ModbusTransducerEmulator> mb_pressure;

@@ -6,6 +6,8 @@
 #include <optional>
 #include <vector>
 
+#include <spdlog/spdlog.h>
+
 #include "commands.hpp"
 #include "hil/bench/campaign/run_report.hpp"
 #include "hil/output_path.hpp"
@@ -58,7 +60,7 @@ int run_report(const ReportArgs& args) {
     runs = write_run_report(dirs, out, options);
   } catch (const Cancelled&) {
     if (line) line->end();
-    std::fprintf(stderr, "report: cancelled by %s; nothing was written to %s\n", StopSignal::name(), out.c_str());
+    spdlog::warn("report: cancelled by {}; nothing was written to {}", StopSignal::name(), out.string());
     return StopSignal::exit_code();
   }
   if (line) line->end();

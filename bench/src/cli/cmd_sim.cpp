@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <memory>
 
+#include <spdlog/spdlog.h>
+
 #include "commands.hpp"
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
@@ -106,8 +108,8 @@ int run_sim(const SimArgs& args) {
     try {
       out = run_campaign(campaign, options);
     } catch (const Cancelled&) {
-      std::fprintf(stderr, "sim %s: cancelled by %s; nothing was written to %s\n", campaign.name.c_str(), StopSignal::name(),
-                   options.out_dir.c_str());
+      spdlog::warn("sim {}: cancelled by {}; nothing was written to {}", campaign.name, StopSignal::name(),
+                   options.out_dir.string());
       return StopSignal::exit_code();
     }
     if (!args.quiet) {

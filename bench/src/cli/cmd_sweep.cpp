@@ -20,6 +20,8 @@
 #include <sstream>
 #include <thread>
 
+#include <spdlog/spdlog.h>
+
 #include "commands.hpp"
 #include "hil/bench/campaign/sim.hpp"  // Cancelled
 #include "hil/bench/campaign/sweep.hpp"
@@ -94,21 +96,17 @@ std::pair<long, long> parse_shard(const std::string& text) {
 }
 
 int exit_after_signal(const SweepPlan& plan, const SweepRunResult& r) {
-  std::fprintf(
-      stderr,
-      "sweep %s: stopped by %s after %ld points (those in flight abandoned); %ld of %ld done; the same command continues\n",
-      plan.name.c_str(), StopSignal::name(), r.ran, r.done, r.total);
+  spdlog::warn("sweep {}: stopped by {} after {} points (those in flight abandoned); {} of {} done; the same command continues",
+               plan.name, StopSignal::name(), r.ran, r.done, r.total);
   return StopSignal::exit_code();
 }
 
 // Lines of DIR/rows/*.jsonl that read_rows skipped: part of --status's report (stdout), a
-// warning of a run (stderr).
-void say_damaged_rows(std::FILE* to, const std::filesystem::path& dir, long damaged) {
-  if (damaged <= 0) return;
-  std::fprintf(to,
-               "  %ld line(s) in %s are no row of this sweep (damaged, or edited): skipped; a point without a good row "
-               "counts as missing and is run again\n",
-               damaged, (dir / "rows").c_str());
+// warning of a run (the log).
+std::string damaged_rows_line(const std::filesystem::path& dir, long damaged) {
+  return "  " + std::to_string(damaged) + " line(s) in " + (dir / "rows").string() +
+         " are no row of this sweep (damaged, or edited): skipped; a point without a good row counts as missing and is run "
+         "again";
 }
 
 int jobs_of(const SweepArgs& args) {
@@ -119,8 +117,8 @@ int jobs_of(const SweepArgs& args) {
 int aggregate(const std::filesystem::path& dir, const SweepPlan& plan, bool quiet) {
   const SweepOutputs out = write_sweep_outputs(dir, plan);
   if (out.missing > 0) {
-    std::fprintf(stderr, "sweep %s: %ld of %ld points missing in %s; nothing written (run the missing shards, then aggregate)\n",
-                 plan.name.c_str(), out.missing, plan.size(), dir.c_str());
+    spdlog::error("sweep {}: {} of {} points missing in {}; nothing written (run the missing shards, then aggregate)", plan.name,
+                  out.missing, plan.size(), dir.string());
     return 1;
   }
   if (!quiet) {
@@ -173,7 +171,7 @@ int run_status(const SweepArgs& args) {
               : outputs < std::ssize(kSweepOutputs) ? "; outputs incomplete (not all of sweep.csv, sweep.json, report.html)"
               : done == plan.size()                 ? "; outputs written"
                                                     : "; the outputs there are out of date (written before points went missing)");
-  say_damaged_rows(stdout, dir, damaged);
+  if (damaged > 0) std::printf("%s\n", damaged_rows_line(dir, damaged).c_str());
   return say_slurm_status(dir, plan.size() - done);
 }
 
@@ -183,7 +181,7 @@ int run_sweep_command(const SweepArgs& args) {
   try {
     return run_sweep_mode(args);
   } catch (const Cancelled&) {  // only the plan's check ends so (a run's points end in their result)
-    std::fprintf(stderr, "sweep %s: stopped by %s while its points were checked; nothing was written\n", args.sweep_file.c_str(),
+    spdlog::warn("sweep {}: stopped by {} while its points were checked; nothing was written", args.sweep_file,
                  StopSignal::name());
     return StopSignal::exit_code();
   }
@@ -229,7 +227,7 @@ int run_sweep_mode(const SweepArgs& args) {
   options.cancel = &StopSignal::install();
   try {
     const SweepRunResult r = run_sweep(dir, plan, options);
-    say_damaged_rows(stderr, dir, r.damaged_lines);
+    if (r.damaged_lines > 0) spdlog::warn("{}", damaged_rows_line(dir, r.damaged_lines));
     if (r.cancelled) return exit_after_signal(plan, r);
     if (!args.shard.empty()) {
       if (!args.quiet)
@@ -245,9 +243,8 @@ int run_sweep_mode(const SweepArgs& args) {
     // A full disk, say, part way: say what is kept, so nobody starts afresh and loses the rest;
     // the error itself goes on to main, which shows each kind its own way.
     try {
-      std::fprintf(
-          stderr, "sweep %s: %ld of %ld points are kept in %s, and the same command goes on from there once the cause is fixed\n",
-          plan.name.c_str(), static_cast<long>(read_rows(dir, plan).size()), plan.size(), dir.c_str());
+      spdlog::warn("sweep {}: {} of {} points are kept in {}, and the same command goes on from there once the cause is fixed",
+                   plan.name, read_rows(dir, plan).size(), plan.size(), dir.string());
     } catch (const std::exception&) {
       // The rows cannot be read either: the error below is the one to show.
     }

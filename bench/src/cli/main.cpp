@@ -13,6 +13,8 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 
 #include "cli.hpp"
 #include "commands.hpp"
@@ -149,6 +151,21 @@ int parse_error(const Formatter& formatter, const CLI::App& root, const CLI::Err
   return usage_error(formatter, root, message.empty() ? e.what() : message);
 }
 
+// Every command logs through spdlog, at the level --log-level names. The server keeps spdlog's
+// own logger (standard output, a time stamp and a level on each line: a long-lived process whose
+// log is read afterwards) and the plant simulator logs the same way on the standard error. The
+// other commands are short jobs whose warnings already say who speaks ("sweep NAME: ..."): a
+// plain line on the standard error, as before. Progress lines are not log lines
+// (hil/progress_line.hpp); a command's final error is its result and main prints it below.
+void set_up_logging(const std::string& command, const std::string& level_name) {
+  if (command != "serve") {
+    auto logger = spdlog::stderr_color_mt("hilbench");
+    if (command != "plant") logger->set_pattern("%v");
+    spdlog::set_default_logger(logger);
+  }
+  spdlog::set_level(spdlog::level::from_str(level_name));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -161,6 +178,10 @@ int main(int argc, char** argv) {
   app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
   app.set_version_flag("--version", std::string("hilbench ") + HIL_VERSION);
   app.require_subcommand(1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "the least severe log line shown, for every command: debug, info, warn, error or off")
+      ->type_name("LEVEL")
+      ->check(CLI::IsMember({"debug", "info", "warn", "error", "off"}));
   std::vector<std::string> names;
   std::vector<std::pair<const CLI::App*, CommandRun>> runs;
   for (const auto& c : kCommands) {
@@ -194,6 +215,7 @@ int main(int argc, char** argv) {
 
   const CLI::App* cmd = app.get_subcommands().front();
   const std::string where = "hilbench " + cmd->get_name();
+  set_up_logging(cmd->get_name(), log_level);
   for (const auto& [app_of, run] : runs) {
     if (app_of != cmd) continue;
     try {

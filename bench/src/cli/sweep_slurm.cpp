@@ -12,6 +12,8 @@
 #include <set>
 #include <sstream>
 
+#include <spdlog/spdlog.h>
+
 #include "cli.hpp"
 #include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
@@ -299,7 +301,7 @@ int submit_to_slurm(const SweepPlan& plan, const std::filesystem::path& dir, con
     try {
       jobs = read_json_file(slurm_dir / "jobs.json");
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sweep: %s; its earlier submissions are forgotten, this one is kept\n", e.what());
+      spdlog::warn("sweep: {}; its earlier submissions are forgotten, this one is kept", e.what());
     }
     if (!jobs.is_object()) jobs = json::object();
   }
