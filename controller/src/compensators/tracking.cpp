@@ -40,6 +40,8 @@ struct TrackingState {
   double gap_pos_rad = 0;  // believed motor position in the gap
   double motor_prev_rad = 0;
   double cmd_rad = 0;     // the controller's integral command with the jumps, as sent
+  double lead_rad = 0;    // the traverse's lead still in cmd_rad (taken back on arrival)
+  double target_rad = 0;  // where the traverse takes the motor
   long presume_wait = 0;  // steps before the play model's flank may be trusted
 };
 
@@ -49,10 +51,10 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   // In config units; the observer's settings are explained in observer.hpp.
   static constexpr ParamSpec kSpecs[] = {
       {"noise_initial_kpa", 0, 1e4, false, false, 2.0, "transducer noise (RMS) assumed until estimated"},
-      {"noise_floor_kpa", 0, 1e4, false, false, 1.0, "the least noise the tests assume (model error of P_eq)"},
+      {"noise_floor_kpa", 0, 1e4, false, false, 2.0, "the least noise the tests assume (model error of P_eq)"},
       {"noise_window_ms", 1, 1e5, false, false, 200.0, "the noise estimate's averaging time"},
       {"clip_sigmas", 1, 1e3, false, false, 6.0, "a second difference beyond this many sigmas counts as this many"},
-      {"intention_deadband_deg", 0, 10, false, false, 0.05, "retreat of the integral command that is a reversal"},
+      {"intention_deadband_deg", 0, 10, false, false, 0.1, "retreat of the integral command that is a reversal"},
       {"intention_sigmas", 0, 1e3, false, false, 8.0, "reversal threshold on the low-passed error, in its noise sigmas"},
       {"filter_time_constant_ms", 1e-3, 1e4, false, false, 15.0, "each of the two low-pass stages of P_eq"},
       {"hold_smoothing", 1, 100, false, false, 4.0, "the hold level's extra low-pass, in filter time constants"},
@@ -66,7 +68,8 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
       {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
       {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
       {"gap_max_deg", 1e-3, 90, false, false, 6.0, "the largest gap a fit may find"},
-      {"contact_overlap_deg", 0, 1, false, false, 0.02, "the jump aims this far past the flank"},
+      {"contact_overlap_deg", 0, 1, false, false, 0.15, "the jump aims this far past the flank"},
+      {"lead_lags", 0, 10, false, false, 1.0, "the traverse's command leads the motor by this many slew x drive lag"},
   };
 
   TrackingCompensator(const CompensatorSetup& setup, std::span<const double> v)
@@ -80,7 +83,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
         rate_gain_(v[15]),
         rate_max_rad_s_(v[16] * units::kRadPerDeg),
         gap_max_rad_(v[17] * units::kRadPerDeg),
-        contact_overlap_rad_(v[18] * units::kRadPerDeg) {}
+        contact_overlap_rad_(v[18] * units::kRadPerDeg),
+        lead_rad_(v[19] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
+        reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s) {}
 
   TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     TrackingState s;
@@ -156,18 +161,36 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     s.motor_prev_rad = in.motor_rad;
     s.cmd_rad += in.cmd_step_rad;
     out.reversed = obs.reversed;
+    // The traverse's lead comes back out of the command once the motor will reach the target
+    // within this step (at the slew limit), as the controller's own boost does.
+    if (s.lead_rad != 0 && s.lead_rad * (s.target_rad - in.motor_rad) <= reach_rad_ * std::abs(s.lead_rad)) {
+      out.comp_rad -= s.lead_rad;
+      s.cmd_rad -= s.lead_rad;
+      s.lead_rad = 0;
+    }
     if (setup_.compensation != Compensation::none && obs.reversed) {
       const int d = obs.intention;
+      // A lead still pending belongs to the traverse this reversal cancels.
+      out.comp_rad -= s.lead_rad;
+      s.cmd_rad -= s.lead_rad;
+      s.lead_rad = 0;
       s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);
       // The motor's target: past the flank ahead; the jump takes the command there.
-      const double target_rad = in.motor_rad + d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + contact_overlap_rad_);
-      out.comp_rad = target_rad - s.cmd_rad;
-      if (d * out.comp_rad < 0) out.comp_rad = 0;  // the command is already past it
-      // The drive needs the crossing at its slew limit plus a few lags to really get there.
-      s.presume_wait = std::lround((std::abs(out.comp_rad) / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) /
-                                   setup_.period_s);
+      s.target_rad = in.motor_rad + d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + contact_overlap_rad_);
+      if (d * (s.target_rad - s.cmd_rad) > 0) {
+        // Drive lag: a first-order servo moves at (command - angle) / tau_m, so it reaches its
+        // slew limit only with the command slew x tau_m ahead; a small jump alone would creep
+        // across the gap. The lead (lead_lags of that) is added now and taken back on arrival.
+        const double travel_rad = std::abs(s.target_rad - in.motor_rad);
+        s.lead_rad = d * std::max(lead_rad_ - travel_rad, 0.0);
+        const double jump_rad = s.target_rad - s.cmd_rad + s.lead_rad;
+        out.comp_rad += jump_rad;
+        s.cmd_rad += jump_rad;
+        // The drive needs the crossing at its slew limit plus a few lags to really get there.
+        s.presume_wait =
+            std::lround((travel_rad / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) / setup_.period_s);
+      }
     }
-    s.cmd_rad += out.comp_rad;
     s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
 
     out.touch = obs.touch;
@@ -201,7 +224,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   RobustObserver observer_;
   double noise_initial_pa_, noise_floor_pa_, noise_alpha_, clip_sigmas_;
   double level_gain_, rate_gain_, rate_max_rad_s_, gap_max_rad_;
-  double contact_overlap_rad_;
+  double contact_overlap_rad_, lead_rad_, reach_rad_;
 };
 
 }  // namespace
