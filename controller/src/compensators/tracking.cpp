@@ -5,36 +5,22 @@
 // the robust one's: at each motion reversal the command jumps by the distance to the flank ahead
 // (a play operator of the commands with the estimated gap), aiming contact_overlap_deg past it.
 //
-// Noise: the chamber is first order with tau ~ 0.1 s and the drive moves the valve over 5-50 ms,
-// so the true pressure's second difference over one period is of the order of 100 Pa, while the
-// transducer's white noise of RMS s gives d2 = p(k) - 2 p(k-1) + p(k-2) a variance of 6 s^2 and
-// E|d2| = sqrt(2/pi) sqrt(6) s. An exponential mean of |d2| over noise_window_ms, clipped at
-// clip_sigmas times the current estimate (a pressure step passes without inflating it), gives s.
+// The noise estimator and the gap tracker are in hil/ctl/tracking.hpp.
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
 #include "hil/ctl/compensator.hpp"
 #include "hil/ctl/observer.hpp"
+#include "hil/ctl/tracking.hpp"
 
 namespace hil::ctl {
 namespace {
 
-// E|d2| / s for white noise: |N(0, 6 s^2)| has the mean sqrt(2/pi) sqrt(6) s.
-constexpr double kAbsD2PerSigma = 1.9544100476116797;  // sqrt(12 / pi)
-
 struct TrackingState {
   RobustObserverState obs;
-  // transducer noise
-  double p1_pa = 0, p2_pa = 0;  // the two previous measurements
-  int noise_samples = 0;        // up to 2: d2 needs two previous samples
-  double abs_d2_pa = 0;         // exponential mean of |d2|
-  // gap: level at the last measurement and its rate; the estimate extrapolates between them
-  double gap_level_rad = 0;
-  double gap_rate_rad_s = 0;
-  double gap_at_s = 0;  // time of the last measurement
+  NoiseEstimator::State noise;
+  GapTracker::State gap;  // level and rate; the estimate extrapolates between measurements
   double gap_est_rad = 0;
-  int gap_measurements = 0;
   double now_s = 0;
   // the play model of the law, on the motor's angle (the command leads it by the drive's lag)
   double gap_pos_rad = 0;  // believed motor position in the gap
@@ -76,13 +62,8 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
       : setup_(setup),
         observer_(observer_params(setup, v), setup.chamber),
         noise_initial_pa_(v[0] * units::kPaPerKpa),
-        noise_floor_pa_(v[1] * units::kPaPerKpa),
-        noise_alpha_(1 - std::exp(-setup.period_s / (v[2] * 1e-3))),
-        clip_sigmas_(v[3]),
-        level_gain_(v[14]),
-        rate_gain_(v[15]),
-        rate_max_rad_s_(v[16] * units::kRadPerDeg),
-        gap_max_rad_(v[17] * units::kRadPerDeg),
+        noise_{1 - std::exp(-setup.period_s / (v[2] * 1e-3)), v[1] * units::kPaPerKpa, v[3]},
+        tracker_{v[14], v[15], v[16] * units::kRadPerDeg, v[17] * units::kRadPerDeg},
         contact_overlap_rad_(v[18] * units::kRadPerDeg),
         lead_rad_(v[19] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
         reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s) {}
@@ -90,11 +71,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     TrackingState s;
     s.gap_est_rad = setup_.compensation == Compensation::constant ? setup_.gap_known_rad : setup_.gap_initial_rad;
-    s.gap_level_rad = s.gap_est_rad;
     s.gap_pos_rad = touch * s.gap_est_rad / 2;
     s.motor_prev_rad = s.cmd_rad = theta_cmd_rad;
-    s.p1_pa = s.p2_pa = p_meas_pa;
-    s.abs_d2_pa = kAbsD2PerSigma * noise_initial_pa_;
+    s.noise = noise_.initial(p_meas_pa, noise_initial_pa_);
     s.obs = observer_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad);
     return s;
   }
@@ -105,21 +84,12 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     s.now_s += setup_.period_s;
 
     // The transducer noise, from the second difference of the measurements.
-    const double noise_pa = std::max(s.abs_d2_pa / kAbsD2PerSigma, noise_floor_pa_);
-    if (s.noise_samples >= 2) {
-      const double d2 = std::abs(in.p_meas_pa - 2 * s.p1_pa + s.p2_pa);
-      const double clip = clip_sigmas_ * kAbsD2PerSigma * std::max(s.abs_d2_pa / kAbsD2PerSigma, noise_floor_pa_);
-      s.abs_d2_pa += noise_alpha_ * (std::min(d2, clip) - s.abs_d2_pa);
-    } else {
-      ++s.noise_samples;
-    }
-    s.p2_pa = s.p1_pa;
-    s.p1_pa = in.p_meas_pa;
+    const double noise_pa = noise_.update(s.noise, in.p_meas_pa);
 
     // The play model presumes the motor pushed a flank when it sits within the intention's
     // dead-band of it; with no gap known, or while a jump may still be under way, nothing.
     const double gap_before = constant ? setup_.gap_known_rad : s.gap_est_rad;
-    const bool gap_known = constant || s.gap_measurements > 0;
+    const bool gap_known = constant || s.gap.measurements > 0;
     const double near = gap_before / 2 - op.intention_deadband_rad - 1e-12;
     if (s.presume_wait > 0) --s.presume_wait;
     const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
@@ -131,25 +101,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     // and the rate by the innovation over the time since the last one; between measurements the
     // estimate follows the rate (a gap that wears open keeps opening between reversals).
     if (!constant) {
-      if (obs.gap_measured) {
-        const double dt_s = s.now_s - s.gap_at_s;
-        const double predicted = s.gap_level_rad + s.gap_rate_rad_s * dt_s;
-        const double innovation = obs.gap_measured_rad - predicted;
-        if (s.gap_measurements++ == 0) {
-          s.gap_level_rad = obs.gap_measured_rad;
-          s.gap_rate_rad_s = 0;
-        } else {
-          s.gap_level_rad = predicted + level_gain_ * innovation;
-          if (dt_s > 0) {
-            s.gap_rate_rad_s = std::clamp(s.gap_rate_rad_s + rate_gain_ * innovation / dt_s, -rate_max_rad_s_, rate_max_rad_s_);
-          }
-        }
-        s.gap_at_s = s.now_s;
-      }
+      if (obs.gap_measured) tracker_.measure(s.gap, obs.gap_measured_rad, s.now_s);
       const double before = s.gap_est_rad;
-      if (s.gap_measurements > 0) {
-        s.gap_est_rad = std::clamp(s.gap_level_rad + s.gap_rate_rad_s * (s.now_s - s.gap_at_s), 0.0, gap_max_rad_);
-      }
+      s.gap_est_rad = tracker_.estimate_rad(s.gap, s.now_s, s.gap_est_rad);
       // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
       if (before > 0 && s.gap_est_rad != before) s.gap_pos_rad *= s.gap_est_rad / before;
     }
@@ -222,8 +176,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
 
   CompensatorSetup setup_;
   RobustObserver observer_;
-  double noise_initial_pa_, noise_floor_pa_, noise_alpha_, clip_sigmas_;
-  double level_gain_, rate_gain_, rate_max_rad_s_, gap_max_rad_;
+  double noise_initial_pa_;
+  NoiseEstimator noise_;
+  GapTracker tracker_;
   double contact_overlap_rad_, lead_rad_, reach_rad_;
 };
 
