@@ -57,16 +57,21 @@ TEST(TrackingNoiseEstimator, ANoiseFreeSignalReadsAsNoNoiseDownToTheFloor) {
 }
 
 TEST(TrackingNoiseEstimator, APressureStepDoesNotInflateIt) {
-  const NoiseEstimator est{1 - std::exp(-kDt / 0.2), 0, 6};
+  const double alpha = 1 - std::exp(-kDt / 0.2);  // the default 200 ms window
+  const NoiseEstimator est{alpha, 0, 6};
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0, 2000);
   auto s = est.initial(1e6, 2000);
   for (int k = 0; k < 3000; ++k) est.update(s, 1e6 + noise(rng));
   const double before = est.estimate_pa(s);
-  est.update(s, 1.2e6 + noise(rng));  // a 200 kPa step (a spike would be the same twice)
-  for (int k = 0; k < 5; ++k) est.update(s, 1.2e6 + noise(rng));
-  // Unclipped, |d2| of 200 kPa twice would add 2 x alpha x 200 kPa / sqrt(12/pi) ~ 1 kPa.
-  EXPECT_NEAR(est.estimate_pa(s), before, 0.05 * before);
+  EXPECT_NEAR(before, 2000, 200);
+  for (int k = 0; k < 6; ++k) est.update(s, 1.2e6 + noise(rng));  // a 200 kPa step
+  // The step is in d2 twice (+200 kPa, then -200 kPa): unclipped, the estimate would rise by
+  // 2 alpha 200 kPa / sqrt(12/pi) (~1 kPa, half the noise); clipped at 6 sigmas, by at most
+  // 2 alpha 6 s (~0.12 kPa), plus the four ordinary samples' wander.
+  const double unclipped_rise_pa = 2 * alpha * 2e5 / NoiseEstimator::kAbsD2PerSigma;
+  EXPECT_LT(est.estimate_pa(s) - before, 2 * alpha * 6 * before + 50);
+  EXPECT_LT(est.estimate_pa(s) - before, unclipped_rise_pa / 5);
 }
 
 constexpr double kDeg = M_PI / 180;
