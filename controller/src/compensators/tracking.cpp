@@ -2,8 +2,9 @@
 // observer's touch-state test and gap fit, judged by the transducer noise as estimated online
 // instead of an assumed figure, and a gap estimator that tracks a growing gap (a level and a
 // rate, alpha-beta) instead of holding the last measurement until the next reversal. The law is
-// the robust one's: at each motion reversal the command jumps by the distance to the flank ahead
-// (a play operator of the commands with the estimated gap), aiming contact_overlap_deg past it.
+// the robust one's (at each motion reversal a jump to the flank ahead, contact_overlap_deg past
+// it) made aware of the drive's lag: the play model of the gap runs on the motor's angle, not on
+// the command that leads it, and the jump carries a lead of slew x lag, taken back on arrival.
 //
 // The noise estimator and the gap tracker are in hil/ctl/tracking.hpp.
 #include <algorithm>
