@@ -33,11 +33,17 @@ const RunSpec& run_named(const Campaign& c, const std::string& name) {
 // settled state (not timed), as a run does: carried on for hours instead, the chamber's free
 // volume keeps growing as the grain burns, the chamber slows down, and a period gets ~20 % cheaper
 // than in any real run (this benchmark did that until 2026-11-26, see docs/benchmarks.md).
-void BM_Step(benchmark::State& state, const char* run_name) {
+// compensator: the run's controller with another registered compensator (its defaults) instead.
+void BM_Step(benchmark::State& state, const char* run_name, const char* compensator = nullptr) {
   const Campaign& c = paper_adaptive();
   const RunSpec& run = run_named(c, run_name);
   const auto& plant = *c.plant;
-  const hil::ctl::Controller ctl(run.controller);
+  hil::ctl::ControllerParams params = run.controller;
+  if (compensator != nullptr) {
+    params.compensator = compensator;
+    params.compensator_params.clear();  // its defaults
+  }
+  const hil::ctl::Controller ctl(params);
   const long periods = std::lround(c.duration_s / c.period_s);
   auto ps = plant.make_state(c.seed);
   auto cs = ctl.initial_state(0, 0, run.initial_touch);  // replaced before the first period
@@ -65,6 +71,7 @@ void BM_Step(benchmark::State& state, const char* run_name) {
 }
 BENCHMARK_CAPTURE(BM_Step, robust_adaptive, "adaptive");
 BENCHMARK_CAPTURE(BM_Step, paper_adaptive, "adaptive_paper");
+BENCHMARK_CAPTURE(BM_Step, tracking_adaptive, "adaptive", "tracking");  // issue 42: within 1.5 x robust
 BENCHMARK_CAPTURE(BM_Step, none, "none");
 
 // A whole 18 s run without recording anything but the metrics.

@@ -87,6 +87,7 @@ RobustObserver::RobustObserver(const RobustObserverParams& params, const Chamber
     hd[k] = b2;
   }
   // One low-pass stage on white noise keeps alpha / (2 - alpha) of its variance.
+  error_sigma_gain_ = p_.intention_sigmas * std::sqrt(alpha_ / (2 - alpha_));
   error_threshold_pa_ = p_.intention_sigmas * p_.pressure_noise_rms_pa * std::sqrt(alpha_ / (2 - alpha_));
   for (int k = 0; k < n; ++k) {
     var_p_ += hp[k] * hp[k];
@@ -95,9 +96,9 @@ RobustObserver::RobustObserver(const RobustObserverParams& params, const Chamber
   }
 }
 
-double RobustObserver::p_eq_noise_pa(double tau_s) const noexcept {
+double RobustObserver::p_eq_noise_pa(double tau_s, double noise_rms_pa) const noexcept {
   const double t = tau_s * p_.time_constant_scale;
-  return p_.pressure_noise_rms_pa * std::sqrt(std::max(var_p_ + 2 * t * var_pd_ + t * t * var_d_, 0.0));
+  return noise_rms_pa * std::sqrt(std::max(var_p_ + 2 * t * var_pd_ + t * t * var_d_, 0.0));
 }
 
 RobustObserverState RobustObserver::initial_state(int touch, double theta_cmd_rad, double p_meas_pa,
@@ -117,6 +118,10 @@ RobustObserverState RobustObserver::initial_state(int touch, double theta_cmd_ra
 
 ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInputs& in) const noexcept {
   ObserverOutputs out;
+  // The noise this step is judged by: the caller's (online estimate) or the fixed assumption.
+  const bool own_noise = in.noise_rms_pa >= 0;
+  const double noise_rms_pa = own_noise ? in.noise_rms_pa : p_.pressure_noise_rms_pa;
+  const double error_threshold_pa = own_noise ? error_sigma_gain_ * noise_rms_pa : error_threshold_pa_;
   // Filters: pressure and its derivative through the same two stages.
   const double dpdt = (in.p_meas_pa - s.p_prev_pa) * inv_period_s_;
   s.p_prev_pa = in.p_meas_pa;
@@ -139,7 +144,7 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
   s.int_cmd_rad += in.cmd_step_rad;
   const double from_extreme = s.int_cmd_rad - s.int_extreme_rad;
   int wanted = 0;
-  if (p_.intention_sigmas > 0 && std::abs(s.err_lp) > error_threshold_pa_) wanted = sign(s.err_lp);
+  if (p_.intention_sigmas > 0 && std::abs(s.err_lp) > error_threshold_pa) wanted = sign(s.err_lp);
   if (std::abs(from_extreme) > p_.intention_deadband_rad && s.intention * from_extreme <= 0) wanted = sign(from_extreme);
   out.reversed = wanted != 0 && wanted != s.intention;
   if (out.reversed) {
@@ -179,7 +184,7 @@ ObserverOutputs RobustObserver::step(RobustObserverState& s, const ObserverInput
     // Opening (+1) lowers P_eq, so the old side is the high side: track its extreme.
     s.hold_pa = s.transition_dir > 0 ? std::max(s.hold_pa, s.p_eq_slow_pa) : std::min(s.hold_pa, s.p_eq_slow_pa);
     const double departure = s.transition_dir * (s.hold_pa - s.p_eq_pa);
-    s.confirm = departure > p_.detect_sigmas * p_eq_noise_pa(in.tau_s) ? s.confirm + 1 : 0;
+    s.confirm = departure > p_.detect_sigmas * p_eq_noise_pa(in.tau_s, noise_rms_pa) ? s.confirm + 1 : 0;
     if (s.confirm >= p_.confirm_samples) {
       s.touch = s.transition_dir;
       if (s.transition_extreme_valid) {

@@ -113,7 +113,7 @@ TEST(CampaignConfig, ReferenceOutsideThePlantsReach) {
 TEST(CampaignConfig, UnknownProfileItemAndBadChoice) {
   expect_error(load_with("    - square:", "    - squares:"), "reference.profile[0]", "unknown profile item 'squares'");
   expect_error(load_with("observer: robust ", "observer: fast "), "controller.observer",
-               "must be a registered compensator: paper, robust");
+               "must be a registered compensator: paper, robust, tracking");
 }
 
 TEST(CampaignConfig, ImpossiblePlantNamesThePlantFileToo) {

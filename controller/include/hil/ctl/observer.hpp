@@ -22,6 +22,9 @@ struct ObserverInputs {
   double tau_s;            // nominal chamber time constant now (robust observer)
   double volume_m3;        // estimated free volume now (robust observer)
   int presumed_flank = 0;  // robust: the flank the controller's play model has the motor pushing
+  // robust: the transducer noise (RMS) to judge this step by, e.g. estimated online by the
+  // caller; negative: the params' pressure_noise_rms_pa (fixed at construction).
+  double noise_rms_pa = -1;
 };
 
 struct ObserverOutputs {
@@ -150,7 +153,8 @@ class RobustObserver {
   RobustObserverState initial_state(int touch, double theta_cmd_rad, double p_meas_pa, double theta_motor_rad) const noexcept;
   ObserverOutputs step(RobustObserverState& s, const ObserverInputs& in) const noexcept;
   // Standard deviation of P_eq caused by the transducer noise, for a given tau.
-  double p_eq_noise_pa(double tau_s) const noexcept;
+  double p_eq_noise_pa(double tau_s) const noexcept { return p_eq_noise_pa(tau_s, p_.pressure_noise_rms_pa); }
+  double p_eq_noise_pa(double tau_s, double noise_rms_pa) const noexcept;
   // Hysteresis of the motion intention on the low-passed pressure error.
   double intention_threshold_pa() const noexcept { return error_threshold_pa_; }
   const RobustObserverParams& params() const noexcept { return p_; }
@@ -164,6 +168,7 @@ class RobustObserver {
   double alpha_slow_ = 0;                      // per-step factor of the hold level's extra smoothing
   double var_p_ = 0, var_pd_ = 0, var_d_ = 0;  // noise gains of LP(p), cross, LP(dp/dt)
   double error_threshold_pa_ = 0;
+  double error_sigma_gain_ = 0;  // the error threshold per Pa of transducer noise
   GapFit fit_;
   std::int64_t lead_samples_ = 0, after_samples_ = 0, skip_samples_ = 0;
   void measure(RobustObserverState& s, ObserverOutputs& out) const noexcept;

@@ -1,0 +1,192 @@
+// The tracking compensator (docs/tracking_compensator.md has the derivation): the robust
+// observer's touch-state test and gap fit, judged by the transducer noise as estimated online
+// instead of an assumed figure, and a gap estimator that tracks a growing gap (a level and a
+// rate, alpha-beta) instead of holding the last measurement until the next reversal. The law is
+// the robust one's (at each motion reversal a jump to the flank ahead, contact_overlap_deg past
+// it) made aware of the drive's lag: the play model of the gap runs on the motor's angle, not on
+// the command that leads it, and the jump carries a lead of slew x lag, taken back on arrival.
+//
+// The noise estimator and the gap tracker are in hil/ctl/tracking.hpp.
+#include <algorithm>
+#include <cmath>
+
+#include "hil/ctl/compensator.hpp"
+#include "hil/ctl/observer.hpp"
+#include "hil/ctl/tracking.hpp"
+
+namespace hil::ctl {
+namespace {
+
+struct TrackingState {
+  RobustObserverState obs;
+  NoiseEstimator::State noise;
+  GapTracker::State gap;  // level and rate; the estimate extrapolates between measurements
+  double gap_est_rad = 0;
+  double now_s = 0;
+  // the play model of the law, on the motor's angle (the command leads it by the drive's lag)
+  double gap_pos_rad = 0;  // believed motor position in the gap
+  double motor_prev_rad = 0;
+  double cmd_rad = 0;     // the controller's integral command with the jumps, as sent
+  double lead_rad = 0;    // the traverse's lead still in cmd_rad (taken back on arrival)
+  double target_rad = 0;  // where the traverse takes the motor
+  long presume_wait = 0;  // steps before the play model's flank may be trusted
+};
+
+class TrackingCompensator final : public CompensatorOf<TrackingCompensator, TrackingState> {
+ public:
+  static constexpr std::string_view kName = "tracking";
+  // In config units; the observer's settings are explained in observer.hpp.
+  static constexpr ParamSpec kSpecs[] = {
+      {"noise_initial_kpa", 0, 1e4, false, false, 2.0, "transducer noise (RMS) assumed until estimated"},
+      {"noise_floor_kpa", 0, 1e4, false, false, 2.0, "the least noise the tests assume (model error of P_eq)"},
+      {"noise_window_ms", 1, 1e5, false, false, 200.0, "the noise estimate's averaging time"},
+      {"clip_sigmas", 1, 1e3, false, false, 6.0, "a second difference beyond this many sigmas counts as this many"},
+      {"intention_deadband_deg", 0, 10, false, false, 0.1, "retreat of the integral command that is a reversal"},
+      {"intention_sigmas", 0, 1e3, false, false, 8.0, "reversal threshold on the low-passed error, in its noise sigmas"},
+      {"filter_time_constant_ms", 1e-3, 1e4, false, false, 15.0, "each of the two low-pass stages of P_eq"},
+      {"hold_smoothing", 1, 100, false, false, 4.0, "the hold level's extra low-pass, in filter time constants"},
+      {"time_constant_scale", 1e-3, 2, false, false, 0.9, "factor on the nominal chamber time constant in P_eq"},
+      {"detect_sigmas", 1e-3, 1e3, false, false, 5.0, "contact threshold, in sigmas of P_eq's noise"},
+      {"confirm_samples", 1, 1000, false, false, 5.0, "samples in a row past the contact threshold", true},
+      {"fit_lead_ms", 0, 500, false, false, 20.0, "the gap fit's window starts this long before the motor's extreme"},
+      {"fit_after_ms", 1, 500, false, false, 40.0, "the gap fit runs this long after contact"},
+      {"fit_tries", 1, 1000, false, false, 8.0, "gap fits while the valve has not moved enough", true},
+      {"level_gain", 1e-3, 1, false, false, 1.0, "share of a measurement's innovation taken into the gap level"},
+      {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
+      {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
+      {"gap_max_deg", 1e-3, 90, false, false, 6.0, "the largest gap a fit may find"},
+      {"contact_overlap_deg", 0, 1, false, false, 0.15, "the jump aims this far past the flank"},
+      {"lead_lags", 0, 10, false, false, 1.0, "the traverse's command leads the motor by this many slew x drive lag"},
+  };
+
+  TrackingCompensator(const CompensatorSetup& setup, std::span<const double> v)
+      : setup_(setup),
+        observer_(observer_params(setup, v), setup.chamber),
+        noise_initial_pa_(v[0] * units::kPaPerKpa),
+        noise_{1 - std::exp(-setup.period_s / (v[2] * 1e-3)), v[1] * units::kPaPerKpa, v[3]},
+        tracker_{v[14], v[15], v[16] * units::kRadPerDeg, v[17] * units::kRadPerDeg},
+        contact_overlap_rad_(v[18] * units::kRadPerDeg),
+        lead_rad_(v[19] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
+        reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s) {}
+
+  TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
+    TrackingState s;
+    s.gap_est_rad = setup_.compensation == Compensation::constant ? setup_.gap_known_rad : setup_.gap_initial_rad;
+    s.gap_pos_rad = touch * s.gap_est_rad / 2;
+    s.motor_prev_rad = s.cmd_rad = theta_cmd_rad;
+    s.noise = noise_.initial(p_meas_pa, noise_initial_pa_);
+    s.obs = observer_.initial_state(touch, theta_cmd_rad, p_meas_pa, theta_cmd_rad);
+    return s;
+  }
+
+  void step(TrackingState& s, const CompensatorInputs& in, CompensatorOutputs& out) const noexcept {
+    const bool constant = setup_.compensation == Compensation::constant;
+    const RobustObserverParams& op = observer_.params();
+    s.now_s += setup_.period_s;
+
+    // The transducer noise, from the second difference of the measurements.
+    const double noise_pa = noise_.update(s.noise, in.p_meas_pa);
+
+    // The play model presumes the motor pushed a flank when it sits within the intention's
+    // dead-band of it; with no gap known, or while a jump may still be under way, nothing.
+    const double gap_before = constant ? setup_.gap_known_rad : s.gap_est_rad;
+    const bool gap_known = constant || s.gap.measurements > 0;
+    const double near = gap_before / 2 - op.intention_deadband_rad - 1e-12;
+    if (s.presume_wait > 0) --s.presume_wait;
+    const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
+    ObserverInputs obs_in{in.cmd_step_rad, in.error_pa, in.p_meas_pa, in.motor_rad, in.tau_s, in.volume_m3, presumed};
+    obs_in.noise_rms_pa = noise_pa;
+    const ObserverOutputs obs = observer_.step(s.obs, obs_in);
+
+    // The gap: level and rate (alpha-beta). A measurement corrects the level extrapolated to now
+    // and the rate by the innovation over the time since the last one; between measurements the
+    // estimate follows the rate (a gap that wears open keeps opening between reversals).
+    if (!constant) {
+      if (obs.gap_measured) tracker_.measure(s.gap, obs.gap_measured_rad, s.now_s);
+      const double before = s.gap_est_rad;
+      s.gap_est_rad = tracker_.estimate_rad(s.gap, s.now_s, s.gap_est_rad);
+      // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
+      if (before > 0 && s.gap_est_rad != before) s.gap_pos_rad *= s.gap_est_rad / before;
+    }
+    const double gap = constant ? setup_.gap_known_rad : s.gap_est_rad;
+    // The play model follows the motor, not the command: with a drive lag tau_m the command
+    // leads the motor by about tau_m times its speed, and a jump sized from the command would
+    // stop that much short of the flank ahead.
+    s.gap_pos_rad += in.motor_rad - s.motor_prev_rad;
+    s.motor_prev_rad = in.motor_rad;
+    s.cmd_rad += in.cmd_step_rad;
+    out.reversed = obs.reversed;
+    // The traverse's lead comes back out of the command once the motor will reach the target
+    // within this step (at the slew limit), as the controller's own boost does.
+    if (s.lead_rad != 0 && s.lead_rad * (s.target_rad - in.motor_rad) <= reach_rad_ * std::abs(s.lead_rad)) {
+      out.comp_rad -= s.lead_rad;
+      s.cmd_rad -= s.lead_rad;
+      s.lead_rad = 0;
+    }
+    if (setup_.compensation != Compensation::none && obs.reversed) {
+      const int d = obs.intention;
+      // A lead still pending belongs to the traverse this reversal cancels.
+      out.comp_rad -= s.lead_rad;
+      s.cmd_rad -= s.lead_rad;
+      s.lead_rad = 0;
+      s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);
+      // The motor's target: past the flank ahead; the jump takes the command there.
+      s.target_rad = in.motor_rad + d * (std::max(gap / 2 - d * s.gap_pos_rad, 0.0) + contact_overlap_rad_);
+      if (d * (s.target_rad - s.cmd_rad) > 0) {
+        // Drive lag: a first-order servo moves at (command - angle) / tau_m, so it reaches its
+        // slew limit only with the command slew x tau_m ahead; a small jump alone would creep
+        // across the gap. The lead (lead_lags of that) is added now and taken back on arrival.
+        const double travel_rad = std::abs(s.target_rad - in.motor_rad);
+        s.lead_rad = d * std::max(lead_rad_ - travel_rad, 0.0);
+        const double jump_rad = s.target_rad - s.cmd_rad + s.lead_rad;
+        out.comp_rad += jump_rad;
+        s.cmd_rad += jump_rad;
+        // The drive needs the crossing at its slew limit plus a few lags to really get there.
+        s.presume_wait =
+            std::lround((travel_rad / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) / setup_.period_s);
+      }
+    }
+    s.gap_pos_rad = std::clamp(s.gap_pos_rad, -gap / 2, gap / 2);  // at a flank: pushing the valve
+
+    out.touch = obs.touch;
+    out.intention = obs.intention;
+    out.gap_est_rad = s.gap_est_rad;
+    out.gap_measured = obs.gap_measured;
+  }
+
+ private:
+  static RobustObserverParams observer_params(const CompensatorSetup& setup, std::span<const double> v) {
+    RobustObserverParams r;
+    r.period_s = setup.period_s;
+    r.pressure_noise_rms_pa = v[0] * units::kPaPerKpa;  // unused: each step passes the estimate
+    r.intention_deadband_rad = v[4] * units::kRadPerDeg;
+    r.intention_sigmas = v[5];
+    r.filter_time_constant_s = v[6] * 1e-3;
+    r.hold_smoothing = v[7];
+    r.time_constant_scale = v[8];
+    r.detect_sigmas = v[9];
+    r.confirm_samples = static_cast<int>(v[10]);
+    r.fit_lead_s = v[11] * 1e-3;
+    r.fit_after_s = v[12] * 1e-3;
+    r.fit_tries = static_cast<int>(v[13]);
+    r.learn_gain = 1;  // the gap estimate is this compensator's
+    r.jump_fraction = 1;
+    r.gap_max_rad = v[17] * units::kRadPerDeg;
+    return r;
+  }
+
+  CompensatorSetup setup_;
+  RobustObserver observer_;
+  double noise_initial_pa_;
+  NoiseEstimator noise_;
+  GapTracker tracker_;
+  double contact_overlap_rad_, lead_rad_, reach_rad_;
+};
+
+}  // namespace
+
+HIL_REGISTER_COMPENSATOR(TrackingCompensator,
+                         "the robust observer judged by the transducer noise estimated online, a gap estimator with a "
+                         "level and a rate that tracks a growing gap, and the jump to the flank ahead")
+
+}  // namespace hil::ctl
