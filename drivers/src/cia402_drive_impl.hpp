@@ -509,5 +509,4 @@ struct Cia402Drive::Impl {
   }
 };
 
-
 }  // namespace hil::drv

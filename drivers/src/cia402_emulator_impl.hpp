@@ -31,9 +31,9 @@ namespace emulator_detail {
 constexpr std::uint32_t key(std::uint16_t index, std::uint8_t sub) { return (std::uint32_t{index} << 8) | sub; }
 
 inline constexpr std::uint32_t kAbortNoObject = 0x06020000, kAbortNoSub = 0x06090011, kAbortReadOnly = 0x06010002,
-                        kAbortLength = 0x06070010, kAbortCommand = 0x05040001, kAbortState = 0x08000022,
-                        kAbortNotMappable = 0x06040041, kAbortPdoLength = 0x06040042, kAbortValue = 0x06090030,
-                        kAbortIncompatible = 0x06040043;
+                               kAbortLength = 0x06070010, kAbortCommand = 0x05040001, kAbortState = 0x08000022,
+                               kAbortNotMappable = 0x06040041, kAbortPdoLength = 0x06040042, kAbortValue = 0x06090030,
+                               kAbortIncompatible = 0x06040043;
 inline constexpr int kConsumerEntries = 4;  // 0x1016:01..04
 
 inline std::uint16_t statusword_for(State s) {
@@ -52,7 +52,6 @@ inline std::uint16_t statusword_for(State s) {
 }  // namespace emulator_detail
 
 using namespace emulator_detail;
-
 
 struct Cia402DriveEmulator::Impl {
   struct Obj {

@@ -24,7 +24,8 @@ const ClientKind<Part>& client_of(const cfg::Node& device, std::string_view what
   for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
   const ClientKind<Part>* found = nullptr;
   std::vector<std::string> others;
-  if (!device.is_map()) device.fail("must be a mapping naming its client: {" + (names.empty() ? "KEY" : names.front()) + ": ...}");
+  if (!device.is_map())
+    device.fail("must be a mapping naming its client: {" + (names.empty() ? "KEY" : names.front()) + ": ...}");
   for (const auto& [key, node] : device.entries()) {
     const ClientKind<Part>* kind = Registry<ClientKind<Part>>::find(key);
     if (kind == nullptr) {

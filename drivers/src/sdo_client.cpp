@@ -70,8 +70,7 @@ void SdoClient::on_reply(const CanFrame& f) {
       ++h_.aborts_or_exceptions;
       char code[16];
       std::snprintf(code, sizeof code, "0x%08X", r.value);
-      const std::string text =
-          settings_.who + ": " + op + ": abort " + code + " (" + std::string(sdo_abort_name(r.value)) + ")";
+      const std::string text = settings_.who + ": " + op + ": abort " + code + " (" + std::string(sdo_abort_name(r.value)) + ")";
       link_.error(text);
       return finish(std::make_exception_ptr(SdoAbortError(text, req->index, req->sub, r.value)), 0);
     }
@@ -120,8 +119,8 @@ void SdoClient::send_active() {
     }
     const std::string text =
         settings_.who + ": SDO " + (req->upload ? "read " : "write ") + object_name(req->index, req->sub) +
-        (req->ignored == 0 ? ": no reply after " : ": no matching reply after ") + std::to_string(req->tries) +
-        " tries of " + std::to_string(settings_.timeout.count()) + " ms" +
+        (req->ignored == 0 ? ": no reply after " : ": no matching reply after ") + std::to_string(req->tries) + " tries of " +
+        std::to_string(settings_.timeout.count()) + " ms" +
         (req->ignored == 0 ? std::string()
                            : " (" + std::to_string(req->ignored) +
                                  " replies ignored: another object or the wrong service; last " + req->last_ignored + ")");
@@ -134,8 +133,7 @@ void SdoClient::send_active() {
   });
 }
 
-std::uint32_t SdoClient::transfer(bool upload, std::uint16_t index, std::uint8_t sub, std::uint32_t value,
-                                  std::uint8_t size) {
+std::uint32_t SdoClient::transfer(bool upload, std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
   if (io_.get_executor().running_in_this_thread()) throw DriveError(settings_.who + ": SDO called from the I/O thread");
   auto req = std::make_shared<Request>();
   req->upload = upload, req->index = index, req->sub = sub, req->value = value, req->size = size;

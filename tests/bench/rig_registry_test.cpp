@@ -53,9 +53,9 @@ TEST(RigRegistry, ListsTheBuiltInKindsWithTheirCapabilities) {
     const char* drive_client;  // "": any registered drive client
     bool transducer;
   };
-  for (const Want& w : {Want{"sim", true, true, true, false, "", false}, Want{"can", false, false, false, true, "cia402", true},
-                        Want{"modbus", false, false, false, true, "modbus", true},
-                        Want{"hybrid", false, true, true, true, "", false}}) {
+  for (const Want& w :
+       {Want{"sim", true, true, true, false, "", false}, Want{"can", false, false, false, true, "cia402", true},
+        Want{"modbus", false, false, false, true, "modbus", true}, Want{"hybrid", false, true, true, true, "", false}}) {
     const bench::RigKindInfo* k = bench::find_rig_kind(w.kind);
     ASSERT_NE(k, nullptr) << w.kind;
     EXPECT_EQ(k->kind, w.kind);

@@ -24,10 +24,11 @@ int run_probe(const std::string& rig_file) {
     return 1;
   }
   // The SDO client alone, on a channel of its own: no SYNC, PDO or heartbeat goes out.
-  drv::SdoChannel channel(drive->interface, {.node_id = drive->node_id,
-                                             .who = "CiA 402 drive node " + std::to_string(drive->node_id) + " on " + drive->interface,
-                                             .timeout = drive->sdo_timeout,
-                                             .retries = drive->sdo_retries});
+  drv::SdoChannel channel(drive->interface,
+                          {.node_id = drive->node_id,
+                           .who = "CiA 402 drive node " + std::to_string(drive->node_id) + " on " + drive->interface,
+                           .timeout = drive->sdo_timeout,
+                           .retries = drive->sdo_retries});
   std::printf("CiA 402 drive node %u on %s (rig '%s', %s)\n", drive->node_id, drive->interface.c_str(), rig.name.c_str(),
               rig.file.string().c_str());
   const drv::Cia402Probe p = drv::probe(channel.sdo(), *drive);

@@ -27,9 +27,9 @@ RigDevices devices_from(const cfg::Node& root, const std::string& kind, const Ri
     const drv::DriveClientKind& client = drv::drive_client_of(drive);
     if (!needs.drive_client.empty() && client.key != needs.drive_client) {
       const drv::DriveClientKind* wanted = drv::find_drive_client(needs.drive_client);
-      drive.at(client.key).fail("the " + kind + " rig needs " +
-                                (wanted != nullptr ? std::string(wanted->doc) : "another drive") + " (drive: {" +
-                                std::string(needs.drive_client) + ": ...})");
+      drive.at(client.key)
+          .fail("the " + kind + " rig needs " + (wanted != nullptr ? std::string(wanted->doc) : "another drive") + " (drive: {" +
+                std::string(needs.drive_client) + ": ...})");
     }
     d.drive_client = client.key;
     d.drive = client.load({drive, drive.at(client.key), target_velocity_rad_s});

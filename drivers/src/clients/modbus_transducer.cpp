@@ -11,9 +11,7 @@ namespace {
 class ModbusTransducerRecipe final : public ConfigRecipe<PressureSensor, ModbusTransducerConfig> {
  public:
   using ConfigRecipe::ConfigRecipe;
-  std::unique_ptr<PressureSensor> make(const DeviceSetup&) const override {
-    return std::make_unique<ModbusTransducer>(config);
-  }
+  std::unique_ptr<PressureSensor> make(const DeviceSetup&) const override { return std::make_unique<ModbusTransducer>(config); }
 };
 
 std::shared_ptr<const SensorRecipe> load(const DeviceNodes& n) {

@@ -3,7 +3,7 @@
 // pressure sensor). The simulated chamber is what gives it a programmable gap and the truth.
 #include "hil/bench/rt/device_rig.hpp"
 
-HIL_REGISTER_RIG_KIND(
-    hybrid, {.doc = "a real drive (any drive client: CiA 402, Modbus, ...); the campaign's backlash, valve and chamber simulated with its encoder",
-             .devices = {.drive = true, .transducer = false},
-             .make = &hil::bench::make_drive_and_simulated_chamber_rig})
+HIL_REGISTER_RIG_KIND(hybrid, {.doc = "a real drive (any drive client: CiA 402, Modbus, ...); the campaign's backlash, valve and "
+                                      "chamber simulated with its encoder",
+                               .devices = {.drive = true, .transducer = false},
+                               .make = &hil::bench::make_drive_and_simulated_chamber_rig})

@@ -26,7 +26,7 @@ namespace hil::drv {
 // What a client is made with at the rig's configure (not at load: a client may open its channel
 // when constructed, and a CAN drive takes the run's period as its SYNC period).
 struct DeviceSetup {
-  double period_s = 1e-3;              // the loop's period
+  double period_s = 1e-3;             // the loop's period
   CanTransportFactory can_transport;  // CAN clients: carries the frames (empty: SocketCAN on the configured interface)
 };
 
@@ -108,13 +108,13 @@ std::chrono::microseconds poll_max_age(const cfg::Node& device, std::chrono::mil
 
 // In a client's .cpp, at namespace scope: HIL_REGISTER_DRIVE_CLIENT(cia402, {.doc = "a CiA 402
 // drive on CAN", .load = &load}). The first argument is the key as the rig file spells it.
-#define HIL_REGISTER_DRIVE_CLIENT(name, ...)                                              \
-  namespace {                                                                             \
-  [[maybe_unused]] const bool registered_drive_client_##name =                            \
-      ::hil::drv::register_drive_client(#name, ::hil::drv::DriveClientKind __VA_ARGS__);  \
+#define HIL_REGISTER_DRIVE_CLIENT(name, ...)                                             \
+  namespace {                                                                            \
+  [[maybe_unused]] const bool registered_drive_client_##name =                           \
+      ::hil::drv::register_drive_client(#name, ::hil::drv::DriveClientKind __VA_ARGS__); \
   }
-#define HIL_REGISTER_SENSOR_CLIENT(name, ...)                                               \
-  namespace {                                                                               \
-  [[maybe_unused]] const bool registered_sensor_client_##name =                             \
-      ::hil::drv::register_sensor_client(#name, ::hil::drv::SensorClientKind __VA_ARGS__);  \
+#define HIL_REGISTER_SENSOR_CLIENT(name, ...)                                              \
+  namespace {                                                                              \
+  [[maybe_unused]] const bool registered_sensor_client_##name =                            \
+      ::hil::drv::register_sensor_client(#name, ::hil::drv::SensorClientKind __VA_ARGS__); \
   }

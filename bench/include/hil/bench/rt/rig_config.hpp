@@ -21,9 +21,9 @@ struct RigKindInfo;
 // clients, each by its registered key (hil/drv/clients.hpp) with its configuration validated into
 // a recipe the rig makes the client from at configure (and the client's age limit, if polled).
 struct RigDevices {
-  std::string drive_client;                         // devices.drive's client key ("cia402"); empty: none
-  std::shared_ptr<const drv::DriveRecipe> drive;    // null: none
-  std::string transducer_client;                    // devices.transducer's client key ("modbus"); empty: none
+  std::string drive_client;                             // devices.drive's client key ("cia402"); empty: none
+  std::shared_ptr<const drv::DriveRecipe> drive;        // null: none
+  std::string transducer_client;                        // devices.transducer's client key ("modbus"); empty: none
   std::shared_ptr<const drv::SensorRecipe> transducer;  // null: none (the rig simulates the chamber)
   // The drive client's configuration as read, when it is a `Config` (the probe: drv::Cia402Config);
   // nullptr when there is no drive or another client's.

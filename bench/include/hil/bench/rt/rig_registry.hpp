@@ -27,9 +27,9 @@ struct RigCapabilities {
 // The devices a kind's rig file names under `devices`, each a client registered in the drivers
 // by its key (hil/drv/clients.hpp): `drive: {cia402: ...}`, `transducer: {modbus: ...}`.
 struct RigDeviceNeeds {
-  bool drive = false;                 // devices.drive; false: the rig simulates the drive
-  std::string_view drive_client{};    // the one drive client the kind takes ("cia402"); empty: any registered
-  bool transducer = false;            // devices.transducer; false: the rig simulates the chamber
+  bool drive = false;               // devices.drive; false: the rig simulates the drive
+  std::string_view drive_client{};  // the one drive client the kind takes ("cia402"); empty: any registered
+  bool transducer = false;          // devices.transducer; false: the rig simulates the chamber
 };
 
 // What a rig with devices can do follows from them: the simulated valve and chamber behind a
