@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <utility>
 
 #include "hil/registry.hpp"
 
@@ -23,25 +25,25 @@ const ClientKind<Part>& client_of(const cfg::Node& device, std::string_view what
   std::string known;
   for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
   const ClientKind<Part>* found = nullptr;
-  std::vector<std::string> others;
-  if (!device.is_map())
-    device.fail("must be a mapping naming its client: {" + (names.empty() ? "KEY" : names.front()) + ": ...}");
+  std::optional<std::pair<std::string, cfg::Node>> unknown;  // the first key that is no client
   for (const auto& [key, node] : device.entries()) {
     const ClientKind<Part>* kind = Registry<ClientKind<Part>>::find(key);
     if (kind == nullptr) {
-      others.push_back(key);
+      if (!unknown) unknown.emplace(key, node);
       continue;
     }
     if (found != nullptr) node.fail("names a second " + std::string(what) + " client: one of " + known);
     found = kind;
   }
   if (found == nullptr) {
-    std::string hint;
-    for (const auto& key : others) {
-      if (hint.empty()) hint = cfg::closest(key, names);
+    const std::string list = known.empty() ? "none" : known;
+    // Located at a key close to a client's name, a typo of it; else at the device.
+    const std::string hint = unknown ? cfg::closest(unknown->first, names) : std::string();
+    if (!hint.empty()) {
+      unknown->second.fail("unknown " + std::string(what) + " client '" + unknown->first + "' (did you mean '" + hint +
+                           "'?); this build knows: " + list);
     }
-    device.fail("needs one " + std::string(what) + " client: one of " + (known.empty() ? "none in this build" : known) +
-                (hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
+    device.fail("needs one " + std::string(what) + " client: one of " + list);
   }
   return *found;
 }

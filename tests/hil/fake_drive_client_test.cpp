@@ -110,7 +110,8 @@ HIL_REGISTER_DRIVE_CLIENT(fake, {.doc = "a fake servo for tests", .load = &load_
 
 TEST(DriveClientPart, AFakeDriveRegisteredFromOneFileRunsACampaignThroughTheHybridRig) {
   ASSERT_NE(drv::find_drive_client("fake"), nullptr);
-  const bench::Campaign campaign = short_paper_campaign(1.0);  // 1000 periods of 1 ms
+  // 3000 periods of 1 ms; the reference steps up at 2.5 s, so the motor is commanded to move.
+  const bench::Campaign campaign = short_paper_campaign(3.0);
   Bench b;
   b.start(campaign, rig_yaml("hybrid", "    fake: {start_deg: 7.5}\n", ""));
   const json last = b.finish(60s);
@@ -126,7 +127,7 @@ TEST(DriveClientPart, AFakeDriveRegisteredFromOneFileRunsACampaignThroughTheHybr
   EXPECT_EQ(f.run["rig"]["kind"], "hybrid");
   EXPECT_EQ(f.run["outcome"], "completed");
   const std::size_t rows = f.csv.rows();
-  EXPECT_EQ(rows, 1000u);
+  EXPECT_EQ(rows, 3000u);
   EXPECT_FALSE(f.events.empty());
 
   // Every period's command reached the fake drive, in the drive's frame: what the rig sent
