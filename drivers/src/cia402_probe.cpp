@@ -21,10 +21,11 @@ const Cia402Probe::Object* Cia402Probe::find(std::uint16_t index, std::uint8_t s
   return nullptr;
 }
 
-Cia402Probe probe(Cia402Drive& client) {
+Cia402Probe probe(Cia402Drive& client) { return probe(client.sdo(), client.config()); }
+
+Cia402Probe probe(SdoClient& sdo, const Cia402Config& cfg) {
   Cia402Probe p;
-  const Cia402Config& cfg = client.config();
-  p.device_type = client.sdo_read(0x1000, 0);  // no answer, or an abort: not a drive we can talk to
+  p.device_type = sdo.read(0x1000, 0);  // no answer, or an abort: not a drive we can talk to
   if ((p.device_type & 0xFFFF) != 402) {
     throw DriveError("CiA 402 drive node " + std::to_string(cfg.node_id) + " on " + cfg.interface +
                      ": not a CiA 402 device (0x1000:00 device type = " + hex(p.device_type, 8) + ")");
@@ -36,7 +37,7 @@ Cia402Probe probe(Cia402Drive& client) {
   const auto read = [&](std::uint16_t index, std::uint8_t sub, const std::string& name, bool required) -> Cia402Probe::Object& {
     Cia402Probe::Object o{index, sub, name, required, std::nullopt, 0, {}};
     try {
-      o.value = client.sdo_read(index, sub);
+      o.value = sdo.read(index, sub);
       unanswered_in_a_row = 0;
     } catch (const SdoAbortError& e) {
       o.abort_code = e.code;

@@ -49,13 +49,13 @@ TEST(RigRegistry, ListsTheBuiltInKindsWithTheirCapabilities) {
   struct Want {
     const char* kind;
     bool simulated, programmable_gap, knows_truth;
-    bench::DriveNeed drive;
+    bool drive;
+    const char* drive_client;  // "": any registered drive client
     bool transducer;
   };
-  for (const Want& w : {Want{"sim", true, true, true, bench::DriveNeed::none, false},
-                        Want{"can", false, false, false, bench::DriveNeed::cia402, true},
-                        Want{"modbus", false, false, false, bench::DriveNeed::modbus, true},
-                        Want{"hybrid", false, true, true, bench::DriveNeed::cia402_or_modbus, false}}) {
+  for (const Want& w :
+       {Want{"sim", true, true, true, false, "", false}, Want{"can", false, false, false, true, "cia402", true},
+        Want{"modbus", false, false, false, true, "modbus", true}, Want{"hybrid", false, true, true, true, "", false}}) {
     const bench::RigKindInfo* k = bench::find_rig_kind(w.kind);
     ASSERT_NE(k, nullptr) << w.kind;
     EXPECT_EQ(k->kind, w.kind);
@@ -64,6 +64,7 @@ TEST(RigRegistry, ListsTheBuiltInKindsWithTheirCapabilities) {
     EXPECT_EQ(k->capabilities.programmable_gap, w.programmable_gap) << w.kind;
     EXPECT_EQ(k->capabilities.knows_truth, w.knows_truth) << w.kind;
     EXPECT_EQ(k->devices.drive, w.drive) << w.kind;
+    EXPECT_EQ(k->devices.drive_client, w.drive_client) << w.kind;
     EXPECT_EQ(k->devices.transducer, w.transducer) << w.kind;
     ASSERT_NE(k->make, nullptr) << w.kind;
   }
@@ -108,8 +109,8 @@ namespace {
 bench::RigKindInfo parts_kind(bool simulated_chamber) {
   return {.kind = "parts",
           .doc = "test doubles",
-          .capabilities = {.simulated = false, .programmable_gap = simulated_chamber, .knows_truth = simulated_chamber},
-          .devices = {.drive = bench::DriveNeed::cia402_or_modbus, .transducer = !simulated_chamber},
+          .capabilities = bench::capabilities_of({.drive = true, .transducer = !simulated_chamber}),
+          .devices = {.drive = true, .transducer = !simulated_chamber},
           .make = nullptr};
 }
 

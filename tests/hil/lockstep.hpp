@@ -328,7 +328,7 @@ inline LockstepResult run_lockstep_hybrid(
   bench::SpscRing<bench::TelemetryRecord> telemetry(n + 16);
   bench::SpscRing<bench::LoopEvent> events(1024);
   bench::SpscRing<bench::LoopRequest> requests(16);
-  const drv::DriveUnits& u = rc.devices.can_drive->units;
+  const drv::DriveUnits& u = rc.devices.drive_config<drv::Cia402Config>()->units;
   const auto through_counts = [&u](double rad) { return u.to_rad(u.to_counts(rad)); };
   // The rig's frame: encoder angle minus the offset it took at configure (the settled plant's motor).
   const double offset = through_counts(motor.signals().theta_motor_rad) - motor.signals().theta_motor_rad;

@@ -68,15 +68,19 @@ TEST(RigConfig, ShippedRigFilesLoad) {
     EXPECT_FALSE(rc.description.empty());
   }
   const auto can = bench::load_rig_config(source_path("configs/rigs/can.yaml"));
-  ASSERT_TRUE(can.devices.can_drive && can.devices.transducer);
-  EXPECT_EQ(can.devices.can_drive->node_id, 5);
-  EXPECT_EQ(can.devices.transducer->link.port, 1503);
-  EXPECT_EQ(can.devices.transducer_max_age, std::chrono::milliseconds(4));
+  ASSERT_TRUE(can.devices.drive_config<drv::Cia402Config>() && can.devices.transducer_config<drv::ModbusTransducerConfig>());
+  EXPECT_EQ(can.devices.drive_client, "cia402");
+  EXPECT_EQ(can.devices.transducer_client, "modbus");
+  EXPECT_EQ(can.devices.drive_config<drv::Cia402Config>()->node_id, 5);
+  EXPECT_EQ(can.devices.transducer_config<drv::ModbusTransducerConfig>()->link.port, 1503);
+  EXPECT_EQ(can.devices.transducer->max_age, std::chrono::milliseconds(4));
+  EXPECT_EQ(can.devices.drive->max_age, std::chrono::microseconds(0));  // fresh by TPDO after SYNC, not by age
   const auto modbus = bench::load_rig_config(source_path("configs/rigs/modbus.yaml"));
-  ASSERT_TRUE(modbus.devices.modbus_drive && modbus.devices.transducer);
-  EXPECT_EQ(modbus.devices.modbus_drive->link.port, 1502);
+  ASSERT_TRUE(modbus.devices.drive_config<drv::ModbusDriveConfig>() && modbus.devices.transducer);
+  EXPECT_EQ(modbus.devices.drive_config<drv::Cia402Config>(), nullptr);
+  EXPECT_EQ(modbus.devices.drive_config<drv::ModbusDriveConfig>()->link.port, 1502);
   const auto hybrid = bench::load_rig_config(source_path("configs/rigs/hybrid.yaml"));
-  EXPECT_TRUE(hybrid.devices.can_drive && !hybrid.devices.transducer);
+  EXPECT_TRUE(hybrid.devices.drive_config<drv::Cia402Config>() && !hybrid.devices.transducer);
   // The rigs with a real drive watch its following error; the simulated one does not.
   for (const auto* rc : {&can, &modbus, &hybrid}) {
     EXPECT_TRUE(rc->safety.watches_following()) << rc->kind;
@@ -92,8 +96,8 @@ TEST(RigConfig, DefaultAgeLimitIsTwoPolls) {
       "rigs/m.yaml",
       "kind: modbus\ndevices:\n  drive:\n    modbus: " + source_path("drivers/configs/modbus_drive.yaml").string() +
           "\n  transducer:\n    modbus: " + source_path("drivers/configs/modbus_transducer.yaml").string() + "\n" + kSafety));
-  EXPECT_EQ(rc.devices.drive_max_age, std::chrono::milliseconds(4));        // polls every 2 ms
-  EXPECT_EQ(rc.devices.transducer_max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
+  EXPECT_EQ(rc.devices.drive->max_age, std::chrono::milliseconds(4));        // polls every 2 ms
+  EXPECT_EQ(rc.devices.transducer->max_age, std::chrono::milliseconds(10));  // the RTU transducer polls every 5 ms
 }
 
 // A Modbus device's max_age_ms at or below its poll period is a device stale at every poll (a
@@ -114,9 +118,9 @@ TEST(RigConfig, AnAgeLimitADeviceCannotMeetIsRefused) {
   has(e, "max_age_ms 0.5 is not above the device's poll_period_ms 5");
   e = config_error(rig(40000, ""));
   has(e, "bad.yaml:5:3: devices.transducer: the default max_age_ms, two polls of poll_period_ms 40000, is past the 60000 ms");
-  EXPECT_EQ(bench::load_rig_config_text(rig(5, "    max_age_ms: 6\n"), "ok.yaml").devices.transducer_max_age,
+  EXPECT_EQ(bench::load_rig_config_text(rig(5, "    max_age_ms: 6\n"), "ok.yaml").devices.transducer->max_age,
             std::chrono::milliseconds(6));
-  EXPECT_EQ(bench::load_rig_config_text(rig(30000, ""), "ok.yaml").devices.transducer_max_age, std::chrono::seconds(60));
+  EXPECT_EQ(bench::load_rig_config_text(rig(30000, ""), "ok.yaml").devices.transducer->max_age, std::chrono::seconds(60));
 }
 
 TEST(RigConfig, ErrorsNameFileLineAndKey) {

@@ -10,6 +10,7 @@
 #include "hil/bench/rt/rig_config.hpp"
 #include "hil/drv/cia402_drive.hpp"
 #include "hil/drv/cia402_probe.hpp"
+#include "hil/drv/sdo_client.hpp"
 
 namespace hil::bench {
 
@@ -17,14 +18,20 @@ namespace {
 
 int run_probe(const std::string& rig_file) {
   const RigConfig rig = load_rig_config(rig_file);
-  if (!rig.devices.can_drive) {
+  const drv::Cia402Config* drive = rig.devices.drive_config<drv::Cia402Config>();
+  if (drive == nullptr) {
     std::fprintf(stderr, "hilbench drive probe: rig '%s' has no CiA 402 drive (probe reads CANopen drives)\n", rig.name.c_str());
     return 1;
   }
-  drv::Cia402Drive client(*rig.devices.can_drive);
-  std::printf("CiA 402 drive node %u on %s (rig '%s', %s)\n", rig.devices.can_drive->node_id,
-              rig.devices.can_drive->interface.c_str(), rig.name.c_str(), rig.file.string().c_str());
-  const drv::Cia402Probe p = drv::probe(client);
+  // The SDO client alone, on a channel of its own: no SYNC, PDO or heartbeat goes out.
+  drv::SdoChannel channel(drive->interface,
+                          {.node_id = drive->node_id,
+                           .who = "CiA 402 drive node " + std::to_string(drive->node_id) + " on " + drive->interface,
+                           .timeout = drive->sdo_timeout,
+                           .retries = drive->sdo_retries});
+  std::printf("CiA 402 drive node %u on %s (rig '%s', %s)\n", drive->node_id, drive->interface.c_str(), rig.name.c_str(),
+              rig.file.string().c_str());
+  const drv::Cia402Probe p = drv::probe(channel.sdo(), *drive);
   std::fputs(p.report().c_str(), stdout);
   return p.usable ? 0 : 1;
 }

@@ -11,8 +11,6 @@
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
-#include "hil/drv/cia402_drive.hpp"
-#include "hil/drv/modbus.hpp"
 
 namespace hil::bench {
 
@@ -291,34 +289,19 @@ RigHealth DeviceRig::health() const noexcept {
 }
 
 DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTransportFactory can_transport) {
-  const RigDevices& d = config.devices;
-  if (d.can_drive) {
-    return [c = *d.can_drive,
-            can_transport = std::move(can_transport)](const RigSetup& setup) -> std::unique_ptr<drv::PositionDrive> {
-      // One SYNC per period, sent right after the loop's command: the TPDO that answers it is the
-      // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
-      drv::Cia402Config run = c;
-      run.sync_source = drv::Cia402Config::SyncSource::loop;
-      // The campaign's period as it is (it used to be bent into 100 us..100 ms without a word, and
-      // the drive told a wrong interpolation period): one the bus cannot carry fails here, named.
-      run.sync_period = std::chrono::microseconds(std::lround(setup.period_s * 1e6));
-      return std::make_unique<drv::Cia402Drive>(std::move(run), can_transport);
-    };
-  }
-  if (d.modbus_drive) {
-    return [c = *d.modbus_drive](const RigSetup&) -> std::unique_ptr<drv::PositionDrive> {
-      return std::make_unique<drv::ModbusDrive>(c);
-    };
-  }
-  throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no drive");
+  if (!config.devices.drive) throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no drive");
+  return [recipe = config.devices.drive,
+          can_transport = std::move(can_transport)](const RigSetup& setup) -> std::unique_ptr<drv::PositionDrive> {
+    return recipe->make({.period_s = setup.period_s, .can_transport = can_transport});
+  };
 }
 
 DeviceRig::SensorFactory transducer_from_file(const RigConfig& config) {
   if (!config.devices.transducer) {
     throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no pressure transducer");
   }
-  return [c = *config.devices.transducer](const RigSetup&) -> std::unique_ptr<drv::PressureSensor> {
-    return std::make_unique<drv::ModbusTransducer>(c);
+  return [recipe = config.devices.transducer](const RigSetup& setup) -> std::unique_ptr<drv::PressureSensor> {
+    return recipe->make({.period_s = setup.period_s, .can_transport = {}});
   };
 }
 
@@ -326,16 +309,16 @@ std::unique_ptr<Rig> make_drive_and_transducer_rig(const RigKindInfo& kind, cons
                                                    const drv::CanTransportFactory& can_transport) {
   return std::make_unique<DeviceRig>(config, kind,
                                      DeviceRig::Parts{.drive = drive_from_file(config, can_transport),
-                                                      .drive_max_age = config.devices.drive_max_age,
+                                                      .drive_max_age = config.devices.drive->max_age,
                                                       .pressure_sensor = transducer_from_file(config),
-                                                      .sensor_max_age = config.devices.transducer_max_age});
+                                                      .sensor_max_age = config.devices.transducer->max_age});
 }
 
 std::unique_ptr<Rig> make_drive_and_simulated_chamber_rig(const RigKindInfo& kind, const RigConfig& config,
                                                           const drv::CanTransportFactory& can_transport) {
   return std::make_unique<DeviceRig>(config, kind,
                                      DeviceRig::Parts{.drive = drive_from_file(config, can_transport),
-                                                      .drive_max_age = config.devices.drive_max_age,
+                                                      .drive_max_age = config.devices.drive->max_age,
                                                       .pressure_sensor = {},
                                                       .sensor_max_age = {}});
 }

@@ -7,6 +7,7 @@ namespace hil::bench {
 
 bool register_rig_kind(std::string_view kind, RigKindInfo info) {
   // The kind's view points at the registry's own copy of the name, which outlives every caller.
+  if (info.devices.drive) info.capabilities = capabilities_of(info.devices);
   auto [name, kept] = Registry<RigKindInfo>::add(kind, info);
   kept.kind = name;
   return true;

@@ -15,6 +15,7 @@
 #include "hil/drv/can_loopback.hpp"
 #include "hil/drv/canopen.hpp"
 #include "hil/drv/cia402_probe.hpp"
+#include "hil/drv/sdo_client.hpp"
 
 namespace hil::drv::test {
 namespace {
@@ -395,6 +396,41 @@ TEST_F(Cia402Loopback, ProbeReportsAnObjectTheDriveDoesNotAnswer) {
   EXPECT_EQ(p.find(0x6064, 0)->abort_code, 0x06020000u);
   EXPECT_FALSE(p.usable);
   EXPECT_NE(p.report().find("no answer: CiA 402 drive node 7 on vcan0: SDO read 0x6502:00"), std::string::npos) << p.report();
+}
+
+// The probe on an SDO client of its own (what `hilbench drive probe` runs): the same report as
+// through a CiA 402 client's, from the same requests, each an expedited upload (0x40) to 0x600 + node.
+TEST_F(Cia402Loopback, ProbeOnAnSdoChannelOfItsOwnReadsAsThroughTheClient) {
+  FakeSdoServer drive(bus, 7, [](const CanFrame& req) -> std::optional<CanFrame> {
+    const auto index = static_cast<std::uint16_t>(canopen::get_le(&req.data[1], 2));
+    if (index == 0x1000) return canopen::sdo_upload_ok(7, 0x1000, 0, 0x00020192, 4);
+    if (index == 0x6502) return canopen::sdo_upload_ok(7, 0x6502, 0, 0x80, 4);  // CSP
+    return canopen::sdo_abort(7, index, req.data[3], 0x06020000, true);
+  });
+  const auto cfg = test_config(7);
+  std::string via_client;
+  {
+    Cia402Drive client(cfg, factory());
+    via_client = probe(client).report();
+  }
+  const std::size_t client_requests = drive.requests().size();
+  SdoChannel channel(cfg.interface,
+                     {.node_id = 7, .who = "CiA 402 drive node 7 on vcan0", .timeout = cfg.sdo_timeout, .retries = 0}, factory());
+  const Cia402Probe p = probe(channel.sdo(), cfg);
+  EXPECT_EQ(p.report(), via_client);
+  const std::vector<CanFrame> requests = drive.requests();
+  ASSERT_EQ(requests.size(), 2 * client_requests);
+  for (std::size_t i = client_requests; i < requests.size(); ++i) {
+    EXPECT_EQ(requests[i].id, canopen::kSdoRx + 7u);
+    EXPECT_EQ(requests[i].data[0], 0x40) << i;  // initiate upload
+    EXPECT_EQ(
+        std::vector<std::uint8_t>(requests[i].data.begin(), requests[i].data.begin() + 4),
+        std::vector<std::uint8_t>(requests[i - client_requests].data.begin(), requests[i - client_requests].data.begin() + 4));
+  }
+  // Every object the drive refused is an abort the channel counted (no timeouts here).
+  const auto refused = std::count_if(p.objects.begin(), p.objects.end(), [](const auto& o) { return !o.value.has_value(); });
+  EXPECT_GT(refused, 0);
+  EXPECT_EQ(channel.health().aborts_or_exceptions, static_cast<std::uint64_t>(refused));
 }
 
 TEST_F(Cia402Loopback, SyncFromTheLoopWhenConfigured) {

@@ -4,6 +4,5 @@
 #include "hil/bench/rt/device_rig.hpp"
 
 HIL_REGISTER_RIG_KIND(can, {.doc = "CiA 402 servo on SocketCAN (SYNC at the loop rate) + Modbus pressure transducer",
-                            .capabilities = {.simulated = false, .programmable_gap = false, .knows_truth = false},
-                            .devices = {.drive = hil::bench::DriveNeed::cia402, .transducer = true},
+                            .devices = {.drive = true, .drive_client = "cia402", .transducer = true},
                             .make = &hil::bench::make_drive_and_transducer_rig})

@@ -3,6 +3,5 @@
 #include "hil/bench/rt/device_rig.hpp"
 
 HIL_REGISTER_RIG_KIND(modbus, {.doc = "Modbus servo drive (TCP or RTU) + Modbus pressure transducer",
-                               .capabilities = {.simulated = false, .programmable_gap = false, .knows_truth = false},
-                               .devices = {.drive = hil::bench::DriveNeed::modbus, .transducer = true},
+                               .devices = {.drive = true, .drive_client = "modbus", .transducer = true},
                                .make = &hil::bench::make_drive_and_transducer_rig})

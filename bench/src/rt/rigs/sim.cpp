@@ -12,5 +12,5 @@ std::unique_ptr<hil::bench::Rig> make_sim_rig(const hil::bench::RigKindInfo&, co
 
 HIL_REGISTER_RIG_KIND(sim, {.doc = "the campaign's plant, stepped in lock-step with the loop (any speed, faults on purpose)",
                             .capabilities = {.simulated = true, .programmable_gap = true, .knows_truth = true},
-                            .devices = {.drive = hil::bench::DriveNeed::none, .transducer = false},
+                            .devices = {},
                             .make = &make_sim_rig})

@@ -1,6 +1,7 @@
 // A CANopen CiA 402 client for one servo drive in cyclic synchronous position mode.
 //
-// An I/O thread (Boost.Asio) owns the CAN channel: it produces SYNC at the loop rate, sends
+// An I/O thread (Boost.Asio) owns the CAN channel: it runs the SDO client (sdo_client.hpp) for the
+// setup's object reads and writes, produces SYNC at the loop rate, sends
 // RPDO1 (controlword 0x6040, target position 0x607A) before each SYNC, receives TPDO1
 // (statusword 0x6041, position actual 0x6064), consumes the drive's heartbeat, decodes EMCY
 // and error frames, and runs the CiA 402 state machine. The real-time side only touches
@@ -19,6 +20,7 @@
 #include "hil/drv/canopen.hpp"
 #include "hil/drv/io_types.hpp"
 #include "hil/drv/parts.hpp"
+#include "hil/drv/sdo_client.hpp"  // DriveError, SdoAbortError, SdoClient
 
 namespace hil::cfg {
 class Node;
@@ -120,21 +122,6 @@ struct Cia402Config {
 // target velocity is unknown.
 std::string following_window_problem(const Cia402Config& config, double window_rad);
 
-class DriveError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-// The drive refused an SDO: what() names the drive, the object and the abort code's meaning.
-class SdoAbortError : public DriveError {
- public:
-  SdoAbortError(const std::string& what, std::uint16_t index, std::uint8_t sub, std::uint32_t code)
-      : DriveError(what), index(index), sub(sub), code(code) {}
-  std::uint16_t index;
-  std::uint8_t sub;
-  std::uint32_t code;
-};
-
 // A PositionDrive (parts.hpp), so a rig holds it as one; the rest of its API is its own.
 class Cia402Drive final : public PositionDrive {
  public:
@@ -181,6 +168,8 @@ class Cia402Drive final : public PositionDrive {
   cia402::State state() const noexcept;  // real-time safe
 
   // Setup-time services (blocking; never from the I/O thread).
+  // The SDO client on this client's channel (sdo_read/sdo_write are it, with the size checked).
+  SdoClient& sdo();
   std::uint32_t sdo_read(std::uint16_t index, std::uint8_t sub);
   void sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size);
   void nmt(canopen::NmtCommand command);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "hil/drv/cia402_drive.hpp"
+#include "hil/drv/sdo_client.hpp"
 
 namespace hil::drv {
 
@@ -36,8 +37,11 @@ struct Cia402Probe {
   std::string report() const;  // human-readable, one fact a line
 };
 
-// Probes the drive behind `client` (constructed, not configured). Throws DriveError when the
+// Probes the drive `config` names through `sdo` (an SdoClient on a channel to it: an SdoChannel
+// of its own, or a Cia402Drive's, constructed and not configured). Throws DriveError when the
 // drive does not answer SDO at all, or is not a CiA 402 device.
+Cia402Probe probe(SdoClient& sdo, const Cia402Config& config);
+// The same through the client's own SDO client.
 Cia402Probe probe(Cia402Drive& client);
 
 }  // namespace hil::drv

@@ -125,12 +125,12 @@ class DeviceRig final : public Rig {
   bool enable_held_ = false;  // every command since activate() asked for enable
 };
 
-// The parts a rig file names (the `devices` block, validated at load), for the kinds' recipes.
-// The drive: devices.drive's CiA 402 client (made with sync_source loop and the run's period as
-// its SYNC period, so each write sends one SYNC) or Modbus client; throws naming the file when
-// there is none.
+// The parts a rig file names (the `devices` block, validated at load), for the kinds' recipes:
+// made by the clients' recipes (hil/drv/clients.hpp) with the run's period (a CAN drive takes it
+// as its SYNC period, each write sending one SYNC) and `can_transport`. The drive: devices.drive's
+// client; throws naming the file when there is none.
 DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTransportFactory can_transport);
-// The transducer: devices.transducer's Modbus client; throws naming the file when there is none.
+// The transducer: devices.transducer's client; throws naming the file when there is none.
 DeviceRig::SensorFactory transducer_from_file(const RigConfig& config);
 
 // The kinds' recipes (a RigKindInfo::make): the file's drive and its pressure transducer (can,

@@ -3,32 +3,40 @@
 // included: errors name file:line:key.
 #pragma once
 
-#include <chrono>
 #include <filesystem>
 #include <memory>
-#include <optional>
 #include <string>
 
 #include "hil/bench/rt/rig.hpp"
 #include "hil/bench/rt/rt_loop.hpp"
 #include "hil/bench/rt/safety.hpp"
 #include "hil/drv/can.hpp"
-#include "hil/drv/cia402_drive.hpp"
-#include "hil/drv/modbus.hpp"
+#include "hil/drv/clients.hpp"
 
 namespace hil::bench {
 
 struct RigKindInfo;
 
-// The `devices` block of the can, modbus and hybrid rigs: the drive's and the transducer's client
-// configurations (drivers/configs formats, from a file or inline) and when their data is stale.
+// The `devices` block of the can, modbus and hybrid rigs: the drive's and the transducer's
+// clients, each by its registered key (hil/drv/clients.hpp) with its configuration validated into
+// a recipe the rig makes the client from at configure (and the client's age limit, if polled).
 struct RigDevices {
-  std::optional<drv::Cia402Config> can_drive;             // drive: {cia402: ...}
-  std::optional<drv::ModbusDriveConfig> modbus_drive;     // drive: {modbus: ...}
-  std::optional<drv::ModbusTransducerConfig> transducer;  // transducer: {modbus: ...}
-  // Modbus devices: a value older than this is stale (default two polls). A CAN drive is stale
-  // when no TPDO arrived since the last SYNC, whatever its age.
-  std::chrono::microseconds drive_max_age{0}, transducer_max_age{0};
+  std::string drive_client;                             // devices.drive's client key ("cia402"); empty: none
+  std::shared_ptr<const drv::DriveRecipe> drive;        // null: none
+  std::string transducer_client;                        // devices.transducer's client key ("modbus"); empty: none
+  std::shared_ptr<const drv::SensorRecipe> transducer;  // null: none (the rig simulates the chamber)
+  // The drive client's configuration as read, when it is a `Config` (the probe: drv::Cia402Config);
+  // nullptr when there is no drive or another client's.
+  template <class Config>
+  const Config* drive_config() const {
+    const auto* r = dynamic_cast<const drv::ConfigRecipe<drv::PositionDrive, Config>*>(drive.get());
+    return r == nullptr ? nullptr : &r->config;
+  }
+  template <class Config>
+  const Config* transducer_config() const {
+    const auto* r = dynamic_cast<const drv::ConfigRecipe<drv::PressureSensor, Config>*>(transducer.get());
+    return r == nullptr ? nullptr : &r->config;
+  }
 };
 
 struct RigConfig {

@@ -5,7 +5,6 @@
 // kind is that one file plus its YAML in configs/rigs/.
 #pragma once
 
-#include <cstdint>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -25,23 +24,25 @@ struct RigCapabilities {
   bool knows_truth = false;       // readings carry the valve angle and the chamber pressure
 };
 
-// Which drive a rig file's devices.drive may name.
-enum class DriveNeed : std::uint8_t {
-  none,              // the rig simulates the drive: no devices.drive
-  cia402,            // devices.drive: {cia402: ...}, a CiA 402 drive on CAN
-  modbus,            // devices.drive: {modbus: ...}
-  cia402_or_modbus,  // either
+// The devices a kind's rig file names under `devices`, each a client registered in the drivers
+// by its key (hil/drv/clients.hpp): `drive: {cia402: ...}`, `transducer: {modbus: ...}`.
+struct RigDeviceNeeds {
+  bool drive = false;               // devices.drive; false: the rig simulates the drive
+  std::string_view drive_client{};  // the one drive client the kind takes ("cia402"); empty: any registered
+  bool transducer = false;          // devices.transducer; false: the rig simulates the chamber
 };
 
-// The devices a kind's rig file names under `devices`.
-struct RigDeviceNeeds {
-  DriveNeed drive = DriveNeed::none;
-  bool transducer = false;  // devices.transducer: {modbus: ...}; false: no transducer (the rig simulates the chamber)
-};
+// What a rig with devices can do follows from them: the simulated valve and chamber behind a
+// drive without a transducer (hybrid) is what makes the gap programmable and the truth known.
+// register_rig_kind() sets a device kind's capabilities from this: they are declared once.
+constexpr RigCapabilities capabilities_of(const RigDeviceNeeds& devices) {
+  return {.simulated = false, .programmable_gap = !devices.transducer, .knows_truth = !devices.transducer};
+}
 
 struct RigKindInfo {
   std::string_view kind{};  // the rig file's `kind:`; set by HIL_REGISTER_RIG_KIND from its first argument
   std::string_view doc;     // one line, for listings
+  // Declared by a kind without devices (sim); a kind with a drive gets capabilities_of(devices).
   RigCapabilities capabilities;
   RigDeviceNeeds devices;
   // A new, unconfigured rig of this kind from its validated file (opens nothing; the clients open
@@ -61,8 +62,8 @@ std::string unknown_rig_kind_text(std::string_view kind);
 
 }  // namespace hil::bench
 
-// In a kind's .cpp, at namespace scope: HIL_REGISTER_RIG_KIND(can, {.doc = "...", .capabilities =
-// {...}, .devices = {...}, .make = &make_can_rig}). The first argument is the kind's name as the
+// In a kind's .cpp, at namespace scope: HIL_REGISTER_RIG_KIND(can, {.doc = "...", .devices =
+// {...}, .make = &make_can_rig}) (a kind without devices: .capabilities = {...} instead). The first argument is the kind's name as the
 // rig file spells it (an identifier).
 #define HIL_REGISTER_RIG_KIND(name, ...)                                             \
   namespace {                                                                        \
