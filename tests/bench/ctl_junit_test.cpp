@@ -23,7 +23,8 @@ TEST(CtlJunit, ServedVerdictsAsJunitAndACheckSetToFailExitsThree) {
   const auto log = server.dir() / "ctl.log";
   const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
   const pid_t pid = hil::test::spawn(
-      {hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--speed", "4", "--junit", junit.string()}, log);
+      {hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--speed", "4", "--junit", junit.string()},
+      log);
   const auto rc = hil::test::wait_exit(pid, 60s);
   ASSERT_TRUE(rc.has_value());
   const std::string out = hil::test::slurp(log);
@@ -47,18 +48,22 @@ TEST(CtlJunit, ServedVerdictsAsJunitAndACheckSetToFailExitsThree) {
             "junit_run.adaptive no_safe_state pass\n");
   // The same verdicts as run.json (the server's RunChecks), run by run.
   long failed = 0, passed = 0;
+  long runs = 0;
   for (const auto& e : std::filesystem::directory_iterator(server.runs_dir())) {
+    if (!std::filesystem::exists(e.path() / "run.json")) continue;  // the server's own files beside the runs
+    ++runs;
     const json run = json::parse(hil::test::slurp(e.path() / "run.json"));
     failed += run["checks"]["failed"].get<long>();
     passed += run["checks"]["passed"].get<long>();
   }
+  EXPECT_EQ(runs, 2);
   EXPECT_EQ(failed, 1);
   EXPECT_EQ(passed, 2);
 
   // --junit needs the end of the run: with --detach it is refused before anything starts.
-  const pid_t detached = hil::test::spawn({hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--detach",
-                                           "--junit", junit.string()},
-                                          server.dir() / "detach.log");
+  const pid_t detached = hil::test::spawn(
+      {hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--detach", "--junit", junit.string()},
+      server.dir() / "detach.log");
   const auto drc = hil::test::wait_exit(detached, 20s);
   ASSERT_TRUE(drc.has_value());
   EXPECT_NE(*drc, 0);
