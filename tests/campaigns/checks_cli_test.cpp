@@ -158,7 +158,7 @@ TEST(ChecksCli, AFailedCheckIsAFailedSweepPoint) {
 }
 
 // A sweep map's cells each stand for several points (here 2 seeds); the report counts how many of
-// them fail, per cell: all at a 2 deg gap (stall about 0.78 s > 0.5 s), none at 0.2 deg.
+// them fail for the map's run (its checks), per cell: all at a 2 deg gap (stall about 0.78 s > 0.5 s), none at 0.2 deg.
 TEST(ChecksCli, SweepMapCountsFailingPointsPerCell) {
   hil::test::TempDir dir;
   campaign_copy(dir, "paper_fig6", [](std::string t) {
@@ -181,9 +181,9 @@ TEST(ChecksCli, SweepMapCountsFailingPointsPerCell) {
     for (auto at = html.find(what); at != std::string::npos; at = html.find(what, at + 1)) ++n;
     return n;
   };
-  EXPECT_EQ(count("Failing points per cell of none.stall_s_per_reversal"), 1);
-  EXPECT_EQ(count(">2 of 2<"), 2) << "the 2 deg column, both noises";
-  EXPECT_EQ(count(">0 of 2<"), 2) << "the 0.2 deg column, both noises";
+  EXPECT_EQ(count("fail for the run none ("), 1);
+  EXPECT_EQ(count(">2 of 2 fail<"), 2) << "the 2 deg column, both noises";
+  EXPECT_EQ(count(">0 of 2 fail<"), 2) << "the 0.2 deg column, both noises";
 }
 
 // Names and messages with every character XML reserves, and controls XML 1.0 cannot hold, stay one

@@ -144,6 +144,61 @@ TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
   EXPECT_GE(tpdo, sync - 20);
 }
 
+// Issue 41: a campaign's checks as a CI job runs them on the hybrid rig (the drive on vcan0, the
+// backlash and chamber simulated by the bench): `hilbench ctl start ... --junit FILE` against
+// `hilbench serve`, paper_adaptive's adaptive run with its shipped checks and one more set to fail
+// (IAE at most 0). The command exits 3 and the JUnit XML has one testcase per check with the
+// verdicts run.json has. The XML is printed between HIL-JUNIT markers: the VM has no Python, so
+// tests/hil/vcan_junit_check.sh reads it on the host with Debian's python3-junitparser.
+// Measured 2026-12-02 in the VM at load ~20: 57 s; 8 verdicts (3 failed: set_to_fail and, at that
+// load, the gap-estimate and pressure-settling claims; 2 skipped: stall_vs_none without `none`).
+TEST(VcanHybridRig, ChecksBecomeJunitAndACheckSetToFailFailsTheCommand) {
+  ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
+  TempDir configs;
+  std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
+  std::string yaml = slurp(source_path("configs/campaigns/paper_adaptive.yaml"));
+  const auto at = yaml.find("period_ms: 1 ");
+  ASSERT_NE(at, std::string::npos);
+  std::ostringstream period;
+  period << "period_ms: " << g_period_ms << " ";
+  yaml.replace(at, 13, period.str());
+  ASSERT_TRUE(yaml.ends_with("    max: 0\n")) << "paper_adaptive.yaml's checks are no longer its last block";
+  yaml += "  - {name: set_to_fail, runs: [adaptive], metric: iae_mpa_s, max: 0}\n";
+  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", yaml);
+  const bench::Campaign campaign = bench::load_campaign(campaign_file);
+  SimulatorSide side(campaign, {}, "vcan0");  // its CiA 402 emulator is the drive; the rig simulates the rest
+  RigOptions o;
+  o.watchdog_misses = 1000000;  // the loaded VM's stalls are not under test
+  o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";  // as configs/rigs/hybrid.yaml
+  configs.write("rigs/hybrid_vcan.yaml", rig_yaml("hybrid", can_drive_yaml("vcan0", "recover", 2000), "", o));
+  ServerProcess server({"--configs", configs.path().string()});
+  const auto junit = configs.path() / "out" / "junit.xml";
+  const auto log = configs.path() / "ctl.log";
+  const pid_t ctl = spawn({hilbench_exe(), "ctl", "--server", "http://127.0.0.1:" + std::to_string(server.port()), "start",
+                           "paper_adaptive", "--rig", "hybrid_vcan", "--runs", "adaptive", "--junit", junit.string()},
+                          log);
+  const auto rc = wait_exit(ctl, std::chrono::seconds(static_cast<long>(campaign.duration_s * 3 + 60)));
+  if (!rc) kill(ctl, SIGKILL);
+  ASSERT_TRUE(rc.has_value()) << slurp(log);
+  EXPECT_EQ(*rc, 3) << slurp(log);
+  EXPECT_NE(slurp(log).find("check(s) failed"), std::string::npos) << slurp(log);
+  const RunFiles f(only_run(server.runs_dir()));
+  EXPECT_EQ(f.run["rig"]["kind"], "hybrid");
+  const auto& checks = f.run["checks"];
+  ASSERT_TRUE(checks.is_object()) << f.run.dump(2);
+  const long passed = checks["passed"], failed = checks["failed"], skipped = checks["skipped"];
+  EXPECT_GE(failed, 1);
+  bool set_to_fail_failed = false;
+  for (const auto& c : checks["results"]) set_to_fail_failed |= c["check"] == "set_to_fail" && c["verdict"] == "fail";
+  EXPECT_TRUE(set_to_fail_failed) << checks.dump(2);
+  const std::string xml = slurp(junit);
+  ASSERT_FALSE(xml.empty()) << slurp(log);
+  // For the host's junitparser check: what the XML must hold, then the XML itself.
+  std::printf("HIL-JUNIT-BEGIN tests=%ld failures=%ld skipped=%ld failing=set_to_fail\n%sHIL-JUNIT-END\n",
+              passed + failed + skipped, failed, skipped, xml.c_str());
+  std::fflush(stdout);
+}
+
 // Issue 38 item 10, as its acceptance asks: kill -9 of `hilbench serve` in the middle of a run
 // on vcan0 puts the CiA 402 emulator (in this process; it implements the consumer heartbeat time
 // 0x1016 as a real drive does) into its safe state: no heartbeat of the bench's node for the

@@ -371,6 +371,14 @@ TEST(Sweep, BadAxisPathOrSpecNamesTheSweepFileLineAndKey) {
       {"  - path: campaign.gap.initial_deg\n    uniform: {low: 1, high: 2}\n", "bad.yaml:1:1", "missing required key 'samples'"},
       {"  - path: campaign.gap.initial_deg\n    values: [1]\n    range: {from: 1, to: 1, count: 1}\n", "bad.yaml:3:5: axes[0]",
        "exactly one of"},
+      // An axis's words for the report: one line of text each.
+      {"  - path: campaign.gap.initial_deg\n    values: [1]\n    label: \"\"\n", "bad.yaml:5:5: axes[0].label",
+       "must not be empty"},
+      {"  - path: campaign.gap.initial_deg\n    values: [1]\n    unit: [deg]\n", "bad.yaml:5:5: axes[0].unit", "must be a text"},
+      {"  - path: campaign.gap.initial_deg\n    values: [1]\n    unit: \"a unit longer than sixteen\"\n",
+       "bad.yaml:5:5: axes[0].unit", "at most 16 characters"},
+      {"  - path: campaign.gap.initial_deg\n    values: [1]\n    lable: gap\n", "bad.yaml:5:5: axes[0].lable",
+       "did you mean 'label'"},
       // Too many points: the product that makes them, so the user sees which axis to thin.
       {"  - path: campaign.gap.initial_deg\n    range: {from: 1, to: 2, count: 10000}\n  - path: campaign.sensor_noise_kpa\n"
        "    range: {from: 0, to: 5, count: 10000}\n  - path: campaign.seed\n    range: {from: 1, to: 9, count: 9}\n",

@@ -133,6 +133,15 @@ void Document::heading(std::string text, int level) {
 
 void Document::paragraph(std::string text) { block("<p>" + html_escape(text) + "</p>"); }
 
+void Document::link(std::string text, std::string href, std::string link_text) {
+  // Relative paths and http(s) only: a page opened from disk should not run a javascript: link.
+  const auto colon = href.find(':'), slash = href.find('/');
+  const bool scheme = colon != std::string::npos && (slash == std::string::npos || colon < slash);
+  const bool safe = !scheme || href.rfind("http://", 0) == 0 || href.rfind("https://", 0) == 0;
+  block("<p>" + html_escape(text) +
+        (safe ? "<a href=\"" + html_escape(href) + "\">" + html_escape(link_text) + "</a>" : html_escape(link_text)) + "</p>");
+}
+
 void Document::note(std::string text, bool warning) {
   block(std::string("<div class=\"hil-note") + (warning ? " hil-warn" : "") + "\" role=\"note\">" + html_escape(text) + "</div>");
 }
@@ -160,7 +169,7 @@ void Document::heatmap(const Heatmap& map) {
       if (row.size() != map.x_ticks.size()) return false;
     return true;
   };
-  if (!fits(map.values) || (!map.marked.empty() && !fits(map.marked))) {
+  if (!fits(map.values) || (!map.marked.empty() && !fits(map.marked)) || (!map.notes.empty() && !fits(map.notes))) {
     throw std::invalid_argument("report heatmap '" + map.title + "': needs " + std::to_string(map.y_ticks.size()) + " rows of " +
                                 std::to_string(map.x_ticks.size()) + " cells");
   }
@@ -198,6 +207,7 @@ void Document::heatmap(const Heatmap& map) {
       const double v = map.values[y][x];
       const bool marked = !map.marked.empty() && map.marked[y][x];
       std::string style;
+      const char* verdict = "";  // the cell's colour as a class, for readers of the page
       if (banded) {
         // Green inside the band, red outside; lighter at the bound, darker away from it.
         const double d = std::isfinite(v) ? inside(v) : -std::numeric_limits<double>::infinity();
@@ -206,8 +216,10 @@ void Document::heatmap(const Heatmap& map) {
         const double f = !std::isfinite(d) ? 1.0 : scale > 0 ? std::abs(d) / scale : 0.0;
         std::snprintf(text, sizeof text, "background:hsl(%d,60%%,%.0f%%);", pass ? 120 : 0, 86.0 - 22.0 * f);
         style = text;
+        verdict = pass ? " hil-pass" : " hil-fail";
       } else if (by_mark) {
         style = marked ? "background:hsl(0,60%,76%);" : "background:hsl(120,60%,76%);";
+        verdict = marked ? " hil-fail" : " hil-pass";
       } else if (std::isfinite(v)) {
         // Green (hue 120) for the smallest value to red (hue 0) for the largest, light enough for black text.
         const double f = hi > lo ? (v - lo) / (hi - lo) : 0.0;
@@ -220,7 +232,11 @@ void Document::heatmap(const Heatmap& map) {
         std::snprintf(text, sizeof text, "-");
       }
       if (marked) style += "outline:2px solid #b00;outline-offset:-2px;font-weight:bold;";
-      h += "<td class=\"num\" style=\"" + style + "\">" + html_escape(text) + (marked ? " &#x2717;" : "") + "</td>";
+      h += std::string("<td class=\"num") + verdict + "\" style=\"" + style + "\">" + html_escape(text) +
+           (marked ? " &#x2717;" : "");
+      if (!map.notes.empty() && !map.notes[y][x].empty())
+        h += "<br><small class=\"hil-cell-note\">" + html_escape(map.notes[y][x]) + "</small>";
+      h += "</td>";
     }
     h += "</tr>";
   }

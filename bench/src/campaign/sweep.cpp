@@ -22,6 +22,7 @@
 #include "hil/plant/rng.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/text_file.hpp"
+#include "sweep_words.hpp"
 
 namespace hil::bench {
 namespace {
@@ -176,9 +177,10 @@ double draw(const SweepAxis& a, std::uint64_t seed, long point, std::size_t axis
 
 SweepAxis read_axis(const Node& n, const YAML::Node& campaign, const YAML::Node& plant, const std::string& campaign_name,
                     const std::string& plant_name) {
-  n.allow_keys({"path", "values", "range", "uniform", "normal", "relative_to"});
+  n.allow_keys({"path", "values", "range", "uniform", "normal", "relative_to", "label", "unit"});
   SweepAxis a;
   a.path = n.text("path");
+  read_axis_words(n, a);
   const auto path = parse_path(a.path);
   if (!path) {
     n.at("path").fail("'" + a.path +
@@ -306,6 +308,7 @@ nlohmann::json SweepPlan::to_json() const {
                       {"a", a.a},
                       {"b", a.b},
                       {"relative_to", a.relative_to}});
+    axis_words_to_json(a, axes_j.back());
   }
   json thresholds_j = json::array();
   for (const auto& t : thresholds) {
@@ -319,6 +322,7 @@ nlohmann::json SweepPlan::to_json() const {
     json slice = json::array();
     for (const auto& [k, v] : m.slice) slice.push_back({k, v});
     maps_j.push_back({{"metric", m.metric}, {"x", m.x}, {"y", m.y}, {"reduce", m.reduce}, {"slice", slice}});
+    map_bound_to_json(m, maps_j.back());
   }
   json inputs = json::array();
   for (const auto& f : input_files) inputs.push_back({{"path", f.path.string()}, {"fnv1a", f.hash}});
@@ -367,6 +371,7 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
       x.a = a.at("a").get<double>();
       x.b = a.at("b").get<double>();
       x.relative_to = a.at("relative_to").get<std::string>();
+      axis_words_from_json(a, x);
       p.axes.push_back(std::move(x));
     }
     for (const auto& t : j.at("thresholds")) {
@@ -379,6 +384,7 @@ SweepPlan SweepPlan::from_json(const nlohmann::json& j, const std::string& origi
       SweepMap s{m.at("metric").get<std::string>(), m.at("x").get<std::string>(), m.at("y").get<std::string>(),
                  m.at("reduce").get<std::string>()};
       for (const auto& kv : m.at("slice")) s.slice.emplace_back(kv.at(0).get<std::string>(), kv.at(1).get<std::string>());
+      map_bound_from_json(m, s);
       p.maps.push_back(std::move(s));
     }
     p.worst_by = j.at("worst_by").get<std::string>();
@@ -572,8 +578,9 @@ SweepPlan plan_sweep(const std::filesystem::path& sweep_file, long max_points,
   }
   if (auto maps = root.find("maps")) {
     for (const Node& m : maps->items()) {
-      m.allow_keys({"metric", "x", "y", "reduce", "slice"});
+      m.allow_keys({"metric", "x", "y", "reduce", "slice", "min", "max"});
       SweepMap map{m.text("metric"), m.text("x"), m.text("y"), m.text("reduce", "mean")};
+      read_map_bound(m, map);
       require_metric(m.at("metric"), map.metric, metrics);
       grid_axis(m.at("x"), map.x, plan.axes);
       grid_axis(m.at("y"), map.y, plan.axes);

@@ -9,6 +9,8 @@
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
+#include "sim_report.hpp"
+#include "sweep_words.hpp"
 
 namespace hil::bench {
 namespace {
@@ -16,6 +18,11 @@ namespace {
 using json = nlohmann::json;
 
 constexpr std::size_t kWorstPoints = 10;
+// Of those, how many get their campaign's report (a campaign run each, about a second for the
+// shipped ones): the rest have the command that makes it.
+constexpr std::size_t kTracedPoints = 3;
+
+std::string unit_suffix(const std::string& unit) { return unit.empty() ? "" : " " + unit; }
 
 std::string number_text(double v) {
   if (!std::isfinite(v)) return "nan";
@@ -59,21 +66,46 @@ std::string bound_text(const SweepBound& b) {
   return s;
 }
 
-void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, const std::map<long, std::vector<double>>& rows,
-             const std::vector<bool>& pass) {
+// The run a metric belongs to: "adaptive_paper.stall_vs_none" -> "adaptive_paper".
+std::string run_of(const std::string& metric) { return metric.substr(0, metric.rfind('.')); }
+
+// Whether point `metrics` fails for `run`: a threshold on one of the run's metrics missed, or a
+// check of the run's campaign failed. The paper's observer failing never fails the robust one's.
+bool run_fails(const SweepPlan& plan, const std::vector<std::string>& names, const std::vector<double>& metrics,
+               const std::string& run) {
+  for (const auto& t : plan.thresholds) {
+    if (run_of(t.metric) != run) continue;
+    const std::size_t i = index_of(names, t.metric);
+    if (!MapBound{t.min, t.max}.holds(i < metrics.size() ? metrics[i] : std::nan(""))) return true;
+  }
+  const std::size_t c = index_of(names, run + ".checks_failed");
+  return c < metrics.size() && std::isfinite(metrics[c]) && metrics[c] != 0;
+}
+
+std::string axis_title(const SweepPlan& plan, const std::string& path) {
+  for (const auto& a : plan.axes)
+    if (a.path == path) return axis_words(plan, a).title();
+  return path;
+}
+
+// A heatmap of one metric over two axes, coloured against the map's own threshold (its `min`/
+// `max`, else the sweep's threshold of the metric; without one, by the value's own range), and in
+// every cell how many of its points fail for the metric's run.
+void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, const std::map<long, std::vector<double>>& rows) {
   const auto names = plan.metric_names();
   std::vector<std::string> paths;
   for (const auto& a : plan.axes) paths.push_back(a.path);
   const std::size_t xi = index_of(paths, map.x), yi = index_of(paths, map.y), mi = index_of(names, map.metric);
   const auto& xs = plan.axes[xi].values;
   const auto& ys = plan.axes[yi].values;
+  const std::string run = run_of(map.metric);
+  const MapBound bound = map_bound(plan, map);
   report::Heatmap h;
-  h.x_label = map.x;
-  h.y_label = map.y;
+  h.x_label = axis_title(plan, map.x);
+  h.y_label = axis_title(plan, map.y);
   h.x_ticks = xs;
   h.y_ticks = ys;
   std::vector<std::vector<std::vector<double>>> cell(ys.size(), std::vector<std::vector<double>>(xs.size()));
-  std::vector<std::vector<bool>> any_fail(ys.size(), std::vector<bool>(xs.size(), false));
   std::vector<std::vector<long>> failing(ys.size(), std::vector<long>(xs.size(), 0));  // points that fail, per cell
   for (const auto& [p, metrics] : rows) {
     const auto& values = plan.points[static_cast<std::size_t>(p)];
@@ -83,11 +115,12 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
     const std::size_t x = index_of(xs, values[xi]), y = index_of(ys, values[yi]);
     if (x >= xs.size() || y >= ys.size()) continue;
     cell[y][x].push_back(metrics[mi]);
-    if (!pass[static_cast<std::size_t>(p)]) any_fail[y][x] = true, ++failing[y][x];
+    const bool fails = (bound.any() && !bound.holds(metrics[mi])) || run_fails(plan, names, metrics, run);
+    if (fails) ++failing[y][x];
   }
-  const SweepBound* bound = bound_of(plan, map.metric);
   h.values.assign(ys.size(), std::vector<double>(xs.size(), std::numeric_limits<double>::quiet_NaN()));
-  h.marked.assign(ys.size(), std::vector<bool>(xs.size(), false));
+  h.notes.assign(ys.size(), std::vector<std::string>(xs.size()));
+  if (bound.any()) h.marked.assign(ys.size(), std::vector<bool>(xs.size(), false));
   for (std::size_t y = 0; y < ys.size(); ++y) {
     for (std::size_t x = 0; x < xs.size(); ++x) {
       double sum = 0, lo = INFINITY, hi = -INFINITY;
@@ -100,39 +133,28 @@ void add_map(report::Document& doc, const SweepPlan& plan, const SweepMap& map, 
         ++n;
       }
       if (n > 0) h.values[y][x] = map.reduce == "max" ? hi : map.reduce == "min" ? lo : sum / static_cast<double>(n);
-      const double v = h.values[y][x];
-      h.marked[y][x] = bound != nullptr
-                           ? !(std::isfinite(v) && (!bound->min || v >= *bound->min) && (!bound->max || v <= *bound->max))
-                           : any_fail[y][x];
+      if (bound.any()) h.marked[y][x] = !bound.holds(h.values[y][x]);
+      h.notes[y][x] = std::to_string(failing[y][x]) + " of " + std::to_string(cell[y][x].size()) + " fail";
     }
   }
   std::string others;
   for (const auto& a : plan.axes) {
     if (a.path == map.x || a.path == map.y) continue;
     const auto s = std::find_if(map.slice.begin(), map.slice.end(), [&](const auto& kv) { return kv.first == a.path; });
-    others += (others.empty() ? "" : ", ") + a.path + (s != map.slice.end() ? " = " + s->second : " (" + map.reduce + ")");
+    const std::string title = axis_words(plan, a).title();
+    others += (others.empty() ? "" : ", ") + title + (s != map.slice.end() ? " = " + s->second : " (" + map.reduce + ")");
   }
   if (plan.samples > 1) others += (others.empty() ? "" : ", ") + std::string("samples (") + map.reduce + ")";
   h.title = map.metric;
   h.value_label = others.empty() ? "" : "over " + others;
-  if (bound != nullptr) h.pass_min = bound->min, h.pass_max = bound->max;  // coloured by pass/fail, not by range
+  h.pass_min = bound.min, h.pass_max = bound.max;  // coloured by its own pass/fail, not the point's
   doc.heatmap(h);
-  doc.paragraph(bound != nullptr
-                    ? "Marked x: the cell's value fails " + bound_text(*bound) + "."
-                    : "Marked x: a point of the cell fails the thresholds (" + map.metric + " has none of its own).");
-  // How many of each cell's points fail (thresholds or checks): a cell's colour is one reduced
-  // value, this is where and how often the points behind it fail.
-  std::vector<std::string> header{map.y + " \\ " + map.x};
-  header.insert(header.end(), xs.begin(), xs.end());
-  std::vector<std::vector<std::string>> table;
-  for (std::size_t y = 0; y < ys.size(); ++y) {
-    std::vector<std::string> row{ys[y]};
-    for (std::size_t x = 0; x < xs.size(); ++x)
-      row.push_back(std::to_string(failing[y][x]) + " of " + std::to_string(cell[y][x].size()));
-    table.push_back(std::move(row));
-  }
-  doc.paragraph("Failing points per cell of " + map.metric + " (thresholds or the campaign's checks):");
-  doc.table(header, table);
+  SweepBound b{map.metric, bound.min, bound.max};
+  doc.paragraph(std::string(bound.any() ? "Marked x: the cell's value fails " + bound_text(b) + ". "
+                                        : "No threshold for " + map.metric + ": coloured by its range. ") +
+                "Under each value: how many of the cell's points fail for the run " + run + " (" +
+                (bound.any() ? map.metric + " beyond its threshold, " : "") + run +
+                "'s thresholds, or a check of its campaign).");
 }
 
 }  // namespace
@@ -243,10 +265,22 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
   doc.note(std::to_string(passed) + " points pass, " + std::to_string(plan.size() - passed) + " fail" +
                (thresholds_text.empty() ? " (no thresholds set)" : " (" + thresholds_text + ")"),
            passed < plan.size());
-  for (const auto& map : plan.maps) add_map(doc, plan, map, rows, pass);
+  // Per run: a point's verdict mixes every run's thresholds (the paper observer's fails the
+  // point where the robust one passes); this says how each run fares on its own.
+  for (const auto& r : plan.runs) {
+    std::string why;
+    for (const auto& t : plan.thresholds)
+      if (run_of(t.metric) == r) why += (why.empty() ? "" : "; ") + bound_text(t);
+    const bool has_checks = index_of(names, r + ".checks_failed") < names.size();
+    long run_passed = 0;
+    for (const auto& [p, metrics] : rows) run_passed += run_fails(plan, names, metrics, r) ? 0 : 1;
+    doc.paragraph("Run " + r + ": " + std::to_string(run_passed) + " of " + std::to_string(plan.size()) + " points pass (" +
+                  (why.empty() ? "no threshold" : why) + (has_checks ? ", and its campaign's checks" : "") + ").");
+  }
+  for (const auto& map : plan.maps) add_map(doc, plan, map, rows);
   doc.heading("Worst points by " + plan.worst_by);
   std::vector<std::string> header{"point"};
-  for (const auto& a : plan.axes) header.push_back(a.path);
+  for (const auto& a : plan.axes) header.push_back(axis_words(plan, a).title());
   header.insert(header.end(), {plan.worst_by, "pass", "fails on", "reproduce"});
   std::vector<std::vector<std::string>> table;
   for (long p : order) {
@@ -272,6 +306,27 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     const PointYaml y = point_yaml(plan, p);
     replace_file(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
     replace_file(folder / "plant.yaml", y.plant);
+  }
+  // The worst few points' traces, pre-rendered: the campaign report of each (the figures of
+  // `hilbench sim`, no telemetry files), linked from the sweep's report.
+  const std::size_t n_traced = std::min(kTracedPoints, order.size());
+  if (n_traced > 0) doc.heading("Traces of the worst points", 3);
+  for (std::size_t i = 0; i < n_traced; ++i) {
+    const long p = order[i];
+    const auto folder = dir / "points" / std::to_string(p);
+    const Campaign c = PointMaker(plan).campaign(p);
+    SimOptions options;
+    options.out_dir = folder;
+    options.telemetry = false;
+    options.progress = false;
+    run_campaign(c, options);
+    const std::string href = "points/" + std::to_string(p) + "/" + c.name + "/report.html";
+    std::string where;
+    for (std::size_t a = 0; a < plan.axes.size(); ++a)
+      where += (where.empty() ? "" : ", ") + axis_words(plan, plan.axes[a]).label + " " +
+               plan.points[static_cast<std::size_t>(p)][a] + unit_suffix(axis_words(plan, plan.axes[a]).unit);
+    const std::string why = failing_text(plan, names, rows.at(p));
+    doc.link("Point " + std::to_string(p) + " (" + where + (why.empty() ? "" : "; " + why) + "): ", href, href);
   }
   // The three outputs are one result: all replaced or none (a full disk used to leave a new
   // sweep.csv beside no sweep.json, and `--status` called that "outputs written").

@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands.hpp"
+#include "ctl_junit.hpp"
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "hil/config.hpp"
@@ -179,6 +180,7 @@ struct CtlArgs {
   double speed = 1;                         // start, given or not (speed_opt)
   const CLI::Option* speed_opt = nullptr;
   bool detach = false;                       // start
+  std::string junit;                         // start: the verdicts as JUnit XML; empty: none
   std::string reason = "from hilbench ctl";  // abort
   std::string gap;                           // inject gap: DEG or "programme"
   std::string mode;                          // inject sensor / rig
@@ -214,7 +216,14 @@ int start(const CtlArgs& a, const ApiClient& api) {
   std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
   if (j.contains("warning")) std::printf("warning: %s\n", j.value("warning", "").c_str());
   std::fflush(stdout);
-  return a.detach ? 0 : watch(api);
+  if (a.detach) return 0;
+  const int rc = watch(api);
+  if (a.junit.empty()) return rc;
+  // The verdicts the server's checks gave on the rig; a failed check fails the command (3), as
+  // in `hilbench sim --junit`.
+  const long failed = write_served_junit(checked(api.get("/api/status"))["last"], a.junit);
+  if (failed > 0) std::printf("%ld check(s) failed; JUnit XML: %s\n", failed, a.junit.c_str());
+  return failed > 0 ? 3 : rc;
 }
 
 // Posts an analysis of a run; with --wait follows it to the end: the headline and the report's URL,
@@ -349,7 +358,10 @@ void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const C
   s->add_option("--runs", args.runs, "only these runs of the campaign")->type_name("a,b");
   args.speed_opt =
       s->add_option("--speed", args.speed, "the simulated rig's speed, times real time")->type_name("X")->check(finite_number());
-  s->add_flag("--detach", args.detach, "return once started, no progress bar");
+  CLI::Option* detach = s->add_flag("--detach", args.detach, "return once started, no progress bar");
+  s->add_option("--junit", args.junit, "once it ends, its checks' verdicts as JUnit XML (exit 3 when one failed)")
+      ->type_name("FILE")
+      ->excludes(detach);
 
   command(ctl, "watch", "progress bar of the running campaign until it ends",
           [](const CtlArgs&, const ApiClient& api) { return watch(api); });

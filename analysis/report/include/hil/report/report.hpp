@@ -68,6 +68,8 @@ struct Heatmap {  // a value per (x, y) cell as a table of coloured cells, e.g. 
   // The pass band of the value (a threshold: either bound or both). With one, a cell is green when
   // its value is inside, red when outside (or missing), darker the further from the nearest bound.
   std::optional<double> pass_min = std::nullopt, pass_max = std::nullopt;
+  // [y][x]: a second, smaller line in the cell under its value (e.g. "2 of 3 fail"); empty: none.
+  std::vector<std::vector<std::string>> notes = {};
 };
 
 class Document {
@@ -76,7 +78,9 @@ class Document {
 
   void heading(std::string text, int level = 2);  // level 1..4
   void paragraph(std::string text);               // plain text, HTML-escaped
-  void note(std::string text, bool warning);      // highlighted box, e.g. "no candidate explains..."
+  // A paragraph of `text` then a link to `href` (a relative path or URL, shown as `link_text`).
+  void link(std::string text, std::string href, std::string link_text);
+  void note(std::string text, bool warning);  // highlighted box, e.g. "no candidate explains..."
   // Cells that look like numbers are right-aligned; clicking a header sorts by that column.
   void table(std::vector<std::string> header, std::vector<std::vector<std::string>> rows);
   // Throws std::invalid_argument if a series has x and y of different lengths.
@@ -86,7 +90,8 @@ class Document {
   // A table of cells, the value printed in each; works without JavaScript. Coloured by pass/fail:
   // against the pass band if the map has one, else red for marked cells and green for the others;
   // without either, from green (the smallest value) to red (the largest). A line under the map
-  // says which. Throws std::invalid_argument if values or marked is not y_ticks x x_ticks.
+  // says which. A cell coloured by pass/fail has the class hil-pass or hil-fail. Throws
+  // std::invalid_argument if values, marked or notes (when given) is not y_ticks x x_ticks.
   void heatmap(const Heatmap& map);
   // Side-by-side layout: the blocks added until columns_end() fill n columns row by row (so add
   // run 1's pressure, run 2's pressure, ..., then run 1's angle, ...). No nesting.

@@ -35,6 +35,9 @@ struct SweepAxis {
   // Another axis path: this axis's value is added to the value there (after the other axes are
   // set), e.g. a gap change as an increment of the swept initial gap. Empty: the value is set.
   std::string relative_to;
+  // What the report calls the axis ("initial gap") and its unit ("deg"), as the sweep file gives
+  // them (`label:`, `unit:`); empty: from the parameter specs and the key (sweep_words.hpp).
+  std::string label, unit;
   bool random() const { return kind == AxisKind::uniform || kind == AxisKind::normal; }
 };
 
@@ -47,6 +50,9 @@ struct SweepMap {
   std::string metric, x, y;
   std::string reduce = "mean";                                  // mean, max or min over the other axes...
   std::vector<std::pair<std::string, std::string>> slice = {};  // ...or these axes held at one value each
+  // The map's own threshold (`min:`, `max:` in the map): colours this map and counts its failing
+  // points, never the point's pass. Neither: the sweep's threshold of the metric, if any.
+  std::optional<double> min = std::nullopt, max = std::nullopt;
 };
 
 struct SweepPlan {
