@@ -140,7 +140,10 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
                         {"rms_kpa", number(d.velocity_band_rms_kpa)},
                         {"outside_rms_kpa", number(d.velocity_outside_rms_kpa)},
                         {"rows_share", number(d.velocity_band_rows_share)},
-                        {"excess_share", number(d.velocity_band_excess_share)}}}};
+                        {"excess_share", number(d.velocity_band_excess_share)},
+                        {"flips_with_direction", d.velocity_band_flips},
+                        {"mean_opening_kpa", number(d.velocity_band_opening_kpa)},
+                        {"mean_closing_kpa", number(d.velocity_band_closing_kpa)}}}};
   j["signature"] = r.signature;
   j["log_warnings"] = r.log_warnings;
   if (r.motor.present) {

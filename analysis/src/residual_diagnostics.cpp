@@ -133,6 +133,9 @@ void ResidualAnalyzer::Impl::finish_diagnostics(ResidualReport& r) {
   d.velocity_outside_rms_kpa = band.rms_out_pa / units::kPaPerKpa;
   d.velocity_band_rows_share = band.rows_share;
   d.velocity_band_excess_share = band.excess_share;
+  d.velocity_band_flips = band.flips;
+  d.velocity_band_opening_kpa = band.mean_opening_pa / units::kPaPerKpa;
+  d.velocity_band_closing_kpa = band.mean_closing_pa / units::kPaPerKpa;
 }
 
 void ResidualAnalyzer::Impl::name_peaks(ResidualReport& r) {

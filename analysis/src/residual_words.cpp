@@ -181,7 +181,16 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
             "gear or coupling error (one period per tooth or per turn)? No candidate holds it: write it as an effect.",
             d.angle_ripple_kpa, d.angle_ripple_period_deg, 100 * d.angle_ripple_share));
   }
-  if (rmse > 1.5 * sigma && d.velocity_band_deg_s > 0) {
+  if (rmse > 1.5 * sigma && d.velocity_band_deg_s > 0 && d.velocity_band_flips) {
+    out.push_back(
+        fmt("Against the drive velocity: a misfit that flips with the direction of motion, at |velocity| < %.3g "
+            "deg/s already (",
+            d.velocity_band_deg_s) +
+        fmt("mean %+.3g kPa while opening, %+.3g kPa while closing; ", d.velocity_band_opening_kpa, d.velocity_band_closing_kpa) +
+        fmt("%.0f %% of the excess error power): stick-slip (a valve that sticks until the drive winds it up) "
+            "or a play the model lacks? When no candidate explains it, write it as an effect.",
+            100 * d.velocity_band_excess_share));
+  } else if (rmse > 1.5 * sigma && d.velocity_band_deg_s > 0) {
     out.push_back(fmt("Against the drive velocity: a misfit concentrated at |velocity| < %.3g deg/s (", d.velocity_band_deg_s) +
                   fmt("%.0f %% of the excess error power in %.0f %% of the rows; ", 100 * d.velocity_band_excess_share,
                       100 * d.velocity_band_rows_share) +

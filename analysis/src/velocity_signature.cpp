@@ -13,7 +13,10 @@ void VelocityProfile::add(double velocity_deg_s, double e_pa) {
   sum2_[b] += e_pa * e_pa;
   ++count_[b];
   for (std::size_t i = 0; i < kBandsDegS.size(); ++i) {
-    if (std::abs(velocity_deg_s) < kBandsDegS[i]) in_sum2_[i] += e_pa * e_pa, ++in_count_[i];
+    if (std::abs(velocity_deg_s) >= kBandsDegS[i]) continue;
+    in_sum2_[i] += e_pa * e_pa, ++in_count_[i];
+    if (velocity_deg_s > 0) pos_sum_[i] += e_pa, ++pos_count_[i];
+    if (velocity_deg_s < 0) neg_sum_[i] += e_pa, ++neg_count_[i];
   }
   all_sum2_ += e_pa * e_pa;
   ++all_count_;
@@ -49,6 +52,22 @@ VelocityBand VelocityProfile::band(double noise_sigma_pa) const {
     const double rows = n_in / n_all, share = excess_in / excess_all;
     if (rows <= kBandMaxRows && share >= kBandExcessShare && ms_in >= kBandContrast * ms_out && ms_in >= 4 * s2) {
       out = {kBandsDegS[i], std::sqrt(ms_in), std::sqrt(ms_out), rows, share};
+      return out;
+    }
+  }
+  for (std::size_t i = 0; i < kBandsDegS.size(); ++i) {
+    const double np = static_cast<double>(pos_count_[i]), nn = static_cast<double>(neg_count_[i]);
+    if (np < kFlipMinRows * n_all || nn < kFlipMinRows * n_all) continue;
+    const double mp = pos_sum_[i] / np, mn = neg_sum_[i] / nn, m = (pos_sum_[i] + neg_sum_[i]) / (np + nn);
+    const double split = np * (mp - m) * (mp - m) + nn * (mn - m) * (mn - m);
+    if (std::abs(mp - mn) >= kFlipSigmas * noise_sigma_pa && split >= kFlipExcessShare * excess_all) {
+      const double n_in = static_cast<double>(in_count_[i]), n_out = n_all - n_in;
+      out.below_deg_s = kBandsDegS[i];
+      out.rms_in_pa = std::sqrt(in_sum2_[i] / n_in);
+      out.rms_out_pa = n_out > 0 ? std::sqrt((all_sum2_ - in_sum2_[i]) / n_out) : 0;
+      out.rows_share = n_in / n_all;
+      out.excess_share = split / excess_all;
+      out.flips = true, out.mean_opening_pa = mp, out.mean_closing_pa = mn;
       return out;
     }
   }

@@ -22,7 +22,7 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
   using ScalarEffect::ScalarEffect;
 
   // How diagnose finds it (fit_prior.hpp): from the model's gap; a constant, drifting or stepping
-  // gap, or a drift and a step together.
+  // gap. (A drift and a step together is not a form yet: analysis/README.md, Limits.)
   static FitPrior fit_prior(const FitEvidence& ev) {
     double gap = ev.model_value("backlash_change", "gap_deg");
     if (!std::isfinite(gap)) gap = ev.model_value("backlash", "gap_deg");
@@ -53,10 +53,7 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
     };
     p.variants = {{"constant gap", {"gap_deg"}},
                   {"drifting gap", {"gap_deg", "drift_deg_per_s"}},
-                  {"gap step", {"gap_deg", "step_deg", "step_time_s"}},
-                  // A gap that wears slowly and jumps once: the step alone absorbed a drift (issue 37:
-                  // 0.65 deg for a 0.4 deg step on a 10-minute log).
-                  {"drift and step", {"gap_deg", "drift_deg_per_s", "step_deg", "step_time_s"}}};
+                  {"gap step", {"gap_deg", "step_deg", "step_time_s"}}};
     return p;
   }
 
