@@ -42,7 +42,7 @@ Scenario sticky_scenario() {
   return s;
 }
 
-TEST(VelocitySignature, AStickSlipIsUnexplainedAndItsVelocityBandNamed) {
+TEST(VelocitySignature, AStickSlipNamesItsVelocityBandAndIsNotExplainedAtTheFloor) {
   hil::test::TempDir dir;
   const fs::path sticky = hil::test::make_measurement(sticky_scenario(), dir.path());
   const auto c = hil::test::run_compare(hil::test::nominal_model(), sticky, dir.path() / "cmp");
