@@ -4,9 +4,11 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 
 #include "hil/config.hpp"
+#include "hil/plant/fit_prior.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -30,11 +32,6 @@ std::string num(double v) {
   return b;
 }
 
-double gap_of(const plant::Plant& base) {
-  const double g = value_of(base, "backlash_change", "gap_deg");
-  return std::isfinite(g) ? g : value_of(base, "backlash", "gap_deg");
-}
-
 // Candidate step times: a uniform grid over the run (model clock), 10 ms apart or one coarse row.
 // Not only the reversals matter: a gap that grows while a flank pushes stops the valve until the
 // motor has taken up the extra play, so the cost is roughly V-shaped around the true time, with
@@ -55,182 +52,138 @@ std::vector<double> step_times(const ReplayData& data) {
   return out;
 }
 
-Candidate backlash_change(const plant::Plant& base) {
-  const double gap = gap_of(base);
-  Candidate c;
-  c.name = "backlash_change";
-  c.description = "the gap differs from the model's: constant, drifting, or stepping once at an unknown time";
-  c.attach = [gap](const plant::Plant& p) { return add_block(p, "backlash_change", "gap_deg: " + num(gap)); };
-  FreeParam g{"backlash_change", "gap_deg", 0.0, 10.0, 0.2, {gap, 0.5 * gap, 2 * gap}};
-  const FreeParam drift{"backlash_change", "drift_deg_per_s", -0.5, 0.5, 0.005, {0.0}};
-  FreeParam size{"backlash_change", "step_deg", -5.0, 5.0, 0.2, {0.5, -0.5}};
-  // Wear and assembly change a gear's play by a fraction of it, not by multiples.
-  g.credible_lo = 0, g.credible_hi = 3 * gap, g.credible_why = "three times the model's gap of " + num(gap) + " deg";
-  size.credible_lo = -2 * gap, size.credible_hi = 2 * gap, size.credible_why = "twice the model's gap of " + num(gap) + " deg";
-  FreeParam when{"backlash_change", "step_time_s", 0.0, 1e7, 1.0, {}, true, step_times};
-  c.variants = {{"constant gap", {g}}, {"drifting gap", {g, drift}}, {"gap step", {g, size, when}}};
-  return c;
-}
-
-Candidate valve_offset(const plant::Plant& base) {
-  const double v = value_of(base, "valve_offset", "offset_deg");
-  Candidate c;
-  c.name = "valve_offset";
-  c.description = "the valve's zero differs from the motor's, so the throat sees a shifted angle";
-  c.attach = [](const plant::Plant& p) { return add_block(p, "valve_offset", "offset_deg: 0"); };
-  c.variants = {{"offset", {{"valve_offset", "offset_deg", -10.0, 10.0, 0.2, {std::isfinite(v) ? v : 0.0, -1.0, 1.0}}}}};
-  return c;
-}
-
-Candidate throat_erosion(const plant::Plant& base) {
-  const double v = value_of(base, "throat_erosion", "rate_mm2_per_s");
-  Candidate c;
-  c.name = "throat_erosion";
-  const double e = value_of(base, "throat_erosion", "proportional_rate_per_s");
-  c.description =
-      "the throat area grows (or shrinks, deposits) linearly over the run, by a fixed area per second or "
-      "in proportion to the area";
-  c.attach = [](const plant::Plant& p) {
-    return add_block(p, "throat_erosion", "{rate_mm2_per_s: 0, proportional_rate_per_s: 0}");
-  };
-  // Additive (A + r t) and proportional (A (1 + e t)): the same count of parameters, so the
-  // criterion picks the form that fits; they differ where the valve opening changes.
-  c.variants = {
-      {"rate", {{"throat_erosion", "rate_mm2_per_s", -5.0, 5.0, 0.05, {std::isfinite(v) ? v : 0.0}}}},
-      {"proportional", {{"throat_erosion", "proportional_rate_per_s", -0.05, 0.05, 5e-4, {std::isfinite(e) ? e : 0.0}}}}};
-  return c;
-}
-
-Candidate sensor_lag(const plant::Plant& base) {
-  const double v = value_of(base, "sensor_lag", "time_constant_s");
-  Candidate c;
-  c.name = "sensor_lag";
-  c.description = "the pressure transducer (or its tubing) responds with a first-order lag";
-  c.attach = [](const plant::Plant& p) { return add_block(p, "sensor_lag", "time_constant_s: 0"); };
-  std::vector<double> starts = {0.003, 0.01, 0.03, 0.1};
-  if (std::isfinite(v)) starts.insert(starts.begin(), v);
-  FreeParam tau{"sensor_lag", "time_constant_s", 0.0, 0.5, 0.005, starts};
-  tau.sample_step = true;
-  c.variants = {{"time constant", {tau}}};
-  return c;
-}
-
-Candidate transport_delay(const plant::Plant& base) {
-  const double v = value_of(base, "transport_delay", "delay_s");
-  Candidate c;
-  c.name = "transport_delay";
-  c.description = "a pure delay between the command and the drive acting on it";
-  c.command_side = true;
-  c.attach = [](const plant::Plant& p) { return add_block(p, "transport_delay", "delay_s: 0"); };
-  std::vector<double> starts = {0.005, 0.02, 0.05, 0.1};
-  if (std::isfinite(v)) starts.insert(starts.begin(), v);
-  FreeParam delay{"transport_delay", "delay_s", 0.0, 0.5, 0.005, starts};
-  delay.sample_step = true;
-  c.variants = {{"delay", {delay}}};
-  return c;
-}
-
-Candidate sensor_bias(const plant::Plant& base) {
-  const double o = value_of(base, "sensor_bias", "offset_kpa"), g = value_of(base, "sensor_bias", "gain");
-  Candidate c;
-  c.name = "sensor_bias";
-  c.description = "the pressure reading has an offset and/or a gain error";
-  c.attach = [](const plant::Plant& p) { return add_block(p, "sensor_bias", ""); };
-  const FreeParam off{"sensor_bias", "offset_kpa", -500.0, 500.0, 5.0, {std::isfinite(o) ? o : 0.0}};
-  const FreeParam gain{"sensor_bias", "gain", 0.5, 2.0, 0.01, {std::isfinite(g) ? g : 1.0}};
-  c.variants = {{"offset", {off}}, {"gain", {gain}}, {"offset and gain", {off, gain}}};
-  return c;
-}
-
-Candidate motor_dynamics(const plant::Plant& base) {
-  const double tau = value_of(base, "motor_servo", "time_constant_s");
-  const double rate = value_of(base, "motor_servo", "rate_limit_deg_s");
-  Candidate c;
-  c.name = "motor_dynamics";
-  c.description = "the servo's lag or rate limit differs from the model's (refits motor_servo)";
-  c.command_side = true;
-  c.attach = [](const plant::Plant& p) { return p; };
-  FreeParam t{"motor_servo", "time_constant_s", 1e-4, 0.5, 0.002, {tau, 3 * tau, 8 * tau}};
-  t.sample_step = true;
-  const FreeParam r{"motor_servo", "rate_limit_deg_s", 1.0, 1000.0, 1.0, {rate, 0.5 * rate, 0.25 * rate}};
-  c.variants = {{"lag", {t}}, {"rate limit", {r}}, {"lag and rate limit", {t, r}}};
-  return c;
-}
-
-Candidate burn_rate(const plant::Plant& base) {
-  const double a = value_of(base, "gas_generator", "burn_rate_mm_s_at_1mpa");
-  const double n = value_of(base, "gas_generator", "pressure_exponent");
-  Candidate c;
-  c.name = "burn_rate";
-  c.description = "the propellant's burn-rate coefficient a or exponent n differs (refits gas_generator)";
-  c.attach = [](const plant::Plant& p) { return p; };
-  const FreeParam pa{"gas_generator", "burn_rate_mm_s_at_1mpa", 0.5 * a, 2.0 * a, 0.01 * a, {a}};
-  const FreeParam pn{"gas_generator", "pressure_exponent", 0.05, 0.9, 0.005, {n}};
-  c.variants = {{"coefficient a", {pa}}, {"exponent n", {pn}}, {"a and n", {pa, pn}}};
-  return c;
-}
-
+// The built-in candidates, in the order diagnose has always ranked and reported them; each
+// declares its fit prior in its effect's own file (plant_rt/src/effects/).
 const std::vector<std::string> kBuiltin = {"backlash_change", "valve_offset", "throat_erosion", "sensor_lag",
                                            "transport_delay", "sensor_bias",  "motor_dynamics", "burn_rate"};
 
-// A registered effect the model lacks, whose defaults all exist: a candidate by itself.
-bool user_candidate(const plant::Plant& base, const std::string& kind, const plant::EffectInfo& info) {
-  if (base.find(kind)) return false;
-  if (std::find(kBuiltin.begin(), kBuiltin.end(), kind) != kBuiltin.end()) return false;
-  // Any stage: at the motor, transmission, throat and chamber stages the effect runs after the
-  // model's own (attach appends it; plant.hpp), modifying its signal (a stiction after the
-  // backlash). Not sensor noise: random noise has no deterministic replay to fit, and the noise
-  // model measures it from the data.
-  if (info.stage == plant::Stage::sensor_noise) return false;
+// The prior of an effect that declares none: every parameter free, started from its default
+// ("absent"); nullopt when it cannot be a candidate.
+std::optional<plant::FitPrior> default_prior(const std::string& kind, const plant::EffectInfo& info) {
+  // Not sensor noise: random noise has no deterministic replay to fit, and the noise model
+  // measures it from the data.
+  if (info.stage == plant::Stage::sensor_noise) return std::nullopt;
   try {
     const auto e = info.from_yaml(cfg::Node::load_string("{}", kind));
-    return !e->specs().empty();
+    if (e->specs().empty()) return std::nullopt;
+    plant::FitPrior p;
+    for (const auto& s : e->specs()) p.params.push_back({.key = std::string(s.key)});
+    return p;
   } catch (const std::exception&) {
-    return false;  // a required parameter: no neutral default to start from
+    return std::nullopt;  // a required parameter: no neutral default to start from
   }
 }
 
-Candidate from_registry(const std::string& kind, const plant::EffectInfo& info) {
-  const auto neutral = info.from_yaml(cfg::Node::load_string("{}", kind));
-  Candidate c;
-  c.name = kind;
-  c.description = std::string(info.doc) + " (user effect)";
-  c.command_side = info.stage == plant::Stage::command;
-  c.attach = [neutral](const plant::Plant& p) { return p.with(neutral); };
-  Variant v{"all parameters", {}};
-  const auto params = neutral->params();
-  const auto specs = neutral->specs();
-  for (std::size_t i = 0; i < specs.size(); ++i) {
-    const auto& s = specs[i];
-    const double width = s.hi - s.lo;
-    double lo = s.lo, hi = s.hi;
-    // Open bounds: stay a hair inside; huge ranges: keep the fit near the default.
-    const double pad = std::isfinite(width) && width > 0 ? 1e-9 * width : 1e-9;
-    if (s.lo_open) lo += pad;
-    if (s.hi_open) hi -= pad;
-    const double start = params[i].value;
-    const double scale = start != 0 ? std::abs(start) * 0.1 : (width < 1e3 ? width / 100 : 1.0);
+// A prior's parameter as the fitter's FreeParam, inside the effect's spec `s`; `neutral` its value
+// when the block is attached, `lone` when it is its form's only free parameter.
+FreeParam free_param(const std::string& kind, const plant::FitParam& fp, const plant::ParamSpec& s, double neutral, bool lone) {
+  const double width = s.hi - s.lo;
+  double lo = s.lo, hi = s.hi;
+  // Open bounds: stay a hair inside.
+  const double pad = std::isfinite(width) && width > 0 ? 1e-9 * width : 1e-9;
+  if (s.lo_open) lo += pad;
+  if (s.hi_open) hi -= pad;
+  if (std::isfinite(fp.lo)) lo = fp.lo;
+  if (std::isfinite(fp.hi)) hi = fp.hi;
+  // Huge ranges: keep the steps near the default.
+  const double scale = std::isfinite(fp.scale) ? fp.scale
+                       : neutral != 0          ? std::abs(neutral) * 0.1
+                                               : (width < 1e3 ? width / 100 : 1.0);
+  std::vector<double> starts = fp.starts;
+  if (starts.empty() && fp.grid == plant::FitGrid::none) {
     // "Absent" at an end of a finite range (a breakaway of 0): the cost can be flat or rugged
     // there (a stick-slip's has a sharp optimum: LM from 0 ended at 94.99 %, from the best of 1, 3,
     // 10, 30 % of the range at 94.27 %, on a file whose truth reaches 98.86 %), so start points
     // spread over the range inwards are tried first: for a lone parameter a log grid of 120 from
     // 0.2 % of the range (6 % apart; fit.cpp tries every one), else 3 and 30 % (their product is
     // tried).
-    std::vector<double> starts = {start};
-    const bool at_end = start == s.lo || start == s.hi;
-    if (at_end && std::isfinite(width) && width > 0 && width < 1e6) {
-      const double inward = start == s.lo ? 1.0 : -1.0;
+    starts = {neutral};
+    const double w = hi - lo;
+    const bool at_end = neutral == s.lo || neutral == s.hi;
+    if (at_end && std::isfinite(w) && w > 0 && w < 1e6) {
+      const double inward = neutral == s.lo ? 1.0 : -1.0;
       std::vector<double> fractions = {0.03, 0.3};
-      if (specs.size() == 1) {
+      if (lone) {
         fractions.clear();
         for (int k = 0; k < 120; ++k) fractions.push_back(0.002 * std::pow(500.0, k / 119.0));
       }
-      for (double f : fractions) starts.push_back(std::clamp(start + inward * f * width, lo, hi));
+      for (double f : fractions) starts.push_back(std::clamp(neutral + inward * f * width, lo, hi));
     }
-    v.params.push_back({kind, std::string(s.key), lo, hi, scale, starts});
   }
-  c.variants = {v};
+  FreeParam out{kind, fp.key, lo, hi, scale, starts};
+  if (fp.grid == plant::FitGrid::run_time) {
+    out.grid = true, out.grid_values = step_times;
+  } else if (fp.grid == plant::FitGrid::range) {
+    const int n = std::max(2, fp.grid_points);
+    out.grid = true;
+    out.grid_values = [lo, hi, n](const ReplayData&) {
+      std::vector<double> v;
+      for (int i = 0; i < n; ++i) v.push_back(lo + (hi - lo) * i / (n - 1));
+      return v;
+    };
+  }
+  out.sample_step = fp.sample_step;
+  out.credible_lo = fp.credible_lo, out.credible_hi = fp.credible_hi, out.credible_why = fp.credible_why;
+  return out;
+}
+
+// An effect and its fit prior as a candidate; nullopt when the prior leaves nothing to fit or
+// names a key the effect does not have (a mistake in the effect's file: said, not hidden).
+Candidate from_prior(const plant::Plant& base, const std::string& kind, const plant::EffectInfo& info,
+                     const plant::FitPrior& prior) {
+  Candidate c;
+  c.name = prior.candidate.empty() ? kind : prior.candidate;
+  c.description = prior.description.empty() ? std::string(info.doc) + " (user effect)" : prior.description;
+  c.command_side = prior.command_side || info.stage == plant::Stage::command;
+  // The block as attached: the model's own when it has one (refitted), else added at the prior's
+  // neutral values; fixed parameters at their values either way.
+  std::string yaml;
+  std::vector<FreeParam> held;
+  std::vector<double> held_values;
+  for (const auto& fp : prior.params) {
+    const double v = std::isfinite(fp.fixed) ? fp.fixed : fp.neutral;
+    if (std::isfinite(v)) yaml += (yaml.empty() ? "" : ", ") + fp.key + ": " + num(v);
+    if (std::isfinite(fp.fixed)) held.push_back({kind, fp.key}), held_values.push_back(fp.fixed);
+  }
+  const bool refit = prior.refit;
+  c.attach = [kind, yaml, refit, held, held_values](const plant::Plant& p) {
+    plant::Plant out = refit || p.find(kind) ? p : add_block(p, kind, "{" + yaml + "}");
+    return held.empty() ? out : with_values(out, held, held_values);
+  };
+  const plant::Plant attached = c.attach(base);
+  const auto specs = attached.find(kind)->specs();
+  auto spec_of = [&](const std::string& key) -> const plant::ParamSpec& {
+    for (const auto& s : specs)
+      if (s.key == key) return s;
+    throw std::logic_error("the fit prior of effect '" + kind + "' names '" + key + "', which is not one of its parameters");
+  };
+  for (const auto& fp : prior.params) spec_of(fp.key);
+  auto forms = prior.variants;
+  if (forms.empty()) {
+    plant::FitVariant all{"all parameters", {}};
+    for (const auto& fp : prior.params)
+      if (!std::isfinite(fp.fixed)) all.free.push_back(fp.key);
+    forms.push_back(all);
+  }
+  for (const auto& f : forms) {
+    Variant v{f.name, {}};
+    for (const auto& key : f.free) {
+      const auto it =
+          std::find_if(prior.params.begin(), prior.params.end(), [&](const plant::FitParam& fp) { return fp.key == key; });
+      if (it == prior.params.end() || std::isfinite(it->fixed))
+        throw std::logic_error("the fit prior of effect '" + kind + "': form '" + f.name + "' frees '" + key +
+                               "', which is not a free parameter of the prior");
+      double neutral = value_of(attached, kind, key);
+      if (!std::isfinite(neutral)) neutral = 0;
+      v.params.push_back(free_param(kind, *it, spec_of(key), neutral, f.free.size() == 1));
+    }
+    if (!v.params.empty()) c.variants.push_back(std::move(v));
+  }
   return c;
+}
+
+std::size_t builtin_rank(const std::string& name) {
+  return static_cast<std::size_t>(std::find(kBuiltin.begin(), kBuiltin.end(), name) - kBuiltin.begin());
 }
 
 }  // namespace
@@ -264,13 +217,49 @@ plant::Plant with_values(const plant::Plant& plant, const std::vector<FreeParam>
   return out;
 }
 
-std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only) {
-  std::vector<Candidate> all = {backlash_change(base), valve_offset(base), throat_erosion(base), sensor_lag(base),
-                                transport_delay(base), sensor_bias(base),  motor_dynamics(base), burn_rate(base)};
+double command_rate_deg_s(const ReplayData& data) {
+  // |d theta_cmd / dt| over 10 ms spans of rows (a row-to-row difference of a jittered or
+  // quantised command reads noise), on the rows where the command moves at all.
+  std::vector<double> rates;
+  for (std::size_t i = 0; i < data.segments.size(); ++i) {
+    const std::size_t b = data.segment_begin(i), e = data.segment_end(i);
+    for (std::size_t k = b + 1, j = b + 1; k < e; ++k) {  // cmd_held_rad[b] is unused
+      while (j < k && data.t_s[k] - data.t_s[j] > 0.01) ++j;
+      if (j == k || !(data.t_s[k] - data.t_s[j] > 0)) continue;
+      const double r = std::abs(data.cmd_held_rad[k] - data.cmd_held_rad[j]) / (data.t_s[k] - data.t_s[j]);
+      if (r > 0) rates.push_back(units::rad_to_deg(r));
+    }
+  }
+  if (rates.size() < 10) return kNaN;
+  auto at = rates.begin() + static_cast<std::ptrdiff_t>(0.95 * static_cast<double>(rates.size() - 1));
+  std::nth_element(rates.begin(), at, rates.end());
+  return *at;
+}
+
+std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only, const ReplayData* data) {
+  plant::FitEvidence ev;
+  ev.model_value = [&base](std::string_view kind, std::string_view key) {
+    return value_of(base, std::string(kind), std::string(key));
+  };
+  if (data) ev.command_rate_deg_s = command_rate_deg_s(*data);
+  std::vector<Candidate> all;
   for (const auto& kind : plant::effect_names()) {
     const plant::EffectInfo* info = plant::find_effect(kind);
-    if (info && user_candidate(base, kind, *info)) all.push_back(from_registry(kind, *info));
+    if (info == nullptr) continue;
+    std::optional<plant::FitPrior> prior;
+    if (const plant::FitPriorInfo* declared = plant::find_fit_prior(kind)) {
+      prior = declared->make(ev);  // declared: tried whether or not the model has the block (refitted)
+      if (prior->refit && !base.find(kind)) prior.reset();
+    } else if (!base.find(kind)) {
+      prior = default_prior(kind, *info);
+    }
+    if (!prior) continue;
+    Candidate c = from_prior(base, kind, *info, *prior);
+    if (!c.variants.empty()) all.push_back(std::move(c));
   }
+  // The built-ins first, in their order; then the others by name.
+  std::stable_sort(all.begin(), all.end(),
+                   [](const Candidate& a, const Candidate& b) { return builtin_rank(a.name) < builtin_rank(b.name); });
   if (only.empty()) return all;
   std::vector<Candidate> out;
   for (const auto& name : only) {

@@ -315,6 +315,8 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   // A drive that never moved leaves no angle bins (an empty plot would be a blank box).
   if (!d.vs_drive_angle.x.empty())
     binned(d.vs_drive_angle, "Residual against drive angle (a ripple with the angle: a gear or coupling error)");
+  if (!d.vs_drive_velocity.x.empty())
+    binned(d.vs_drive_velocity, "Residual against drive velocity (a misfit near zero: stick-slip)");
   doc.columns_end();
   if (!d.peaks.empty()) {
     std::vector<std::vector<std::string>> rows;

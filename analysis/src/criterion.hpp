@@ -26,13 +26,37 @@
 #include <cmath>
 #include <cstddef>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "hil/analysis/noise_model.hpp"
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
+#include "text.hpp"
 
 namespace hil::analysis::detail {
+
+// Selection thresholds (analysis/README.md, Criterion and Selection).
+inline constexpr double kBicMargin = -10;        // very strong evidence (Kass & Raftery)
+inline constexpr double kMinExcessShare = 0.25;  // of the model's excess error power
+inline constexpr double kMinNoiseShare = 0.05;   // of N sigma^2
+inline constexpr double kFloorTolerance = 1.1;   // RSS within 10 % of N sigma^2: at the noise floor
+inline constexpr double kSkipAtFloor = 1.03;     // RSS within 3 %: no candidate can earn its place
+
+// Why a candidate does not earn its place against the current model (empty: it does): dBIC below
+// kBicMargin, and a real improvement: `gain` (RSS removed) at least a quarter of the excess
+// (RSS - N sigma^2; the bar that keeps named candidates from nibbling at an out-of-list misfit)
+// and 5 % of the noise power N sigma^2 (not noise fitting).
+inline std::string why_not_earning(double delta_bic, double gain_pa2, double excess_pa2, double noise_rss_pa2) {
+  if (!(delta_bic < kBicMargin))
+    return "information criterion: dBIC " + text::num(delta_bic, 3) + " is not below " + text::num(kBicMargin, 2);
+  if (gain_pa2 < kMinExcessShare * excess_pa2)
+    return "explains only " + text::num(100 * (excess_pa2 > 0 ? gain_pa2 / excess_pa2 : 0), 2) +
+           " % of the excess error (needs 25 %)";
+  if (gain_pa2 < kMinNoiseShare * noise_rss_pa2)
+    return "improvement below 5 % of the noise power (the model is at the noise floor)";
+  return {};
+}
 
 class Criterion {
  public:

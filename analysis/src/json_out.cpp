@@ -133,7 +133,17 @@ nlohmann::json residual_to_json(const ResidualReport& r) {
                       {"angle_ripple",
                        {{"period_deg", number(d.angle_ripple_period_deg)},
                         {"amplitude_kpa", number(d.angle_ripple_kpa)},
-                        {"share", number(d.angle_ripple_share)}}}};
+                        {"share", number(d.angle_ripple_share)}}},
+                      {"vs_drive_velocity", binned_json(d.vs_drive_velocity)},
+                      {"velocity_band",
+                       {{"below_deg_s", number(d.velocity_band_deg_s)},
+                        {"rms_kpa", number(d.velocity_band_rms_kpa)},
+                        {"outside_rms_kpa", number(d.velocity_outside_rms_kpa)},
+                        {"rows_share", number(d.velocity_band_rows_share)},
+                        {"excess_share", number(d.velocity_band_excess_share)},
+                        {"flips_with_direction", d.velocity_band_flips},
+                        {"mean_opening_kpa", number(d.velocity_band_opening_kpa)},
+                        {"mean_closing_kpa", number(d.velocity_band_closing_kpa)}}}};
   j["signature"] = r.signature;
   j["log_warnings"] = r.log_warnings;
   if (r.motor.present) {

@@ -1,6 +1,6 @@
 // Effects outside the candidate list, for the "unexplained" tests: a combustion-driven pressure
-// oscillation in the chamber (a limit cycle the lumped model cannot have), and a gear's
-// transmission error (a ripple periodic in the motor angle). Their parameters have no defaults, so
+// oscillation in the chamber (a limit cycle the lumped model cannot have), a gear's
+// transmission error (a ripple periodic in the motor angle), and a valve that sticks (stick-slip). Their parameters have no defaults, so
 // diagnose does not pick them up as user candidates: they stay truly unknown.
 #include <cmath>
 #include <numbers>
@@ -51,5 +51,25 @@ class GearRipple final : public ScalarEffect<GearRipple> {
 };
 
 HIL_REGISTER_EFFECT(GearRipple, "test only: a gear's transmission error, periodic in the motor angle (not a candidate)")
+
+// Stick-slip: the valve holds where it stopped until the transmission has wound up by
+// breakaway_deg against it (static friction), then slips to where the backlash would put it.
+class StickSlip final : public ScalarEffect<StickSlip> {
+ public:
+  static constexpr std::string_view kKind = "test_stick_slip";
+  static constexpr Stage kStage = Stage::transmission;
+  static constexpr ParamSpec kSpecs[] = {
+      {"breakaway_deg", 0, 5, false, false, kNaN, "wind-up of the transmission at which the stuck valve slips"},
+  };
+  using ScalarEffect::ScalarEffect;
+  std::size_t state_size() const noexcept override { return 1; }
+  void settle(std::span<double> x, Signals& s) const override { x[0] = s.theta_valve_rad; }
+  void step(std::span<double> x, Signals& s, double, Rng&) const noexcept override {
+    if (std::abs(s.theta_valve_rad - x[0]) > units::deg_to_rad(value(0))) x[0] = s.theta_valve_rad;
+    s.theta_valve_rad = s.theta_throat_rad = x[0];
+  }
+};
+
+HIL_REGISTER_EFFECT(StickSlip, "test only: a valve that sticks until the transmission winds up (not a candidate)")
 
 }  // namespace hil::plant

@@ -1,7 +1,9 @@
 // Candidate effect: the gap differs from the model's and/or changes during the run:
 //   gap(t) = gap_deg + (t >= step_time_s ? step_deg : 0) + drift_deg_per_s * t,  never below 0.
 #include <algorithm>
+#include <cmath>
 
+#include "hil/plant/fit_prior.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -19,6 +21,42 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
   };
   using ScalarEffect::ScalarEffect;
 
+  // How diagnose finds it (fit_prior.hpp): from the model's gap; a constant, drifting or stepping
+  // gap. (A drift and a step together is not a form yet: analysis/README.md, Limits.)
+  static FitPrior fit_prior(const FitEvidence& ev) {
+    double gap = ev.model_value("backlash_change", "gap_deg");
+    if (!std::isfinite(gap)) gap = ev.model_value("backlash", "gap_deg");
+    const std::string g_text = fit_num(gap);
+    FitPrior p;
+    p.description = "the gap differs from the model's: constant, drifting, or stepping once at an unknown time";
+    // Wear and assembly change a gear's play by a fraction of it, not by multiples.
+    p.params = {
+        {.key = "gap_deg",
+         .neutral = gap,
+         .lo = 0,
+         .hi = 10,
+         .scale = 0.2,
+         .starts = {gap, 0.5 * gap, 2 * gap},
+         .credible_lo = 0,
+         .credible_hi = 3 * gap,
+         .credible_why = "three times the model's gap of " + g_text + " deg"},
+        {.key = "drift_deg_per_s", .lo = -0.5, .hi = 0.5, .scale = 0.005, .starts = {0.0}},
+        {.key = "step_deg",
+         .lo = -5,
+         .hi = 5,
+         .scale = 0.2,
+         .starts = {0.5, -0.5},
+         .credible_lo = -2 * gap,
+         .credible_hi = 2 * gap,
+         .credible_why = "twice the model's gap of " + g_text + " deg"},
+        {.key = "step_time_s", .lo = 0, .hi = 1e7, .scale = 1, .grid = FitGrid::run_time},
+    };
+    p.variants = {{"constant gap", {"gap_deg"}},
+                  {"drifting gap", {"gap_deg", "drift_deg_per_s"}},
+                  {"gap step", {"gap_deg", "step_deg", "step_time_s"}}};
+    return p;
+  }
+
   void settle(std::span<double>, Signals& s) const override { apply(s); }
   void step(std::span<double>, Signals& s, double, Rng&) const noexcept override { apply(s); }
 
@@ -30,5 +68,6 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
 };
 
 HIL_REGISTER_EFFECT(BacklashChange, "gap size other than the model's, with a step and/or a drift")
+HIL_REGISTER_FIT_PRIOR(BacklashChange)
 
 }  // namespace hil::plant

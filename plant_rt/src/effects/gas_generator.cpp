@@ -14,6 +14,7 @@
 #include <cmath>
 
 #include "hil/physics.hpp"
+#include "hil/plant/fit_prior.hpp"
 #include "hil/plant/registry.hpp"
 #include "hil/units.hpp"
 
@@ -33,6 +34,23 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
       {"free_volume_l", 0, 1e5, true, false, kNaN, "free volume of the chamber at t = 0 (must be > 0)"},
       {"volume_growth", 0, 1, false, false, 1.0, "fraction of the burned grain's volume freed to the gas"},
   };
+  // How diagnose finds another propellant (fit_prior.hpp; candidate burn_rate, refitting this
+  // block): the burn-rate coefficient a, the exponent n, or both.
+  static FitPrior fit_prior(const FitEvidence& ev) {
+    const double a = ev.model_value("gas_generator", "burn_rate_mm_s_at_1mpa");
+    const double n = ev.model_value("gas_generator", "pressure_exponent");
+    FitPrior p;
+    p.candidate = "burn_rate";
+    p.description = "the propellant's burn-rate coefficient a or exponent n differs (refits gas_generator)";
+    p.refit = true;
+    p.params = {{.key = "burn_rate_mm_s_at_1mpa", .lo = 0.5 * a, .hi = 2.0 * a, .scale = 0.01 * a, .starts = {a}},
+                {.key = "pressure_exponent", .lo = 0.05, .hi = 0.9, .scale = 0.005, .starts = {n}}};
+    p.variants = {{"coefficient a", {"burn_rate_mm_s_at_1mpa"}},
+                  {"exponent n", {"pressure_exponent"}},
+                  {"a and n", {"burn_rate_mm_s_at_1mpa", "pressure_exponent"}}};
+    return p;
+  }
+
   explicit GasGenerator(std::vector<double> v)
       : ScalarEffect(std::move(v)),
         gas_{value(0), physics::burn_coeff_si(value(1), value(2)), value(2), value(3), value(4), value(5), value(7)},
@@ -202,5 +220,6 @@ class GasGenerator final : public ScalarEffect<GasGenerator> {
 };
 
 HIL_REGISTER_EFFECT(GasGenerator, "lumped gas-generator chamber with end-burning grain and choked throat")
+HIL_REGISTER_FIT_PRIOR(GasGenerator)
 
 }  // namespace hil::plant

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hil/plant/fit_prior.hpp"
 #include "hil/plant/registry.hpp"
 
 namespace hil::plant {
@@ -17,6 +18,20 @@ class TransportDelay final : public ScalarEffect<TransportDelay> {
       {"delay_s", 0, 1.0, false, false, kNaN, "delay between command and drive"},
   };
   using ScalarEffect::ScalarEffect;
+
+  // How diagnose finds it (fit_prior.hpp): the cost is flat at 0, so LM starts from the best of a
+  // few delays.
+  static FitPrior fit_prior(const FitEvidence& ev) {
+    const double v = ev.model_value("transport_delay", "delay_s");
+    std::vector<double> starts = {0.005, 0.02, 0.05, 0.1};
+    if (std::isfinite(v)) starts.insert(starts.begin(), v);
+    FitPrior p;
+    p.description = "a pure delay between the command and the drive acting on it";
+    p.command_side = true;
+    p.params = {{.key = "delay_s", .neutral = 0, .lo = 0, .hi = 0.5, .scale = 0.005, .starts = starts, .sample_step = true}};
+    p.variants = {{"delay", {"delay_s"}}};
+    return p;
+  }
 
   // Layout: [head, count, t0, cmd0, t1, cmd1, ...]; head is the next slot to write.
   static constexpr std::size_t kSlots = 4096;  // 1 s at 4 kHz
@@ -67,5 +82,6 @@ class TransportDelay final : public ScalarEffect<TransportDelay> {
 };
 
 HIL_REGISTER_EFFECT(TransportDelay, "pure delay between command and drive")
+HIL_REGISTER_FIT_PRIOR(TransportDelay)
 
 }  // namespace hil::plant

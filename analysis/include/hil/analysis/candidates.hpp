@@ -6,9 +6,11 @@
 //
 // Built in: backlash_change, valve_offset, throat_erosion, sensor_lag, transport_delay,
 // sensor_bias, motor_dynamics (refits motor_servo), burn_rate (refits gas_generator).
-// User effects: any effect registered with HIL_REGISTER_EFFECT that the model does not use,
-// whose parameters all have defaults (the defaults meaning "effect absent"), and that is not
-// sensor noise, becomes a candidate by itself: all its parameters free, started at the
+// Each declares how it is found (its fit prior) in its own file, beside its parameter specs
+// (hil/plant/fit_prior.hpp, HIL_REGISTER_FIT_PRIOR). User effects: any effect registered with
+// HIL_REGISTER_EFFECT that the model does not use, whose parameters all have defaults (the
+// defaults meaning "effect absent"), and that is not sensor noise, becomes a candidate by itself:
+// with its declared prior when it has one, else all its parameters free, started at the
 // defaults, fitted inside its specs() ranges.
 #pragma once
 
@@ -58,9 +60,15 @@ struct Candidate {
   std::vector<Variant> variants;
 };
 
-// The built-in candidates, their starting values taken from `base`, plus the registry's user
-// effects (see above). `only`: restrict to these names (empty: all).
-std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only = {});
+// Every registered effect with a declared fit prior (hil/plant/fit_prior.hpp: the built-ins and any
+// user effect that declares one), their starting values taken from `base`, plus the registry's
+// other user effects (see above); the built-ins first. `only`: restrict to these names (empty:
+// all). `data` (optional): the file(s), for what the command asks of the drive (FitEvidence).
+std::vector<Candidate> candidates_for(const plant::Plant& base, const std::vector<std::string>& only = {},
+                                      const ReplayData* data = nullptr);
+// What the file's command asks of the drive: the 95th percentile of |d theta_cmd / dt| over 10 ms
+// spans where it moves [deg/s] (NaN: too few moving rows).
+double command_rate_deg_s(const ReplayData& data);
 std::vector<std::string> builtin_candidate_names();
 
 // `plant` with the free parameters set to `values` (same order). Throws std::invalid_argument for

@@ -76,6 +76,13 @@ struct Diagnostics {
   // looks like, which no candidate holds.
   Binned vs_drive_angle;
   double angle_ripple_period_deg = 0, angle_ripple_kpa = 0, angle_ripple_share = 0;
+  // Against the drive velocity (asinh bins), and the narrowest band |v| < X that holds the misfit
+  // (src/velocity_signature.hpp; 0: none): what a valve that sticks (stick-slip) leaves.
+  Binned vs_drive_velocity;
+  double velocity_band_deg_s = 0, velocity_band_rms_kpa = 0, velocity_outside_rms_kpa = 0;
+  double velocity_band_rows_share = 0, velocity_band_excess_share = 0;
+  bool velocity_band_flips = false;  // named for a mean that flips with the direction of motion
+  double velocity_band_opening_kpa = 0, velocity_band_closing_kpa = 0;
 };
 
 struct TimeSeries {  // min/max-decimated for plots (each bucket keeps its extremes, in time order)

@@ -1,0 +1,161 @@
+// diagnose's words: the fitted parameters as text and the verdict with its summary.
+#include <algorithm>
+#include <cmath>
+
+#include "diagnose_search.hpp"
+#include "hil/units.hpp"
+#include "text.hpp"
+
+namespace hil::analysis {
+
+bool FittedParam::at_search_limit() const {
+  // Within a thousandth of the range of an end: LM stops on a bound, not near it.
+  const double tol = 1e-3 * (search_hi - search_lo);
+  return std::isfinite(value) && std::isfinite(tol) && tol > 0 && (value <= search_lo + tol || value >= search_hi - tol);
+}
+
+std::string FittedParam::limit_text() const {
+  if (!at_search_limit()) return {};
+  return " (at the end of its search range, " + text::num(search_lo, 4) + " to " + text::num(search_hi, 4) +
+         ": no measured value; the data want one beyond it, so this effect likely stands in for another, or the file's units "
+         "or scaling are off)";
+}
+
+std::string FittedParam::plausibility_text() const {
+  if (!implausible()) return {};
+  return " (implausible: beyond " + credible_why +
+         ", what the nominal plant makes credible; a real fault, or this effect stands in for another)";
+}
+
+std::string FittedParam::span_text() const {
+  return located_between() ? " [" + text::num(lo, 4) + " to " + text::num(hi, 4) + " fit as well]" : std::string();
+}
+
+namespace detail {
+
+std::string param_text(const FittedParam& p) {
+  std::string s = p.key + " = " + text::num(p.value, 4);
+  if (std::isfinite(p.sigma) && !p.at_search_limit()) s += " +- " + text::num(p.sigma, 2);
+  s += p.span_text();
+  s += p.limit_text();
+  s += p.plausibility_text();
+  if (p.file >= 0) s += " in file " + std::to_string(p.file + 1);
+  return s;
+}
+
+// Several files: an event time found on the runs' joint clock (replay.hpp) becomes "file k, t s
+// after its first row"; a step between two runs is at 0 s of the later file.
+void localise_event_times(std::vector<FittedParam>& params, const ReplayData& data) {
+  if (data.segments.size() < 2) return;
+  for (auto& p : params) {
+    if (!is_event_time(p.effect, p.key) || !std::isfinite(p.value)) continue;
+    std::size_t k = 0;
+    while (k + 1 < data.segments.size() && data.segments[k + 1].clock_offset_s <= p.value) ++k;
+    p.file = static_cast<int>(k);
+    p.value -= data.segments[k].clock_offset_s;
+    p.lo -= data.segments[k].clock_offset_s;  // the span on the same file's clock: it may reach into
+    p.hi -= data.segments[k].clock_offset_s;  // a neighbour's (below 0, or past the file's end)
+  }
+}
+
+void write_verdict(Diagnosis& d, std::size_t n_files) {
+  // The verdict in words.
+  auto& out = d.summary;
+  const std::string fit_line =
+      "Fit " + text::fixed(d.fit_before_pct, 2) + " % -> " + text::fixed(d.fit_after_pct, 2) + " % (noise floor " +
+      text::fixed(d.noise_floor_fit_pct, 2) + " %); RMSE " + text::num(d.rmse_before_pa / units::kPaPerKpa, 3) + " -> " +
+      text::num(d.rmse_after_pa / units::kPaPerKpa, 3) + " kPa (noise " + text::num(d.noise_sigma_pa / units::kPaPerKpa, 3) +
+      " kPa)" + (n_files > 1 ? ", over all " + std::to_string(n_files) + " files." : ".");
+  // Several files: say what was shared, and how each file ends.
+  auto per_file = [&](bool after) {
+    if (n_files < 2) return;
+    std::string line = "Per file:";
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      const ResidualReport& r = after ? d.files[i].after : d.files[i].before;
+      line += (i ? "; " : " ") + std::string("file ") + std::to_string(i + 1) + " " + text::fixed(r.fit_pct, 2) + " % (floor " +
+              text::fixed(r.noise_floor_fit_pct, 2) + " %)";
+    }
+    out.push_back(line + ".");
+  };
+  if (d.explained) {
+    std::string list;
+    for (const auto& c : d.added) {
+      std::string ps;
+      for (const auto& p : c.parameters) ps += (ps.empty() ? "" : ", ") + param_text(p);
+      list += (list.empty() ? "" : "; then ") + c.effect + " (" + c.variant + ": " + ps + ")";
+    }
+    out.push_back("Found: " + list + ".");
+    if (n_files > 1) {
+      std::string per_file_list;
+      for (const auto& c : d.added)
+        for (const auto& p : c.parameters)
+          if (p.file >= 0)
+            per_file_list += (per_file_list.empty() ? "" : ", ") + p.key + " (file " + std::to_string(p.file + 1) + ", " +
+                             text::num(p.value, 4) + " s after its first row)";
+      out.push_back(
+          "Fitted to " + std::to_string(n_files) + " files of one rig together (in the order they were run): " +
+          (per_file_list.empty()
+               ? std::string("every parameter above is shared by all of them")
+               : "every parameter above is shared by all of them except the step time, which is per file: " + per_file_list +
+                     "; the files before it have the gap before the step, the files after "
+                     "it the gap after the step") +
+          "; erosion and drifts count from each file's first row.");
+    }
+    out.push_back(fit_line);
+    per_file(true);
+    for (const auto& c : d.correlations) {
+      if (!c.indistinguishable) continue;
+      out.push_back("On this file " + c.effect_a + " and " + c.effect_b + " can hardly be told apart: " + c.key_a + " and " +
+                    c.key_b + " correlate at " + text::num(c.rho, 3) +
+                    " in the joint fit and neither is pinned to 10 % of its change (a change of one is largely undone "
+                    "by the other); a run with other motion or pressure levels separates them.");
+    }
+    for (const auto& r : d.revisions) out.push_back("Revisited: " + r + ".");
+    for (const auto& r : d.rivals) {
+      out.push_back("Not told apart on this file: " + r.alternative + " (" + r.variant + ") in place of " + r.effect +
+                    ", the others refitted, fits " + text::fixed(r.fit_pct, 2) + " % against " + text::fixed(d.fit_after_pct, 2) +
+                    " % (whole-model BIC " + (r.dbic >= 0 ? "+" : "") + text::num(r.dbic, 3) +
+                    "; an effect earns its place at -10); either may be the cause. A run with other motion or pressure "
+                    "levels, the encoder, or several files fitted together (--data a --data b) separate them.");
+    }
+    if (d.at_noise_floor) {
+      d.verdict = "explained";
+    } else {
+      d.verdict = "partly_explained";
+      std::string remains;
+      for (std::size_t i = 0; i < d.files.size(); ++i)
+        remains += (n_files > 1 ? (i ? " File " : "File ") + std::to_string(i + 1) + ": " : std::string()) +
+                   text::join(d.files[i].after.signature, " ");
+      out.push_back("Partly explained: each effect above earned its place, but the residual is still " +
+                    text::num(d.rmse_after_pa / d.noise_sigma_pa, 3) +
+                    " times the noise, so something else is missing, and the effects found may stand in for it. "
+                    "What remains: " +
+                    remains);
+    }
+  } else if (at_noise_floor(d.rmse_before_pa, d.noise_sigma_pa)) {
+    d.verdict = "nothing_missing";
+    d.at_noise_floor = true;
+    out.push_back("Nothing is missing: the model fits at the noise floor and no candidate earns its place.");
+    out.push_back(fit_line);
+    per_file(false);
+  } else {
+    d.verdict = "unexplained";
+    out.push_back(
+        "No candidate explains the residual: none earns its place, so none is named. The missing effect is "
+        "something else; its signature:");
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
+      for (const auto& line : d.files[i].before.signature) out.push_back(line);
+    }
+  }
+  // What the files themselves show comes first: a verdict on a file with a hole or stale readings
+  // is read with that in mind.
+  std::vector<std::string> log_lines;
+  for (std::size_t i = 0; i < d.files.size(); ++i)
+    for (const auto& w : d.files[i].before.log_warnings)
+      log_lines.push_back(n_files > 1 ? "File " + std::to_string(i + 1) + ": " + w : w);
+  out.insert(out.begin(), log_lines.begin(), log_lines.end());
+}
+
+}  // namespace detail
+}  // namespace hil::analysis
