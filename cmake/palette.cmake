@@ -1,6 +1,6 @@
 # The one palette of the project's plots (common/palette/signals.txt: a colour per signal), read
 # once at configure time into
-#   hil/palette.hpp (generated, on hil_common's include path): hil::palette::color("p_meas_mpa")
+#   hil/palette.hpp (generated into HIL_PALETTE_INCLUDE_DIR): hil::palette::color("p_meas_mpa")
 #   HIL_PALETTE_JS_TEXT: "window.hilPalette = Object.freeze({...});", inlined before the console's
 #   and the reports' scripts.
 # So a signal has the same colour in the console and in every report.

@@ -94,8 +94,10 @@ RunMarks marks_from_events(const std::filesystem::path& events_jsonl, double end
     const std::string label = label_of(kind, e);
     if (label.empty()) continue;
     // A fault's window: its duration, else until it expires, is cleared or replaced.
-    if (kind == "sensor_fault" || kind == "faults_cleared" || (kind == "fault_expired" && text(e, "fault") != "drive")) close(open_sensor, t);
-    if (kind == "drive_fault" || kind == "faults_cleared" || (kind == "fault_expired" && text(e, "fault") == "drive")) close(open_drive, t);
+    if (kind == "sensor_fault" || kind == "faults_cleared" || (kind == "fault_expired" && text(e, "fault") != "drive"))
+      close(open_sensor, t);
+    if (kind == "drive_fault" || kind == "faults_cleared" || (kind == "fault_expired" && text(e, "fault") == "drive"))
+      close(open_drive, t);
     RunMark m{t, std::nan(""), label, kind};
     const bool off = e.contains("on") && e["on"].is_boolean() && !e["on"].get<bool>();
     if (is_fault(kind) && text(e, "mode") != "none" && !off) {
@@ -117,8 +119,8 @@ RunMarks marks_from_programme(const Campaign& c, std::size_t max_marks) {
   // Breakpoints in pairs (a step is two at one time; a drift runs from one to the next).
   const auto& pts = c.gap_rad.points();
   for (std::size_t i = 0; i + 1 < pts.size() && out.marks.size() < max_marks; i += 2) {
-    out.marks.push_back({pts[i].t_s, std::nan(""), "gap " + fmt("%.4g", units::rad_to_deg(pts[i + 1].value)) + " deg (programme)",
-                         "gap_change"});
+    out.marks.push_back(
+        {pts[i].t_s, std::nan(""), "gap " + fmt("%.4g", units::rad_to_deg(pts[i + 1].value)) + " deg (programme)", "gap_change"});
   }
   return out;
 }
@@ -128,7 +130,8 @@ std::string describe_marks(const std::vector<RunMark>& marks, std::size_t max_it
   for (std::size_t i = 0; i < marks.size() && i < max_items; ++i) {
     const auto& m = marks[i];
     if (!s.empty()) s += "; ";
-    s += m.label + (std::isfinite(m.end_s) ? " " + fmt("%.3f", m.t_s) + "-" + fmt("%.3f", m.end_s) + " s" : " at " + fmt("%.3f", m.t_s) + " s");
+    s += m.label + (std::isfinite(m.end_s) ? " " + fmt("%.3f", m.t_s) + "-" + fmt("%.3f", m.end_s) + " s"
+                                           : " at " + fmt("%.3f", m.t_s) + " s");
   }
   if (marks.size() > max_items) s += "; and " + std::to_string(marks.size() - max_items) + " more";
   return s;

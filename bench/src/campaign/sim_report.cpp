@@ -156,8 +156,10 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (const auto& r : runs) overlay.series.push_back(series(r, Col::p_meas_mpa, r.name + " measured"));
   // Recorded events per run (named when there are several); the programme, the same for all, once.
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    if (runs[i].marks_recorded) mark(overlay, marks[i], false, runs.size() > 1 ? runs[i].name + ": " : "");
-    else if (i == 0) mark(overlay, marks[i], false);
+    if (runs[i].marks_recorded)
+      mark(overlay, marks[i], false, runs.size() > 1 ? runs[i].name + ": " : "");
+    else if (i == 0)
+      mark(overlay, marks[i], false);
   }
   doc.figure(overlay);
 
@@ -187,7 +189,8 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     mark(f, marks[i], true);
     f.group = "t";
     f.series = {series(r, Col::theta_cmd_deg, "command", C("theta_cmd_deg"), Series::Style::line, true),
-                series(r, Col::theta_motor_deg, "motor", C("theta_motor_deg")), series(r, Col::theta_valve_deg, "valve", C("theta_valve_deg"))};
+                series(r, Col::theta_motor_deg, "motor", C("theta_motor_deg")),
+                series(r, Col::theta_valve_deg, "valve", C("theta_valve_deg"))};
     // A real drive's shaped target, where it is not the command (a rig with target shaping).
     const ReportSeries* cmd = find(r, Col::theta_cmd_deg);
     const ReportSeries* target = find(r, Col::theta_target_deg);

@@ -18,8 +18,8 @@ struct Campaign;
 struct RunMark {
   double t_s = 0;
   double end_s = std::numeric_limits<double>::quiet_NaN();  // a fault's window end; NaN: an instant
-  std::string label;                                          // "gap 2.5 deg", "sensor stuck 1.52 MPa"
-  std::string kind;                                           // the event's kind in events.jsonl
+  std::string label;                                        // "gap 2.5 deg", "sensor stuck 1.52 MPa"
+  std::string kind;                                         // the event's kind in events.jsonl
 };
 
 struct RunMarks {
