@@ -96,6 +96,14 @@ async function main() {
   const wide = await axesReadable(page, "1400x900");
   const shots = [await screenshot(page, "console-1400x900.png")];
 
+  // The phone: state, run time and ABORT in view; readable ticks.
+  await page.setViewport({ width: 390, height: 844 });
+  await sleep(500);
+  await insideViewport(page, 390, 844, ["#state", "#run-time", "#abort"], "390x844");
+  await axesReadable(page, "390x844");
+  shots.push(await screenshot(page, "console-390x844.png"));
+  await page.setViewport({ width: 1400, height: 900 });
+
   // Injections through the page: a gap change and a sensor stuck for 1 s, each confirmed.
   await page.$eval("#gap-deg", (input, v) => (input.value = String(v)), injectedGapDeg);
   await page.click("#inject-gap");
@@ -110,14 +118,6 @@ async function main() {
     return m.includes(want) && m.some((l) => l.startsWith("sensor stuck")) && Number(document.getElementById("plot-pressure").dataset.windows) >= 1;
   }, gapLabel);
   const liveMarks = await page.$eval("#plot-pressure", (d) => ({ markers: d.dataset.markers, windows: d.dataset.windows }));
-
-  // The phone: state, run time and ABORT in view; readable ticks.
-  await page.setViewport({ width: 390, height: 844 });
-  await sleep(500);
-  await insideViewport(page, 390, 844, ["#state", "#run-time", "#abort"], "390x844");
-  await axesReadable(page, "390x844");
-  shots.push(await screenshot(page, "console-390x844.png"));
-  await page.setViewport({ width: 1400, height: 900 });
 
   // The verdicts when the run ends: the impossible check fails with value and limit.
   if (!(await h.waitFor(page, "the run's verdicts shown", () => Number(document.body.dataset.verdictsFailed) >= 1, undefined, 60_000))) return;

@@ -281,8 +281,9 @@
       ctx.stroke();
       const row = rowEnd.findIndex(end => end < x);
       if (!m.label || row < 0) continue;
-      ctx.fillText(m.label, x + 2, area.y + 2 + 12 * row);
-      rowEnd[row] = x + 6 + ctx.measureText(m.label).width;
+      const w = ctx.measureText(m.label).width;  // right of its line, or left where it would leave the plot
+      ctx.fillText(m.label, x + 2 + w > area.x + area.w ? x - 2 - w : x + 2, area.y + 2 + 12 * row);
+      rowEnd[row] = x + 6 + w;
       drawn.push(m.label);
     }
     ctx.setLineDash([]);

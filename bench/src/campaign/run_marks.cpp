@@ -126,14 +126,28 @@ RunMarks marks_from_programme(const Campaign& c, std::size_t max_marks) {
 }
 
 std::string describe_marks(const std::vector<RunMark>& marks, std::size_t max_items) {
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on "literal" + temporary.
   std::string s;
   for (std::size_t i = 0; i < marks.size() && i < max_items; ++i) {
     const auto& m = marks[i];
     if (!s.empty()) s += "; ";
-    s += m.label + (std::isfinite(m.end_s) ? " " + fmt("%.3f", m.t_s) + "-" + fmt("%.3f", m.end_s) + " s"
-                                           : " at " + fmt("%.3f", m.t_s) + " s");
+    s += m.label;
+    if (std::isfinite(m.end_s)) {
+      s += ' ';
+      s += fmt("%.3f", m.t_s);
+      s += '-';
+      s += fmt("%.3f", m.end_s);
+    } else {
+      s += " at ";
+      s += fmt("%.3f", m.t_s);
+    }
+    s += " s";
   }
-  if (marks.size() > max_items) s += "; and " + std::to_string(marks.size() - max_items) + " more";
+  if (marks.size() > max_items) {
+    s += "; and ";
+    s += std::to_string(marks.size() - max_items);
+    s += " more";
+  }
   return s;
 }
 

@@ -43,7 +43,7 @@ window.hilPlots = function hilPlots({ $, body, palette }) {
       labels: ["command", "motor", "valve", "compensation jump"], cols: [C.theta_cmd_deg, C.theta_motor_deg, C.theta_valve_deg, -1],
       colors: [P.theta_cmd_deg, P.theta_motor_deg, P.theta_valve_deg, P.comp_deg],
       series: { command: { strokePattern: [6, 4] }, "compensation jump": { strokeWidth: 0, drawPoints: true, pointSize: 4 } } },
-    { id: "observer", title: "Observer: touch Tf (+1/-1 a flank drives, 0 in the gap), intention Mf", yLabel: "state [-1, 0, +1]",
+    { id: "observer", title: "Touch Tf, intention Mf (±1: a flank drives, 0: in the gap)", yLabel: "state [-1, 0, +1]",
       labels: ["touch state", "motion intention"], cols: [C.touch_state, C.motion_intention], colors: [P.touch_state, P.motion_intention],
       stepPlot: true, valueRange: [-1.4, 1.4] },
     { id: "gap", title: "Gap: estimate vs true", yLabel: "gap [deg]", labels: ["gap estimate", "true gap"],
@@ -133,8 +133,10 @@ window.hilPlots = function hilPlots({ $, body, palette }) {
       ctx.stroke();
       const row = rowEnd.findIndex((end) => end < x);
       if (row < 0) continue;
-      ctx.fillText(m.mark, x + 2, area.y + 2 + 11 * row);
-      rowEnd[row] = x + 6 + ctx.measureText(m.mark).width;
+      // Right of its line, or left of it where it would run past the plot's right edge.
+      const w = ctx.measureText(m.mark).width;
+      ctx.fillText(m.mark, x + 2 + w > area.x + area.w ? x - 2 - w : x + 2, area.y + 2 + 11 * row);
+      rowEnd[row] = x + 6 + w;
       drawn.push(m.mark);
     }
     ctx.restore();

@@ -30,7 +30,7 @@ window.hilVerdicts = function hilVerdicts({ $, body }) {
         tr.dataset.run = run;
         tr.dataset.verdict = v.state === "running" ? "pending" : "none";
         const td = document.createElement("td");
-        td.colSpan = 5;
+        td.colSpan = 4;
         td.textContent = run + ": " + (v.state === "running" ? "running; its checks are judged when it ends" : v.state + ", no checks");
         td.className = "about";
         tr.append(td);
@@ -44,7 +44,8 @@ window.hilVerdicts = function hilVerdicts({ $, body }) {
         tr.dataset.verdict = r.verdict;
         if (r.verdict === "fail") ++failed;
         if (r.verdict === "pass") ++passed;
-        const cells = [run + " / " + r.check, r.verdict === "fail" ? "FAIL" : r.verdict, num(r.value), limit(r), r.message || ""].map((t) => {
+        tr.title = r.message || "";  // what was measured against what, or why it was skipped
+        const cells = [run + " / " + r.check, r.verdict === "fail" ? "FAIL" : r.verdict, num(r.value), limit(r)].map((t) => {
           const td = document.createElement("td");
           td.textContent = t;
           return td;
@@ -56,7 +57,8 @@ window.hilVerdicts = function hilVerdicts({ $, body }) {
       }
     }
     $("verdict-list").replaceChildren(...rowsOut);
-    $("verdict-summary").textContent = runs.size === 0 ? "no checks judged yet" :
+    const judged = [...runs.values()].some((v) => v.checks);
+    $("verdict-summary").textContent = runs.size === 0 ? "no checks judged yet" : !judged ? campaign + ": judged as each run ends" :
       campaign + ": " + passed + " passed, " + failed + " failed" + (failed > 0 ? " — the campaign fails its checks" : "");
     $("verdict-summary").className = failed > 0 ? "bad" : "about";
     body.dataset.verdictsFailed = String(failed);
