@@ -1,6 +1,6 @@
 // The console's one screen, its markers and its verdicts (issues 40 and 41), in Debian's Chromium
-// against the real `hilbench serve`, on one short run (paper_adaptive's adaptive run, 12 s, with a
-// check set to fail):
+// against the real `hilbench serve`, on one short run (paper_adaptive's adaptive run, stopped by
+// the operator after the injections, with a check set to fail):
 //  - at 1400x900 the state, run time, progress, ABORT and the pressure, angle and gap plots lie
 //    inside the viewport without scrolling; at 390x844 the state, run time and ABORT do; every
 //    plot's y and x tick labels are distinct, every axis is labelled with a unit; screenshots of
@@ -23,15 +23,16 @@ const fail = h.fail;
 const injectedGapDeg = 3.7;  // never in paper_adaptive's programme
 const shotsDir = process.env.HIL_SCREENSHOTS_DIR || h.dir;
 
-// paper_adaptive, 12 s, as "console_checks", with one more check no run can pass.
+// paper_adaptive, 40 s (the test stops it once it has seen what it wants), as "console_checks",
+// with one more check no run can pass.
 function configs() {
   const c = join(h.dir, "configs");
   mkdirSync(join(c, "campaigns"), { recursive: true });
   for (const sub of ["plant", "rigs"]) symlinkSync(join(sourceDir, "configs", sub), join(c, sub));
   const paper = readFileSync(join(sourceDir, "configs", "campaigns", "paper_adaptive.yaml"), "utf8");
-  const mine = paper.replace(/^name: paper_adaptive\b/m, "name: console_checks").replace(/^duration_s: 18\b/m, "duration_s: 12") +
+  const mine = paper.replace(/^name: paper_adaptive\b/m, "name: console_checks").replace(/^duration_s: 18\b/m, "duration_s: 40") +
     "  - name: iae_impossible\n    runs: [adaptive]\n    metric: iae_mpa_s\n    max: 0.000001\n";
-  if (!mine.includes("console_checks") || !mine.includes("duration_s: 12")) throw new Error("paper_adaptive.yaml changed: name or duration_s not found");
+  if (!mine.includes("console_checks") || !mine.includes("duration_s: 40")) throw new Error("paper_adaptive.yaml changed: name or duration_s not found");
   writeFileSync(join(c, "campaigns", "console_checks.yaml"), mine);
   return c;
 }
@@ -74,6 +75,10 @@ async function screenshot(page, name) {
   return `${file} (${png.width}x${png.height}, ${ink.colours} colours)`;
 }
 
+const t0 = Date.now();
+const phases = [];
+const phase = (what) => phases.push(what + " " + ((Date.now() - t0) / 1000).toFixed(1) + " s");
+
 async function main() {
   mkdirSync(shotsDir, { recursive: true });
   const base = await h.startServer(exe, configs());
@@ -90,6 +95,7 @@ async function main() {
   await page.click("#start");
   if (!(await h.waitFor(page, "running with plots drawn", () => document.body.dataset.state === "running" && Number(document.body.dataset.points) >= 200))) return;
 
+  phase("running");
   // One screen at 1400x900.
   await sleep(300);
   await insideViewport(page, 1400, 900, ["#state", "#run-time", "#progress", "#abort", "#plot-pressure", "#plot-angles", "#plot-gap"], "1400x900");
@@ -119,7 +125,10 @@ async function main() {
   }, gapLabel);
   const liveMarks = await page.$eval("#plot-pressure", (d) => ({ markers: d.dataset.markers, windows: d.dataset.windows }));
 
-  // The verdicts when the run ends: the impossible check fails with value and limit.
+  // Stop (the run ends "stopped" and is judged on what it ran); its verdicts show at its end:
+  // the impossible check fails with value and limit.
+  phase("marked");
+  await page.click("#stop");
   if (!(await h.waitFor(page, "the run's verdicts shown", () => Number(document.body.dataset.verdictsFailed) >= 1, undefined, 60_000))) return;
   const verdicts = await page.$$eval("#verdict-list tr", (rows) => rows.map((tr) => ({ check: tr.dataset.check, verdict: tr.dataset.verdict,
     cells: [...tr.children].map((td) => td.textContent) })));
@@ -129,8 +138,8 @@ async function main() {
   if (!verdicts.some((v) => v.verdict === "pass" && /^\d/.test(v.cells[2]))) fail("no passing check shown: " + JSON.stringify(verdicts));
   const summary = await page.$eval("#verdict-summary", (e) => e.textContent);
   if (!/^console_checks: [1-9]\d* passed, [1-9]\d* failed/.test(summary)) fail("verdict summary: " + summary);
-  shots.push(await screenshot(page, "console-1400x900-verdicts.png"));
 
+  phase("judged");
   // The run's report: the same marks, the fault window shaded, the header saying what happened.
   if (!(await h.waitFor(page, "the run's report link", () => !!document.querySelector("#runs-table tbody tr a.report"), undefined, 30_000))) return;
   const href = await page.$eval("#runs-table tbody tr a.report", (a) => a.href);
@@ -150,6 +159,7 @@ async function main() {
   if (!new RegExp("gap " + injectedGapDeg + " deg at \\d+\\.\\d{3} s").test(header) || !/sensor stuck .* \d+\.\d{3}-\d+\.\d{3} s/.test(header))
     fail("report header: " + JSON.stringify(header));
   await report.close();
+  phase("report checked");
 
   // Dark when the browser asks for it.
   await page.emulateMediaFeatures([{ name: "prefers-color-scheme", value: "dark" }]);
@@ -163,7 +173,7 @@ async function main() {
   if (ds.consoleErrors !== "0") fail("the console counted errors: " + ds.consoleErrors);
   for (const p of problems) fail(p);
   console.log(`live marks ${JSON.stringify(liveMarks)}; report marks ${withGap}/${withFault} plots; header "${header}"; verdicts ${summary}; ` +
-    `pressure y ticks at 1400: ${JSON.stringify(wide.pressure.y)}; screenshots ${shots.join(", ")}`);
+    `pressure y ticks at 1400: ${JSON.stringify(wide.pressure.y)}; screenshots ${shots.join(", ")}; times (printed, not asserted): ${phases.join(", ")}`);
 }
 
 main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {
