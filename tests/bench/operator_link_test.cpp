@@ -115,7 +115,11 @@ TEST(EventFeed, OperatorEventsWholeOverrunsPerSecondAndOnlyWholeLinesFromAnOffse
   json worst = json::object();
   for (;; ++looks) {
     const json r = hil::bench::event_feed(file, offset, 16 * 1024);
-    for (const auto& e : r["events"]) gap_changes += e["kind"] == "gap_change";
+    for (const auto& e : r["events"]) {
+      gap_changes += e["kind"] == "gap_change";
+      // The label the console marks it with, the reports' wording (run_marks.hpp).
+      EXPECT_EQ(e.value("mark", ""), "gap " + std::to_string(e["gap_deg"].get<int>()) + " deg");
+    }
     for (const auto& s : r["summaries"]) {
       EXPECT_EQ(s["kind"], "overrun");
       overruns += s["count"].get<int>();

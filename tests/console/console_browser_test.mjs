@@ -8,96 +8,14 @@
 // without the following-error interlock is warned about in red before Start.
 // No console error or page error on either page; screenshots at 1400 and 390 px are not blank.
 //   node console_browser_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
-import { spawn } from "node:child_process";
-import { existsSync, mkdirSync, mkdtempSync, openSync, readdirSync, readFileSync, rmSync, symlinkSync, writeFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { mkdirSync, readdirSync, readFileSync, symlinkSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
-import { inflateSync } from "node:zlib";
-import puppeteer from "puppeteer-core";
+import { dataset, decodePng, harness, inkOf, sleep } from "./harness.mjs";
 
 const [exe, sourceDir] = process.argv.slice(2);
-const chromium = process.env.HIL_CHROMIUM || "/usr/bin/chromium";
 const injectedGapDeg = 3.7;  // paper_adaptive's programme never has this gap: a row with it is the injection
-const dir = mkdtempSync(join(tmpdir(), "hil-console-"));
-let server;
-let browser;
-let failed = false;
-
-function fail(message) {
-  failed = true;
-  console.error("FAIL: " + message);
-}
-async function finish() {
-  if (browser) await browser.close().catch(() => {});
-  if (server && server.exitCode === null) server.kill("SIGTERM");
-  if (failed && existsSync(join(dir, "server.log"))) console.error("---- server log ----\n" + readFileSync(join(dir, "server.log"), "utf8"));
-  if (failed || process.env.HIL_KEEP_SCREENSHOTS) console.error("screenshots and the server log are in " + dir);
-  else rmSync(dir, { recursive: true, force: true });
-  process.exit(failed ? 1 : 0);
-}
-const deadline = setTimeout(() => {
-  fail("timed out after 240 s");
-  finish();
-}, 240_000);
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-
-// The pixels of an 8-bit RGB or RGBA PNG (what Chromium writes), decoded here so that the check
-// does not trust the browser that drew them.
-function decodePng(buf) {
-  if (buf.readUInt32BE(0) !== 0x89504e47) throw new Error("not a PNG");
-  let off = 8;
-  let width = 0, height = 0, channels = 0;
-  const idat = [];
-  while (off < buf.length) {
-    const len = buf.readUInt32BE(off);
-    const type = buf.toString("latin1", off + 4, off + 8);
-    const data = buf.subarray(off + 8, off + 8 + len);
-    if (type === "IHDR") {
-      width = data.readUInt32BE(0);
-      height = data.readUInt32BE(4);
-      if (data[8] !== 8 || data[12] !== 0 || (data[9] !== 2 && data[9] !== 6)) throw new Error("PNG not 8-bit RGB(A), non-interlaced");
-      channels = data[9] === 6 ? 4 : 3;
-    } else if (type === "IDAT") {
-      idat.push(data);
-    }
-    off += 12 + len;
-  }
-  const raw = inflateSync(Buffer.concat(idat));
-  const stride = width * channels;
-  const out = Buffer.alloc(height * stride);
-  for (let y = 0; y < height; ++y) {
-    const filter = raw[y * (stride + 1)];
-    const line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
-    for (let x = 0; x < stride; ++x) {
-      const a = x >= channels ? out[y * stride + x - channels] : 0;
-      const b = y > 0 ? out[(y - 1) * stride + x] : 0;
-      const c = x >= channels && y > 0 ? out[(y - 1) * stride + x - channels] : 0;
-      let v = line[x];
-      if (filter === 1) v += a;
-      else if (filter === 2) v += b;
-      else if (filter === 3) v += (a + b) >> 1;
-      else if (filter === 4) {
-        const p = a + b - c, pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
-        v += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
-      } else if (filter !== 0) throw new Error("PNG filter " + filter);
-      out[y * stride + x] = v & 255;
-    }
-  }
-  return { width, height, channels, pixels: out };
-}
-
-// Distinct colours and the share of pixels unlike the most common one (the background).
-function inkOf(png) {
-  const counts = new Map();
-  const n = png.width * png.height;
-  for (let i = 0; i < n; ++i) {
-    const o = i * png.channels;
-    const key = (png.pixels[o] << 16) | (png.pixels[o + 1] << 8) | png.pixels[o + 2];
-    counts.set(key, (counts.get(key) || 0) + 1);
-  }
-  const most = Math.max(...counts.values());
-  return { colours: counts.size, inkShare: 1 - most / n };
-}
+const h = harness("hil-console-", 240);
+const { dir, fail, waitFor } = h;
 
 async function screenshotChecked(page, width, name) {
   await page.setViewport({ width, height: 900 });
@@ -110,17 +28,6 @@ async function screenshotChecked(page, width, name) {
   if (png.width !== width) fail(`${name}: ${png.width} px wide, not ${width}`);
   if (ink.colours < 50 || ink.inkShare < 0.05) fail(`${name} looks blank: ${ink.colours} colours, ${(100 * ink.inkShare).toFixed(1)} % ink`);
   return `${name} ${png.width}x${png.height}: ${ink.colours} colours, ${(100 * ink.inkShare).toFixed(1)} % ink`;
-}
-
-const dataset = (page) => page.evaluate(() => ({ ...document.body.dataset }));
-async function waitFor(page, what, fn, arg, timeoutMs = 20_000) {
-  try {
-    await page.waitForFunction(fn, { timeout: timeoutMs, polling: 100 }, arg);
-    return true;
-  } catch (e) {
-    fail(what + " (within " + timeoutMs / 1000 + " s): " + JSON.stringify(await dataset(page)));
-    return false;
-  }
 }
 
 // The shipped configs, plus a rig the server must warn about: the CAN rig without its
@@ -145,15 +52,8 @@ function configsWithBareRig() {
 }
 
 async function main() {
-  const log = openSync(join(dir, "server.log"), "a");
-  server = spawn(exe, ["serve", "--listen", "127.0.0.1:0", "--configs", configsWithBareRig(), "--runs-dir", join(dir, "runs"),
-    "--port-file", join(dir, "port")], { stdio: ["ignore", log, log] });
-  for (let i = 0; i < 600 && !existsSync(join(dir, "port")); ++i) await sleep(100);
-  if (!existsSync(join(dir, "port"))) return fail("hilbench serve did not start");
-  const base = `http://127.0.0.1:${Number(readFileSync(join(dir, "port"), "utf8"))}`;
-
-  browser = await puppeteer.launch({ executablePath: chromium, headless: true,
-    args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run"] });
+  const base = await h.startServer(exe, configsWithBareRig());
+  const browser = await h.launch();
   const problems = [];
   const watch = (page, label) => {
     page.on("console", (m) => { if (m.type() === "error") problems.push(`${label} console error: ${m.text()}`); });
@@ -327,6 +227,6 @@ async function main() {
 }
 
 main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {
-  clearTimeout(deadline);
-  finish();
+  clearTimeout(h.deadline);
+  h.finish();
 });

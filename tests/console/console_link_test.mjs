@@ -16,38 +16,15 @@
 //  - a run's Compare/Diagnose model picker is set to the run's own plant (soak_random: constant_volume).
 // Times (kill to banner, quiet to safe state) and bytes are printed, not asserted: the machine is busy.
 //   node console_link_test.mjs HILBENCH_EXE SOURCE_DIR      (HIL_KEEP_SCREENSHOTS=1 keeps the temp dir)
-import { spawn } from "node:child_process";
-import { appendFileSync, existsSync, mkdirSync, mkdtempSync, openSync, readdirSync, readFileSync, rmSync, symlinkSync, writeFileSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { appendFileSync, mkdirSync, readdirSync, readFileSync, symlinkSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
-import puppeteer from "puppeteer-core";
+import { dataset, harness, sleep } from "./harness.mjs";
 
 const [exe, sourceDir] = process.argv.slice(2);
-const chromium = process.env.HIL_CHROMIUM || "/usr/bin/chromium";
-const dir = mkdtempSync(join(tmpdir(), "hil-console-link-"));
+const h = harness("hil-console-link-", 280);
+const { dir, fail, waitFor } = h;
 const kOperatorTimeoutS = 2;
-let server;
-let browser;
-let failed = false;
 const measured = [];
-
-function fail(message) {
-  failed = true;
-  console.error("FAIL: " + message);
-}
-async function finish() {
-  if (browser) await browser.close().catch(() => {});
-  if (server && server.exitCode === null) server.kill("SIGTERM");
-  if (failed && existsSync(join(dir, "server.log"))) console.error("---- server log ----\n" + readFileSync(join(dir, "server.log"), "utf8"));
-  if (failed || process.env.HIL_KEEP_SCREENSHOTS) console.error("the server log and runs are in " + dir);
-  else rmSync(dir, { recursive: true, force: true });
-  process.exit(failed ? 1 : 0);
-}
-const deadline = setTimeout(() => {
-  fail("timed out after 280 s");
-  finish();
-}, 280_000);
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 // The shipped configs, plus a sim rig that requires an operator.
 function configs() {
@@ -60,30 +37,7 @@ function configs() {
   return c;
 }
 
-let listen = "127.0.0.1:0";
-async function startServer() {
-  rmSync(join(dir, "port"), { force: true });
-  const log = openSync(join(dir, "server.log"), "a");
-  server = spawn(exe, ["serve", "--listen", listen, "--configs", join(dir, "configs"), "--runs-dir", join(dir, "runs"),
-    "--port-file", join(dir, "port")], { stdio: ["ignore", log, log] });
-  for (let i = 0; i < 600 && !existsSync(join(dir, "port")); ++i) await sleep(100);
-  if (!existsSync(join(dir, "port"))) throw new Error("hilbench serve did not start");
-  const port = Number(readFileSync(join(dir, "port"), "utf8"));
-  listen = "127.0.0.1:" + port;  // a restart takes the same port: the open page reconnects to it
-  return `http://127.0.0.1:${port}`;
-}
-
-const dataset = (page) => page.evaluate(() => ({ ...document.body.dataset }));
-async function waitFor(page, what, fn, arg, timeoutMs = 20_000) {
-  try {
-    await page.waitForFunction(fn, { timeout: timeoutMs, polling: 50 }, arg);
-    return true;
-  } catch (e) {
-    fail(what + " (within " + timeoutMs / 1000 + " s): " + JSON.stringify(await dataset(page)) + " message: " +
-      JSON.stringify(await page.$eval("#message", (m) => m.textContent).catch(() => "")));
-    return false;
-  }
-}
+const startServer = () => h.startServer(exe, join(dir, "configs"));
 const text = (page, sel) => page.$eval(sel, (e) => (e.hidden ? "" : e.textContent));
 
 async function call(base, method, path, payload) {
@@ -117,8 +71,7 @@ async function feedAll(base, id) {
 async function main() {
   configs();
   let base = await startServer();
-  browser = await puppeteer.launch({ executablePath: chromium, headless: true,
-    args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run"] });
+  const browser = await h.launch();
   const page = await browser.newPage();
   const problems = [];
   page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
@@ -147,7 +100,7 @@ async function main() {
 
   // The server dies mid-run: the banner, the unknown state, and an abort that says it was not delivered.
   const killedAt = Date.now();
-  server.kill("SIGKILL");
+  h.server.kill("SIGKILL");
   if (!(await waitFor(page, "the link-lost banner", () => document.body.dataset.link === "lost" &&
       /LINK LOST/.test(document.getElementById("link-lost").textContent) && !document.getElementById("link-lost").hidden))) return;
   const bannerMs = Date.now() - killedAt;
@@ -321,6 +274,6 @@ async function main() {
 }
 
 main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {
-  clearTimeout(deadline);
-  finish();
+  clearTimeout(h.deadline);
+  h.finish();
 });

@@ -294,6 +294,13 @@ void Document::figure(const Figure& fig) {
       append_number(json, l.y);
       json += ",\"label\":" + json_string(l.label) + ",\"dashed\":" + (l.dashed ? "true" : "false") + "}";
     }
+    json += "],\"markers\":[";
+    for (std::size_t i = 0; i < fig.markers.size(); ++i) {
+      const auto& m = fig.markers[i];
+      json += i > 0 ? ",{\"x\":" : "{\"x\":";
+      append_number(json, m.x);
+      json += ",\"label\":" + json_string(m.label) + ",\"color\":" + json_string(m.color) + "}";
+    }
     json += "]}";
     json += kDataClose;
     close_block();

@@ -6,7 +6,7 @@
 // dygraphs plotter) and sortable tables.
 // For tests: each plot's canvas gets class hil-plot, data-rendered="1", data-ink (pixels the data
 // drew on the first draw) and data-empty="1" without data; <body> gets data-plots,
-// data-plot-errors and data-plot-error-first; window.hilReport.charts lists the charts.
+// data-plot-errors and data-plot-error-first; the underlay's canvas data-markers (event labels drawn); window.hilReport.charts lists the charts.
 (function () {
   'use strict';
 
@@ -250,6 +250,7 @@
     ctx.save();
     ctx.globalAlpha = 0.12;
     for (const b of spec.bands || []) {
+      ctx.globalAlpha = b.color && b.color.startsWith('rgba') ? 1 : 0.12;  // a colour with its own alpha keeps it
       const a = Math.max(area.x, g.toDomXCoord(Math.min(b.x0, b.x1))), c = Math.min(area.x + area.w, g.toDomXCoord(Math.max(b.x0, b.x1)));
       ctx.fillStyle = b.color || '#d62728';
       ctx.fillRect(a, area.y, c - a, area.h);
@@ -265,6 +266,28 @@
       ctx.stroke();
       if (h.label) ctx.fillText(h.label, area.x + 4, y - 3);
     }
+    // Events as labelled dashed lines; a label that would overlap the one before goes a row lower
+    // (three rows), and the labels drawn are listed on the canvas (data-markers) for tests.
+    Object.assign(ctx, { font: '10px sans-serif', textBaseline: 'top' });
+    const drawn = [], rowEnd = [-Infinity, -Infinity, -Infinity];
+    for (const m of spec.markers || []) {
+      const x = Math.round(g.toDomXCoord(m.x)) + 0.5;
+      if (!(x >= area.x && x <= area.x + area.w)) continue;
+      ctx.strokeStyle = ctx.fillStyle = m.color || window.hilPalette.event;
+      ctx.setLineDash([4, 3]);
+      ctx.beginPath();
+      ctx.moveTo(x, area.y);
+      ctx.lineTo(x, area.y + area.h);
+      ctx.stroke();
+      const row = rowEnd.findIndex(end => end < x);
+      if (!m.label || row < 0) continue;
+      const w = ctx.measureText(m.label).width;  // right of its line, or left where it would leave the plot
+      ctx.fillText(m.label, x + 2 + w > area.x + area.w ? x - 2 - w : x + 2, area.y + 2 + 12 * row);
+      rowEnd[row] = x + 6 + w;
+      drawn.push(m.label);
+    }
+    ctx.setLineDash([]);
+    ctx.canvas.setAttribute('data-markers', JSON.stringify(drawn));
     ctx.restore();
   };
 

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/campaign/run_marks.hpp"
 #include "hil/bench/rt/run_record.hpp"
 #include "sim_report.hpp"
 #include "hil/config.hpp"
@@ -175,6 +176,9 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
       if (other.digest.name == name) name += " (" + dir.filename().string() + ")";
     }
     r.digest = telemetry.digest(c, telemetry_file(dir), name);
+    // What the operator and the loop did, as events.jsonl recorded it (marked in the report).
+    r.digest.marks = marks_from_events(dir / "events.jsonl", r.digest.summary.duration_s);
+    r.digest.marks_recorded = true;
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;

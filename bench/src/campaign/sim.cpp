@@ -218,7 +218,7 @@ void RunDigest::add(const TelemetryRecord& r) {
 }
 
 RunOutcome RunDigest::finish(std::string run_name) {
-  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0, {}};
+  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0, {}, {}, false};
 }
 
 SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)

@@ -1,9 +1,11 @@
 #include "sim_report.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <map>
 
+#include "hil/palette.hpp"
 #include "hil/report/report.hpp"
 #include "hil/telemetry_schema.hpp"
 #include "hil/units.hpp"
@@ -21,6 +23,9 @@ std::string fmt(const char* f, double v) {
 }
 
 using telemetry::Col;
+
+// A signal's colour from the one palette (common/palette/signals.txt), as the console draws it.
+std::string C(std::string_view signal) { return std::string(palette::color(signal)); }
 
 // A telemetry column's decimated series in the run (nullptr: the report does not keep it).
 const ReportSeries* find(const RunOutcome& r, telemetry::Col column) {
@@ -47,6 +52,14 @@ bool full_window(const std::vector<ReversalSummary>& rv, std::size_t i, double e
   return next - rv[i].t_s >= 1.0;
 }
 
+// The run's events as labelled lines on a time figure, its fault windows shaded.
+void mark(Figure& f, const RunMarks& m, bool with_bands, const std::string& prefix = "") {
+  for (const auto& e : m.marks) {
+    f.markers.push_back({e.t_s, prefix + e.label, C("event")});
+    if (with_bands && std::isfinite(e.end_s)) f.bands.push_back({e.t_s, e.end_s, prefix + e.label, C("fault_window")});
+  }
+}
+
 std::string describe_gap(const Campaign& c) {
   std::string text = "gap " + fmt("%.3g", units::rad_to_deg(c.gap_rad.initial())) + " deg";
   const auto& pts = c.gap_rad.points();
@@ -71,7 +84,17 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   doc.paragraph("Plant " + c.plant_file.filename().string() + "; " + fmt("%.6g", c.duration_s) +
                 " s at dT = " + fmt("%.3g", c.period_s * 1e3) + " ms; sensor noise " + fmt("%.3g", c.sensor_noise_rms_pa / 1e3) +
                 " kPa RMS; seed " + std::to_string(c.seed) + "; " + std::to_string(c.reversals_s.size()) +
-                " reference reversals; " + describe_gap(c) + ".");
+                " reference reversals; programmed " + describe_gap(c) + ".");
+  // What happened, run by run: a served run's recorded events (what the operator injected, when),
+  // else (a simulation) the programme; the plots mark the same.
+  std::vector<RunMarks> marks;
+  for (const auto& r : runs) marks.push_back(r.marks_recorded ? r.marks : marks_from_programme(c));
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    if (!runs[i].marks_recorded) continue;
+    const std::string what = describe_marks(marks[i].marks);
+    doc.paragraph("What happened in " + runs[i].name + ": " + (what.empty() ? "no operator action, fault or trip" : what) + ".");
+    if (!marks[i].unreadable.empty()) doc.note("events skipped: " + marks[i].unreadable, true);
+  }
 
   // Summary metrics, one row per run.
   std::vector<std::vector<std::string>> rows;
@@ -129,44 +152,60 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   doc.paragraph("Drag to zoom (all time axes follow), double-click to reset, click a legend entry to hide it.");
   Figure overlay{"Pressure, all runs", "time [s]", "pressure [MPa]"};
   overlay.group = "t";
-  overlay.series.push_back(series(runs.front(), Col::p_ref_mpa, "reference", "#222", Series::Style::step, true));
+  overlay.series.push_back(series(runs.front(), Col::p_ref_mpa, "reference", C("p_ref_mpa"), Series::Style::step, true));
   for (const auto& r : runs) overlay.series.push_back(series(r, Col::p_meas_mpa, r.name + " measured"));
+  // Recorded events per run (named when there are several); the programme, the same for all, once.
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    if (runs[i].marks_recorded)
+      mark(overlay, marks[i], false, runs.size() > 1 ? runs[i].name + ": " : "");
+    else if (i == 0)
+      mark(overlay, marks[i], false);
+  }
   doc.figure(overlay);
 
   const int n = static_cast<int>(runs.size());
   doc.columns_begin(n);
-  for (const auto& r : runs) {
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = runs[i];
     Figure f{r.name + ": pressure vs reference", "time [s]", "pressure [MPa]"};
+    mark(f, marks[i], true);
     f.group = "t";
-    f.series = {series(r, Col::p_ref_mpa, "reference", "#222", Series::Style::step, true),
-                series(r, Col::p_meas_mpa, "measured", "#1f77b4")};
+    f.series = {series(r, Col::p_ref_mpa, "reference", C("p_ref_mpa"), Series::Style::step, true),
+                series(r, Col::p_meas_mpa, "measured", C("p_meas_mpa"))};
     doc.figure(f);
   }
-  for (const auto& r : runs) {
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = runs[i];
     Figure f{r.name + ": touch state", "time [s]", "touch state Tf [-1, 0, +1]"};
+    mark(f, marks[i], true);
     f.group = "t";
     f.height_px = 180;
-    f.series = {series(r, Col::touch_state, "Tf", "#d62728", Series::Style::step)};
+    f.series = {series(r, Col::touch_state, "Tf", C("touch_state"), Series::Style::step)};
     doc.figure(f);
   }
-  for (const auto& r : runs) {
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = runs[i];
     Figure f{r.name + ": motor vs valve angle", "time [s]", "angle [deg]"};
+    mark(f, marks[i], true);
     f.group = "t";
-    f.series = {series(r, Col::theta_cmd_deg, "command", "#7f7f7f", Series::Style::line, true),
-                series(r, Col::theta_motor_deg, "motor", "#ff7f0e"), series(r, Col::theta_valve_deg, "valve", "#2ca02c")};
+    f.series = {series(r, Col::theta_cmd_deg, "command", C("theta_cmd_deg"), Series::Style::line, true),
+                series(r, Col::theta_motor_deg, "motor", C("theta_motor_deg")),
+                series(r, Col::theta_valve_deg, "valve", C("theta_valve_deg"))};
     // A real drive's shaped target, where it is not the command (a rig with target shaping).
     const ReportSeries* cmd = find(r, Col::theta_cmd_deg);
     const ReportSeries* target = find(r, Col::theta_target_deg);
     if (cmd && target && target->value != cmd->value)
-      f.series.push_back(series(r, Col::theta_target_deg, "drive target", "#17becf"));
+      f.series.push_back(series(r, Col::theta_target_deg, "drive target", C("theta_target_deg")));
     doc.figure(f);
   }
-  for (const auto& r : runs) {
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = runs[i];
     Figure f{r.name + ": gap estimate vs true gap", "time [s]", "gap [deg]"};
+    mark(f, marks[i], true);
     f.group = "t";
     f.height_px = 200;
-    f.series = {series(r, Col::gap_true_deg, "true gap", "#222", Series::Style::step, true),
-                series(r, Col::gap_est_deg, "estimate", "#9467bd", Series::Style::step)};
+    f.series = {series(r, Col::gap_true_deg, "true gap", C("gap_true_deg"), Series::Style::step, true),
+                series(r, Col::gap_est_deg, "estimate", C("gap_est_deg"), Series::Style::step)};
     doc.figure(f);
   }
   doc.columns_end();

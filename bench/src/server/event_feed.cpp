@@ -9,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "hil/bench/campaign/run_marks.hpp"
 #include "hil/bench/server/runner.hpp"
 
 namespace hil::bench {
@@ -70,6 +71,8 @@ json event_feed(const std::filesystem::path& events_file, std::uint64_t offset, 
     const std::string kind = e["kind"].get<std::string>();
     const double t_s = e.contains("t_s") && e["t_s"].is_number() ? e["t_s"].get<double>() : NAN;
     if (!summarised_event_kind(kind) || !std::isfinite(t_s)) {
+      // The label the plots mark it with, worded as the reports do (run_marks.hpp).
+      if (std::string mark = mark_label(e); !mark.empty() && std::isfinite(t_s)) e["mark"] = std::move(mark);
       events.push_back(std::move(e));
       continue;
     }

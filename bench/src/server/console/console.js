@@ -97,188 +97,13 @@
 
   // The link and the safety state (link.js), the events (events.js).
   const linkState = window.hilLink({ $, body, api, ApiRefusal, showMessage, clearMessages, onState: (state, m) => reflectState(state, m) });
-  const events = window.hilEvents({ $, body, apiText, ApiRefusal, onMarks: (list) => {
-    marks = list;
-    dirty = true;
-  } });
-
-  // ---------------------------------------------------------------------------------------------
-  // Live telemetry: a bounded buffer of rows, plots redrawn on a timer (not per message).
-  const kKeepS = 120;         // seconds of telemetry held
-  const kMaxRows = 20000;     // and never more rows than this, whatever the rate
-  const kFollowSpanS = 30;    // what "follow" shows
-  const kRedrawMs = 80;       // at most 12.5 redraws a second
-  const columns = ["t_s", "p_ref_mpa", "p_meas_mpa", "theta_cmd_deg", "theta_motor_deg", "theta_valve_deg", "touch_state",
-    "motion_intention", "gap_est_deg", "gap_true_deg", "comp_deg"];
-  const C = Object.fromEntries(columns.map((c, i) => [c, i]));
-  const rows = [];
-  let dirty = false;
-  let frames = 0;
-  let received = 0;
+  const live = window.hilPlots({ $, body, palette: window.hilPalette });
+  const events = window.hilEvents({ $, body, apiText, ApiRefusal, onMarks: (list) => live.setMarks(list) });
+  const verdicts = window.hilVerdicts({ $, body });
+  const runsList = window.hilRuns({ $, api, act, withToken, showMessage, ApiRefusal });
+  const refreshRuns = () => runsList.refresh();
   let droppedTotal = 0;
-  body.dataset.framesRendered = "0";
-  body.dataset.points = "0";
 
-  const num = (v) => (typeof v === "number" && isFinite(v) ? v : null);
-  function addRow(m) {
-    const t = num(m.t_s);
-    if (t === null) return;
-    if (rows.length > 0 && t < rows[rows.length - 1][C.t_s]) rows.length = 0;  // time went back: a new run
-    rows.push(columns.map((c) => num(m[c])));
-    let drop = 0;
-    while (drop < rows.length && (rows[drop][C.t_s] < t - kKeepS || rows.length - drop > kMaxRows)) ++drop;
-    if (drop > 0) rows.splice(0, drop);
-    ++received;
-    dirty = true;
-  }
-
-  const plotDefs = [
-    { id: "pressure", title: "Pressure (MPa)", labels: ["pressure reference", "measured pressure"], cols: [C.p_ref_mpa, C.p_meas_mpa],
-      colors: ["#7f8c8d", "#1565c0"] },
-    { id: "angles", title: "Angles (deg): command, motor, valve; compensation jumps marked", labels: ["command", "motor", "valve",
-      "compensation jump"], cols: [C.theta_cmd_deg, C.theta_motor_deg, C.theta_valve_deg, -1],
-      colors: ["#1565c0", "#2e7d32", "#8e24aa", "#c62828"],
-      series: { "compensation jump": { strokeWidth: 0, drawPoints: true, pointSize: 4 } } },
-    { id: "observer", title: "Observer: touch state Tf and motion intention Mf", labels: ["touch state", "motion intention"],
-      cols: [C.touch_state, C.motion_intention], colors: ["#ef6c00", "#00838f"], stepPlot: true, valueRange: [-1.4, 1.4] },
-    { id: "gap", title: "Gap (deg): estimate vs true", labels: ["gap estimate", "true gap"], cols: [C.gap_est_deg, C.gap_true_deg],
-      colors: ["#1565c0", "#c62828"] },
-  ];
-  const plots = {};
-  const view = { mode: "follow", range: null };  // follow | fixed (the operator's zoom) | paused
-  let syncing = false;  // our own updates: not the operator zooming or panning
-  let shownRange = null;  // the x range we last gave the plots
-  let marks = [];   // the current run's marked events ({t_s, kind}), drawn as labelled lines
-
-  // Y tick labels with the decimals their spacing needs (dygraphs' default rounds to 2 significant
-  // digits, so sub-degree ticks of the gap plot printed as "1" and "1"). Dygraphs spaces ticks by
-  // the smallest of 1, 2, 5 x 10^k that leaves pixelsPerLabel pixels between labels; that step,
-  // from the axis range and the plot's height, sets the decimals, and a value the step does not
-  // predict (another tick rule) gets the decimals it needs itself.
-  function yTickFormatter(value, granularity, opts, g) {
-    const range = g && g.yAxisRange ? g.yAxisRange() : null;
-    const area = g && g.getArea ? g.getArea() : null;
-    const h = area && area.h > 0 ? area.h : g && g.graphDiv ? g.graphDiv.clientHeight - 40 : 0;
-    const least = range && h > 0 ? (Math.abs(range[1] - range[0]) * (opts("pixelsPerLabel") || 30)) / h : 0;
-    let decimals = 0;
-    if (least > 0 && isFinite(least)) {
-      const k = Math.floor(Math.log10(least));
-      const mantissa = [1, 2, 5, 10].find((m) => m * 10 ** k >= least * (1 - 1e-9));
-      decimals = Math.max(0, -Math.floor(Math.log10(mantissa * 10 ** k) + 1e-9));
-    }
-    while (decimals < 6 && Math.abs(value * 10 ** decimals - Math.round(value * 10 ** decimals)) > 1e-6 * Math.max(1, Math.abs(value * 10 ** decimals)))
-      ++decimals;
-    return value.toFixed(decimals);
-  }
-
-  function plotData(def) {
-    return rows.map((r) => {
-      const out = [r[C.t_s]];
-      for (const c of def.cols) out.push(c >= 0 ? r[c] : (r[C.comp_deg] ? r[C.theta_cmd_deg] : null));
-      return out;
-    });
-  }
-
-  function setView(mode, range) {
-    view.mode = mode;
-    view.range = range;
-    $("view-mode").textContent = mode === "follow" ? "following" : mode === "paused" ? "paused (zoom and pan freely)" : "zoomed; streaming";
-    $("pause").textContent = mode === "paused" ? "Resume" : "Pause";
-    dirty = true;
-  }
-
-  // A zoom or a pan in one plot moves them all; the plots keep streaming in that range.
-  function onDraw(g, initial) {
-    if (syncing || initial) return;
-    const range = g.xAxisRange();
-    // A redraw in the range we gave (a resize) is not the operator's doing.
-    if (shownRange && Math.abs(range[0] - shownRange[0]) < 1e-9 && Math.abs(range[1] - shownRange[1]) < 1e-9) return;
-    shownRange = range;
-    setView(view.mode === "paused" ? "paused" : "fixed", range);
-    syncing = true;
-    for (const other of Object.values(plots)) if (other !== g) other.updateOptions({ dateWindow: range });
-    syncing = false;
-  }
-
-  function underlay(ctx, area, g) {
-    ctx.save();
-    ctx.strokeStyle = "rgba(198, 40, 40, 0.55)";
-    ctx.fillStyle = "rgba(198, 40, 40, 0.9)";
-    ctx.font = "10px system-ui, sans-serif";
-    ctx.setLineDash([4, 3]);
-    let lastLabelX = -Infinity;
-    for (const m of marks) {
-      const x = g.toDomXCoord(m.t_s);
-      if (x < area.x || x > area.x + area.w) continue;
-      ctx.beginPath();
-      ctx.moveTo(x, area.y);
-      ctx.lineTo(x, area.y + area.h);
-      ctx.stroke();
-      if (x - lastLabelX > 60) {  // labels that would overlap are left to the events list
-        ctx.fillText(m.kind.replaceAll("_", " "), x + 2, area.y + 10);
-        lastLabelX = x;
-      }
-    }
-    ctx.restore();
-  }
-
-  function ensurePlots() {
-    if (Object.keys(plots).length > 0) return;
-    $("plots-empty").hidden = true;
-    // Shown before they are made: a Dygraph takes its div's size then (and follows the window's).
-    $("plots").classList.add("live");
-    for (const def of plotDefs) {
-      const div = $("plot-" + def.id);
-      const legend = document.createElement("div");
-      legend.className = "legend";
-      div.after(legend);
-      plots[def.id] = new Dygraph(div, plotData(def), {
-        labels: ["t (s)", ...def.labels],
-        title: def.title,
-        titleHeight: 22,
-        colors: def.colors,
-        series: def.series || {},
-        stepPlot: !!def.stepPlot,
-        valueRange: def.valueRange || null,
-        legend: "always",
-        labelsDiv: legend,
-        labelsSeparateLines: false,
-        connectSeparatedPoints: false,
-        animatedZooms: false,
-        xLabelHeight: 0,
-        axes: { y: { axisLabelFormatter: yTickFormatter } },
-        drawCallback: onDraw,
-        underlayCallback: underlay,
-      });
-      div.addEventListener("dblclick", () => setView("follow", null));
-    }
-  }
-
-  function redraw() {
-    dirty = false;
-    if (rows.length < 2 || rows[rows.length - 1][C.t_s] <= rows[0][C.t_s]) return;
-    ensurePlots();
-    const tLast = rows[rows.length - 1][C.t_s];
-    const range = view.mode === "follow" ? [Math.max(rows[0][C.t_s], tLast - kFollowSpanS), tLast] : view.range;
-    syncing = true;
-    try {
-      for (const def of plotDefs) plots[def.id].updateOptions({ file: plotData(def), dateWindow: range });
-      shownRange = plots[plotDefs[0].id].xAxisRange();
-    } finally {
-      syncing = false;
-    }
-    body.dataset.framesRendered = String(++frames);
-    body.dataset.points = String(rows.length);
-  }
-  setInterval(() => {
-    if (dirty && view.mode !== "paused") redraw();
-  }, kRedrawMs);
-
-  $("follow").addEventListener("click", () => setView("follow", null));
-  $("pause").addEventListener("click", () => {
-    if (view.mode === "paused") return setView("follow", null);
-    setView("paused", Object.values(plots)[0] ? Object.values(plots)[0].xAxisRange() : null);
-  });
 
   let ws = null;
   function connect() {
@@ -302,15 +127,17 @@
       } catch (err) {
         return;
       }
-      if (m.type === "row") return addRow(m);
+      if (m.type === "row") return live.addRow(m);
       if (m.type === "status") {
         linkState.status(m);
         if (m.run_dir && m.state !== "idle") events.setCurrent(m.run_dir);
       } else if (m.type === "run_start") {
-        rows.length = 0;
+        live.clear();
+        verdicts.runStart(m);
         events.setCurrent(m.dir);
       } else if (m.type === "run_end") {
         linkState.runEnd(m);
+        verdicts.runEnd(m);
         events.add("run_end", m.run + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), m.outcome === "completed" ? "" : "trip");
         events.follow(m.dir);
         refreshRuns();
@@ -350,11 +177,14 @@
       const last = m.last;
       $("what").textContent = last && last.campaign ? "last: " + last.campaign + ": " + last.outcome + (last.reason ? " (" + last.reason + ")" : "") : "";
       $("progress").value = 0;
+      $("run-time").textContent = "";
       shownCampaign = "";
       return;
     }
+    // The run's time apart, never cut off (on a phone what runs wraps below it).
+    $("run-time").textContent = "t " + fmt(m.run_t_s, 1) + " / " + fmt(m.duration_s, 0) + " s";
     $("what").textContent = (m.campaign || "?") + " · " + (m.run || "?") + " (" + ((m.run_index ?? 0) + 1) + "/" + (m.runs_total ?? "?") + ") on " +
-      (m.rig || "?") + " · t " + fmt(m.run_t_s, 1) + "/" + fmt(m.duration_s, 0) + " s";
+      (m.rig || "?");
     $("progress").value = m.fraction || 0;
     // The controls show what runs (started here, by another console or through the API).
     const key = m.campaign + "|" + m.rig + "|" + (m.runs || []).join(",");
@@ -371,6 +201,7 @@
 
   function renderStatus(s) {
     const state = s.state || "idle";
+    verdicts.fromStatus(s);
 
     const dl = $("health-list");
     const items = [];
@@ -395,7 +226,8 @@
       if (tel.write_error) items.push(["write error", tel.write_error, true]);
       items.push(["events lost", tel.events_lost ?? "–", tel.events_lost > 0]);
     }
-    items.push(["live view: rows received / held", received + " / " + rows.length, false]);
+    const counts = live.counts();
+    items.push(["live view: rows received / held", counts.received + " / " + counts.held, false]);
     items.push(["live view: messages dropped", droppedTotal, droppedTotal > 0]);
     dl.replaceChildren(...items.flatMap(([k, v, bad]) => {
       const dt = document.createElement("dt");
@@ -500,7 +332,7 @@
         showMessage("start " + payload.campaign + " on " + payload.rig + ": accepted; warning: " + reply.warning, false);
         events.add("warning", reply.warning, "trip");
       }
-      setView("follow", null);
+      live.setView("follow", null);
     }
   });
   $("stop").addEventListener("click", () => act("stop", "POST", "/api/stop", {}));
@@ -570,148 +402,10 @@
   });
   $("inject-clear").addEventListener("click", () => ask("Clear every injected fault?", () => inject("clear", {}, "faults cleared")));
 
-  // ---------------------------------------------------------------------------------------------
-  // Recorded runs, each with its report, its files and its analyses against a plant model.
-  function link(href, text, newTab) {
-    const a = document.createElement("a");
-    a.href = withToken(href);
-    a.textContent = text;
-    if (newTab) a.target = "_blank";
-    return a;
-  }
-  function refreshRuns() {
-    return loadRuns().catch((e) => showMessage("cannot list runs: " + e.message, false));
-  }
-
-  let models = [];
-  const analysesOf = new Map();  // run id -> its analyses, as last listed
-  const analysisPolls = new Map();  // run id -> timer while one of its analyses is queued or running
-  const kAnalysedRuns = 20;  // the newest runs whose analyses are listed
-
-  async function loadModels() {
-    models = (await api("GET", "/api/models")).models.filter((m) => !m.error);
-    for (const sel of document.querySelectorAll("#runs-table select.model")) fillModels(sel);
-  }
-  // The run's own plant (its recorded snapshot's, GET /api/runs "plant") first, else nominal: a run
-  // compared against another plant than it ran on reads as a bad fit (soak_random: 18 % against
-  // nominal, 91 % against its own constant_volume).
-  function fillModels(sel) {
-    const own = sel.dataset.plant && models.some((m) => m.name === sel.dataset.plant) ? sel.dataset.plant : "nominal";
-    const keep = sel.value || own;
-    sel.replaceChildren(...models.map((m) => new Option(m.name + (m.name === sel.dataset.plant ? " (the run's plant)" : ""), m.name, false,
-      m.name === keep)));
-  }
-
-  function renderAnalyses(runId) {
-    const ul = document.querySelector(`#runs-table tr[data-run="${CSS.escape(runId)}"] ul.analyses`);
-    if (!ul) return;
-    ul.replaceChildren(...(analysesOf.get(runId) || []).map((a) => {
-      const li = document.createElement("li");
-      li.dataset.id = a.id;
-      li.dataset.kind = a.kind || "";
-      li.dataset.state = a.state || "";
-      const what = (a.kind || "?") + " vs " + (a.model || "?") + ": ";
-      if (a.state === "done") {
-        const r = a.result || {};
-        // The fit beside what the sensor's noise allows at best, and the verdict in words.
-        const floor = typeof r.noise_floor_fit_pct === "number" ? " (noise floor " + fmt(r.noise_floor_fit_pct, 1) + " %)" : "";
-        const figure = a.kind === "compare" ? "fit " + fmt(r.fit_pct, 1) + " %" + floor : String(r.verdict || "").replaceAll("_", " ") +
-          (r.added && r.added.length ? " (" + r.added.map((x) => x.effect).join(", ") + ")" : "") +
-          (typeof r.fit_after_pct === "number" ? ": fit " + fmt(r.fit_before_pct, 1) + " → " + fmt(r.fit_after_pct, 1) + " %" + floor : "");
-        const open = link(a.report, "report", true);
-        open.className = "analysis-report";
-        li.append(what + figure + " ", open);
-      } else if (a.state === "failed") {
-        li.className = "bad";
-        li.append(what + "failed: " + (a.error || "?"));
-      } else {
-        li.append(what + a.state + (typeof a.progress === "number" ? " " + Math.round(100 * a.progress) + " %" : "") + "…");
-      }
-      return li;
-    }));
-  }
-
-  async function refreshAnalyses(runId) {
-    clearTimeout(analysisPolls.get(runId));
-    analysisPolls.delete(runId);
-    try {
-      const list = (await api("GET", "/api/runs/" + encodeURIComponent(runId) + "/analyses")).analyses;
-      analysesOf.set(runId, list);
-      renderAnalyses(runId);
-      // Followed live while one is queued or running.
-      if (list.some((a) => a.state === "queued" || a.state === "running"))
-        analysisPolls.set(runId, setTimeout(() => refreshAnalyses(runId), 700));
-    } catch (e) {
-      if (!(e instanceof ApiRefusal) && !(e instanceof TypeError)) throw e;  // the next refresh tries again
-    }
-  }
-
-  async function analyse(runId, kind, model) {
-    const reply = await act(kind + " of " + runId + " against " + model, "POST", "/api/runs/" + encodeURIComponent(runId) + "/analyses",
-      { kind, model });
-    if (reply) await refreshAnalyses(runId);
-  }
-
-  function analysisCell(r) {
-    const td = document.createElement("td");
-    td.className = "analysis";
-    if (!r.outcome || r.outcome === "running") return td;
-    const sel = document.createElement("select");
-    sel.className = "model";
-    sel.title = "the plant model (configs/plant)";
-    if (r.plant) sel.dataset.plant = r.plant;
-    fillModels(sel);
-    const buttons = ["compare", "diagnose"].map((kind) => {
-      const b = document.createElement("button");
-      b.type = "button";
-      b.className = "analyse";
-      b.dataset.kind = kind;
-      b.textContent = kind === "compare" ? "Compare" : "Diagnose";
-      b.title = kind === "compare" ? "replay the run through the model: where does it fail?" : "which missing effect explains the misfit?";
-      b.addEventListener("click", () => analyse(r.id, kind, sel.value));
-      return b;
-    });
-    const ul = document.createElement("ul");
-    ul.className = "analyses";
-    td.append(sel, ...buttons, ul);
-    return td;
-  }
-
-  async function loadRuns() {
-    const reply = await api("GET", "/api/runs");
-    const tbody = $("runs-table").querySelector("tbody");
-    const shown = reply.runs.slice(0, 200);
-    tbody.replaceChildren(...shown.map((r) => {
-      const tr = document.createElement("tr");
-      tr.dataset.run = r.id;
-      const cells = [r.id, (r.campaign || "?") + " / " + (r.run || "?"), r.outcome || r.error || "?", r.reason || ""].map((text) => {
-        const td = document.createElement("td");
-        td.textContent = text;
-        return td;
-      });
-      cells[2].className = "outcome outcome-" + (r.outcome || "error");
-      const files = document.createElement("td");
-      const base = "/api/runs/" + encodeURIComponent(r.id);
-      if (r.outcome && r.outcome !== "running") {
-        const report = link(base + "/report.html", "report", true);
-        report.className = "report";
-        files.append(report);
-      }
-      for (const f of ["telemetry.csv", "events.jsonl", "run.json"]) files.append(link(base + "/" + f, f, false));
-      tr.append(...cells, files, analysisCell(r));
-      return tr;
-    }));
-    for (const r of shown.slice(0, kAnalysedRuns)) {
-      renderAnalyses(r.id);
-      if (r.outcome && r.outcome !== "running") refreshAnalyses(r.id);
-    }
-  }
-  $("runs-refresh").addEventListener("click", refreshRuns);
-
-  window.hilConsole = { plots, rows, columns, view, yTickFormatter };
+  window.hilConsole = { plots: live.plots, rows: live.rows, columns: live.columns, view: live.view, yTickFormatter: live.yTickFormatter };
 
   loadChoices().catch((e) => showMessage("cannot load campaigns and rigs: " + e.message, false));
-  loadModels().catch((e) => showMessage("cannot load the plant models: " + e.message, false));
+  runsList.loadModels().catch((e) => showMessage("cannot load the plant models: " + e.message, false));
   refreshRuns();
   pollStatus();
   connect();

@@ -38,8 +38,12 @@ window.hilLink = function hilLink({ $, body, api, ApiRefusal, showMessage, clear
       const was = lostSince;
       lostSince = 0;
       $("link-lost").hidden = true;
-      clearMessages();  // what the lost link made (failed fetches, refusals) is stale now
-      showMessage("link to the server restored at " + clock(Date.now()) + " (lost at " + clock(was) + ")", true);
+      // What the lost link made (failed fetches, refusals) is stale now; an abort's answer is not
+      // (it may come before the stream's first message): it stays, the restored link said after it.
+      const msg = $("message");
+      const kept = !msg.hidden && /^abort (answered|delivered) at /.test(msg.textContent) ? msg.textContent + " · " : "";
+      clearMessages();
+      showMessage(kept + "link to the server restored at " + clock(Date.now()) + " (lost at " + clock(was) + ")", true);
     }
     body.dataset.link = "live";
     $("conn").textContent = "link: live";

@@ -36,6 +36,12 @@ struct Band {  // shaded x-interval, e.g. a failing time window
   std::string color = "";  // empty: translucent red
 };
 
+struct Marker {  // a labelled vertical line at x, e.g. an event of the run (an injected gap change)
+  double x = 0;
+  std::string label = "";
+  std::string color = "";  // empty: dark red
+};
+
 struct HLine {  // horizontal reference, e.g. a confidence bound or a tolerance
   double y = 0;
   std::string label = "";
@@ -47,6 +53,7 @@ struct Figure {
   std::vector<Series> series = {};
   std::vector<Band> bands = {};
   std::vector<HLine> hlines = {};
+  std::vector<Marker> markers = {};
   std::string group = "";             // figures with the same non-empty group share x zoom and cursor
   bool x_log = false, y_log = false;  // on a log axis, values <= 0 are left out
   int height_px = 260;

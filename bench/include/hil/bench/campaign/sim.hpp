@@ -17,6 +17,7 @@
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/campaign/run_marks.hpp"
 #include "hil/bench/campaign/run_metrics.hpp"
 #include "hil/bench/rt/sim_rig.hpp"
 #include "hil/bench/rt/telemetry_record.hpp"
@@ -95,6 +96,8 @@ struct RunOutcome {
   std::vector<ReportSeries> series;  // p_ref, p_meas, touch, motor, valve, cmd, gap_est, gap_true, target
   double wall_s = 0;
   std::vector<CheckResult> checks;  // the campaign's checks of this run (`hilbench sim`; empty: none)
+  RunMarks marks;                   // what happened, marked in the report (run_marks.hpp)
+  bool marks_recorded = false;      // marks from the run's events.jsonl, not from the programme
 };
 
 // What a run's report and summary are made of, gathered from its records one period at a time:
