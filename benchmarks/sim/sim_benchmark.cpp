@@ -6,7 +6,7 @@
 
 #include <cmath>
 #include <filesystem>
-#include <optional>
+#include <memory>
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
@@ -39,14 +39,13 @@ const RunSpec& run_named(const Campaign& c, const std::string& name) {
 void BM_Step(benchmark::State& state, const char* run_name) {
   const Campaign& c = paper_adaptive();
   const RunSpec& run = run_named(c, run_name);
-  std::optional<SimulatedRun> sim;
+  std::unique_ptr<SimulatedRun> sim;
   double p_meas_pa = 0;
   const auto take = [&p_meas_pa](const TelemetryRecord& r) { p_meas_pa = r.step.p_meas_pa; };
   for (auto _ : state) {
     if (!sim || !sim->next(take)) {
       state.PauseTiming();
-      sim.reset();
-      sim.emplace(c, run);  // as a run starts: the plant settled, the controller's initial state
+      sim = std::make_unique<SimulatedRun>(c, run);  // as a run starts: the plant settled, the controller's initial state
       state.ResumeTiming();
       sim->next(take);
     }
