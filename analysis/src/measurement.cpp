@@ -148,16 +148,16 @@ bool MeasurementReader::next(MeasurementRows& rows, std::size_t max_rows) {
   rows_read_ += n;
   rows.t_s = std::move(chunk_.values[telemetry::index(Col::t_s)]);
   rows.theta_cmd_rad = std::move(chunk_.values[telemetry::index(Col::theta_cmd_deg)]);
-  for (double& v : rows.theta_cmd_rad) v = units::deg_to_rad(v);
+  for (double& v : rows.theta_cmd_rad) v = telemetry::to_si(Col::theta_cmd_deg, v);
   rows.p_meas_pa = std::move(chunk_.values[telemetry::index(Col::p_meas_mpa)]);
-  for (double& v : rows.p_meas_pa) v = units::mpa_to_pa(v);
+  for (double& v : rows.p_meas_pa) v = telemetry::to_si(Col::p_meas_mpa, v);
   if (has_encoder_) {
     rows.theta_motor_rad = std::move(chunk_.values[telemetry::index(Col::theta_motor_deg)]);
-    for (double& v : rows.theta_motor_rad) v = units::deg_to_rad(v);
+    for (double& v : rows.theta_motor_rad) v = telemetry::to_si(Col::theta_motor_deg, v);
   }
   if (has_reference_) {
     rows.p_ref_pa = std::move(chunk_.values[telemetry::index(Col::p_ref_mpa)]);
-    for (double& v : rows.p_ref_pa) v = units::mpa_to_pa(v);
+    for (double& v : rows.p_ref_pa) v = telemetry::to_si(Col::p_ref_mpa, v);
   }
   return true;
 }

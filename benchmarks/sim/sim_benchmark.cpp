@@ -1,11 +1,12 @@
 // Speed of the simulation core (numbers in docs/benchmarks.md):
 //   build/benchmarks/sim/bench_sim
-// Step: one control period, plant + controller. Campaign: one run of paper_adaptive (18 s
+// Step: one control period, RunLoop::cycle on the simulated rig. Campaign: one run of paper_adaptive (18 s
 // simulated); the counter `x_real_time` is simulated seconds per wall second.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <filesystem>
+#include <memory>
 
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/campaign/sim.hpp"
@@ -28,44 +29,32 @@ const RunSpec& run_named(const Campaign& c, const std::string& name) {
   throw std::runtime_error("no run " + name);
 }
 
-// One period of the loop: controller step on the reading, then the plant step, averaged over
-// the 18 s run of paper_adaptive. Every 18 s the plant and the controller start again from a
-// settled state (not timed), as a run does: carried on for hours instead, the chamber's free
+// One period of the bench's loop itself, RunLoop::cycle on the simulated rig (read, controller,
+// interlocks, write, the plant's step, the record pushed and taken from the ring), as `hilbench
+// sim` runs it, averaged over the 18 s run of paper_adaptive. Every 18 s the run starts again from
+// a settled state (not timed), as a run does: carried on for hours instead, the chamber's free
 // volume keeps growing as the grain burns, the chamber slows down, and a period gets ~20 % cheaper
-// than in any real run (this benchmark did that until 2026-11-26, see docs/benchmarks.md).
+// than in any real run (docs/benchmarks.md). Until 2026-12-02 this timed its own copy of the
+// controller-and-plant period instead of RunLoop.
 // compensator: the run's controller with another registered compensator (its defaults) instead.
 void BM_Step(benchmark::State& state, const char* run_name, const char* compensator = nullptr) {
   const Campaign& c = paper_adaptive();
-  const RunSpec& run = run_named(c, run_name);
-  const auto& plant = *c.plant;
-  hil::ctl::ControllerParams params = run.controller;
+  RunSpec run = run_named(c, run_name);
   if (compensator != nullptr) {
-    params.compensator = compensator;
-    params.compensator_params.clear();  // its defaults
+    run.controller.compensator = compensator;
+    run.controller.compensator_params.clear();  // its defaults
   }
-  const hil::ctl::Controller ctl(params);
-  const long periods = std::lround(c.duration_s / c.period_s);
-  auto ps = plant.make_state(c.seed);
-  auto cs = ctl.initial_state(0, 0, run.initial_touch);  // replaced before the first period
-  // The schedules read through cursors, as the run loop reads them.
-  Schedule::Cursor ref_cursor, gap_cursor;
-  long k = periods;
+  std::unique_ptr<SimulatedRun> sim;
+  double p_meas_pa = 0;
+  const auto take = [&p_meas_pa](const TelemetryRecord& r) { p_meas_pa = r.step.p_meas_pa; };
   for (auto _ : state) {
-    if (k == periods) {
+    if (!sim || !sim->next(take)) {
       state.PauseTiming();
-      ps = plant.make_state(c.seed);  // as SimRig::configure starts a run
-      plant.settle(ps, c.reference_pa.at(0.0), hil::plant::kNaN, 0.0, c.gap_rad.at(0.0));
-      cs = ctl.initial_state(ps.s.theta_cmd_rad, ps.s.p_meas_pa, run.initial_touch);  // as RunLoop::begin
-      ref_cursor = {};
-      gap_cursor = {};
-      k = 0;
+      sim = std::make_unique<SimulatedRun>(c, run);  // as a run starts: the plant settled, the controller's initial state
       state.ResumeTiming();
+      sim->next(take);
     }
-    const double t = static_cast<double>(k++) * c.period_s;
-    const double ref = c.reference_pa.at(t, ref_cursor);
-    const auto out = ctl.step(cs, {ps.s.p_meas_pa, ref, ps.s.theta_motor_rad});
-    plant.step(ps, {out.theta_cmd_rad, hil::plant::kNaN, c.gap_rad.at(t, gap_cursor)}, c.period_s);
-    benchmark::DoNotOptimize(ps.s.p_meas_pa);
+    benchmark::DoNotOptimize(p_meas_pa);
   }
   state.counters["x_real_time"] = benchmark::Counter(c.period_s * state.iterations(), benchmark::Counter::kIsRate);
 }

@@ -1,4 +1,4 @@
-#include "hil/bench/campaign/schedule.hpp"
+#include "hil/bench/rt/schedule.hpp"
 
 #include <gtest/gtest.h>
 

@@ -76,8 +76,6 @@ class TelemetryStream {
 
   RunOutcome digest(const Campaign& c, const std::filesystem::path& csv, const std::string& name) {
     using telemetry::Col;
-    using units::deg_to_rad;
-    using units::mpa_to_pa;
     // The schema's columns up to theta_target_deg, requested in its order so that values[index(c)]
     // is column c: the measurement columns are required, the rest optional (a rig without the
     // truth leaves those out).
@@ -108,23 +106,18 @@ class TelemetryStream {
         return static_cast<int>(v);
       };
       for (std::size_t i = 0; i < t.rows(); ++i) {
+        // Each column read back through the record's one table (set_field); what a row may lack:
+        // the observer's codes and the compensation default to 0, the rest to NaN; a rig without
+        // the chamber's truth gives the measured pressure for it (IAE then holds the sensor noise
+        // too); without the valve angle a stall cannot be seen (set unknown below).
         TelemetryRecord rec;
-        StepRecord& r = rec.step;
-        r.t_s = col(Col::t_s, i, kNaN);
-        r.theta_cmd_rad = deg_to_rad(col(Col::theta_cmd_deg, i, kNaN));
-        r.p_meas_pa = mpa_to_pa(col(Col::p_meas_mpa, i, kNaN));
-        r.theta_motor_rad = deg_to_rad(col(Col::theta_motor_deg, i, kNaN));
-        r.p_ref_pa = mpa_to_pa(col(Col::p_ref_mpa, i, kNaN));
-        r.theta_valve_rad = deg_to_rad(col(Col::theta_valve_deg, i, kNaN));
-        r.gap_true_rad = deg_to_rad(col(Col::gap_true_deg, i, kNaN));
-        r.touch = code(Col::touch_state, i);
-        r.intention = code(Col::motion_intention, i);
-        r.comp_rad = deg_to_rad(col(Col::comp_deg, i, 0));
-        r.gap_est_rad = deg_to_rad(col(Col::gap_est_deg, i, kNaN));
-        // A rig without the chamber's truth: the error is the measured one (IAE then holds the
-        // sensor noise too); without the valve angle a stall cannot be seen (set unknown below).
-        r.p_chamber_pa = chamber_known ? mpa_to_pa(col(Col::p_chamber_mpa, i, kNaN)) : r.p_meas_pa;
-        rec.theta_target_rad = deg_to_rad(col(Col::theta_target_deg, i, kNaN));
+        for (std::size_t k = 0; k <= telemetry::index(Col::theta_target_deg); ++k) {
+          const auto c = static_cast<Col>(k);
+          const bool code_column = c == Col::touch_state || c == Col::motion_intention;
+          const double value = code_column ? code(c, i) : col(c, i, c == Col::comp_deg ? 0 : kNaN);
+          set_field(rec, c, value);
+        }
+        if (!chamber_known) rec.step.p_chamber_pa = rec.step.p_meas_pa;
         digest.add(rec);
       }
       rows += t.rows();

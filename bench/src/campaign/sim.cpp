@@ -20,6 +20,7 @@
 #include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "hil/minmax_decimator.hpp"
+#include "hil/parallel_for.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/units.hpp"
 
@@ -283,20 +284,12 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
   std::vector<Executed> executed(runs.size());
   std::atomic<long> steps_done{0};
   const long steps_total = std::lround(c.duration_s / c.period_s) * static_cast<long>(runs.size());
-  std::vector<std::exception_ptr> errors(runs.size());
-  std::atomic<std::size_t> next{0};
-  auto worker = [&] {
-    for (std::size_t i; (i = next.fetch_add(1)) < runs.size();) {
-      try {
-        executed[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
-    }
+  // The runs on every core (hil/parallel_for.hpp); the first run's error, if any, is thrown.
+  auto run_all = [&] {
+    hil::parallel_for(runs.size(), hil::worker_threads(runs.size()), [&](std::size_t i) {
+      executed[i] = execute(c, *runs[i], tmp_dir / runs[i]->name, options.telemetry, steps_done, options.cancel);
+    });
   };
-  const unsigned threads = std::max(1u, std::min<unsigned>(std::thread::hardware_concurrency(), runs.size()));
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
   if (options.progress && c.duration_s * runs.size() >= 120) {
     // Long campaign: a progress line while the workers run.
     std::atomic<bool> runs_over{false};
@@ -319,16 +312,17 @@ CampaignOutcome run_campaign(const Campaign& c, const SimOptions& options) {
       }
       show();  // where it ended: 100 % once every run is through, less when one failed
     });
-    worker();
-    for (auto& t : pool) t.join();
+    try {
+      run_all();
+    } catch (...) {
+      runs_over.store(true);
+      progress.join();
+      throw;
+    }
     runs_over.store(true);
     progress.join();
   } else {
-    worker();
-    for (auto& t : pool) t.join();
-  }
-  for (auto& e : errors) {
-    if (e) std::rethrow_exception(e);
+    run_all();
   }
   // The verdicts, once every run is through (a check may compare with another run), into each
   // run's summary.json.

@@ -14,6 +14,7 @@
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
+#include "hil/parallel_for.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/json_file.hpp"
 #include "hil/text_file.hpp"
@@ -129,10 +130,7 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
   if (std::filesystem::exists(rows_file)) trim_to_whole_lines(rows_file);
   LineFile rows(rows_file, /*append=*/true);
 
-  std::mutex mutex;  // guards rows, the counters below, the progress line and the first error
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
+  std::mutex mutex;  // guards rows, the counters below and the progress line
   long ran = 0;
   const long shard_total = shard_done + static_cast<long>(todo.size());
   std::optional<ProgressLine> progress_line;  // not `line`: the workers' row lines are named so
@@ -156,35 +154,32 @@ SweepRunResult run_sweep(const std::filesystem::path& dir, const SweepPlan& plan
       return std::string(detail);
     });
   };
-  auto worker = [&] {
-    std::optional<PointMaker> maker;
-    while (!failed.load() && !(options.cancel != nullptr && options.cancel->load())) {
-      const std::size_t i = next.fetch_add(1);
-      if (i >= todo.size()) return;
-      try {
-        if (!maker) maker.emplace(plan);  // in the try: a plan whose base does not parse is this sweep's error
-        const std::string line = row_line(todo[i], maker->run(todo[i], options.cancel));
-        std::lock_guard lock(mutex);
-        rows.append(line);
-        ++ran;
-        progress();
-      } catch (const Cancelled&) {
-        return;  // stopped: the point in flight is abandoned, its row never written
-      } catch (...) {
-        std::lock_guard lock(mutex);
-        if (!error) error = std::current_exception();
-        failed.store(true);
-        return;
-      }
-    }
-  };
-  const int jobs = std::max(1, std::min<int>(options.jobs, static_cast<int>(todo.size())));
-  std::vector<std::thread> threads;
-  for (int j = 1; j < jobs; ++j) threads.emplace_back(worker);
-  worker();
-  for (auto& t : threads) t.join();
+  // The points on `jobs` threads (hil/parallel_for.hpp), a PointMaker per thread made at its first
+  // point (in the body: a plan whose base does not parse is this sweep's error, thrown once every
+  // thread has ended); a cancel stops the handing out, the point in flight is abandoned.
+  const auto jobs = static_cast<unsigned>(std::max(1, std::min<int>(options.jobs, static_cast<int>(todo.size()))));
+  try {
+    hil::parallel_for(
+        todo.size(), jobs, [] { return std::optional<PointMaker>(); },
+        [&](std::optional<PointMaker>& maker, std::size_t i) {
+          if (options.cancel != nullptr && options.cancel->load()) return false;
+          try {
+            if (!maker) maker.emplace(plan);
+            const std::string line = row_line(todo[i], maker->run(todo[i], options.cancel));
+            std::lock_guard lock(mutex);
+            rows.append(line);
+            ++ran;
+            progress();
+          } catch (const Cancelled&) {
+            return false;  // its row never written
+          }
+          return true;
+        });
+  } catch (...) {
+    if (progress_line) progress_line->end();
+    throw;
+  }
   if (progress_line) progress_line->end();
-  if (error) std::rethrow_exception(error);
   result.ran = ran;
   result.done += ran;
   result.missing -= ran;

@@ -11,6 +11,7 @@
 namespace hil::bench {
 
 CommandRun define_sim(CLI::App& cmd);
+CommandRun define_run(CLI::App& cmd);
 CommandRun define_sweep(CLI::App& cmd);
 CommandRun define_effects(CLI::App& cmd);
 CommandRun define_compensators(CLI::App& cmd);

@@ -33,6 +33,7 @@ struct Command {
 
 const Command kCommands[] = {
     {"sim", "run a campaign on the simulated plant, faster than real time", hil::bench::define_sim},
+    {"run", "run a campaign on a rig without the server, recorded as hilbench serve records it", hil::bench::define_run},
     {"sweep", "run a campaign over a grid or distribution of conditions, on every core or on Slurm; robustness maps",
      hil::bench::define_sweep},
     {"effects", "list the physical effects a plant file may use", hil::bench::define_effects},

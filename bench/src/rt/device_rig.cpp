@@ -9,7 +9,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/loop_input.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 
 namespace hil::bench {
@@ -65,14 +65,14 @@ void DeviceRig::configure(const RigSetup& setup) {
   drive_freshness_ = drive_->freshness();
   offset_rad_ = 0;
   if (simulated_chamber()) {
-    if (setup.campaign == nullptr || !setup.campaign->plant) {
+    if (setup.programme == nullptr || !setup.programme->plant) {
       throw std::invalid_argument(kind_ + " rig: configure needs a campaign with a plant");
     }
     const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
     if (!fb.valid || !std::isfinite(fb.position_rad))
       throw std::runtime_error(kind_ + " rig: the drive reports no position after configure");
-    plant_ = setup.campaign->plant;
-    state_ = plant_->make_state(setup.campaign->seed);
+    plant_ = setup.programme->plant;
+    state_ = plant_->make_state(setup.programme->seed);
     plant_->settle(state_, setup.p_initial_pa, plant::kNaN, 0.0, setup.gap_initial_rad);
     offset_rad_ = fb.position_rad - state_.s.theta_motor_rad;
     motor_sim_rad_ = state_.s.theta_motor_rad;

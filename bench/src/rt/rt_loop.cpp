@@ -79,10 +79,10 @@ std::string_view to_string(SensorFault f) noexcept {
   return "?";
 }
 
-RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
+RunLoop::RunLoop(const LoopProgramme& programme, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
                  Clock::duration wall_period, SpscRing<TelemetryRecord>& telemetry, SpscRing<LoopEvent>& events,
                  SpscRing<LoopRequest>& requests, TimedRig::NowFn now)
-    : c_(campaign),
+    : c_(programme),
       run_(run),
       controller_(shaped_params(run.controller, loop)),
       rig_(rig, now),
@@ -92,11 +92,11 @@ RunLoop::RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const S
       loop_(loop),
       shaper_(loop.target_shaping),
       wall_period_(wall_period),
-      n_(std::lround(campaign.duration_s / campaign.period_s)),
+      n_(std::lround(programme.duration_s / programme.period_s)),
       telemetry_(telemetry),
       events_(events),
       requests_(requests),
-      rng_(campaign.seed ^ 0x5eed5eedULL) {
+      rng_(programme.seed ^ 0x5eed5eedULL) {
   if (wall_period_ <= Clock::duration::zero()) throw std::invalid_argument("loop period must be > 0");
 }
 

@@ -2,16 +2,16 @@
 
 #include <stdexcept>
 
-#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/loop_input.hpp"
 
 namespace hil::bench {
 
 void SimRig::configure(const RigSetup& setup) {
-  if (setup.campaign == nullptr || !setup.campaign->plant)
+  if (setup.programme == nullptr || !setup.programme->plant)
     throw std::invalid_argument("sim rig: configure needs a campaign with a plant");
   if (!(setup.period_s > 0)) throw std::invalid_argument("sim rig: the period must be > 0");
-  plant_ = setup.campaign->plant;
-  state_ = plant_->make_state(setup.campaign->seed);
+  plant_ = setup.programme->plant;
+  state_ = plant_->make_state(setup.programme->seed);
   plant_->settle(state_, setup.p_initial_pa, plant::kNaN, 0.0, setup.gap_initial_rad);
   cmd_rad_ = state_.s.theta_cmd_rad;
   period_s_ = setup.period_s;

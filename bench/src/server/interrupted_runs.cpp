@@ -10,12 +10,12 @@
 
 #include <spdlog/spdlog.h>
 
+#include "hil/bench/rt/run_folder.hpp"
 #include "hil/bench/rt/run_record.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "hil/file_lock.hpp"
 #include "hil/line_file.hpp"
 #include "request_guard.hpp"
-#include "run_folder.hpp"
 
 namespace hil::bench {
 namespace {

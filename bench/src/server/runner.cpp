@@ -1,28 +1,24 @@
 #include "hil/bench/server/runner.hpp"
 
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
-#include <cstring>
-#include <ctime>
-#include <fstream>
 #include <optional>
-#include <semaphore>
 
 #include <spdlog/spdlog.h>
 
 #include "hil/bench/rt/recorder.hpp"
 #include "hil/bench/rt/rig_registry.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/rt/run_folder.hpp"
+#include "hil/bench/rt/run_session.hpp"
 #include "hil/config.hpp"
 #include "hil/file_lock.hpp"
 #include "hil/json_file.hpp"
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
 #include "hil/units.hpp"
-#include "run_folder.hpp"
 #include "run_verdicts.hpp"
 
 namespace hil::bench {
@@ -36,86 +32,10 @@ double run_time_s(const LoopSnapshot& snap, const Campaign& c) {
   return snap.periods == 0 ? 0 : std::min(snap.t_s + c.period_s, c.duration_s);
 }
 
-std::string utc(SysClock::time_point t, const char* format) {
-  const std::time_t s = SysClock::to_time_t(t);
-  std::tm tm{};
-  gmtime_r(&s, &tm);
-  char buf[64];
-  std::strftime(buf, sizeof buf, format, &tm);
-  return buf;
-}
-
 std::string hostname() {
   char buf[256] = {};
   gethostname(buf, sizeof buf - 1);
   return buf;
-}
-
-// The whole file or the old one, never a half-written one; no .tmp is left behind on failure.
-
-// Space kept free in each run folder while the run lasts, and given back just before the final
-// run.json is written: so a disk that the telemetry filled still takes the run's honest record.
-constexpr std::uintmax_t kReserveBytes = 1u << 20;
-// A loop telemetry row in telemetry.csv (about 110-140 characters) and in telemetry.mcap (about
-// 410 bytes: the JSON with its keys, the record, its index entry; paper_adaptive's 18 000 rows
-// and 1 255 events made a 7.3 MB file).
-constexpr double kBytesPerRow = 560;
-
-std::filesystem::path unique_dir(const std::filesystem::path& base) {
-  std::filesystem::path p = base;
-  for (int i = 2; std::filesystem::exists(p); ++i) p = base.string() + "_" + std::to_string(i);
-  std::filesystem::create_directories(p);
-  return p;
-}
-
-std::string fmt(const char* format, double a, double b = 0, double c = 0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, format, a, b, c);
-  return buf;
-}
-
-// The reason of a trip in the operator's words.
-std::string describe_trip(const RunLoop& loop) {
-  const double t = loop.trip_t_s();
-  switch (loop.trip()) {
-    case Trip::overpressure:
-      return fmt("overpressure: p_meas %.4f MPa above the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
-                 units::pa_to_mpa(loop.trip_limit()), t);
-    case Trip::underpressure:
-      return fmt("underpressure: p_meas %.4f MPa below the %.4f MPa limit at t = %.3f s", units::pa_to_mpa(loop.trip_value()),
-                 units::pa_to_mpa(loop.trip_limit()), t);
-    case Trip::watchdog: {
-      // What the rig says the reads waited on ("transducer: newest reading 41.0 ms old (limit 4.0
-      // ms): ...: ILLEGAL DATA ADDRESS (exception 2)"): the count alone named no cause.
-      const std::string detail(loop.trip_detail());
-      return fmt("watchdog: %.0f rig reads missed in a row at t = %.3f s", loop.trip_value(), t) +
-             (detail.empty() ? "" : ": " + detail);
-    }
-    case Trip::rig_fault: return fmt("rig fault at t = %.3f s: ", t) + std::string(loop.trip_detail());
-    case Trip::overruns:
-      return fmt("overruns: %.0f periods in a row ended after their next deadline at t = %.3f s", loop.trip_value(), t);
-    case Trip::operator_abort: return "operator abort";
-    case Trip::recording: return fmt("recording: telemetry could not be recorded at t = %.3f s", t);
-    case Trip::following_error:
-      return fmt("following error: the drive's position %+.3f deg from its target, beyond the %.3f deg limit for %.0f ms",
-                 units::rad_to_deg(loop.trip_value()), units::rad_to_deg(loop.trip_limit()),
-                 loop.safety_config().following_error_s * 1000) +
-             fmt(" in a row at t = %.3f s (a frozen encoder, a jammed gear or a drive that stopped following)", t);
-    case Trip::none: break;
-  }
-  return "none";
-}
-
-json loop_stats_json(const RunLoop& loop) {
-  return {{"periods", loop.snapshot().periods},
-          {"overruns", loop.snapshot().overruns},
-          {"skipped_deadlines", loop.snapshot().skipped_deadlines},
-          {"missed_reads", loop.snapshot().missed_reads},
-          {"limited_periods", loop.snapshot().limited_periods},
-          {"wake_latency_us", loop.wake_latency().summary().to_json()},
-          {"compute_us", loop.compute_time().summary().to_json()},
-          {"rig_read_us", loop.rig().read_time().summary().to_json()},
-          {"rig_write_us", loop.rig().write_time().summary().to_json()}};
 }
 
 json faults_json(const LoopSnapshot& s) {
@@ -135,27 +55,7 @@ json faults_json(const LoopSnapshot& s) {
   return faults;
 }
 
-// After a rig's deactivate(): when the drive could not be switched off, says so everywhere an
-// operator looks (the reason, an event, the log): it may still be enabled, with the motor
-// attached. True when it could not.
-bool say_drive_not_disabled(const Rig& rig, Recorder& rec, std::string& reason) {
-  const std::string why = rig.deactivate_failure();
-  if (why.empty()) return false;
-  const std::string text = "switching the drive off failed (" + why + "): it may still be enabled";
-  spdlog::error("{}", text);
-  rec.log({{"kind", "drive_not_disabled"}, {"source", "bench"}, {"detail", text}});
-  reason += (reason.empty() ? "" : "; ") + text;
-  return true;
-}
-
 }  // namespace
-
-std::string utc_iso(SysClock::time_point t) {
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count() % 1000;
-  char frac[8];
-  std::snprintf(frac, sizeof frac, ".%03dZ", static_cast<int>(ms));
-  return utc(t, "%Y-%m-%dT%H:%M:%S") + frac;
-}
 
 struct CampaignRunner::Active {
   StartRequest req;
@@ -248,18 +148,7 @@ void CampaignRunner::start(StartRequest request) {
   {
     // Refused now rather than tripped later: the record of every run must fit.
     const std::size_t run_count = request.runs.empty() ? request.campaign.runs.size() : request.runs.size();
-    const double rows = std::ceil(request.campaign.duration_s / request.campaign.period_s) * static_cast<double>(run_count);
-    const double need = rows * kBytesPerRow + static_cast<double>(run_count) * 2.0 * kReserveBytes;
-    std::error_code ec;
-    std::filesystem::create_directories(o_.runs_dir, ec);
-    const auto space = std::filesystem::space(o_.runs_dir, ec);
-    if (ec) throw InsufficientStorage("cannot use the runs folder " + o_.runs_dir.string() + ": " + ec.message());
-    if (static_cast<double>(space.available) < need) {
-      throw InsufficientStorage(
-          fmt("the runs folder has %.1f MB free; this campaign's record needs about %.1f MB (%.0f telemetry rows)",
-              static_cast<double>(space.available) / 1e6, need / 1e6, rows) +
-          " in " + o_.runs_dir.string());
-    }
+    check_room_for_runs(o_.runs_dir, std::ceil(request.campaign.duration_s / request.campaign.period_s), run_count);
   }
   if (thread_.joinable()) thread_.join();  // the previous campaign's thread, already finishing
   std::lock_guard lock(mutex_);
@@ -396,21 +285,6 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const RunSpec& run = *a.runs[index];
   const RigConfig& rc = a.req.rig;
   const auto start_utc = SysClock::now();
-  const auto dir = unique_dir(o_.runs_dir / (utc(start_utc, "%Y%m%dT%H%M%SZ") + "_" + c.name + "_" + run.name));
-  std::optional<FileLock> run_lock;
-  try {
-    run_lock.emplace(run_lock_file(dir), /*remove_when_released=*/true);
-    // The reserve is taken first: a disk without room for it would not take the run's record.
-    const int fd = ::open((dir / ".reserve").c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
-    const int rc = fd < 0 ? errno : ::posix_fallocate(fd, 0, static_cast<off_t>(kReserveBytes));
-    if (fd >= 0) ::close(fd);
-    if (rc != 0) throw InsufficientStorage(std::string("cannot reserve space in ") + dir.string() + ": " + std::strerror(rc));
-  } catch (...) {
-    run_lock.reset();
-    std::error_code ec;
-    std::filesystem::remove_all(dir, ec);
-    throw;
-  }
   RunRecord info;
   info.version = o_.version;
   info.host = hostname();
@@ -433,14 +307,8 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   // Absolute paths: a report or analysis of the run may be made from another folder.
   info.config = {a.req.source, absolute(c.file),       c.yaml_text,      absolute(rc.file),
                  rc.yaml_text, absolute(c.plant_file), c.plant_yaml_text};
-  try {
-    write_run_record(dir, info);
-  } catch (...) {
-    run_lock.reset();
-    std::error_code ec;
-    std::filesystem::remove_all(dir, ec);  // a folder without run.json would be no run at all
-    throw;
-  }
+  RunFolder folder(o_.runs_dir, start_utc, c.name, run.name, info);
+  const std::filesystem::path& dir = folder.dir();
 
   std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
   RunVerdicts verdicts(c, run, rig->knows_truth(), o_.on_row);  // outlives the recorder, which feeds it
@@ -473,70 +341,23 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.recorder = &rec;
   }
 
-  SpscRing<LoopRequest> requests(64);
-  std::unique_ptr<RunLoop> loop;
-  Outcome outcome = Outcome::error;
-  std::string reason;
-  {
-    // From here an abort cuts the setup short; one that came before is passed on at once.
+  // The rig's lifecycle and the loop (rt/run_session.hpp); the runner hears it to keep its status
+  // and to pass the operator's requests on.
+  RunSession session(*rig, rc, c, run, a.req.speed, rec, o_.mlock_warning);
+  RunSessionHooks hooks;
+  hooks.in_setup = [this, &a](Rig* r) {
     std::lock_guard lock(mutex_);
-    a.rig_in_setup = rig.get();
-    if (a.abort) rig->cancel_setup();
-  }
-  try {
-    Schedule::Cursor rc0, gc0;
-    rig->configure({&c, c.period_s, c.reference_pa.at(0.0, rc0), c.gap_rad.at(0.0, gc0)});
-    rig->activate();
-    const auto wall = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c.period_s / a.req.speed));
-    loop = std::make_unique<RunLoop>(c, run, *rig, rc.safety, rc.loop, wall, rec.telemetry(), rec.events(), requests);
-    loop->watch_recording(&rec.failed());
-    loop->begin(Clock::now());
-  } catch (const std::exception& e) {
-    outcome = Outcome::error;
-    reason = std::string("rig '") + rc.name + "' setup: " + e.what();
-    rec.log({{"kind", "rig_error"}, {"source", "bench"}, {"detail", reason}});
+    a.rig_in_setup = r;
+    if (r != nullptr && a.abort) r->cancel_setup();
+  };
+  hooks.abort_reason = [this, &a]() -> std::optional<std::string> {
+    std::lock_guard lock(mutex_);
+    return a.abort ? std::optional(a.abort_text()) : std::nullopt;
+  };
+  hooks.loop_ready = [this, &a, &c, &run, &dir](const RunLoop& loop, SpscRing<LoopRequest>& requests, const RtSetup& rt) {
     {
       std::lock_guard lock(mutex_);
-      if (a.abort) {  // the setup ended because of it (or would have been cut short by it)
-        outcome = Outcome::aborted;
-        reason = a.abort_text() + " during the setup of rig '" + rc.name + "' (" + e.what() + ")";
-      }
-    }
-    rig->deactivate();
-    say_drive_not_disabled(*rig, rec, reason);
-    loop.reset();
-  }
-  {
-    std::lock_guard lock(mutex_);
-    a.rig_in_setup = nullptr;
-  }
-
-  RtSetup rt;
-  std::optional<CpuLatencyRequest> cpu_latency;
-  if (loop && rc.loop.cpu_dma_latency_us >= 0) {
-    cpu_latency.emplace(rc.loop.cpu_dma_latency_us);
-    if (!cpu_latency->warning().empty()) spdlog::warn("{}", cpu_latency->warning());
-  }
-  if (loop) {
-    std::binary_semaphore go(0);
-    std::thread t([&] {
-      go.acquire();
-      prefault_stack();
-      run_paced(*loop, Clock::now());
-    });
-    rt = make_realtime(t, rc.loop.priority, rc.loop.cpu);
-    if (!rt.warning.empty()) spdlog::warn("loop thread: {}", rt.warning);
-    rec.log({{"kind", "loop_start"},
-             {"source", "bench"},
-             {"sched", rt.describe()},
-             {"warning", rt.warning},
-             {"mlock_warning", o_.mlock_warning},
-             {"cpu_dma_latency",
-              cpu_latency ? (cpu_latency->warning().empty() ? json(rc.loop.cpu_dma_latency_us) : json(cpu_latency->warning()))
-                          : json(nullptr)}});
-    {
-      std::lock_guard lock(mutex_);
-      a.loop = loop.get();
+      a.loop = &loop;
       a.requests = &requests;
       a.rt = rt;
       if (a.abort) requests.try_push({.kind = LoopRequest::Kind::abort});
@@ -549,87 +370,22 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
             {"dir", dir.filename().string()},
             {"period_s", c.period_s},
             {"duration_s", c.duration_s}});
-    go.release();
-    t.join();
-    std::lock_guard lock(mutex_);
-    switch (loop->end()) {
-      case LoopEnd::completed: outcome = Outcome::completed; break;
-      case LoopEnd::stopped: outcome = Outcome::stopped, reason = "operator stop"; break;
-      case LoopEnd::tripped:
-      case LoopEnd::running:
-        outcome = Outcome::aborted;
-        reason = loop->trip() == Trip::operator_abort ? a.abort_text() : describe_trip(*loop);
-        break;
-    }
-    a.periods_done += loop->periods_run();
-  }
-  json rig_health = nullptr;  // how the rig's devices ended the run (before they are switched off)
-  if (loop) {
-    const RigHealth h = rig->health();
-    rig_health = {{"connected", h.connected},
-                  {"fault", h.fault},
-                  {"reads", h.reads},
-                  {"stale_reads", h.stale_reads},
-                  {"fault_reads", h.fault_reads},
-                  {"reconnects", h.reconnects},
-                  {"reconnects_by_device", {{"drive", h.drive_reconnects}, {"transducer", h.transducer_reconnects}}},
-                  {"last_error", std::string(h.last_error_text())}};
-    rig->deactivate();
-    if (say_drive_not_disabled(*rig, rec, reason)) {
-      rig_health["disable_error"] = rig->deactivate_failure();
-      if (outcome == Outcome::completed) outcome = Outcome::error;  // the run is over, the drive may not be
-    }
-  }
-  cpu_latency.reset();
-
-  const std::string write_error = rec.finish();
+  };
+  session.run(hooks);
+  const RunLoop* loop = session.loop();
   {
     std::lock_guard lock(mutex_);
-    if (loop) a.run_t_s = run_time_s(loop->snapshot(), c);
+    if (loop) {
+      a.periods_done += loop->periods_run();
+      a.run_t_s = run_time_s(loop->snapshot(), c);
+    }
     a.loop = nullptr;
     a.requests = nullptr;
     a.recorder = nullptr;
   }
-  if (loop && loop->trip() == Trip::recording) {
-    reason += write_error.empty() ? fmt(": the telemetry ring was full (%.0f rows lost)", static_cast<double>(loop->rows_lost()))
-                                  : ": " + write_error;
-  } else if (!write_error.empty() && outcome == Outcome::completed) {
-    outcome = Outcome::error, reason = "telemetry: " + write_error;
-  }
-  const std::uint64_t rows_not_recorded = rec.rows_unwritten() + (loop ? loop->rows_lost() : 0);
-  if (rows_not_recorded > 0 && !reason.empty()) reason += fmt("; %.0f rows not recorded", static_cast<double>(rows_not_recorded));
-  const auto stop_utc = SysClock::now();
-  info.stop_utc = utc_iso(stop_utc);
-  info.outcome = outcome;
-  if (!reason.empty()) info.reason = reason;
-  info.ended = true;
-  info.rig_health = rig_health;
-  if (loop) {
-    if (loop->trip() != Trip::none) {
-      info.trip = RunRecord::Trip{std::string(to_string(loop->trip())), loop->trip_t_s(),
-                                  std::isfinite(loop->trip_value()) ? std::optional(loop->trip_value()) : std::nullopt,
-                                  std::isfinite(loop->trip_limit()) ? std::optional(loop->trip_limit()) : std::nullopt};
-    }
-    info.periods_run = loop->periods_run();
-    json stats = loop_stats_json(*loop);
-    stats["sched"] = rt.describe();
-    stats["rt_warning"] = rt.warning;
-    stats["memory_locked"] = o_.mlock_warning.empty();
-    stats["cpu_dma_latency_us"] = rc.loop.cpu_dma_latency_us;
-    stats["overrun_policy"] = rc.loop.overrun_policy == OverrunPolicy::abort ? "abort" : "count";
-    stats["wall_period_us"] = std::chrono::duration<double, std::micro>(loop->wall_period()).count();
-    info.loop = stats;
-  }
-  RunRecord::Telemetry tel;
-  tel.rows_written = rec.rows_written();
-  tel.rows_lost = loop ? loop->rows_lost() : 0;
-  tel.rows_unwritten = rec.rows_unwritten();
-  tel.events_lost = loop ? loop->events_lost() : 0;
-  tel.events_unwritten = rec.events_unwritten();
-  tel.ring_rows = rec.telemetry().capacity();
-  tel.write_error_known = true;
-  if (!write_error.empty()) tel.write_error = write_error;
-  info.telemetry = tel;
+  const Outcome outcome = session.outcome();
+  info.stop_utc = utc_iso(SysClock::now());
+  session.record_end(info);
   {
     const auto other = [&a](const std::string& name) -> const RunSummary* {
       for (const auto& [n, summary] : a.summaries)
@@ -640,15 +396,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     info.checks = verdicts.finish(pressure_trip, other);
     if (!info.checks.is_null()) a.summaries.emplace_back(run.name, verdicts.summary());
   }
-  {
-    std::error_code ec;
-    std::filesystem::remove(dir / ".reserve", ec);  // its room is for this last write
-  }
   try {
-    write_run_record(dir, info);
+    folder.write_final(info);
   } catch (const std::exception& e) {
     spdlog::error("run {}: cannot write the final run.json ({}); outcome {}: {}", dir.string(), e.what(), to_string(outcome),
-                  reason);
+                  session.reason());
     // run.json still says "running": the event log, where it still takes a line, keeps the end,
     // so a later server restores it instead of calling the run interrupted by a crash.
     rec.log({{"kind", std::string(kFinalRecordUnwritten)},
@@ -668,7 +420,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     spdlog::warn("run {}: telemetry.mcap is closed without run.json ({})", dir.string(), e.what());
   }
   if (const std::string e = rec.seal(run_json); !e.empty()) spdlog::warn("run {}: telemetry.mcap: {}", dir.string(), e);
-  run_lock.reset();
+  folder.release();
   const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
   json summary = {
       {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", reason_or_null}};

@@ -10,6 +10,8 @@
 #include <string_view>
 #include <utility>
 
+#include "hil/units.hpp"
+
 namespace hil::telemetry {
 
 enum class Col : std::uint8_t {
@@ -75,6 +77,18 @@ constexpr std::string_view unit(Col c) noexcept {
   for (const auto& [suffix, u] : kSuffixes)
     if (n.size() > suffix.size() && n.substr(n.size() - suffix.size()) == suffix) return u;
   return "";
+}
+
+// A column's value from the SI unit the code keeps it in (rad, Pa; s, us, codes and flags as they
+// are) to the column's unit (deg, MPa), and back: the writer of a row, and every reader that turns
+// a row back into values (the run report's record, the measurement reader), convert with these.
+constexpr double from_si(Col c, double si) noexcept {
+  const std::string_view u = unit(c);
+  return u == "deg" ? units::rad_to_deg(si) : u == "MPa" ? units::pa_to_mpa(si) : si;
+}
+constexpr double to_si(Col c, double value) noexcept {
+  const std::string_view u = unit(c);
+  return u == "deg" ? units::deg_to_rad(value) : u == "MPa" ? units::mpa_to_pa(value) : value;
 }
 
 // The topic of the telemetry (every column of a row in one message) in the live Foxglove stream

@@ -12,7 +12,8 @@
 #include <vector>
 
 #include "hil/bench/campaign/checks.hpp"
-#include "hil/bench/campaign/schedule.hpp"
+#include "hil/bench/rt/loop_input.hpp"
+#include "hil/bench/rt/schedule.hpp"
 #include "hil/ctl/controller.hpp"
 #include "hil/plant/plant.hpp"
 
@@ -27,24 +28,14 @@ namespace hil::bench {
 inline constexpr double kMinPeriodMs = 0.01;
 inline constexpr double kMaxPeriodMs = 1000;
 
-struct RunSpec {
-  std::string name;
-  ctl::ControllerParams controller;  // complete, validated
-  int initial_touch = +1;            // the plant starts in positive contact
-};
-
-struct Campaign {
+// The loop's programme (plant, duration, period, seed, reference and gap schedules: rt/loop_input.hpp)
+// with what makes it a campaign.
+struct Campaign : LoopProgramme {
   std::string name;
   std::string description;
   std::filesystem::path file;
   std::filesystem::path plant_file;
-  std::shared_ptr<const plant::Plant> plant;  // the simulated truth (sensor noise as the campaign says)
-  double duration_s = 0;
-  double period_s = 0;
-  std::uint64_t seed = 1;
-  double sensor_noise_rms_pa = 0;
-  Schedule reference_pa;
-  Schedule gap_rad;
+  double sensor_noise_rms_pa = 0;   // as the plant's transducer has it
   std::vector<double> reversals_s;  // reference reversals (the first movement is reversal 1)
   long reference_moves = 0;         // steps and ramps of the reference, either direction
   std::vector<RunSpec> runs;

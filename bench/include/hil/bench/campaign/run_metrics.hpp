@@ -9,24 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-namespace hil::bench {
+#include "hil/bench/rt/telemetry_record.hpp"  // StepRecord
 
-// One control period of a simulated run, SI.
-struct StepRecord {
-  double t_s = 0;
-  double p_ref_pa = 0;
-  double p_chamber_pa = 0;
-  double p_meas_pa = 0;
-  double theta_cmd_rad = 0;
-  double theta_motor_rad = 0;
-  double theta_valve_rad = 0;
-  double gap_true_rad = 0;
-  double gap_est_rad = 0;
-  double comp_rad = 0;
-  int touch = 0;
-  int intention = 0;
-  bool gap_measured = false;
-};
+namespace hil::bench {
 
 struct ReversalSummary {
   double t_s = 0;

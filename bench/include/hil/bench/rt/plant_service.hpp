@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "hil/bench/rt/rt_thread.hpp"
-#include "hil/bench/campaign/schedule.hpp"
+#include "hil/bench/rt/schedule.hpp"
 #include "hil/drv/io_types.hpp"
 #include "hil/drv/models.hpp"
 #include "hil/plant/plant.hpp"

@@ -27,7 +27,7 @@
 
 namespace hil::bench {
 
-struct Campaign;
+struct LoopProgramme;
 
 using Clock = std::chrono::steady_clock;  // CLOCK_MONOTONIC on Linux
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -79,10 +79,10 @@ struct RigHealth {
 
 // What a run tells its rig at configure.
 struct RigSetup {
-  const Campaign* campaign = nullptr;  // plant, seed, schedules (simulated rigs)
-  double period_s = 1e-3;              // the control period dT (loop time, not wall time)
-  double p_initial_pa = kNaN;          // the reference at t = 0 (a simulated rig settles there)
-  double gap_initial_rad = kNaN;       // the programmed gap at t = 0
+  const LoopProgramme* programme = nullptr;  // plant, seed, schedules (simulated rigs)
+  double period_s = 1e-3;                    // the control period dT (loop time, not wall time)
+  double p_initial_pa = kNaN;                // the reference at t = 0 (a simulated rig settles there)
+  double gap_initial_rad = kNaN;             // the programmed gap at t = 0
 };
 
 // Faults a rig can fake on purpose (simulated rigs; hardware rigs refuse them).

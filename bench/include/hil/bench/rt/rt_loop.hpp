@@ -16,10 +16,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/loop_input.hpp"
 #include "hil/bench/rt/loop_stats.hpp"
 #include "hil/bench/rt/rig.hpp"
-#include "hil/bench/campaign/run_metrics.hpp"
 #include "hil/bench/rt/safety.hpp"
 #include "hil/bench/rt/telemetry_record.hpp"
 #include "hil/bench/rt/spsc_ring.hpp"
@@ -154,7 +153,7 @@ class RunLoop {
   // Setup: builds the controller, keeps references (all must outlive the loop). wall_period is
   // the pacing period (the campaign's dT divided by the speed factor). now: the clock that times
   // the rig calls; nullptr in simulated time, where the loop keeps no timing statistics.
-  RunLoop(const Campaign& campaign, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
+  RunLoop(const LoopProgramme& programme, const RunSpec& run, Rig& rig, const SafetyConfig& safety, const LoopConfig& loop,
           Clock::duration wall_period, SpscRing<TelemetryRecord>& telemetry, SpscRing<LoopEvent>& events,
           SpscRing<LoopRequest>& requests, TimedRig::NowFn now = &Clock::now);
   RunLoop(const RunLoop&) = delete;
@@ -207,7 +206,7 @@ class RunLoop {
   void emit(double t_s, LoopEventBody body) noexcept;
   void enter_safe(Trip trip, double value, double limit, double t_s) noexcept;
 
-  const Campaign& c_;
+  const LoopProgramme& c_;
   const RunSpec& run_;
   const ctl::Controller controller_;
   TimedRig rig_;

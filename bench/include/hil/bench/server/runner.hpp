@@ -25,6 +25,7 @@
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/rig_config.hpp"
 #include "hil/bench/rt/rt_loop.hpp"
+#include "hil/bench/rt/run_folder.hpp"  // InsufficientStorage, utc_iso
 #include "hil/bench/rt/run_record.hpp"
 
 namespace hil::bench {
@@ -41,20 +42,11 @@ class BadField : public std::invalid_argument {
   BadField(std::string field_name, const std::string& what) : std::invalid_argument(what), field(std::move(field_name)) {}
   std::string field;
 };
-// The runs folder has no room for the run's record (API: 507).
-class InsufficientStorage : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
 // A run folder's run.json says "running" but no live process holds the run's lock: the server
 // died during it (kill -9, a crash, power). Rewrites run.json to outcome "interrupted" with what
 // is really on disk (a half-written last line is cut off and counted) and appends an event.
 // Returns the folders it marked. Safe while another server runs on the same folder.
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
-
-// "2026-11-21T06:19:25.123Z": the time stamps of run.json, events and the server's jobs.
-std::string utc_iso(std::chrono::system_clock::time_point t);
 
 // A start's `speed` (loop periods per dT of wall time): from a hundredth of real time to a hundred
 // times it, and never a loop period longer than kMaxWallPeriodS of wall time. The loop waits a

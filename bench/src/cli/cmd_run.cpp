@@ -1,0 +1,165 @@
+// hilbench run CAMPAIGN.yaml --rig NAME [--out DIR] [--configs DIR] [--runs a,b] [--speed X] [--no-mlock] [--quiet]
+//
+// A bench run from the command line, without the server: the campaign's runs one after the
+// other on the rig, through the same campaign runner `hilbench serve` starts them with, so each
+// run leaves the same record (OUT/<UTC start>_<campaign>_<run>/ with run.json, telemetry.csv,
+// telemetry.mcap, events.jsonl; the checks' verdicts in run.json). Ctrl-C or SIGTERM aborts
+// the run under way (the loop takes the rig to its safe state) and ends the command.
+// Exit codes: 0 every run completed and no check failed, 3 a check failed (as `hilbench sim`),
+// 1 a run did not complete (error, abort, trip), 128 + the signal on Ctrl-C or SIGTERM.
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "hil/bench/campaign/campaign.hpp"
+#include "hil/bench/rt/rig_config.hpp"
+#include "hil/bench/rt/rt_thread.hpp"
+#include "hil/bench/server/runner.hpp"
+#include "hil/config.hpp"
+
+namespace hil::bench {
+namespace {
+
+// As `hilbench sim`: a regression (a failed check) is told apart from a broken setup (1).
+constexpr int kChecksFailedExit = 3;
+
+struct RunArgs {
+  std::string campaign_file;
+  std::string rig;  // a name in CONFIGS/rigs/, or a rig file's path
+  std::string configs_dir = "configs";
+  std::string out_dir = "runs";
+  std::string runs;  // comma-separated run names; empty: every run
+  double speed = 1.0;
+  bool no_mlock = false;
+  bool quiet = false;
+};
+
+// --rig NAME is CONFIGS/rigs/NAME.yaml, as the API's `rig` field; a path (a '/' or a .yaml) is the file itself.
+std::filesystem::path rig_file(const RunArgs& args) {
+  const std::filesystem::path given(args.rig);
+  if (args.rig.find('/') != std::string::npos || given.extension() == ".yaml") return given;
+  const std::filesystem::path file = std::filesystem::path(args.configs_dir) / "rigs" / (args.rig + ".yaml");
+  if (!std::filesystem::is_regular_file(file)) {
+    std::vector<std::string> names;
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(std::filesystem::path(args.configs_dir) / "rigs", ec))
+      if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
+    const std::string hint = cfg::closest(args.rig, names);
+    throw UsageError("--rig " + args.rig + ": no rig file " + file.string() +
+                     (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + " (give --configs DIR or the file's path)");
+  }
+  return file;
+}
+
+// The verdict lines of a finished run (its checks_json); returns how many failed.
+long print_checks(const std::string& run, const nlohmann::json& checks, bool quiet) {
+  long failed = 0;
+  if (!checks.is_object()) return 0;
+  for (const auto& c : checks.value("results", nlohmann::json::array())) {
+    const std::string verdict = c.value("verdict", "");
+    if (verdict == "fail") ++failed;
+    if (!quiet || verdict == "fail")
+      std::printf("  %-7s %s/%s: %s\n", verdict.c_str(), run.c_str(), c.value("check", "").c_str(),
+                  c.value("message", "").c_str());
+  }
+  return failed;
+}
+
+int run_run(const RunArgs& args) {
+  // Everything is read and checked before a folder is made or a device opened.
+  const Campaign campaign = load_campaign(args.campaign_file);
+  const RigConfig rig = load_rig_config(rig_file(args));
+  std::string mlock_warning = "not requested (--no-mlock)";
+  if (!args.no_mlock) {
+    mlock_warning = lock_memory();
+    if (!mlock_warning.empty()) std::fprintf(stderr, "warning: %s\n", mlock_warning.c_str());
+  }
+  RunnerOptions options;
+  options.runs_dir = args.out_dir;
+  options.version = HIL_VERSION;
+  options.mlock_warning = mlock_warning;
+  const bool quiet = args.quiet;
+  options.on_notice = [quiet](const nlohmann::json& j) {  // the runner's thread
+    if (quiet || j.value("type", "") != "run_start") return;
+    std::printf("%s/%s: running (%s)\n", j.value("campaign", "").c_str(), j.value("run", "").c_str(), j.value("dir", "").c_str());
+    std::fflush(stdout);
+  };
+  CampaignRunner runner(std::move(options));
+  StartRequest request;
+  request.campaign = campaign;
+  request.rig = rig;
+  request.runs = args.runs.empty() ? std::vector<std::string>{} : cfg::comma_list(args.runs);
+  request.speed = args.speed;
+  request.source = args.campaign_file;
+  const std::atomic<bool>& signalled = StopSignal::install();
+  try {
+    runner.start(std::move(request));
+  } catch (const BadField& e) {  // a run name or a speed this rig cannot take
+    throw UsageError("--" + e.field + ": " + e.what());
+  }
+  bool aborted = false;
+  while (runner.running()) {
+    if (signalled.load() && !aborted) {
+      aborted = true;
+      try {
+        runner.abort(std::string(StopSignal::name()) + " (hilbench run)");
+      } catch (const Conflict&) {  // the campaign ended meanwhile
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  runner.wait();
+  const nlohmann::json last = runner.status()["last"];
+  long failed = 0;
+  bool incomplete = false;
+  for (const auto& r : last.value("runs", nlohmann::json::array())) {
+    const std::string name = r.value("run", ""), outcome = r.value("outcome", "");
+    const bool completed = outcome == "completed";
+    incomplete = incomplete || !completed;
+    if (!quiet || !completed) {
+      std::printf("%s/%s: %s%s  %s\n", campaign.name.c_str(), name.c_str(), outcome.c_str(),
+                  r["reason"].is_string() ? (" (" + r["reason"].get<std::string>() + ")").c_str() : "",
+                  (std::filesystem::path(args.out_dir) / r.value("dir", "")).c_str());
+    }
+    failed += print_checks(name, r.value("checks", nlohmann::json()), quiet);
+  }
+  if (last.contains("runs_skipped"))
+    std::printf("%s: %d run(s) not run\n", campaign.name.c_str(), last["runs_skipped"].get<int>());
+  if (failed > 0) std::printf("%s: %ld check(s) failed\n", campaign.name.c_str(), failed);
+  if (aborted) return StopSignal::exit_code();
+  if (incomplete || last.contains("runs_skipped")) return 1;
+  return failed > 0 ? kChecksFailedExit : 0;
+}
+
+}  // namespace
+
+CommandRun define_run(CLI::App& cmd) {
+  auto args = std::make_shared<RunArgs>();
+  cmd.add_option("campaign", args->campaign_file, "the campaign file")->required()->type_name("CAMPAIGN.yaml");
+  cmd.add_option("--rig", args->rig, "the rig: a name in CONFIGS/rigs/ (sim, hybrid, can, modbus) or a rig file")
+      ->required()
+      ->type_name("NAME")
+      ->check(path_value());
+  cmd.add_option("--out", args->out_dir, "where each run's folder is made (as hilbench serve's --runs-dir)")
+      ->type_name("DIR")
+      ->check(path_value())
+      ->capture_default_str();
+  cmd.add_option("--configs", args->configs_dir, "the folder holding rigs/")
+      ->type_name("DIR")
+      ->check(path_value())
+      ->capture_default_str();
+  cmd.add_option("--runs", args->runs, "only these runs of the campaign")->type_name("a,b");
+  cmd.add_option("--speed", args->speed, "loop periods per control period of wall time (simulated rigs only)")
+      ->type_name("X")
+      ->check(number_in(kMinSpeed, kMaxSpeed))
+      ->capture_default_str();
+  cmd.add_flag("--no-mlock", args->no_mlock, "do not lock the process's memory");
+  cmd.add_flag("--quiet", args->quiet, "only what did not complete and failed checks");
+  return [args] { return run_run(*args); };
+}
+
+}  // namespace hil::bench
