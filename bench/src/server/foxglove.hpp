@@ -3,7 +3,7 @@
 // group of telemetry columns, one with every column (as telemetry.mcap records it), plus the run's
 // events. What is pure protocol lives here (the
 // channel table, the server's messages, the Message Data frame, the client's requests checked
-// as hostile input); the session that carries it is in api_server.cpp.
+// as hostile input); the session that carries it is in telemetry_stream.cpp.
 #pragma once
 
 #include <cstdint>
