@@ -53,7 +53,7 @@ TEST(ConsoleApi, OffLoopbackThePageNeedsTheTokenAndWithoutItOnlyAFormIsServed) {
     const auto r = who->get(target);
     ASSERT_EQ(r.status, 200) << target;
     EXPECT_TRUE(has(r.content_type, "text/html")) << r.content_type;
-    EXPECT_TRUE(has(r.body, "live view is decimated; telemetry.csv is the lossless record"));
+    EXPECT_TRUE(has(r.body, "live view decimated; telemetry.csv is the lossless record"));
     EXPECT_TRUE(has(r.body, head)) << "the page does not carry Debian's dygraph.min.js";
     EXPECT_TRUE(has(r.body, "/api/telemetry?rate_hz=30"));
     // Offline: nothing is loaded from elsewhere.

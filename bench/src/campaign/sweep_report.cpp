@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <limits>
 
+#include <spdlog/spdlog.h>
+
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/line_file.hpp"
 #include "hil/report/report.hpp"
@@ -307,10 +309,25 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     replace_file(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
     replace_file(folder / "plant.yaml", y.plant);
   }
-  // The worst few points' traces, pre-rendered: the campaign report of each (the figures of
-  // `hilbench sim`, no telemetry files), linked from the sweep's report.
+  // The three outputs are one result: all replaced or none (a full disk used to leave a new
+  // sweep.csv beside no sweep.json, and `--status` called that "outputs written"). They are
+  // written before the worst points' traces, which are a convenience (about 0.7 MB a report):
+  // traces that do not fit on the disk must not cost the results.
   const std::size_t n_traced = std::min(kTracedPoints, order.size());
-  if (n_traced > 0) doc.heading("Traces of the worst points", 3);
+  {
+    hil::report::Document first = doc;
+    if (n_traced > 0) {
+      first.heading("Traces of the worst points", 3);
+      first.paragraph("Not written yet: `hilbench sim points/P/campaign.yaml` makes the trace of point P.");
+    }
+    const std::string json_text = out.dump(1) + "\n", html = first.html();
+    const FileText outputs[] = {{dir / "sweep.csv", {csv}}, {dir / "sweep.json", {json_text}}, {dir / "report.html", {html}}};
+    replace_files(outputs);
+  }
+  if (n_traced == 0) return {0, passed, order};
+  // The worst few points' traces, pre-rendered: the campaign report of each (the figures of
+  // `hilbench sim`, no telemetry files), then the report again with their links.
+  doc.heading("Traces of the worst points", 3);
   for (std::size_t i = 0; i < n_traced; ++i) {
     const long p = order[i];
     const auto folder = dir / "points" / std::to_string(p);
@@ -319,20 +336,33 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     options.out_dir = folder;
     options.telemetry = false;
     options.progress = false;
-    run_campaign(c, options);
-    const std::string href = "points/" + std::to_string(p) + "/" + c.name + "/report.html";
     std::string where;
     for (std::size_t a = 0; a < plan.axes.size(); ++a)
       where += (where.empty() ? "" : ", ") + axis_words(plan, plan.axes[a]).label + " " +
                plan.points[static_cast<std::size_t>(p)][a] + unit_suffix(axis_words(plan, plan.axes[a]).unit);
     const std::string why = failing_text(plan, names, rows.at(p));
-    doc.link("Point " + std::to_string(p) + " (" + where + (why.empty() ? "" : "; " + why) + "): ", href, href);
+    const std::string title = "Point " + std::to_string(p) + " (" + where + (why.empty() ? "" : "; " + why) + "): ";
+    // One that cannot be written (a full disk) is said in the report and the log; the point's
+    // campaign.yaml above gives it again with `hilbench sim`.
+    try {
+      run_campaign(c, options);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const std::exception& e) {
+      const std::string reason = "its trace was not written (" + std::string(e.what()) + "); `hilbench sim " +
+                                 (folder / "campaign.yaml").string() + "` makes it";
+      spdlog::warn("sweep {}: point {}: {}", plan.name, p, reason);
+      doc.paragraph(title + reason);
+      continue;
+    }
+    const std::string href = "points/" + std::to_string(p) + "/" + c.name + "/report.html";
+    doc.link(title, href, href);
   }
-  // The three outputs are one result: all replaced or none (a full disk used to leave a new
-  // sweep.csv beside no sweep.json, and `--status` called that "outputs written").
-  const std::string json_text = out.dump(1) + "\n", html = doc.html();
-  const FileText outputs[] = {{dir / "sweep.csv", {csv}}, {dir / "sweep.json", {json_text}}, {dir / "report.html", {html}}};
-  replace_files(outputs);
+  try {
+    replace_file(dir / "report.html", doc.html());
+  } catch (const std::exception& e) {
+    spdlog::warn("sweep {}: report.html keeps no links to the traces ({})", plan.name, e.what());
+  }
   return {0, passed, order};
 }
 
