@@ -149,7 +149,9 @@ TEST(DriveClientPart, AFakeDriveRegisteredFromOneFileRunsACampaignThroughTheHybr
     ASSERT_NEAR(units::rad_to_deg(fake_log().targets_rad[i]) - target_deg[i], offset_deg, 2 * kTolDeg) << "row " << i;
     // The fake is at its target at once, and the rig reads it the next period: the simulated
     // motor is the previous period's target.
-    if (i > 0) ASSERT_NEAR(motor_deg[i], target_deg[i - 1], 2 * kTolDeg) << "row " << i;
+    if (i > 0) {
+      ASSERT_NEAR(motor_deg[i], target_deg[i - 1], 2 * kTolDeg) << "row " << i;
+    }
     moved_deg = std::max(moved_deg, std::abs(target_deg[i] - target_deg[0]));
   }
   EXPECT_GT(moved_deg, 0.01);  // the controller did command a move: the check above is not of a constant
