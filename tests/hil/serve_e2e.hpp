@@ -75,19 +75,24 @@ struct ServeResult {
   nlohmann::json run;
 };
 
-// paper_adaptive (with `period_ms` as its dT) run by `hilbench serve` on the rig `rig_text(plant)`
-// returns, against `hilbench plant` with `devices` (e.g. --modbus tcp:127.0.0.1:0).
-inline ServeResult serve_paper_adaptive(double period_ms, const std::vector<std::string>& devices,
-                                        const std::function<std::string(const PlantProcess&)>& rig_text) {
-  TempDir configs;
-  std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
+// configs/campaigns/paper_adaptive.yaml's text with `period_ms` as its dT (the VM runs it slower).
+inline std::string paper_adaptive_yaml(double period_ms) {
   std::string yaml = slurp(source_path("configs/campaigns/paper_adaptive.yaml"));
   const auto at = yaml.find("period_ms: 1 ");
   if (at == std::string::npos) throw std::runtime_error("paper_adaptive.yaml: no 'period_ms: 1 '");
   std::ostringstream period;
   period << "period_ms: " << period_ms << " ";
   yaml.replace(at, 13, period.str());
-  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", yaml);
+  return yaml;
+}
+
+// paper_adaptive (with `period_ms` as its dT) run by `hilbench serve` on the rig `rig_text(plant)`
+// returns, against `hilbench plant` with `devices` (e.g. --modbus tcp:127.0.0.1:0).
+inline ServeResult serve_paper_adaptive(double period_ms, const std::vector<std::string>& devices,
+                                        const std::function<std::string(const PlantProcess&)>& rig_text) {
+  TempDir configs;
+  std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
+  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", paper_adaptive_yaml(period_ms));
   const bench::Campaign campaign = bench::load_campaign(campaign_file);
 
   PlantProcess plant(campaign_file, devices, configs.path());

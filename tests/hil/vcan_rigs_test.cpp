@@ -156,12 +156,7 @@ TEST(VcanHybridRig, ChecksBecomeJunitAndACheckSetToFailFailsTheCommand) {
   ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
   TempDir configs;
   std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
-  std::string yaml = slurp(source_path("configs/campaigns/paper_adaptive.yaml"));
-  const auto at = yaml.find("period_ms: 1 ");
-  ASSERT_NE(at, std::string::npos);
-  std::ostringstream period;
-  period << "period_ms: " << g_period_ms << " ";
-  yaml.replace(at, 13, period.str());
+  std::string yaml = paper_adaptive_yaml(g_period_ms);
   ASSERT_TRUE(yaml.ends_with("    max: 0\n")) << "paper_adaptive.yaml's checks are no longer its last block";
   yaml += "  - {name: set_to_fail, runs: [adaptive], metric: iae_mpa_s, max: 0}\n";
   const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", yaml);
@@ -209,11 +204,7 @@ TEST(VcanCanRig, KillNineOfServeMidRunQuickStopsTheDrive) {
   ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
   TempDir configs;
   std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
-  std::string yaml = slurp(source_path("configs/campaigns/paper_adaptive.yaml"));
-  const auto at = yaml.find("period_ms: 1 ");
-  ASSERT_NE(at, std::string::npos);
-  yaml.replace(at, 13, "period_ms: 2 ");
-  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", yaml);
+  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", paper_adaptive_yaml(2));
   const bench::Campaign campaign = bench::load_campaign(campaign_file);
   SimulatorSide side(campaign, {}, "vcan0");
   RigOptions o;
