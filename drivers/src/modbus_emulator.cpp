@@ -12,13 +12,14 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
 #include <optional>
 #include <thread>
 #include <vector>
+
+#include <spdlog/spdlog.h>
 
 #include "modbus_link.hpp"
 
@@ -164,10 +165,10 @@ class ModbusServer {
       clients_.erase(idlest);
       if (!said_full_) {
         said_full_ = true;
-        std::fprintf(stderr,
-                     "%s: %zu clients connected on port %d, the most it serves: each newcomer takes the place of the "
-                     "one idle the longest (said once)\n",
-                     who_.c_str(), kMaxClients, port_);
+        spdlog::warn(
+            "{}: {} clients connected on port {}, the most it serves: each newcomer takes the place of the one idle "
+            "the longest (said once)",
+            who_, kMaxClients, port_);
       }
     }
     clients_.push_back({fd, std::chrono::steady_clock::now()});
