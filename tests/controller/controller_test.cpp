@@ -1,6 +1,7 @@
 // The controller's step: real-time safe, and the jumps it makes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 
 #include "alloc_counter.hpp"
@@ -109,6 +110,42 @@ TEST(Controller, RobustJumpCrossesToTheFlankAheadAndBoostsTheCrossing) {
   ASSERT_LT(k, 200);
   const double walked_back = (s.theta_cmd_rad - out.comp_rad) - at_reversal;
   EXPECT_NEAR(out.comp_rad, 1 * kDeg - walked_back + overlap, 1e-9);
+}
+
+// Learning from sigma_r = 0, the tracking compensator's first jump assumes gap_prior_deg: the
+// motor is aimed the prior plus the contact overlap past the flank it rested on (no lead: the
+// crossing is longer than the model drive's slew x lag, 0.6 deg), and that prior is the gap the
+// law reports until a measurement. With a prior of 0 the jump is the overlap past where the
+// motor is (no gap ahead is assumed), with the lead of a short traverse.
+TEST(Controller, TrackingFirstJumpAssumesThePriorGap) {
+  for (const double prior_deg : {0.0, 1.0, 2.5}) {
+    auto p = nominal_params(Compensation::adaptive, "tracking");
+    p.gap_initial_rad = 0;
+    const auto* info = find_compensator("tracking");
+    ASSERT_NE(info, nullptr);
+    p.compensator_params = hil::param_defaults(info->specs);
+    for (std::size_t i = 0; i < info->specs.size(); ++i) {
+      if (info->specs[i].key == "gap_prior_deg") p.compensator_params[i] = prior_deg;
+    }
+    const Controller c(p);
+    auto s = c.initial_state(11 * kDeg, 1e6, +1);  // resting on the opening flank
+    ControllerOutputs out;
+    double motor_rad = s.motor_model_rad;
+    int k = 0;
+    for (; k < 100; ++k) {
+      motor_rad = s.motor_model_rad;
+      out = c.step(s, {0.95e6, 1e6, motor_rad});  // 50 kPa low: close
+      EXPECT_NEAR(out.gap_est_rad, prior_deg * kDeg, 1e-12);
+      if (out.comp_rad != 0) break;
+    }
+    ASSERT_LT(k, 100) << prior_deg;
+    const double overlap = 0.15 * kDeg;  // the tracking compensator's contact_overlap_deg default
+    const double target = (prior_deg > 0 ? 11 * kDeg - prior_deg * kDeg : motor_rad) - overlap;
+    // A traverse shorter than slew x lag (60 deg/s x 10 ms) carries the rest as a lead.
+    const double lead = std::max(0.6 * kDeg - (motor_rad - target), 0.0);
+    EXPECT_EQ(lead > 0, prior_deg == 0);
+    EXPECT_NEAR(s.theta_cmd_rad, target - lead, 1e-9) << prior_deg;
+  }
 }
 
 TEST(Controller, InvalidParametersAreRejected) {

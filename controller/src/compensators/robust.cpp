@@ -7,10 +7,12 @@
 // for absorbs that much). The gap estimate takes each measurement of the observer part way
 // (learn_gain), or whole when it is the first or shows a real change (jump_fraction).
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "hil/ctl/compensator.hpp"
 #include "hil/ctl/observer.hpp"
+#include "hil/ctl/observer_specs.hpp"
 
 namespace hil::ctl {
 namespace {
@@ -26,27 +28,33 @@ struct RobustState {
 class RobustCompensator final : public CompensatorOf<RobustCompensator, RobustState> {
  public:
   static constexpr std::string_view kName = "robust";
-  // In config units; the observer's settings are explained in observer.hpp.
-  static constexpr ParamSpec kSpecs[] = {
-      {"pressure_noise_kpa", 0, 1e4, false, false, 2.0, "the transducer noise the observer assumes (RMS)"},
-      {"intention_deadband_deg", 0, 10, false, false, 0.05, "retreat of the integral command that is a reversal"},
-      {"intention_sigmas", 0, 1e3, false, false, 8.0, "reversal threshold on the low-passed error, in its noise sigmas"},
-      {"filter_time_constant_ms", 1e-3, 1e4, false, false, 15.0, "each of the two low-pass stages of P_eq"},
-      {"hold_smoothing", 1, 100, false, false, 4.0, "the hold level's extra low-pass, in filter time constants"},
-      {"time_constant_scale", 1e-3, 2, false, false, 0.9, "factor on the nominal chamber time constant in P_eq"},
-      {"detect_sigmas", 1e-3, 1e3, false, false, 5.0, "contact threshold, in sigmas of P_eq's noise"},
-      {"confirm_samples", 1, 1000, false, false, 5.0, "samples in a row past the contact threshold", true},
-      {"fit_lead_ms", 0, 500, false, false, 20.0, "the gap fit's window starts this long before the motor's extreme"},
-      {"fit_after_ms", 1, 500, false, false, 40.0, "the gap fit runs this long after contact"},
-      {"fit_tries", 1, 1000, false, false, 8.0, "gap fits while the valve has not moved enough", true},
-      {"learn_gain", 1e-3, 1, false, false, 0.8, "share of a gap measurement taken into the estimate"},
-      {"jump_fraction", 1e-3, 10, false, false, 0.2, "a measurement this far from the estimate (fraction) is taken whole"},
-      {"gap_max_deg", 1e-3, 90, false, false, 6.0, "the largest gap a fit may find"},
-      {"contact_overlap_deg", 0, 1, false, false, 0.02, "the jump aims this far past the flank"},
+  // In config units: the noise it assumes, the observer's shared rows (observer_specs.hpp), the
+  // gap estimate's update and the law's overlap.
+  static constexpr auto kSpecs = join_specs(
+      std::array<ParamSpec, 2>{
+          {{"pressure_noise_kpa", 0, 1e4, false, false, 2.0, "the transducer noise the observer assumes (RMS)"},
+           kIntentionDeadbandSpec}},
+      kObserverSpecs,
+      std::array<ParamSpec, 4>{
+          {{"learn_gain", 1e-3, 1, false, false, 0.8, "share of a gap measurement taken into the estimate"},
+           {"jump_fraction", 1e-3, 10, false, false, 0.2, "a measurement this far from the estimate (fraction) is taken whole"},
+           kGapMaxSpec,
+           kContactOverlapSpec}});
+  // Where each value sits in kSpecs.
+  enum : std::size_t {
+    kNoise,
+    kDeadband,
+    kObserver,
+    kLearnGain = kObserver + kObserverSpecs.size(),
+    kJumpFraction,
+    kGapMax,
+    kOverlap
   };
 
   RobustCompensator(const CompensatorSetup& setup, std::span<const double> v)
-      : setup_(setup), observer_(observer_params(setup, v), setup.chamber), contact_overlap_rad_(v[14] * units::kRadPerDeg) {}
+      : setup_(setup),
+        observer_(observer_params(setup, v), setup.chamber),
+        contact_overlap_rad_(v[kOverlap] * units::kRadPerDeg) {}
 
   RobustState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     RobustState s;
@@ -105,20 +113,12 @@ class RobustCompensator final : public CompensatorOf<RobustCompensator, RobustSt
   static RobustObserverParams observer_params(const CompensatorSetup& setup, std::span<const double> v) {
     RobustObserverParams r;
     r.period_s = setup.period_s;
-    r.pressure_noise_rms_pa = v[0] * units::kPaPerKpa;
-    r.intention_deadband_rad = v[1] * units::kRadPerDeg;
-    r.intention_sigmas = v[2];
-    r.filter_time_constant_s = v[3] * 1e-3;
-    r.hold_smoothing = v[4];
-    r.time_constant_scale = v[5];
-    r.detect_sigmas = v[6];
-    r.confirm_samples = static_cast<int>(v[7]);
-    r.fit_lead_s = v[8] * 1e-3;
-    r.fit_after_s = v[9] * 1e-3;
-    r.fit_tries = static_cast<int>(v[10]);
-    r.learn_gain = v[11];
-    r.jump_fraction = v[12];
-    r.gap_max_rad = v[13] * units::kRadPerDeg;
+    r.pressure_noise_rms_pa = v[kNoise] * units::kPaPerKpa;
+    r.intention_deadband_rad = v[kDeadband] * units::kRadPerDeg;
+    apply_observer_specs(r, v.subspan(kObserver, kObserverSpecs.size()));
+    r.learn_gain = v[kLearnGain];
+    r.jump_fraction = v[kJumpFraction];
+    r.gap_max_rad = v[kGapMax] * units::kRadPerDeg;
     return r;
   }
 

@@ -8,10 +8,12 @@
 //
 // The noise estimator and the gap tracker are in hil/ctl/tracking.hpp.
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "hil/ctl/compensator.hpp"
 #include "hil/ctl/observer.hpp"
+#include "hil/ctl/observer_specs.hpp"
 #include "hil/ctl/tracking.hpp"
 
 namespace hil::ctl {
@@ -35,43 +37,58 @@ struct TrackingState {
 class TrackingCompensator final : public CompensatorOf<TrackingCompensator, TrackingState> {
  public:
   static constexpr std::string_view kName = "tracking";
-  // In config units; the observer's settings are explained in observer.hpp.
-  static constexpr ParamSpec kSpecs[] = {
-      {"noise_initial_kpa", 0, 1e4, false, false, 2.0, "transducer noise (RMS) assumed until estimated"},
-      {"noise_floor_kpa", 0, 1e4, false, false, 2.0, "the least noise the tests assume (model error of P_eq)"},
-      {"noise_window_ms", 1, 1e5, false, false, 200.0, "the noise estimate's averaging time"},
-      {"clip_sigmas", 1, 1e3, false, false, 6.0, "a second difference beyond this many sigmas counts as this many"},
-      {"intention_deadband_deg", 0, 10, false, false, 0.1, "retreat of the integral command that is a reversal"},
-      {"intention_sigmas", 0, 1e3, false, false, 8.0, "reversal threshold on the low-passed error, in its noise sigmas"},
-      {"filter_time_constant_ms", 1e-3, 1e4, false, false, 15.0, "each of the two low-pass stages of P_eq"},
-      {"hold_smoothing", 1, 100, false, false, 4.0, "the hold level's extra low-pass, in filter time constants"},
-      {"time_constant_scale", 1e-3, 2, false, false, 0.9, "factor on the nominal chamber time constant in P_eq"},
-      {"detect_sigmas", 1e-3, 1e3, false, false, 5.0, "contact threshold, in sigmas of P_eq's noise"},
-      {"confirm_samples", 1, 1000, false, false, 5.0, "samples in a row past the contact threshold", true},
-      {"fit_lead_ms", 0, 500, false, false, 20.0, "the gap fit's window starts this long before the motor's extreme"},
-      {"fit_after_ms", 1, 500, false, false, 40.0, "the gap fit runs this long after contact"},
-      {"fit_tries", 1, 1000, false, false, 8.0, "gap fits while the valve has not moved enough", true},
-      {"level_gain", 1e-3, 1, false, false, 1.0, "share of a measurement's innovation taken into the gap level"},
-      {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
-      {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
-      {"gap_max_deg", 1e-3, 90, false, false, 6.0, "the largest gap a fit may find"},
-      {"contact_overlap_deg", 0, 1, false, false, 0.15, "the jump aims this far past the flank"},
-      {"lead_lags", 0, 10, false, false, 1.0, "the traverse's command leads the motor by this many slew x drive lag"},
+  // In config units: the noise estimator, the observer's shared rows (observer_specs.hpp), the
+  // gap tracker and the law.
+  static constexpr auto kSpecs = join_specs(
+      std::array<ParamSpec, 5>{{
+          {"noise_initial_kpa", 0, 1e4, false, false, 2.0, "transducer noise (RMS) assumed until estimated"},
+          {"noise_floor_kpa", 0, 1e4, false, false, 2.0, "the least noise the tests assume (model error of P_eq)"},
+          {"noise_window_ms", 1, 1e5, false, false, 200.0, "the noise estimate's averaging time"},
+          {"clip_sigmas", 1, 1e3, false, false, 6.0, "a second difference beyond this many sigmas counts as this many"},
+          with_fallback(kIntentionDeadbandSpec, 0.1),
+      }},
+      kObserverSpecs,
+      std::array<ParamSpec, 7>{{
+          {"level_gain", 1e-3, 1, false, false, 1.0, "share of a measurement's innovation taken into the gap level"},
+          {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
+          {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
+          kGapMaxSpec,
+          with_fallback(kContactOverlapSpec, 0.15),
+          {"lead_lags", 0, 10, false, false, 1.0, "the traverse's command leads the motor by this many slew x drive lag"},
+          {"gap_prior_deg", 0, 90, false, false, 2.0, "the least gap the law assumes until one is measured (adaptive)"},
+      }});
+  // Where each value sits in kSpecs.
+  enum : std::size_t {
+    kNoiseInitial,
+    kNoiseFloor,
+    kNoiseWindow,
+    kClip,
+    kDeadband,
+    kObserver,
+    kLevelGain = kObserver + kObserverSpecs.size(),
+    kRateGain,
+    kRateMax,
+    kGapMax,
+    kOverlap,
+    kLeadLags,
+    kGapPrior
   };
 
   TrackingCompensator(const CompensatorSetup& setup, std::span<const double> v)
       : setup_(setup),
         observer_(observer_params(setup, v), setup.chamber),
-        noise_initial_pa_(v[0] * units::kPaPerKpa),
-        noise_{1 - std::exp(-setup.period_s / (v[2] * 1e-3)), v[1] * units::kPaPerKpa, v[3]},
-        tracker_{v[14], v[15], v[16] * units::kRadPerDeg, v[17] * units::kRadPerDeg},
-        contact_overlap_rad_(v[18] * units::kRadPerDeg),
-        lead_rad_(v[19] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
-        reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s) {}
+        noise_initial_pa_(v[kNoiseInitial] * units::kPaPerKpa),
+        noise_{1 - std::exp(-setup.period_s / (v[kNoiseWindow] * 1e-3)), v[kNoiseFloor] * units::kPaPerKpa, v[kClip]},
+        tracker_{v[kLevelGain], v[kRateGain], v[kRateMax] * units::kRadPerDeg, v[kGapMax] * units::kRadPerDeg},
+        contact_overlap_rad_(v[kOverlap] * units::kRadPerDeg),
+        lead_rad_(v[kLeadLags] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
+        reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s),
+        gap_prior_rad_(v[kGapPrior] * units::kRadPerDeg) {}
 
   TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     TrackingState s;
-    s.gap_est_rad = setup_.compensation == Compensation::constant ? setup_.gap_known_rad : setup_.gap_initial_rad;
+    s.gap_est_rad =
+        setup_.compensation == Compensation::constant ? setup_.gap_known_rad : std::max(setup_.gap_initial_rad, gap_prior_rad_);
     s.gap_pos_rad = touch * s.gap_est_rad / 2;
     s.motor_prev_rad = s.cmd_rad = theta_cmd_rad;
     s.noise = noise_.initial(p_meas_pa, noise_initial_pa_);
@@ -158,20 +175,12 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   static RobustObserverParams observer_params(const CompensatorSetup& setup, std::span<const double> v) {
     RobustObserverParams r;
     r.period_s = setup.period_s;
-    r.pressure_noise_rms_pa = v[0] * units::kPaPerKpa;  // unused: each step passes the estimate
-    r.intention_deadband_rad = v[4] * units::kRadPerDeg;
-    r.intention_sigmas = v[5];
-    r.filter_time_constant_s = v[6] * 1e-3;
-    r.hold_smoothing = v[7];
-    r.time_constant_scale = v[8];
-    r.detect_sigmas = v[9];
-    r.confirm_samples = static_cast<int>(v[10]);
-    r.fit_lead_s = v[11] * 1e-3;
-    r.fit_after_s = v[12] * 1e-3;
-    r.fit_tries = static_cast<int>(v[13]);
+    r.pressure_noise_rms_pa = v[kNoiseInitial] * units::kPaPerKpa;  // unused: each step passes the estimate
+    r.intention_deadband_rad = v[kDeadband] * units::kRadPerDeg;
+    apply_observer_specs(r, v.subspan(kObserver, kObserverSpecs.size()));
     r.learn_gain = 1;  // the gap estimate is this compensator's
     r.jump_fraction = 1;
-    r.gap_max_rad = v[17] * units::kRadPerDeg;
+    r.gap_max_rad = v[kGapMax] * units::kRadPerDeg;
     return r;
   }
 
@@ -180,7 +189,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   double noise_initial_pa_;
   NoiseEstimator noise_;
   GapTracker tracker_;
-  double contact_overlap_rad_, lead_rad_, reach_rad_;
+  double contact_overlap_rad_, lead_rad_, reach_rad_, gap_prior_rad_;
 };
 
 }  // namespace
