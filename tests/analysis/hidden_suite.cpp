@@ -268,13 +268,14 @@ std::string SuiteFile::effects_text() const {
   return s;
 }
 
-SuiteFile draw_file(std::uint64_t seed, const std::string& name, const std::vector<std::string>& tags,
-                    const std::string& colour, double level_kpa, double duration_s) {
+SuiteFile draw_file(std::uint64_t seed, const std::string& name, const std::vector<std::string>& tags, const std::string& colour,
+                    double level_kpa, Logger logger, double duration_s) {
   plant::Rng rng(seed);
   SuiteFile f;
   f.name = name;
   f.duration_s = duration_s;
   draw_setup(f, rng, 0.25);
+  f.logger = logger;
   if (std::any_of(tags.begin(), tags.end(), [](const std::string& t) { return kind(t).command_side; })) f.encoder = false;
   f.hidden = hidden_of(tags, rng, Plant::load(nominal_model()));
   f.colour = colour;
@@ -414,12 +415,12 @@ Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::
     const double err = std::abs(v - h.value) / std::abs(h.value);
     s.worst_error = std::max(s.worst_error, std::isfinite(err) ? err : INFINITY);
     within = within && err <= 0.15;
-    s.params += (s.params.empty() ? "" : "; ") + h.tag + " " + h.key + " " + num(v, "%.4g") + " (truth " + num(h.value) +
-                (std::isfinite(err) ? ", " + num(100 * (v - h.value) / h.value, "%+.1f") + " %" : "") +
-                (std::isfinite(v) ? ", of the change " +
-                                        num(100 * std::abs(v - h.value) / std::abs(h.value - h.neutral), "%.0f") + " %"
-                                  : "") +
-                ")";
+    s.params +=
+        (s.params.empty() ? "" : "; ") + h.tag + " " + h.key + " " + num(v, "%.4g") + " (truth " + num(h.value) +
+        (std::isfinite(err) ? ", " + num(100 * (v - h.value) / h.value, "%+.1f") + " %" : "") +
+        (std::isfinite(v) ? ", of the change " + num(100 * std::abs(v - h.value) / std::abs(h.value - h.neutral), "%.0f") + " %"
+                          : "") +
+        ")";
   }
   s.pass = within;
   return s;

@@ -71,10 +71,10 @@ std::vector<std::string> colours();
 std::vector<double> levels_kpa();
 
 std::vector<SuiteFile> draw_suite(const SuiteSpec& spec);
-// One file as the suite draws it, with the effects, colour and level given (the light test's
-// picks); the rest (reference, logger, encoder) drawn from `seed`.
-SuiteFile draw_file(std::uint64_t seed, const std::string& name, const std::vector<std::string>& tags,
-                    const std::string& colour, double level_kpa, double duration_s = 30);
+// One file as the suite draws it, with the effects, colour, level and logger given (the light
+// test's picks); the rest (reference, encoder, compensation, magnitudes) drawn from `seed`.
+SuiteFile draw_file(std::uint64_t seed, const std::string& name, const std::vector<std::string>& tags, const std::string& colour,
+                    double level_kpa, Logger logger, double duration_s = 30);
 // Writes DIR/<name>.csv (noise-free, then the transducer's noise added).
 std::filesystem::path write_file(const SuiteFile& f, const std::filesystem::path& dir);
 
@@ -85,12 +85,12 @@ struct Score {
   bool encoder = false;
   bool identifiable = true;  // healthy files: true
   std::string why_not_identifiable;
-  bool pass = false;        // found in full / healthy: nothing_missing with nothing added
-  bool right_set = false;   // the added candidates are the hidden ones
-  std::string found;        // the added candidates, "+"-joined
-  std::string params;       // "gap_deg 1.598 (truth 1.6, -0.1 %)" ...
-  double worst_error = 0;   // the largest |fitted - truth| / |truth| over the hidden parameters
-  double min_drop_cost = 0; // the smallest cost of dropping one hidden effect, in noise powers
+  bool pass = false;         // found in full / healthy: nothing_missing with nothing added
+  bool right_set = false;    // the added candidates are the hidden ones
+  std::string found;         // the added candidates, "+"-joined
+  std::string params;        // "gap_deg 1.598 (truth 1.6, -0.1 %)" ...
+  double worst_error = 0;    // the largest |fitted - truth| / |truth| over the hidden parameters
+  double min_drop_cost = 0;  // the smallest cost of dropping one hidden effect, in noise powers
   double fit_before_pct = 0, fit_after_pct = 0, floor_pct = 0, wall_s = 0;
 };
 

@@ -44,16 +44,26 @@ int main(int argc, char** argv) {
     if (i + 1 >= argc) return usage(a + " needs a value");
     const std::string v = argv[++i];
     try {
-      if (a == "--seed") spec.seed = std::stoull(v);
-      else if (a == "--singles") spec.singles = std::stoi(v);
-      else if (a == "--pairs") spec.pairs = std::stoi(v);
-      else if (a == "--triples") spec.triples = std::stoi(v);
-      else if (a == "--healthy-per-noise") spec.healthy_per_noise = std::stoi(v);
-      else if (a == "--duration") spec.duration_s = std::stod(v);
-      else if (a == "--threads") threads = static_cast<unsigned>(std::stoul(v));
-      else if (a == "--only") only = v;
-      else if (a == "--out") out = v;
-      else return usage("unknown option " + a);
+      if (a == "--seed")
+        spec.seed = std::stoull(v);
+      else if (a == "--singles")
+        spec.singles = std::stoi(v);
+      else if (a == "--pairs")
+        spec.pairs = std::stoi(v);
+      else if (a == "--triples")
+        spec.triples = std::stoi(v);
+      else if (a == "--healthy-per-noise")
+        spec.healthy_per_noise = std::stoi(v);
+      else if (a == "--duration")
+        spec.duration_s = std::stod(v);
+      else if (a == "--threads")
+        threads = static_cast<unsigned>(std::stoul(v));
+      else if (a == "--only")
+        only = v;
+      else if (a == "--out")
+        out = v;
+      else
+        return usage("unknown option " + a);
     } catch (const std::exception&) {
       return usage(a + ": not a number: " + v);
     }
@@ -78,9 +88,9 @@ int main(int argc, char** argv) {
     }
     const Score& s = scores.back();
     std::printf("%-28s %-20s %-5s enc %-3s %-11s %-15s %.1f kPa: %-16s found %-40s %s %s (%.1f s)\n", s.name.c_str(),
-                s.effects.c_str(), s.logger.c_str(), s.encoder ? "yes" : "no", s.reference.c_str(), s.colour.c_str(),
-                s.level_kpa, s.verdict.c_str(), s.found.empty() ? "-" : s.found.c_str(),
-                s.n_effects == 0 ? (s.pass ? "no alarm" : "FALSE ALARM")
+                s.effects.c_str(), s.logger.c_str(), s.encoder ? "yes" : "no", s.reference.c_str(), s.colour.c_str(), s.level_kpa,
+                s.verdict.c_str(), s.found.empty() ? "-" : s.found.c_str(),
+                s.n_effects == 0  ? (s.pass ? "no alarm" : "FALSE ALARM")
                 : !s.identifiable ? "not identifiable"
                 : s.pass          ? "found"
                                   : "MISSED",

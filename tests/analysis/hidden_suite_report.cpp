@@ -52,10 +52,9 @@ std::string markdown(const std::vector<Score>& scores, const SuiteSpec& spec, do
   }
   std::string o;
   o += "Seed " + std::to_string(spec.seed) + ", " + std::to_string(scores.size()) + " files of " + f1(spec.duration_s) +
-       " s at 1 kHz: " + std::to_string(healthy.n) + " healthy (every colour at every level), " +
-       std::to_string(all_effects.n) + " with effects (" + std::to_string(spec.singles) + " with one, " +
-       std::to_string(spec.pairs) + " with two, " + std::to_string(spec.triples) + " with three); wall " + f1(wall_s) +
-       " s.\n\n";
+       " s at 1 kHz: " + std::to_string(healthy.n) + " healthy (every colour at every level), " + std::to_string(all_effects.n) +
+       " with effects (" + std::to_string(spec.singles) + " with one, " + std::to_string(spec.pairs) + " with two, " +
+       std::to_string(spec.triples) + " with three); wall " + f1(wall_s) + " s.\n\n";
   const double rate = identifiable.n ? 100.0 * identifiable.pass / identifiable.n : 0.0;
   o += "- **Found in full** (the hidden candidates exactly, each parameter within 15 %): " + identifiable.cell() +
        " identifiable combinations (" + f1(rate) + " %); one effect " + by_count[1].cell() + ", two " + by_count[2].cell() +
@@ -80,15 +79,15 @@ std::string markdown(const std::vector<Score>& scores, const SuiteSpec& spec, do
   o += "\n| file | effects | logger | encoder | reference | noise | verdict | found | fit before / after / floor % | "
        "drop cost | result | s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& s : scores) {
-    const std::string result = s.n_effects == 0 ? (s.pass ? "no alarm" : "FALSE ALARM")
+    const std::string result = s.n_effects == 0  ? (s.pass ? "no alarm" : "FALSE ALARM")
                                : !s.identifiable ? "not identifiable: " + s.why_not_identifiable
                                : s.pass          ? "found"
                                                  : "MISSED";
-    o += "| " + s.name + " | " + s.effects + " | " + s.logger + " | " + (s.encoder ? "yes" : "no") + " | " + s.reference +
-         " | " + s.colour + ", " + f1(s.level_kpa) + " kPa | " + s.verdict + " | " + (s.found.empty() ? "-" : s.found) +
-         " | " + f2(s.fit_before_pct) + " / " + f2(s.fit_after_pct) + " / " + f2(s.floor_pct) + " | " +
-         (s.n_effects ? f1(s.min_drop_cost) : std::string("-")) + " | " + result + (s.params.empty() ? "" : " (" + s.params + ")") +
-         " | " + f1(s.wall_s) + " |\n";
+    o += "| " + s.name + " | " + s.effects + " | " + s.logger + " | " + (s.encoder ? "yes" : "no") + " | " + s.reference + " | " +
+         s.colour + ", " + f1(s.level_kpa) + " kPa | " + s.verdict + " | " + (s.found.empty() ? "-" : s.found) + " | " +
+         f2(s.fit_before_pct) + " / " + f2(s.fit_after_pct) + " / " + f2(s.floor_pct) + " | " +
+         (s.n_effects ? f1(s.min_drop_cost) : std::string("-")) + " | " + result +
+         (s.params.empty() ? "" : " (" + s.params + ")") + " | " + f1(s.wall_s) + " |\n";
   }
   return o;
 }
