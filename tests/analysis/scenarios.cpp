@@ -1,5 +1,6 @@
 #include "scenarios.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -120,7 +121,7 @@ std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path&
   };
   const std::function<double(double)> command_deg = s.command_deg ? s.command_deg : default_command_deg;
   // Logging starts in a steady state: the motor at the first command, the valve on a flank.
-  truth.settle_nearest(st, 0.0, units::deg_to_rad(command_deg(0)), s.t0_s);
+  truth.settle_nearest(st, 0.0, units::deg_to_rad(command_deg(0)), std::isnan(s.plant_t0_s) ? s.t0_s : s.plant_t0_s);
   const auto file = dir / (s.name + ".csv");
   std::FILE* f = std::fopen(file.c_str(), "wb");
   if (f == nullptr) throw std::runtime_error("cannot write " + file.string());
@@ -129,10 +130,15 @@ std::filesystem::path make_lab_log(const LabLog& s, const std::filesystem::path&
   double t = s.t0_s;
   while (t < s.t0_s + s.duration_s) {
     const double cmd = units::deg_to_rad(command_deg(t - s.t0_s));  // theta_cmd(k), held until the next row
-    std::fprintf(f, "%.6f,OK,%.6f,%.2f,%.5f", units::pa_to_mpa(st.s.p_meas_pa), t, 21.0 + 0.01 * (t - s.t0_s),
-                 units::rad_to_deg(cmd));
-    if (s.encoder) std::fprintf(f, ",%.5f", units::rad_to_deg(st.s.theta_motor_rad));
-    std::fprintf(f, "\r\n");
+    const bool in_hole = std::any_of(s.holes_s.begin(), s.holes_s.end(), [&](const std::pair<double, double>& h) {
+      return t - s.t0_s >= h.first && t - s.t0_s < h.second;
+    });
+    if (!in_hole) {
+      std::fprintf(f, "%.6f,OK,%.6f,%.2f,%.5f", units::pa_to_mpa(st.s.p_meas_pa), t, 21.0 + 0.01 * (t - s.t0_s),
+                   units::rad_to_deg(cmd));
+      if (s.encoder) std::fprintf(f, ",%.5f", units::rad_to_deg(st.s.theta_motor_rad));
+      std::fprintf(f, "\r\n");
+    }
     const double dt = 1e-3 * (0.7 + 0.6 * jitter.uniform());
     truth.step(st, {cmd, plant::kNaN, plant::kNaN}, dt);
     t += dt;

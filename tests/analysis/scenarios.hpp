@@ -7,7 +7,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "hil/plant/plant.hpp"
@@ -56,6 +58,11 @@ struct LabLog {
   std::function<plant::Plant(const plant::Plant&)> truth = [](const plant::Plant& p) { return p; };
   // The command [deg] against time since the first row; empty: the steps, ramps and sine above.
   std::function<double(double)> command_deg = {};
+  // Spans [from, to) of time since the first row where the logger wrote no row (the plant ran on).
+  std::vector<std::pair<double, double>> holes_s = {};
+  // The plant's clock at the first row (NaN: t0_s, the logger's): a time-dependent effect (erosion,
+  // a drift) counts from it; 0 starts it with the log, as on the bench.
+  double plant_t0_s = std::numeric_limits<double>::quiet_NaN();
 };
 // A command that moves between lo_deg and hi_deg at speed_deg_s and dwells dwell_s at each end.
 std::function<double(double)> command_triangle(double lo_deg, double hi_deg, double speed_deg_s, double dwell_s);
