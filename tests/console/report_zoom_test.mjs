@@ -60,6 +60,8 @@ async function zoomTo(page, range) {
   await page.evaluate((r) => window.hilReport.charts.find((c) => c.group === "t").graph.updateOptions({ dateWindow: r }), range);
 }
 
+const t0 = Date.now(), phases = [];
+const phase = (name) => phases.push(`${name} ${((Date.now() - t0) / 1000).toFixed(1)} s`);
 try {
   const runs = join(h.dir, "runs");
   const c = configs();
@@ -73,7 +75,9 @@ try {
   const want = csvWindow(csv, ...zoom);
   if (want.total < 59000 || want.t.length < 900) throw new Error(`telemetry.csv has ${want.total} rows, ${want.t.length} in the zoom`);
 
+  phase("recorded");
   const base = await h.startServer(exe, c);
+  phase("served");
   const api = (path) => fetch(base + path).then(async (r) => ({ status: r.status, body: await r.json().catch(() => ({})) }));
   for (const [q, field] of [["from_s=1&to_s=2&columns=p_meas_mpa,p_bogus", "columns"], ["from_s=1&columns=p_meas_mpa", "to_s"],
     ["from_s=0&to_s=60&columns=p_meas_mpa&max_rows=100", "to_s"], ["from_s=2&to_s=1&columns=p_meas_mpa", "to_s"]]) {
@@ -84,12 +88,14 @@ try {
   if (direct.status !== 200 || direct.body.rows !== want.t.length || direct.body.columns.p_meas_mpa.some((v, k) => v !== want.p[k]))
     fail(`telemetry range: want the file's ${want.t.length} rows, got ${direct.status} ${direct.body.rows}`);
 
+  phase("endpoint checked");
   const browser = await h.launch();
   const page = await browser.newPage();
   await page.setViewport({ width: 1400, height: 900 });
   const errors = [];
   page.on("pageerror", (e) => errors.push(String(e)));
   await page.goto(`${base}/api/runs/${id}/report.html?wait=1`, { waitUntil: "load" });
+  phase("report opened");
   const before = await plotsState(page);
   if (before.length < 4) fail(`the report has ${before.length} time plots`);
   for (const p of before) {
@@ -107,6 +113,7 @@ try {
     if (p.p.length && p.p.some((v, k) => (v === null ? !same(k) : v !== want.p[k]))) fail(`${p.title}: p_meas_mpa drawn is not the file's`);
     if (p.cls.includes("hil-thin") || !/^every sample: [\d,]+ rows in view/.test(p.note)) fail(`${p.title}: zoomed note ${p.cls} "${p.note}"`);
   }
+  phase("zoomed");
   console.log(`served: ${before.length} time plots thinned, each drew all ${want.t.length} rows of ${zoom.join("-")} s`);
   await zoomTo(page, null);
   await h.waitFor(page, "zoomed out: the overview and its note again",
@@ -122,6 +129,8 @@ try {
     if (!p.cls.includes("hil-thin") || !p.note.includes("every sample on zoom needs the server: hilbench serve") || p.t.length >= want.t.length)
       fail(`${p.title} from disk: ${p.cls} "${p.note}", ${p.t.length} rows in the zoom`);
   }
+  phase("from disk");
+  console.log("at: " + phases.join(", "));
   if (errors.length) fail("page errors: " + errors.join("; "));
 } catch (e) {
   fail(e.stack || String(e));

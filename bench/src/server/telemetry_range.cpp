@@ -34,14 +34,14 @@ class LineReader {
   bool next(std::string_view& line, std::uint64_t& at) {
     for (;;) {
       const auto nl = buf_.find('\n', pos_);
+      if ((nl == std::string::npos ? buf_.size() : nl) - pos_ > kMaxLineBytes)
+        throw std::runtime_error(name_ + ": byte " + std::to_string(base_ + pos_) + ": a line longer than 64 KiB (no telemetry.csv)");
       if (nl != std::string::npos) {
         line = std::string_view(buf_).substr(pos_, nl - pos_);
         at = base_ + pos_;
         pos_ = nl + 1;
         return true;
       }
-      if (buf_.size() - pos_ > kMaxLineBytes)
-        throw std::runtime_error(name_ + ": byte " + std::to_string(base_ + pos_) + ": a line longer than 64 KiB (no telemetry.csv)");
       base_ += pos_;
       buf_.erase(0, pos_);
       pos_ = 0;
