@@ -25,7 +25,8 @@ using nlohmann::json;
 struct File {
   std::filesystem::path path;
   explicit File(const std::string& text) {
-    path = std::filesystem::temp_directory_path() / ("hil_range_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++));
+    path =
+        std::filesystem::temp_directory_path() / ("hil_range_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++));
     std::ofstream(path, std::ios::binary) << text;
   }
   ~File() { std::filesystem::remove(path); }

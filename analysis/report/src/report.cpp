@@ -73,7 +73,8 @@ void append_figure_series(std::string& out, const Figure& fig) {
     for (std::size_t j = i; j < n; ++j) {
       if (x_of[j] == i) column[j] = ys.size(), ys.push_back(fig.series[j].y);
     }
-    groups[i] = detail::decimate_shared(fig.series[i].x, ys, static_cast<std::size_t>(std::max(fig.max_buckets, 16)), fig.x_log, fig.y_log);
+    groups[i] = detail::decimate_shared(fig.series[i].x, ys, static_cast<std::size_t>(std::max(fig.max_buckets, 16)), fig.x_log,
+                                        fig.y_log);
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0) out += ',';

@@ -33,8 +33,7 @@ Reply telemetry_range(const Call& c) {
   q.from_s = query_number(c.target, spec_of(c.route.query, "from_s"), 0);
   q.to_s = query_number(c.target, spec_of(c.route.query, "to_s"), 0);
   q.max_rows = static_cast<std::uint64_t>(query_number(c.target, spec_of(c.route.query, "max_rows"), 20000));
-  if (!(q.to_s >= q.from_s))
-    throw ApiError{http::status::bad_request, "bad field", "'to_s' must not be before 'from_s'", "to_s"};
+  if (!(q.to_s >= q.from_s)) throw ApiError{http::status::bad_request, "bad field", "'to_s' must not be before 'from_s'", "to_s"};
   const std::string& list = c.target.query.at("columns");
   for (std::size_t b = 0; b <= list.size();) {
     const auto e = std::min(list.find(',', b), list.size());
@@ -51,8 +50,9 @@ Reply telemetry_range(const Call& c) {
     throw ApiError{http::status::forbidden, "file not read", e.what()};
   }
   if (missing) {
-    throw ApiError{http::status::not_found, "no telemetry.csv",
-                   "run '" + id + "' has no telemetry.csv (the range is read from it; a run that kept only telemetry.mcap has none)"};
+    throw ApiError{
+        http::status::not_found, "no telemetry.csv",
+        "run '" + id + "' has no telemetry.csv (the range is read from it; a run that kept only telemetry.mcap has none)"};
   }
   const std::shared_ptr<const int> fd(new int(f.fd), [](const int* p) {
     ::close(*p);

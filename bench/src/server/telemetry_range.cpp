@@ -35,7 +35,8 @@ class LineReader {
     for (;;) {
       const auto nl = buf_.find('\n', pos_);
       if ((nl == std::string::npos ? buf_.size() : nl) - pos_ > kMaxLineBytes)
-        throw std::runtime_error(name_ + ": byte " + std::to_string(base_ + pos_) + ": a line longer than 64 KiB (no telemetry.csv)");
+        throw std::runtime_error(name_ + ": byte " + std::to_string(base_ + pos_) +
+                                 ": a line longer than 64 KiB (no telemetry.csv)");
       if (nl != std::string::npos) {
         line = std::string_view(buf_).substr(pos_, nl - pos_);
         at = base_ + pos_;
