@@ -213,7 +213,7 @@
     const runs = [...new Set(chart.src.filter(Boolean).map(s => s.run))];
     chart.thinText = 'thinned: min and max per ' + fmtMs(every) + ' (' + chart.samples.toLocaleString('en') + ' samples drawn as ' +
       Math.max(...thin.map(s => s.x.length)).toLocaleString('en') + ' points)';
-    chart.howText = !runs.length ? 'the run\u2019s telemetry.csv holds every sample'
+    chart.howText = !runs.length ? 'every sample is in the data the report was made from'
       : served ? 'zoom in for every sample'
       : 'every sample on zoom needs the server: hilbench serve --runs-dir <the runs folder>, then /api/runs/' + runs[0] + '/report.html';
     setRes(chart, 'hil-thin', chart.thinText + '; ' + chart.howText);
