@@ -36,7 +36,9 @@ void append_number(std::string& out, double v) {
 void append_series(std::string& out, const Series& s, std::size_t index, std::size_t x_of, std::span<const double> x,
                    std::span<const double> y) {
   out += "{\"name\":" + json_string(s.name) + ",\"color\":" + json_string(s.color) + ",\"style\":\"" + style_name(s.style) +
-         "\",\"dashed\":" + (s.dashed ? "true" : "false") + ",\"n\":" + std::to_string(s.x.size());
+         "\",\"dashed\":" + (s.dashed ? "true" : "false") + ",\"n\":" + std::to_string(std::max(s.samples, s.x.size()));
+  if (!s.source_run.empty() && !s.source_column.empty())
+    out += ",\"src\":{\"run\":" + json_string(s.source_run) + ",\"col\":" + json_string(s.source_column) + "}";
   if (x_of == index) {
     out += ",\"x\":";
     detail::append_numbers(out, x);
@@ -71,7 +73,8 @@ void append_figure_series(std::string& out, const Figure& fig) {
     for (std::size_t j = i; j < n; ++j) {
       if (x_of[j] == i) column[j] = ys.size(), ys.push_back(fig.series[j].y);
     }
-    groups[i] = detail::decimate_shared(fig.series[i].x, ys, kMaxBuckets, fig.x_log, fig.y_log);
+    groups[i] = detail::decimate_shared(fig.series[i].x, ys, static_cast<std::size_t>(std::max(fig.max_buckets, 16)), fig.x_log,
+                                        fig.y_log);
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0) out += ',';

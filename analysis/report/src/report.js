@@ -7,6 +7,8 @@
 // For tests: each plot's canvas gets class hil-plot, data-rendered="1", data-ink (pixels the data
 // drew on the first draw) and data-empty="1" without data; <body> gets data-plots,
 // data-plot-errors and data-plot-error-first; the underlay's canvas data-markers (event labels drawn); window.hilReport.charts lists the charts.
+// A thinned plot says so under its legend (.hil-res, class hil-thin); zoomed in on a served report it
+// fetches every sample of the window (class hil-full, data-rows: the rows in the table).
 (function () {
   'use strict';
 
@@ -182,6 +184,101 @@
     }
   }
 
+  // Every sample on zoom. A figure's lines are a thinned overview (min and max per bucket, spikes
+  // kept) of series that name their source (src: a run and a telemetry column). Opened through
+  // hilbench serve, a zoomed plot asks GET /api/runs/RUN/telemetry for its window at full
+  // resolution once the window holds few enough rows (the server's bound), and draws those rows
+  // alone; zoomed out again it draws the overview. A line under the legend says which it shows.
+  const DETAIL_MAX_ROWS = 20000, DETAIL_PAD = 0.05;
+  const served = /^https?:$/.test(location.protocol);
+  const token = new URLSearchParams(location.search).get('token');
+  const detailCols = new Map();    // run -> the columns any plot wants from it (one fetch serves a group)
+  const detailFetches = new Map();  // "run from to" -> the fetch's promise
+  const fmtMs = ms => (ms >= 1000 ? fmtVal(Number((ms / 1000).toPrecision(3))) + ' s' : fmtVal(Number(ms.toPrecision(3))) + ' ms');
+  function setRes(chart, cls, text) {
+    chart.res.className = 'hil-res ' + cls;
+    chart.res.textContent = text;
+  }
+  function detailSetup(chart, series) {
+    const xs = chart.rows.map(r => r[0]), thin = series.filter(s => s.n > s.x.length && s.style !== 'points');
+    chart.res = document.createElement('div');
+    chart.fig.querySelector('.hil-legend').after(chart.res);
+    if (!thin.length || xs.length < 2) return setRes(chart, 'hil-none', '');
+    chart.overview = chart.rows;
+    chart.span = [xs[0], xs[xs.length - 1]];
+    chart.samples = Math.max(...thin.map(s => s.n));
+    chart.src = series.map(s => s.src || null);
+    for (const src of chart.src) if (src) detailCols.set(src.run, (detailCols.get(src.run) || new Set()).add(src.col));
+    const every = ((chart.span[1] - chart.span[0]) * 1000 * 2) / Math.max(...thin.map(s => s.x.length));
+    const runs = [...new Set(chart.src.filter(Boolean).map(s => s.run))];
+    chart.thinText = 'thinned: min and max per ' + fmtMs(every) + ' (' + chart.samples.toLocaleString('en') + ' samples drawn as ' +
+      Math.max(...thin.map(s => s.x.length)).toLocaleString('en') + ' points)';
+    chart.howText = !runs.length ? 'every sample is in the data the report was made from'
+      : served ? 'zoom in for every sample'
+      : 'every sample on zoom needs the server: hilbench serve --runs-dir <the runs folder>, then /api/runs/' + runs[0] + '/report.html';
+    setRes(chart, 'hil-thin', chart.thinText + '; ' + chart.howText);
+  }
+  function fetchRange(run, from, to) {
+    const key = run + ' ' + from + ' ' + to;
+    if (!detailFetches.has(key)) {
+      const q = new URLSearchParams({ from_s: String(from), to_s: String(to), columns: [...detailCols.get(run)].join(',') });
+      if (token) q.set('token', token);
+      detailFetches.set(key, fetch('/api/runs/' + encodeURIComponent(run) + '/telemetry?' + q).then(async r => {
+        const j = await r.json().catch(() => ({}));
+        if (!r.ok) throw new Error(j.detail || j.error || 'HTTP ' + r.status);
+        return j;
+      }));
+      if (detailFetches.size > 16) detailFetches.delete(detailFetches.keys().next().value);
+    }
+    return detailFetches.get(key);
+  }
+  function showRows(chart, rows, detail) {
+    chart.rows = rows;
+    chart.detail = detail;
+    chart.graph.updateOptions({ file: rows, dateWindow: chart.graph.isZoomed('x') ? chart.graph.xAxisRange() : null });
+  }
+  async function loadDetail(chart) {
+    const g = chart.graph, [a, b] = g.xAxisRange();
+    if (!g.isZoomed('x')) {
+      if (chart.detail) showRows(chart, chart.overview, null);
+      return setRes(chart, 'hil-thin', chart.thinText + '; ' + chart.howText);
+    }
+    if (chart.detail && chart.detail.from <= a && chart.detail.to >= b) return;
+    const rows = (chart.samples * (b - a)) / (chart.span[1] - chart.span[0]);
+    const runs = [...new Set(chart.src.filter(Boolean).map(s => s.run))];
+    if (!served || !runs.length || rows * (1 + 2 * DETAIL_PAD) > DETAIL_MAX_ROWS) {
+      if (chart.detail) showRows(chart, chart.overview, null);
+      const why = !served || !runs.length ? chart.howText : 'zoom to under ' + fmtMs((DETAIL_MAX_ROWS * 900 * (chart.span[1] - chart.span[0])) /
+        chart.samples / (1 + 2 * DETAIL_PAD)) + ' for every sample';
+      return setRes(chart, 'hil-thin', chart.thinText + '; ' + why);
+    }
+    const pad = (b - a) * DETAIL_PAD, from = Number((a - pad).toPrecision(9)), to = Number((b + pad).toPrecision(9));
+    setRes(chart, 'hil-thin hil-loading', chart.thinText + '; fetching every sample of the window\u2026');
+    try {
+      const got = await Promise.all(runs.map(run => fetchRange(run, from, to)));
+      const [a2, b2] = g.xAxisRange();
+      if (a2 < from || b2 > to) return;  // zoomed elsewhere meanwhile: that zoom's own fetch draws
+      // One pseudo-series per plotted series on its run's rows; toRows merges runs of other times.
+      const parts = chart.spec.series.map((s, i) => {
+        const src = chart.src[i], j = src ? got[runs.indexOf(src.run)] : null;
+        const col = j && j.columns[src.col];
+        return col ? { x: j.t_s, y: col, style: s.style } : { x: [], y: [], style: s.style };
+      });
+      const table = toRows(parts, chart.spec.xLog, chart.spec.yLog);
+      const shown = table.filter(r => r[0] >= a2 && r[0] <= b2).length;
+      showRows(chart, table.length ? table : chart.overview, table.length ? { from, to, rows: table.length } : null);
+      chart.res.setAttribute('data-rows', String(table.length));
+      setRes(chart, 'hil-full', 'every sample: ' + shown.toLocaleString('en') + ' rows in view, read from telemetry.csv');
+    } catch (e) {
+      setRes(chart, 'hil-thin hil-error', chart.thinText + '; every sample could not be fetched: ' + ((e && e.message) || e));
+    }
+  }
+  function wantDetail(chart) {
+    if (!chart.overview) return;
+    clearTimeout(chart.detailTimer);
+    chart.detailTimer = setTimeout(() => loadDetail(chart), 120);
+  }
+
   function makeChart(fig, spec, items, labels) {
     fig.insertAdjacentHTML('beforeend', '<div class="hil-legend"></div><div class="hil-canvas"><div class="hil-graph" style="height:' +
       (spec.height || 260) + 'px"></div><button type="button" class="hil-reset" title="or double-click the plot">reset zoom</button></div>');
@@ -223,6 +320,7 @@
   const onDraw = chart => (g, initial) => {
     // An empty plot's fixed y range is not a zoom.
     chart.resetButton.style.visibility = g.isZoomed('x') || (!chart.empty && g.isZoomed('y')) ? 'visible' : 'hidden';
+    if (!initial) wantDetail(chart);
     if (initial || syncing) return;
     syncing = true;
     try {
@@ -320,6 +418,7 @@
       interactionModel: wheelModel(chart), plugins: [ink.plugin], plotter: ink.plotters(linesAndSteps),
     }));
     legend(chart, items);
+    detailSetup(chart, series);
     if (chart.empty) chart.div.insertAdjacentHTML('afterend', '<div class="hil-nodata">no data</div>');
     return chart;
   }

@@ -172,6 +172,7 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     // What the operator and the loop did, as events.jsonl recorded it (marked in the report).
     r.digest.marks = marks_from_events(dir / "events.jsonl", r.digest.summary.duration_s);
     r.digest.marks_recorded = true;
+    r.digest.detail_run = dir.filename().string();  // served as /api/runs/<folder name>
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;

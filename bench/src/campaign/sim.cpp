@@ -47,6 +47,7 @@ class ReportDecimator {
     const double t = row[telemetry::index(telemetry::Col::t_s)];
     for (std::size_t i = 0; i < std::size(kReportColumns); ++i) values_[i] = row[telemetry::index(kReportColumns[i])];
     decimator_.add(t, values_);
+    ++rows_;
   }
   std::vector<ReportSeries> take() const {
     std::vector<double> t;
@@ -58,6 +59,7 @@ class ReportDecimator {
       if (std::none_of(values[i].begin(), values[i].end(), [](double v) { return std::isfinite(v); })) continue;
       out[i].t_s = t;
       out[i].value = std::move(values[i]);
+      out[i].samples = rows_;
     }
     return out;
   }
@@ -65,6 +67,7 @@ class ReportDecimator {
  private:
   MinMaxDecimator decimator_{kReportBuckets, std::size(kReportColumns)};
   std::array<double, std::size(kReportColumns)> values_{};
+  std::size_t rows_ = 0;
 };
 
 // A run as execute() leaves it: its outcome, and what its checks need once every run is through
@@ -219,7 +222,7 @@ void RunDigest::add(const TelemetryRecord& r) {
 }
 
 RunOutcome RunDigest::finish(std::string run_name) {
-  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0, {}, {}, false};
+  return {std::move(run_name), impl_->metrics.finish(), impl_->report.take(), 0, {}, {}, false, {}};
 }
 
 SimulatedRun::SimulatedRun(const Campaign& c, const RunSpec& run)

@@ -24,6 +24,11 @@ std::string fmt(const char* f, double v) {
 
 using telemetry::Col;
 
+// The time figures' overview: min and max of this many buckets (2000 points over a plot ~1300 px
+// wide: every spike drawn). Few enough that an hour's report opens in under 2 s
+// (docs/benchmarks.md); a served report fetches every sample of a zoomed window.
+constexpr int kOverviewBuckets = 1000;
+
 // A signal's colour from the one palette (common/palette/signals.txt), as the console draws it.
 std::string C(std::string_view signal) { return std::string(palette::color(signal)); }
 
@@ -39,7 +44,8 @@ Series series(const RunOutcome& r, telemetry::Col name, std::string label, std::
   const ReportSeries* s = find(r, name);
   Series out;
   out.name = std::move(label);
-  if (s) out.x = s->t_s, out.y = s->value;
+  if (s) out.x = s->t_s, out.y = s->value, out.samples = s->samples;
+  if (s && !r.detail_run.empty()) out.source_run = r.detail_run, out.source_column = s->name;
   out.color = std::move(color);
   out.style = style;
   out.dashed = dashed;
@@ -152,6 +158,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   doc.paragraph("Drag to zoom (all time axes follow), double-click to reset, click a legend entry to hide it.");
   Figure overlay{"Pressure, all runs", "time [s]", "pressure [MPa]"};
   overlay.group = "t";
+  overlay.max_buckets = kOverviewBuckets;
   overlay.series.push_back(series(runs.front(), Col::p_ref_mpa, "reference", C("p_ref_mpa"), Series::Style::step, true));
   for (const auto& r : runs) overlay.series.push_back(series(r, Col::p_meas_mpa, r.name + " measured"));
   // Recorded events per run (named when there are several); the programme, the same for all, once.
@@ -170,6 +177,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     Figure f{r.name + ": pressure vs reference", "time [s]", "pressure [MPa]"};
     mark(f, marks[i], true);
     f.group = "t";
+    f.max_buckets = kOverviewBuckets;
     f.series = {series(r, Col::p_ref_mpa, "reference", C("p_ref_mpa"), Series::Style::step, true),
                 series(r, Col::p_meas_mpa, "measured", C("p_meas_mpa"))};
     doc.figure(f);
@@ -179,6 +187,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     Figure f{r.name + ": touch state", "time [s]", "touch state Tf [-1, 0, +1]"};
     mark(f, marks[i], true);
     f.group = "t";
+    f.max_buckets = kOverviewBuckets;
     f.height_px = 180;
     f.series = {series(r, Col::touch_state, "Tf", C("touch_state"), Series::Style::step)};
     doc.figure(f);
@@ -188,6 +197,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     Figure f{r.name + ": motor vs valve angle", "time [s]", "angle [deg]"};
     mark(f, marks[i], true);
     f.group = "t";
+    f.max_buckets = kOverviewBuckets;
     f.series = {series(r, Col::theta_cmd_deg, "command", C("theta_cmd_deg"), Series::Style::line, true),
                 series(r, Col::theta_motor_deg, "motor", C("theta_motor_deg")),
                 series(r, Col::theta_valve_deg, "valve", C("theta_valve_deg"))};
@@ -203,6 +213,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
     Figure f{r.name + ": gap estimate vs true gap", "time [s]", "gap [deg]"};
     mark(f, marks[i], true);
     f.group = "t";
+    f.max_buckets = kOverviewBuckets;
     f.height_px = 200;
     f.series = {series(r, Col::gap_true_deg, "true gap", C("gap_true_deg"), Series::Style::step, true),
                 series(r, Col::gap_est_deg, "estimate", C("gap_est_deg"), Series::Style::step)};

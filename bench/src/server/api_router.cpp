@@ -63,7 +63,8 @@ std::string route_list() {
 const std::vector<Route>& routes() {
   static const std::vector<Route> table = [] {
     std::vector<Route> all;
-    for (auto* part : {server_routes, config_routes, control_routes, run_routes, analysis_routes, telemetry_routes}) {
+    for (auto* part :
+         {server_routes, config_routes, control_routes, run_routes, analysis_routes, telemetry_routes, telemetry_range_routes}) {
       for (auto& r : part()) all.push_back(std::move(r));
     }
     std::stable_sort(all.begin(), all.end(), [](const Route& a, const Route& b) { return a.place < b.place; });

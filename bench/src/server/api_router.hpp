@@ -50,6 +50,7 @@ std::vector<Route> control_routes();
 std::vector<Route> run_routes();
 std::vector<Route> analysis_routes();
 std::vector<Route> telemetry_routes();
+std::vector<Route> telemetry_range_routes();  // routes_telemetry_range.cpp
 
 // The whole table, in place order.
 const std::vector<Route>& routes();

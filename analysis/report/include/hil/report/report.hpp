@@ -28,6 +28,11 @@ struct Series {
   std::string color = "";                                       // any CSS colour; empty: the figure's palette in order
   enum class Style { line, step, points } style = Style::line;  // step: holds y until next x
   bool dashed = false;
+  // Thinned data: the samples `x` and `y` stand for (0: x's size). A served report fetches the
+  // samples of a zoomed window from `source_run`'s telemetry (GET /api/runs/RUN/telemetry, column
+  // `source_column`); a plot says when it is thinned and what a zoom will show.
+  std::size_t samples = 0;
+  std::string source_run = "", source_column = "";
 };
 
 struct Band {  // shaded x-interval, e.g. a failing time window
@@ -57,6 +62,7 @@ struct Figure {
   std::string group = "";             // figures with the same non-empty group share x zoom and cursor
   bool x_log = false, y_log = false;  // on a log axis, values <= 0 are left out
   int height_px = 260;
+  int max_buckets = kMaxBuckets;  // lines and steps: min/max of at most this many buckets (>= 16)
 };
 
 struct Bars {  // grouped bar chart: one bar per (category, group)

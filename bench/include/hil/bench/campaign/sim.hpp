@@ -88,6 +88,7 @@ RunSummary summarise_run(const Campaign& c, const RunSpec& run, Also&& also) {
 struct ReportSeries {
   std::string name;
   std::vector<double> t_s, value;
+  std::size_t samples = 0;  // the rows these points stand for
 };
 
 struct RunOutcome {
@@ -98,6 +99,7 @@ struct RunOutcome {
   std::vector<CheckResult> checks;  // the campaign's checks of this run (`hilbench sim`; empty: none)
   RunMarks marks;                   // what happened, marked in the report (run_marks.hpp)
   bool marks_recorded = false;      // marks from the run's events.jsonl, not from the programme
+  std::string detail_run;           // a recorded run's folder name: its served report fetches zoomed detail from it
 };
 
 // What a run's report and summary are made of, gathered from its records one period at a time:
