@@ -166,7 +166,7 @@ Candidate from_prior(const plant::Plant& base, const std::string& kind, const pl
     forms.push_back(all);
   }
   for (const auto& f : forms) {
-    Variant v{f.name, {}};
+    Variant v{f.name, {}, f.extends};
     for (const auto& key : f.free) {
       const auto it =
           std::find_if(prior.params.begin(), prior.params.end(), [&](const plant::FitParam& fp) { return fp.key == key; });

@@ -13,6 +13,8 @@
 #include <limits>
 #include <thread>
 
+#include <spdlog/spdlog.h>
+
 #include "criterion.hpp"
 #include "diagnose_search.hpp"
 #include "fit.hpp"
@@ -96,7 +98,7 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   if (first.earning.empty() || s.max_rounds < 1) {
     root.rounds.push_back(std::move(first.round));
     chosen = std::move(root);
-    if (s.progress) std::fprintf(stderr, "diagnose: round 1: nothing earns its place\n");
+    if (s.progress) spdlog::info("diagnose: round 1: nothing earns its place");
   } else {
     // When the best single effect leaves the fit above the noise floor, the misfit may be two
     // effects, and the best single one may be a third that mimics both: follow the top few
@@ -111,8 +113,8 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
       p.rounds.back().added = first.earning[b].cand->name;
       p.added.push_back(first.earning[b]);
       if (s.progress) {
-        std::fprintf(stderr, "diagnose: round 1: %s %s (%.1f s)\n", b == 0 ? "adds" : "also tries",
-                     first.earning[b].cand->name.c_str(), std::chrono::duration<double>(Clock::now() - t_start).count());
+        spdlog::info("diagnose: round 1: {} {} ({:.1f} s)", b == 0 ? "adds" : "also tries", first.earning[b].cand->name,
+                     std::chrono::duration<double>(Clock::now() - t_start).count());
       }
       continue_path(su, base0, pool, p, s.max_rounds, d.evaluations);
       const bool done = p.rss <= kFloorTolerance * su.noise_rss;
@@ -140,7 +142,9 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   auto revise = [&] {
     for (int k = 0;; ++k) {
       d.rivals = revisit(su, base0, pool, chosen, d.revisions, d.evaluations);
-      if (k == kFormRevisions || !revise_variants(su, base0, chosen, d.revisions, d.evaluations)) break;
+      if (k == kFormRevisions) break;
+      const bool simpler = revise_variants(su, base0, chosen, d.revisions, d.evaluations);
+      if (!simpler && !extend_forms(su, base0, chosen, d.revisions, d.evaluations)) break;
     }
   };
   revise();

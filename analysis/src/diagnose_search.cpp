@@ -2,7 +2,9 @@
 // revisit (forward-backward) and the revision of forms.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
+#include <string>
+
+#include <spdlog/spdlog.h>
 
 #include "diagnose_search.hpp"
 #include "fit.hpp"
@@ -30,6 +32,7 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
   std::vector<VariantFit> jobs;
   for (std::size_t ci = 0; ci < pool.size(); ++ci)
     for (std::size_t vi = 0; vi < pool[ci]->variants.size(); ++vi) {
+      if (pool[ci]->variants[vi].extension) continue;  // only in place of an accepted simpler form (extend_forms)
       VariantFit v;
       v.candidate = ci;
       v.variant = vi;
@@ -169,9 +172,8 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     }
     RoundOutcome r = run_round(su, base0, path.added, left, evaluations);
     if (su.progress) {
-      std::fprintf(stderr, "diagnose: round %zu after %s: %s (%.1f s)\n", path.rounds.size() + 1,
-                   path.added.back().cand->name.c_str(),
-                   r.earning.empty() ? "nothing more earns its place" : ("adds " + r.earning.front().cand->name).c_str(),
+      spdlog::info("diagnose: round {} after {}: {} ({:.1f} s)", path.rounds.size() + 1, path.added.back().cand->name,
+                   r.earning.empty() ? std::string("nothing more earns its place") : "adds " + r.earning.front().cand->name,
                    std::chrono::duration<double>(Clock::now() - su.t_start).count());
     }
     if (r.earning.empty()) {
@@ -365,6 +367,100 @@ bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
       }
     }
     if (!changed) break;
+  }
+  return any;
+}
+
+}  // namespace hil::analysis::detail
+
+namespace hil::analysis::detail {
+
+bool extend_forms(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions, int& evaluations) {
+  bool any = false;
+  auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
+  for (std::size_t i = 0; i < path.added.size(); ++i) {
+    const Candidate& cand = *path.added[i].cand;
+    const VariantFit& chosen = path.added[i].fit;
+    const Variant& current = cand.variants[chosen.variant];
+    for (std::size_t vi = 0; vi < cand.variants.size(); ++vi) {
+      const Variant& richer = cand.variants[vi];
+      if (!richer.extension || vi == chosen.variant || richer.params.size() <= current.params.size()) continue;
+      const auto in_richer = [&](const FreeParam& p) {
+        return std::any_of(richer.params.begin(), richer.params.end(), [&](const FreeParam& q) { return same(p, q); });
+      };
+      if (!std::all_of(current.params.begin(), current.params.end(), in_richer)) continue;
+      measure_path(su, base0, path, evaluations);
+      // At the floor no extra parameter can remove 5 % of the noise power: not fitted.
+      if (path.rss <= kSkipAtFloor * su.noise_rss) return any;
+      std::vector<Added> others = path.added;
+      others.erase(others.begin() + static_cast<std::ptrdiff_t>(i));
+      const plant::Plant rest = apply_added(base0, others);
+      // Two starts, the lower whole-model BIC kept: from the chosen form's values (its step time
+      // held, the new parameters at their first starting point), and a fresh fit of the richer form
+      // against the others (its grid searched again: the chosen form's step may sit where it best
+      // mimicked the drift).
+      std::vector<std::vector<Added>> trials;
+      {
+        VariantFit f;
+        f.candidate = chosen.candidate;
+        f.variant = vi;
+        split_params(cand, f);
+        const bool grid_known = f.grid == nullptr || (chosen.grid != nullptr && same(*chosen.grid, *f.grid));
+        if (grid_known) {
+          if (f.grid) f.grid_value = chosen.grid_value;
+          for (const auto& p : f.continuous) {
+            double v = p.starts.empty() ? 0.0 : p.starts.front();
+            for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
+              if (same(chosen.continuous[j], p)) v = chosen.values[j];
+            f.values.push_back(v);
+          }
+          f.sigma.assign(f.values.size(), kNaN);
+          std::vector<Added> t = path.added;
+          t[i].fit = std::move(f);
+          trials.push_back(std::move(t));
+        }
+      }
+      {
+        VariantFit f;
+        f.candidate = chosen.candidate;
+        f.variant = vi;
+        fit_variant(su.ctx, rest, cand, f);
+        evaluate_full(su.ctx, rest, cand, f);
+        refine_variant(su.ctx, rest, cand, f);
+        evaluations += f.evaluations;
+        if (std::isfinite(f.rss_full)) {
+          std::vector<Added> t = path.added;
+          t[i].fit = std::move(f);
+          trials.push_back(std::move(t));
+        }
+      }
+      double best_bic = kInf;
+      std::vector<Added> best;
+      Score best_score;
+      for (auto& t : trials) {
+        joint_refit(su.ctx, base0, t, evaluations);
+        const Score sc = score_of(su.ctx, apply_added(base0, t));
+        evaluations += 1;
+        if (const double b = path_bic(su, t, sc.wrss); b < best_bic) best_bic = b, best = t, best_score = sc;
+      }
+      if (best.empty()) continue;
+      // The extra parameters must earn their place against the chosen form, as a new effect would.
+      const std::size_t k_extra = richer.params.size() - current.params.size();
+      const double dbic = su.ctx.criterion.delta_bic(best_score.wrss, path.wrss, k_extra);
+      const double excess = std::max(path.rss - su.noise_rss, 0.0);
+      const std::string why = why_not_earning(dbic, path.rss - best_score.rss, excess, su.noise_rss);
+      if (!why.empty()) continue;  // not a change: `revisions` says what changed
+      best[i].fit.rss_full = best_score.rss;
+      best[i].fit.wrss_full = best_score.wrss;
+      best[i].fit.refined = true;
+      revisions.push_back("extended " + cand.name + " from " + current.name + " to " + richer.name + ": dBIC " +
+                          text::num(dbic, 3) + " against the " + current.name + ", " +
+                          text::num(100 * (path.rss - best_score.rss) / std::max(excess, 1e-300), 3) + " % of the excess");
+      path.added = std::move(best);
+      path.rss = best_score.rss, path.wrss = best_score.wrss;
+      any = true;
+      break;
+    }
   }
   return any;
 }

@@ -8,10 +8,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstddef>
-#include <exception>
 #include <limits>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -19,6 +17,7 @@
 #include "hil/analysis/candidates.hpp"
 #include "hil/analysis/diagnose.hpp"
 #include "hil/analysis/replay.hpp"
+#include "hil/parallel_for.hpp"
 
 namespace hil::analysis::detail {
 
@@ -39,27 +38,9 @@ inline constexpr int kFormRevisions = 2;         // times revise_variants may se
 inline constexpr int kForwardAgain = 2;          // forward rounds after a revision changed the model (diagnose)
 inline constexpr int kVariantPasses = 3;         // passes of revise_variants
 
-// Runs fn(i) for i in [0, n) on `threads` threads; rethrows the first exception.
-template <class Fn>
-void parallel_for(std::size_t n, unsigned threads, Fn&& fn) {
-  std::atomic<std::size_t> next{0};
-  std::vector<std::exception_ptr> errors(n);
-  auto worker = [&] {
-    for (std::size_t i; (i = next.fetch_add(1)) < n;) {
-      try {
-        fn(i);
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < std::min<std::size_t>(threads, n); ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
-  for (auto& e : errors)
-    if (e) std::rethrow_exception(e);
-}
+// Candidates, variants and grid values run on the threads through the one parallel loop
+// (hil/parallel_for.hpp): each index once, the first error (cancellation) rethrown.
+using hil::parallel_for;
 
 double rss_of(const plant::Plant& model, const ReplayData& data, std::vector<double>* residual);
 
@@ -208,6 +189,15 @@ std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std
 // `revisions`; true when anything changed.
 bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions,
                      int& evaluations);
+
+// A form marked `extension` (Variant) is tried only here: in place of an accepted form of its
+// effect whose parameters it holds (a gap step that absorbed a drift, then a drift and a step),
+// from the accepted form's values and from a fresh fit against the other effects, all refitted.
+// It replaces the accepted form only when its extra parameters earn their place against it by the
+// criterion (why_not_earning: dBIC, a quarter of the excess, 5 % of the noise power), as a new
+// effect must; so a file the simpler forms do not pick the effect for never sees it. Told in
+// `revisions`; true when anything changed.
+bool extend_forms(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions, int& evaluations);
 
 // The verdict and the summary in words (diagnose_words.cpp), from a filled Diagnosis.
 void write_verdict(Diagnosis& d, std::size_t n_files);

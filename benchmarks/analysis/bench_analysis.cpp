@@ -37,6 +37,15 @@ long peak_rss_kb() {
 }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+// The process's CPU time (user + system, all threads) [s]: on a shared, loaded machine the wall
+// time says more about the others than about this code; CPU time / threads is what an idle
+// machine with that many cores would take at best.
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
 
 hil::plant::Plant with_block(const hil::plant::Plant& p, const std::string& kind, const std::string& yaml) {
   return p.with(hil::plant::find_effect(kind)->from_yaml(hil::cfg::Node::load_string(yaml, kind)));
@@ -94,6 +103,7 @@ void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& na
   std::printf("diagnose %s: generated %.0f MB in %.1f s\n", name.c_str(), static_cast<double>(fs::file_size(file)) / 1e6,
               seconds_since(t0));
   t0 = Clock::now();
+  const double cpu0 = cpu_seconds();
   hil::analysis::DiagnoseOptions o;
   o.model_file = kNominal;
   o.data_files = {file};
@@ -101,13 +111,13 @@ void bench_diagnose(const fs::path& dir, unsigned threads, const std::string& na
   o.quiet = true;
   o.settings.threads = threads;
   const auto d = hil::analysis::run_diagnose(o);
-  const double wall = seconds_since(t0);
+  const double wall = seconds_since(t0), cpu = cpu_seconds() - cpu0;
   std::string found;
   for (const auto& a : d.added) found += (found.empty() ? "" : " + ") + a.effect;
   std::printf(
-      "diagnose %s: %zu rows, %u threads, %.1f s (%d replays, coarse copy 1:%zu), found %s, fit %.2f -> %.2f %% "
-      "(floor %.2f %%), peak RSS %ld MB\n",
-      name.c_str(), d.rows, threads, wall, d.evaluations, d.decimation, found.empty() ? "nothing" : found.c_str(),
+      "diagnose %s: %zu rows, %u threads, %.1f s wall, %.1f s CPU (%d replays, coarse copy 1:%zu), found %s, fit %.2f -> "
+      "%.2f %% (floor %.2f %%), peak RSS %ld MB\n",
+      name.c_str(), d.rows, threads, wall, cpu, d.evaluations, d.decimation, found.empty() ? "nothing" : found.c_str(),
       d.before.fit_pct, d.after.fit_pct, d.noise_floor_fit_pct, peak_rss_kb() / 1024);
 }
 
@@ -132,6 +142,7 @@ int main(int argc, char** argv) {
   }
   const fs::path dir = keep.empty() ? fs::temp_directory_path() / ("bench_analysis_" + std::to_string(::getpid())) : keep;
   fs::create_directories(dir);
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // each figure as it comes, also into a file
   std::printf("bench_analysis: %s, %u hardware threads\n", dir.c_str(), std::thread::hardware_concurrency());
   if (only.empty() || only == "compare") bench_compare(dir);
   // Three effects at once: gap 1.7 deg, erosion 0.5 mm^2/s, sensor offset 25 kPa.

@@ -22,7 +22,8 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
   using ScalarEffect::ScalarEffect;
 
   // How diagnose finds it (fit_prior.hpp): from the model's gap; a constant, drifting or stepping
-  // gap. (A drift and a step together is not a form yet: analysis/README.md, Limits.)
+  // gap, and a drift with a step only as an extension of an accepted form (its extra parameters
+  // must earn their place: tried as a first choice, it explained a temporary throat blockage).
   static FitPrior fit_prior(const FitEvidence& ev) {
     double gap = ev.model_value("backlash_change", "gap_deg");
     if (!std::isfinite(gap)) gap = ev.model_value("backlash", "gap_deg");
@@ -53,7 +54,8 @@ class BacklashChange final : public ScalarEffect<BacklashChange> {
     };
     p.variants = {{"constant gap", {"gap_deg"}},
                   {"drifting gap", {"gap_deg", "drift_deg_per_s"}},
-                  {"gap step", {"gap_deg", "step_deg", "step_time_s"}}};
+                  {"gap step", {"gap_deg", "step_deg", "step_time_s"}},
+                  {"drift and step", {"gap_deg", "drift_deg_per_s", "step_deg", "step_time_s"}, true}};
     return p;
   }
 

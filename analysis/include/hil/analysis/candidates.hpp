@@ -49,6 +49,8 @@ struct FreeParam {
 struct Variant {
   std::string name;  // "constant", "drift", "step", "offset and gain", ...
   std::vector<FreeParam> params;
+  // Tried only in place of an accepted simpler form of its effect (plant::FitVariant::extends).
+  bool extension = false;
 };
 
 struct Candidate {

@@ -58,6 +58,11 @@ struct FitParam {
 struct FitVariant {
   std::string name;               // "constant gap", "drift and step", ...
   std::vector<std::string> free;  // the keys this form fits; the others stay neutral (or fixed)
+  // A richer form, never tried on its own: only in place of an accepted form of this effect whose
+  // keys it holds, and kept only when its extra parameters earn their place against that form as a
+  // new effect must (a drift and a step together: tried from the start, it explained a temporary
+  // throat blockage; the effect must first be found in a simpler form).
+  bool extends = false;
 };
 
 struct FitPrior {
