@@ -86,7 +86,7 @@ window.hilVerdicts = function hilVerdicts({ $, body }) {
     let text = runs.size === 0 ? "no checks judged yet" : !judged ? campaign + ": judged as each run ends" :
       campaign + ": " + passed + " passed, " + failed + " failed" + (failed > 0 ? " — the campaign fails its checks" : "");
     if (underWay.run) {
-      text += (judged ? "; " : ", ") + underWay.run + " under way" + (typeof underWay.t_s === "number" ? " at " + underWay.t_s.toFixed(1) + " s" : "") +
+      text = (judged ? text + "; " : campaign + ": ") + underWay.run + " under way" + (typeof underWay.t_s === "number" ? " at " + underWay.t_s.toFixed(1) + " s" : "") +
         ": " + underWay.failed + " failed, " + underWay.passing + " pass so far, " + underWay.pending + " pending (metrics of the whole run are judged at its end)";
     }
     $("verdict-summary").textContent = text;
