@@ -76,8 +76,8 @@ std::vector<LiveCheck> RunChecks::live(const Progress& p) const {
       c.verdict = LiveVerdict::fail;
     } else if (w.closed > 0 && c.result.verdict == Verdict::pass) {
       c.verdict = LiveVerdict::passing;
-      c.result.message = "so far " + c.result.message + "; " + std::to_string(w.closed) + " window" +
-                         (w.closed == 1 ? "" : "s") + " closed, more may open";
+      c.result.message = "so far " + c.result.message + "; " + std::to_string(w.closed) + " window" + (w.closed == 1 ? "" : "s") +
+                         " closed, more may open";
     } else {
       c.verdict = LiveVerdict::pending;
       c.result.message = w.inside       ? "a window is open; so far " + c.result.message

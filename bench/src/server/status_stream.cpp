@@ -87,7 +87,8 @@ void StatusStream::loop() {
       const json m = status_message(status, seq, link_.silent_s(now));
       // A check's live verdict changing (a failure, a window closed) is pushed at once, as a
       // change of state is; its value moving is not (the heartbeat carries it).
-      const std::string key = m.value("state", "") + "|" + m.value("run_dir", "") + "|" + m["reason"].dump() + "|" + verdicts_key(m);
+      const std::string key =
+          m.value("state", "") + "|" + m.value("run_dir", "") + "|" + m["reason"].dump() + "|" + verdicts_key(m);
       if (key != last_key || now - last_sent >= kHeartbeat) {
         json out = m;
         out["seq"] = ++seq;

@@ -139,8 +139,8 @@ const char* to_string(LiveVerdict v) noexcept;
 struct LiveCheck {
   CheckResult result;  // a signal check: what finish() would say on the rows so far; a metric: its limits only
   LiveVerdict verdict = LiveVerdict::pending;
-  bool decided = false;  // the run's end gives the same verdict (fail, pass, skipped)
-  bool at_end = false;   // a metric of the whole run: pending until the run's end
+  bool decided = false;            // the run's end gives the same verdict (fail, pass, skipped)
+  bool at_end = false;             // a metric of the whole run: pending until the run's end
   nlohmann::json to_json() const;  // CheckResult's fields, "verdict" the live one, "decided", "at_end"
 };
 
@@ -170,7 +170,7 @@ class RunChecks {
   // can be handed a copy (assigning it to a copy of the same run does not allocate).
   struct Progress {
     std::vector<Window> windows;
-    std::size_t next_reversal = 0;  // reversals passed
+    std::size_t next_reversal = 0;                          // reversals passed
     double t_s = std::numeric_limits<double>::quiet_NaN();  // the last record's time
     long rows = 0;
   };
