@@ -291,7 +291,7 @@ RunChecks::RunChecks(const Campaign& c, const std::string& run) : reversals_s_(c
   for (const auto& s : c.checks) {
     if (!s.applies_to(run)) continue;
     specs_.push_back(&s);
-    windows_.emplace_back();
+    progress_.windows.emplace_back();
   }
 }
 
@@ -302,29 +302,43 @@ void RunChecks::add(const TelemetryRecord& rec) noexcept {
     events |= kEventReferenceChange;
   if (have_prev_ && std::abs(r.gap_true_rad - prev_gap_rad_) > 1e-12) events |= kEventGapChange;
   bool reversal = false;
-  while (next_reversal_ < reversals_s_.size() && r.t_s >= reversals_s_[next_reversal_] - 1e-9) {
+  while (progress_.next_reversal < reversals_s_.size() && r.t_s >= reversals_s_[progress_.next_reversal] - 1e-9) {
     reversal = true;
-    ++next_reversal_;
+    ++progress_.next_reversal;
   }
   if (reversal) events |= kEventReversal;
   prev_p_ref_pa_ = r.p_ref_pa;
   prev_gap_rad_ = r.gap_true_rad;
   have_prev_ = true;
+  progress_.t_s = r.t_s;
+  ++progress_.rows;
 
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     const CheckSpec& s = *specs_[i];
     if (!s.signal_check) continue;
-    Window& w = windows_[i];
+    Window& w = progress_.windows[i];
     // The window opens delay_s after the event or, with from_reversal, after the Nth reversal
     // since the event (the estimate is fitted a little after a reversal's contact).
+    bool restarted = false;
     if (events & s.after) {
       w.event_t_s = s.from_reversal > 0 ? kNaN : r.t_s;
       w.reversals_since = 0;
+      restarted = true;
     }
-    if (reversal && !(events & s.after & ~kEventReversal) && ++w.reversals_since == s.from_reversal) w.event_t_s = r.t_s;
-    if (!std::isfinite(w.event_t_s)) continue;
-    const double since = r.t_s - w.event_t_s;
-    if (since < s.delay_s - 1e-9 || since >= s.delay_s + s.for_s - 1e-9) continue;
+    if (reversal && !(events & s.after & ~kEventReversal) && ++w.reversals_since == s.from_reversal) {
+      w.event_t_s = r.t_s;
+      restarted = true;
+    }
+    // A window closes when it has lasted for_s or the next event starts another (the live
+    // verdicts count them: a check is "passing" once one closed within its limit).
+    const bool was_inside = w.inside;
+    w.inside = false;
+    if (std::isfinite(w.event_t_s)) {
+      const double since = r.t_s - w.event_t_s;
+      w.inside = since >= s.delay_s - 1e-9 && since < s.delay_s + s.for_s - 1e-9;
+    }
+    if (was_inside && (restarted || !w.inside)) ++w.closed;
+    if (!w.inside) continue;
     double v = kNaN;
     const double p_err = std::abs(r.p_meas_pa - r.p_ref_pa);
     const double gap_err = std::abs(r.gap_est_rad - r.gap_true_rad);
@@ -347,73 +361,81 @@ void RunChecks::add(const TelemetryRecord& rec) noexcept {
   }
 }
 
+CheckResult RunChecks::signal_result(std::size_t i, const Window& w) const {
+  const CheckSpec& s = *specs_[i];
+  CheckResult r;
+  r.check = s.name;
+  r.run = run_;
+  r.samples = w.samples;
+  std::string why = "no period of the run was inside the check's windows";
+  if (w.valued > 0) {
+    r.value = s.max ? w.worst : -w.worst;
+    r.at_s = w.worst_t_s;
+  } else if (w.samples > 0) {
+    why = "the run does not record what the signal needs (the true gap or pressure reference)";
+  }
+  char where[96];
+  std::snprintf(where, sizeof where, " (worst at t = %.3f s, %ld periods checked)", r.at_s, r.samples);
+  judge(r, s, where, why);
+  return r;
+}
+
 std::vector<CheckResult> RunChecks::finish(const RunSummary& summary, long interlock_trips, const OtherRun& other) const {
   std::vector<CheckResult> out;
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     const CheckSpec& s = *specs_[i];
+    if (s.signal_check) {
+      out.push_back(signal_result(i, progress_.windows[i]));
+      continue;
+    }
     CheckResult r;
     r.check = s.name;
     r.run = run_;
-    if (s.signal_check) {
-      const Window& w = windows_[i];
-      r.samples = w.samples;
-      std::string why = "no period of the run was inside the check's windows";
-      if (w.valued > 0) {
-        r.value = s.max ? w.worst : -w.worst;
-        r.at_s = w.worst_t_s;
-      } else if (w.samples > 0) {
-        why = "the run does not record what the signal needs (the true gap or pressure reference)";
-      }
-      char where[96];
-      std::snprintf(where, sizeof where, " (worst at t = %.3f s, %ld periods checked)", r.at_s, r.samples);
-      judge(r, s, where, why);
-    } else {
-      const bool per_rev = per_reversal(s.metric);
-      const int first = s.from_reversal > 0                                                                  ? s.from_reversal
-                        : (s.metric == CheckMetric::gap_error_deg || s.metric == CheckMetric::gap_error_rel) ? 2
-                                                                                                             : 1;
-      std::string why = "the run does not measure it (no valve angle on this rig?)";
-      std::string what;
-      if (per_rev) {
-        const std::size_t n = summary.reversals.size();
-        const std::size_t last = s.to_reversal > 0 ? std::min<std::size_t>(s.to_reversal, n) : n;
-        what = " (" + std::string(s.reduce == CheckReduce::max ? "max" : "mean") + " over reversals " + std::to_string(first) +
-               ".." + std::to_string(last) + ")";
-        if (static_cast<std::size_t>(first) > n) why = "the run has " + std::to_string(n) + " reversals";
-        r.value = reduce(per_reversal_values(summary, s.metric, first, last), s.reduce);
-        if (s.metric == CheckMetric::stall_vs_none) {
-          const RunSummary* none = other ? other("none") : nullptr;
-          if (none == nullptr) {
-            r.value = kNaN;
-            why = "run 'none' did not run with it";
+    const bool per_rev = per_reversal(s.metric);
+    const int first = s.from_reversal > 0                                                                  ? s.from_reversal
+                      : (s.metric == CheckMetric::gap_error_deg || s.metric == CheckMetric::gap_error_rel) ? 2
+                                                                                                           : 1;
+    std::string why = "the run does not measure it (no valve angle on this rig?)";
+    std::string what;
+    if (per_rev) {
+      const std::size_t n = summary.reversals.size();
+      const std::size_t last = s.to_reversal > 0 ? std::min<std::size_t>(s.to_reversal, n) : n;
+      what = " (" + std::string(s.reduce == CheckReduce::max ? "max" : "mean") + " over reversals " + std::to_string(first) +
+             ".." + std::to_string(last) + ")";
+      if (static_cast<std::size_t>(first) > n) why = "the run has " + std::to_string(n) + " reversals";
+      r.value = reduce(per_reversal_values(summary, s.metric, first, last), s.reduce);
+      if (s.metric == CheckMetric::stall_vs_none) {
+        const RunSummary* none = other ? other("none") : nullptr;
+        if (none == nullptr) {
+          r.value = kNaN;
+          why = "run 'none' did not run with it";
+        } else {
+          // mean: the mean stall over none's mean stall (the sweep's stall_vs_none); max: the
+          // worst reversal's stall over none's at the same reversal (the paper's claim, per reversal).
+          const auto mine = per_reversal_values(summary, CheckMetric::stall_s_per_reversal, first, last);
+          const auto base = per_reversal_values(*none, CheckMetric::stall_s_per_reversal, first, last);
+          if (s.reduce == CheckReduce::mean) {
+            const double b = reduce(base, CheckReduce::mean);
+            r.value = b > 0 ? r.value / b : kNaN;
           } else {
-            // mean: the mean stall over none's mean stall (the sweep's stall_vs_none); max: the
-            // worst reversal's stall over none's at the same reversal (the paper's claim, per reversal).
-            const auto mine = per_reversal_values(summary, CheckMetric::stall_s_per_reversal, first, last);
-            const auto base = per_reversal_values(*none, CheckMetric::stall_s_per_reversal, first, last);
-            if (s.reduce == CheckReduce::mean) {
-              const double b = reduce(base, CheckReduce::mean);
-              r.value = b > 0 ? r.value / b : kNaN;
-            } else {
-              std::vector<double> ratios;
-              for (std::size_t k = 0; k < std::min(mine.size(), base.size()); ++k)
-                ratios.push_back(base[k] > 0 ? mine[k] / base[k] : kNaN);
-              r.value = reduce(ratios, CheckReduce::max);
-            }
-            if (!std::isfinite(r.value)) why = "run 'none' did not stall at those reversals";
+            std::vector<double> ratios;
+            for (std::size_t k = 0; k < std::min(mine.size(), base.size()); ++k)
+              ratios.push_back(base[k] > 0 ? mine[k] / base[k] : kNaN);
+            r.value = reduce(ratios, CheckReduce::max);
           }
-        }
-      } else {
-        switch (s.metric) {
-          case CheckMetric::iae_mpa_s: r.value = summary.iae_mpa_s; break;
-          case CheckMetric::rmse_mpa: r.value = summary.rmse_mpa; break;
-          case CheckMetric::interlock_trips: r.value = static_cast<double>(interlock_trips); break;
-          case CheckMetric::compensation_events: r.value = static_cast<double>(summary.compensation_events); break;
-          default: break;
+          if (!std::isfinite(r.value)) why = "run 'none' did not stall at those reversals";
         }
       }
-      judge(r, s, what, why);
+    } else {
+      switch (s.metric) {
+        case CheckMetric::iae_mpa_s: r.value = summary.iae_mpa_s; break;
+        case CheckMetric::rmse_mpa: r.value = summary.rmse_mpa; break;
+        case CheckMetric::interlock_trips: r.value = static_cast<double>(interlock_trips); break;
+        case CheckMetric::compensation_events: r.value = static_cast<double>(summary.compensation_events); break;
+        default: break;
+      }
     }
+    judge(r, s, what, why);
     out.push_back(std::move(r));
   }
   return out;

@@ -11,7 +11,8 @@ RunVerdicts::RunVerdicts(const Campaign& c, const RunSpec& run, bool knows_truth
       knows_truth_(knows_truth),
       metrics_(c.reversals_s, c.reference_moves, c.period_s, kMotionThresholdRadS),
       checks_(c, run.name),
-      downstream_(std::move(downstream)) {}
+      downstream_(std::move(downstream)),
+      live_(checks_.progress()) {}
 
 Recorder::RowSink RunVerdicts::sink() {
   if (!active_) return downstream_;  // no checks: the rows go where they went, nothing added
@@ -25,6 +26,12 @@ Recorder::RowSink RunVerdicts::sink() {
     }
     checks_.add(r);
     ++rows_;
+    // Handed over at a bounded rate (a copy of the same size: no allocation), not per row.
+    if (const auto now = std::chrono::steady_clock::now(); rows_ == 1 || now - live_at_ >= kLiveEvery) {
+      std::lock_guard lock(live_mutex_);
+      live_ = checks_.progress();
+      live_at_ = now;
+    }
     if (downstream_) downstream_(r);
   };
 }
@@ -46,6 +53,18 @@ nlohmann::json RunVerdicts::finish(bool pressure_trip, const RunChecks::OtherRun
     }
   }
   return checks_json(results);
+}
+
+nlohmann::json RunVerdicts::live() const {
+  if (!active_) return nullptr;
+  RunChecks::Progress p;
+  {
+    std::lock_guard lock(live_mutex_);
+    p = live_;
+  }
+  nlohmann::json results = nlohmann::json::array();
+  for (const LiveCheck& c : checks_.live(p)) results.push_back(c.to_json());
+  return {{"run", checks_.run()}, {"t_s", p.rows > 0 ? nlohmann::json(p.t_s) : nlohmann::json(nullptr)}, {"results", results}};
 }
 
 }  // namespace hil::bench

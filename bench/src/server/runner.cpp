@@ -74,6 +74,7 @@ struct CampaignRunner::Active {
   SpscRing<LoopRequest>* requests = nullptr;
   Rig* rig_in_setup = nullptr;  // while its configure() and activate() run: an abort cancels them
   Recorder* recorder = nullptr;
+  const RunVerdicts* verdicts = nullptr;  // the run's checks, live in the status while it goes on
   RtSetup rt;
   std::int64_t periods_done = 0;  // in finished runs
   // The current run's time while no loop runs: 0 before it starts, where it ended after (its
@@ -339,6 +340,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     std::lock_guard lock(mutex_);
     a.dir = dir;
     a.recorder = &rec;
+    a.verdicts = &verdicts;
   }
 
   // The rig's lifecycle and the loop (rt/run_session.hpp); the runner hears it to keep its status
@@ -382,6 +384,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     a.loop = nullptr;
     a.requests = nullptr;
     a.recorder = nullptr;
+    a.verdicts = nullptr;
   }
   const Outcome outcome = session.outcome();
   info.stop_utc = utc_iso(SysClock::now());
@@ -458,6 +461,9 @@ json CampaignRunner::status() const {
   for (const auto* r : a.runs) s["runs"].push_back(r->name);
   s["runs_total"] = a.runs.size();
   s["run_dir"] = a.dir.filename().string();
+  if (a.verdicts) {
+    if (json live = a.verdicts->live(); !live.is_null()) s["checks"] = std::move(live);
+  }
   s["operator_link"] = {{"required", a.req.rig.require_operator}, {"timeout_s", a.req.rig.operator_timeout_s}};
   const double per_run = c.duration_s;
   double t = a.run_t_s;

@@ -8,6 +8,15 @@ namespace hil::bench {
 
 using nlohmann::json;
 
+namespace {
+std::string verdicts_key(const json& m) {
+  std::string key;
+  if (!m.contains("checks")) return key;
+  for (const json& r : m["checks"].value("results", json::array())) key += r.value("verdict", "") + ",";
+  return key;
+}
+}  // namespace
+
 json status_message(const json& s, std::uint64_t seq, double silent_s) {
   std::string state = s.value("state", "idle");
   json reason = nullptr;
@@ -32,6 +41,8 @@ json status_message(const json& s, std::uint64_t seq, double silent_s) {
     m["fraction"] = p.value("fraction", 0.0);
   }
   if (s.contains("operator_link")) m["operator_link"] = s["operator_link"];
+  // The running run's checks as they stand (run_verdicts.hpp, live()); the final ones come in run_end.
+  if (s.contains("checks") && s["checks"].is_object()) m["checks"] = s["checks"];
   m["silent_s"] = silent_s < 1e8 ? json(silent_s) : json(-1);
   if (state == "idle" && s.contains("last") && s["last"].is_object()) {
     const json& last = s["last"];
@@ -74,7 +85,10 @@ void StatusStream::loop() {
         }
       }
       const json m = status_message(status, seq, link_.silent_s(now));
-      const std::string key = m.value("state", "") + "|" + m.value("run_dir", "") + "|" + m["reason"].dump();
+      // A check's live verdict changing (a failure, a window closed) is pushed at once, as a
+      // change of state is; its value moving is not (the heartbeat carries it).
+      const std::string key =
+          m.value("state", "") + "|" + m.value("run_dir", "") + "|" + m["reason"].dump() + "|" + verdicts_key(m);
       if (key != last_key || now - last_sent >= kHeartbeat) {
         json out = m;
         out["seq"] = ++seq;

@@ -130,6 +130,7 @@
       if (m.type === "row") return live.addRow(m);
       if (m.type === "status") {
         linkState.status(m);
+        verdicts.live(m);
         if (m.run_dir && m.state !== "idle") events.setCurrent(m.run_dir);
       } else if (m.type === "run_start") {
         live.clear();

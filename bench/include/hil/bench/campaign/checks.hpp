@@ -124,6 +124,26 @@ class InterlockCounter {
   bool tripping_ = false;
 };
 
+// A check's verdict while its run goes on (RunChecks::live), on the rows seen so far:
+//  - fail: a signal check's worst value is past its limit; that value only grows, so the end says
+//    fail too (decided);
+//  - pass / skipped: a signal check none of whose windows can open again (`after: start` only,
+//    its window closed): what the end will say (decided);
+//  - passing: a signal check whose windows so far closed within its limit, and another may open
+//    (the next reference step, gap change or reversal): "pass so far";
+//  - pending: a window is open or has not opened yet, or a metric of the whole run (stall per
+//    reversal, IAE, ...), which is judged at the run's end only.
+enum class LiveVerdict : std::uint8_t { pending, passing, pass, fail, skipped };
+const char* to_string(LiveVerdict v) noexcept;
+
+struct LiveCheck {
+  CheckResult result;  // a signal check: what finish() would say on the rows so far; a metric: its limits only
+  LiveVerdict verdict = LiveVerdict::pending;
+  bool decided = false;            // the run's end gives the same verdict (fail, pass, skipped)
+  bool at_end = false;             // a metric of the whole run: pending until the run's end
+  nlohmann::json to_json() const;  // CheckResult's fields, "verdict" the live one, "decided", "at_end"
+};
+
 // One run's checks, fed each period's record. add() does not allocate.
 class RunChecks {
  public:
@@ -135,18 +155,37 @@ class RunChecks {
   using OtherRun = std::function<const RunSummary*(const std::string& run)>;
   std::vector<CheckResult> finish(const RunSummary& summary, long interlock_trips, const OtherRun& other) const;
   bool empty() const { return specs_.empty(); }
+  const std::string& run() const { return run_; }
 
- private:
+  // A signal check's window state (one per check; nothing is kept for a metric check).
   struct Window {
     double event_t_s = std::numeric_limits<double>::quiet_NaN();  // the window's start (NaN: not open)
     int reversals_since = 0;
     double worst = -std::numeric_limits<double>::infinity(), worst_t_s = 0;
     long samples = 0, valued = 0;
+    bool inside = false;  // the last record was inside a window
+    long closed = 0;      // windows that have closed
   };
+  // What add() has seen: small and of fixed size once the first record is in, so another thread
+  // can be handed a copy (assigning it to a copy of the same run does not allocate).
+  struct Progress {
+    std::vector<Window> windows;
+    std::size_t next_reversal = 0;                          // reversals passed
+    double t_s = std::numeric_limits<double>::quiet_NaN();  // the last record's time
+    long rows = 0;
+  };
+  const Progress& progress() const noexcept { return progress_; }
+  // The verdicts as they stand after the records of `p` (a copy of progress(), maybe taken on
+  // another thread: live() reads only `p` and what the constructor set). Costs O(checks), whatever
+  // the run's length.
+  std::vector<LiveCheck> live(const Progress& p) const;
+
+ private:
+  CheckResult signal_result(std::size_t i, const Window& w) const;  // finish()'s verdict of signal check i
+  bool may_open_again(std::size_t i, const Window& w, const Progress& p) const;
   std::vector<const CheckSpec*> specs_;
-  std::vector<Window> windows_;  // one per signal check (nothing for metric checks)
+  Progress progress_;  // windows: one per check
   std::vector<double> reversals_s_;
-  std::size_t next_reversal_ = 0;
   bool have_prev_ = false;
   double prev_p_ref_pa_ = 0, prev_gap_rad_ = 0;
   std::string run_;
