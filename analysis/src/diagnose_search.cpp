@@ -189,6 +189,25 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
   }
 }
 
+// The variant `vi` of `cand` started where `chosen` (another variant of it) stands: chosen's
+// values of the parameters both have and its grid value (a step time has no other start), the
+// rest at their first starting point (the joint refit also tries every combination of those).
+static VariantFit started_where(const Candidate& cand, std::size_t vi, const VariantFit& chosen) {
+  VariantFit f;
+  f.candidate = chosen.candidate;
+  f.variant = vi;
+  split_params(cand, f);
+  if (f.grid) f.grid_value = chosen.grid_value;
+  for (const auto& p : f.continuous) {
+    double v = p.starts.empty() ? 0.0 : p.starts.front();
+    for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
+      if (chosen.continuous[j].effect == p.effect && chosen.continuous[j].key == p.key) v = chosen.values[j];
+    f.values.push_back(v);
+  }
+  f.sigma.assign(f.values.size(), kNaN);
+  return f;
+}
+
 // BIC of a whole model (criterion.hpp): N ln W + k ln N, k all added effects' free parameters.
 double path_bic(const Setup& su, const std::vector<Added>& added, double wrss) {
   std::size_t k = 0;
@@ -331,23 +350,8 @@ bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
           continue;
         const bool nested =
             other.params.size() < current.params.size() && std::all_of(other.params.begin(), other.params.end(), shared);
-        // The other variant starts from the chosen one's values of the parameters they share, the
-        // rest from their first starting point (the joint refit also tries every combination of
-        // the starting points).
-        VariantFit f;
-        f.candidate = chosen.candidate;
-        f.variant = vi;
-        split_params(cand, f);
-        if (f.grid) f.grid_value = chosen.grid_value;
-        for (const auto& p : f.continuous) {
-          double v = p.starts.empty() ? 0.0 : p.starts.front();
-          for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
-            if (same(chosen.continuous[j], p)) v = chosen.values[j];
-          f.values.push_back(v);
-        }
-        f.sigma.assign(f.values.size(), kNaN);
         std::vector<Added> trial = path.added;
-        trial[i].fit = std::move(f);
+        trial[i].fit = started_where(cand, vi, chosen);
         joint_refit(su.ctx, base0, trial, evaluations);
         const Score trial_score = score_of(su.ctx, apply_added(base0, trial));
         evaluations += 1;
@@ -401,20 +405,9 @@ bool extend_forms(const Setup& su, const plant::Plant& base0, Path& path, std::v
       // mimicked the drift).
       std::vector<std::vector<Added>> trials;
       {
-        VariantFit f;
-        f.candidate = chosen.candidate;
-        f.variant = vi;
-        split_params(cand, f);
+        VariantFit f = started_where(cand, vi, chosen);
         const bool grid_known = f.grid == nullptr || (chosen.grid != nullptr && same(*chosen.grid, *f.grid));
         if (grid_known) {
-          if (f.grid) f.grid_value = chosen.grid_value;
-          for (const auto& p : f.continuous) {
-            double v = p.starts.empty() ? 0.0 : p.starts.front();
-            for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
-              if (same(chosen.continuous[j], p)) v = chosen.values[j];
-            f.values.push_back(v);
-          }
-          f.sigma.assign(f.values.size(), kNaN);
           std::vector<Added> t = path.added;
           t[i].fit = std::move(f);
           trials.push_back(std::move(t));

@@ -13,6 +13,7 @@
 #include "hil/bench/rt/telemetry_record.hpp"
 #include "hil/config.hpp"
 #include "hil/units.hpp"
+#include "checks_fixtures.hpp"
 
 namespace {
 
@@ -22,26 +23,9 @@ using hil::bench::LiveVerdict;
 using hil::bench::RunChecks;
 using hil::bench::TelemetryRecord;
 using hil::bench::Verdict;
-using hil::units::deg_to_rad;
-using hil::units::mpa_to_pa;
 
-Campaign campaign_with(const std::string& checks_yaml, std::vector<double> reversals_s = {}) {
-  Campaign c;
-  c.name = "hand";
-  c.reversals_s = std::move(reversals_s);
-  c.checks = hil::bench::parse_checks(hil::cfg::Node::load_string(checks_yaml, "hand.yaml"), {"none", "run"});
-  return c;
-}
-
-TelemetryRecord record(double t_s, double p_ref_mpa, double p_meas_mpa, double gap_true_deg = 1, double gap_est_deg = 1) {
-  TelemetryRecord r;
-  r.step.t_s = t_s;
-  r.step.p_ref_pa = mpa_to_pa(p_ref_mpa);
-  r.step.p_meas_pa = r.step.p_chamber_pa = mpa_to_pa(p_meas_mpa);
-  r.step.gap_true_rad = deg_to_rad(gap_true_deg);
-  r.step.gap_est_rad = deg_to_rad(gap_est_deg);
-  return r;
-}
+using hil::test::campaign_with;
+using hil::test::record;
 
 std::map<std::string, LiveCheck> by_name(const std::vector<LiveCheck>& v) {
   std::map<std::string, LiveCheck> m;

@@ -14,6 +14,7 @@
 #include "hil/bench/rt/telemetry_record.hpp"
 #include "hil/config.hpp"
 #include "hil/units.hpp"
+#include "checks_fixtures.hpp"
 #include "support/temp_file.hpp"
 
 namespace {
@@ -24,8 +25,6 @@ using hil::bench::RunChecks;
 using hil::bench::RunSummary;
 using hil::bench::TelemetryRecord;
 using hil::bench::Verdict;
-using hil::units::deg_to_rad;
-using hil::units::mpa_to_pa;
 
 // paper_adaptive with its checks block replaced by `checks` (YAML lines), loaded from a temporary
 // folder; the error, or "no error".
@@ -79,24 +78,8 @@ TEST(CheckConfig, ErrorsNameFileLineAndKey) {
   expect_error("  - {name: a, metric: iae_mpa_s, maxx: 2}\n", 0, "maxx", "did you mean 'max'");
 }
 
-// A campaign of nothing but what the evaluator reads: reversals and checks.
-Campaign campaign_with(const std::string& checks_yaml, std::vector<double> reversals_s = {}) {
-  Campaign c;
-  c.name = "hand";
-  c.reversals_s = std::move(reversals_s);
-  c.checks = hil::bench::parse_checks(hil::cfg::Node::load_string(checks_yaml, "hand.yaml"), {"none", "run"});
-  return c;
-}
-
-TelemetryRecord record(double t_s, double p_ref_mpa, double p_meas_mpa, double gap_true_deg = 1, double gap_est_deg = 1) {
-  TelemetryRecord r;
-  r.step.t_s = t_s;
-  r.step.p_ref_pa = mpa_to_pa(p_ref_mpa);
-  r.step.p_meas_pa = r.step.p_chamber_pa = mpa_to_pa(p_meas_mpa);
-  r.step.gap_true_rad = deg_to_rad(gap_true_deg);
-  r.step.gap_est_rad = deg_to_rad(gap_est_deg);
-  return r;
-}
+using hil::test::campaign_with;
+using hil::test::record;
 
 const CheckResult& find(const std::vector<CheckResult>& results, const std::string& name) {
   for (const auto& r : results)
