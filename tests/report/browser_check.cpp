@@ -174,7 +174,9 @@ BrowserResult check_report_in_chromium(const fs::path& html, std::chrono::second
     return r;
   }
   const fs::path out = fs::temp_directory_path() / ("hil-dom-" + std::to_string(::getpid()) + ".html");
-  r.error = run_chromium({"--window-size=1400,2000", "--virtual-time-budget=10000", "--dump-dom", file_url(html)}, out, timeout);
+  // #ink: the page counts the pixels each plot drew (report.js does only when asked).
+  r.error = run_chromium({"--window-size=1400,2000", "--virtual-time-budget=10000", "--dump-dom", file_url(html) + "#ink"}, out,
+                         timeout);
   r.dom = read_all(out);
   std::error_code ec;
   fs::remove(out, ec);
