@@ -189,6 +189,9 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
   }
 }
 
+// One free parameter of an effect in two variants of its candidate: the same effect and key.
+static bool same(const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; }
+
 // The variant `vi` of `cand` started where `chosen` (another variant of it) stands: chosen's
 // values of the parameters both have and its grid value (a step time has no other start), the
 // rest at their first starting point (the joint refit also tries every combination of those).
@@ -201,7 +204,7 @@ static VariantFit started_where(const Candidate& cand, std::size_t vi, const Var
   for (const auto& p : f.continuous) {
     double v = p.starts.empty() ? 0.0 : p.starts.front();
     for (std::size_t j = 0; j < chosen.continuous.size(); ++j)
-      if (chosen.continuous[j].effect == p.effect && chosen.continuous[j].key == p.key) v = chosen.values[j];
+      if (same(chosen.continuous[j], p)) v = chosen.values[j];
     f.values.push_back(v);
   }
   f.sigma.assign(f.values.size(), kNaN);
@@ -331,7 +334,6 @@ bool revise_variants(const Setup& su, const plant::Plant& base0, Path& path, std
                      int& evaluations) {
   bool any = false;
   if (path.added.empty()) return any;
-  auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
   for (int pass = 0; pass < kVariantPasses; ++pass) {
     measure_path(su, base0, path, evaluations);
     bool changed = false;
@@ -381,7 +383,6 @@ namespace hil::analysis::detail {
 
 bool extend_forms(const Setup& su, const plant::Plant& base0, Path& path, std::vector<std::string>& revisions, int& evaluations) {
   bool any = false;
-  auto same = [](const FreeParam& a, const FreeParam& b) { return a.effect == b.effect && a.key == b.key; };
   for (std::size_t i = 0; i < path.added.size(); ++i) {
     const Candidate& cand = *path.added[i].cand;
     const VariantFit& chosen = path.added[i].fit;
