@@ -41,14 +41,10 @@ function configs() {
 const t0 = Date.now();
 async function main() {
   const base = await h.startServer(exe, configs());
-  const browser = await h.launch();
+  await h.launch();
   const problems = [];
-  const page = await browser.newPage();
-  page.on("console", (m) => { if (m.type() === "error") problems.push(`console error: ${m.text()}`); });
-  page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
-  await page.setViewport({ width: 1400, height: 900 });
-  await page.goto(base + "/", { waitUntil: "load" });
-  if (!(await h.waitFor(page, "campaigns listed", () => [...document.querySelectorAll("#campaign option")].some((o) => o.value === "live_checks")))) return;
+  const page = await h.openConsole(base, "live_checks", problems);
+  if (!page) return;
   // Every change of the panel, with the page's state at that moment.
   await page.evaluate(() => {
     window.verdictLog = [];

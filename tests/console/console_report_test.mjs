@@ -84,12 +84,8 @@ async function main() {
   const base = await h.startServer(exe, configs());
   const browser = await h.launch();
   const problems = [];
-  const page = await browser.newPage();
-  page.on("console", (m) => { if (m.type() === "error") problems.push(`console error: ${m.text()}`); });
-  page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
-  await page.setViewport({ width: 1400, height: 900 });
-  await page.goto(base + "/", { waitUntil: "load" });
-  if (!(await h.waitFor(page, "campaigns listed", () => [...document.querySelectorAll("#campaign option")].some((o) => o.value === "console_checks")))) return;
+  const page = await h.openConsole(base, "console_checks", problems);
+  if (!page) return;
   await page.select("#campaign", "console_checks");
   for (const r of await page.$$eval("#runs-choice input", (b) => b.map((x) => x.value))) if (r !== "adaptive") await page.click(`#runs-choice input[value="${r}"]`);
   await page.click("#start");

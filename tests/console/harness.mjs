@@ -61,6 +61,18 @@ export function harness(prefix, deadlineS) {
       return false;
     }
   };
+  // A page on the console at 1400x900 (its console and page errors pushed to `problems`), once
+  // the campaign `campaign` is listed; null (and a failure) when it is not.
+  h.openConsole = async (base, campaign, problems) => {
+    const page = await h.browser.newPage();
+    page.on("console", (m) => { if (m.type() === "error") problems.push(`console error: ${m.text()}`); });
+    page.on("pageerror", (e) => problems.push(`page error: ${e.message}`));
+    await page.setViewport({ width: 1400, height: 900 });
+    await page.goto(base + "/", { waitUntil: "load" });
+    const listed = await h.waitFor(page, "campaigns listed",
+      (c) => [...document.querySelectorAll("#campaign option")].some((o) => o.value === c), campaign);
+    return listed ? page : null;
+  };
   return h;
 }
 
