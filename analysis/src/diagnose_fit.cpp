@@ -201,34 +201,57 @@ void joint_refit(const Context& ctx, const plant::Plant& base0, std::vector<Adde
   if (params.empty()) return;
   const plant::Plant m = apply_added(base0, added);  // values are overwritten by the fitter
   const bool decimated = ctx.coarse.size() != ctx.full.size();
-  // LM from `start`, on the coarse copy first; returns the end and its RSS on every row.
-  auto fit_from = [&](std::vector<double> start) {
-    auto run = [&](const ReplayData& data, int iter) {
-      detail::Fitter f(m, params, data);
-      const auto r = f.levenberg_marquardt(start, iter);
-      evaluations += f.evaluations();
-      if (r.ok) start = r.values;
-      return r;
-    };
-    if (decimated) run(ctx.coarse, kJointIter);
-    const auto r = run(ctx.full, decimated ? kRefineIter : kJointIter);
-    return std::make_pair(start, r.ok ? r.rss : kInf);
-  };
-  // From the values as they are, and from the best of the parameters' own starting points: an
+  // Two starts: the values as they are, and the best of the parameters' own starting points: an
   // effect found first may have absorbed one found later (a sensor lag standing in for a transport
   // delay takes twice its time constant), and LM from there stays in that valley.
-  auto [x_end, rss_end] = fit_from(x);
+  std::vector<std::vector<double>> starts = {x};
   {
-    detail::Fitter f0(m, params, ctx.coarse);
-    const std::vector<double> fresh = f0.best_start(nullptr);
+    detail::Fitter f0(m, params, ctx.coarse, ctx.threads);
+    std::vector<double> fresh = f0.best_start(nullptr);
     evaluations += f0.evaluations();
-    if (fresh != x) {
-      auto [x_alt, rss_alt] = fit_from(fresh);
-      if (rss_alt < rss_end) x_end = std::move(x_alt), rss_end = rss_alt;
-    }
+    if (fresh != x) starts.push_back(std::move(fresh));
   }
-  x = std::move(x_end);
-  detail::Fitter f(m, params, ctx.full);
+  // LM from the starts `which` on `data`: side by side, one thread each (a lone start: its
+  // Jacobian's columns on all threads). A start moves to where its LM ended when it could be replayed.
+  std::vector<double> rss(starts.size(), kInf);
+  std::atomic<int> evals{0};
+  auto fit_from = [&](const ReplayData& data, int iter, const std::vector<std::size_t>& which) {
+    const unsigned inner = which.size() > 1 ? 1 : ctx.threads;
+    parallel_for(which.size(), ctx.threads, [&](std::size_t j) {
+      const std::size_t i = which[j];
+      detail::Fitter f(m, params, data, inner);
+      const auto r = f.levenberg_marquardt(starts[i], iter);
+      evals += f.evaluations();
+      if (r.ok) starts[i] = r.values;
+      rss[i] = r.ok ? r.rss : kInf;
+    });
+  };
+  std::vector<std::size_t> which(starts.size());
+  for (std::size_t i = 0; i < which.size(); ++i) which[i] = i;
+  if (decimated) {
+    // On the coarse copy first; then every row only for the ends within kJointTie of the best
+    // coarse end: a few LM iterations on every row polish an end, they do not turn a valley that
+    // fits the coarse copy clearly worse into the better one, and on a long file each is most of
+    // the refit's cost.
+    fit_from(ctx.coarse, kJointIter, which);
+    const double best_coarse = *std::min_element(rss.begin(), rss.end());
+    if (std::isfinite(best_coarse)) {
+      std::vector<std::size_t> close;
+      for (std::size_t i : which)
+        if (rss[i] <= (1 + kJointTie) * best_coarse) close.push_back(i);
+      which = std::move(close);
+    }
+    for (double& r : rss) r = kInf;
+    fit_from(ctx.full, kRefineIter, which);
+  } else {
+    fit_from(ctx.full, kJointIter, which);
+  }
+  evaluations += evals.load();
+  std::size_t best = 0;  // the first start wins a tie
+  for (std::size_t i = 1; i < starts.size(); ++i)
+    if (rss[i] < rss[best]) best = i;
+  x = std::move(starts[best]);
+  detail::Fitter f(m, params, ctx.full, ctx.threads);
   const auto sigma = f.uncertainty(x);
   evaluations += f.evaluations();
   std::size_t i = 0;

@@ -28,7 +28,10 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Search settings (the selection thresholds are criterion.hpp's).
 inline constexpr std::size_t kRefineTop = 2;  // candidates refined on every row per round
 inline constexpr int kCoarseIter = 12, kGridIter = 2, kRefineIter = 3, kJointIter = 8;
-inline constexpr double kCompetitive = 1.2;      // variants within 20 % of their best get a full-data look
+inline constexpr double kCompetitive = 1.2;  // variants within 20 % of their best get a full-data look
+// A joint refit's start whose coarse-copy end fits more than 2 % worse than the best start's is not
+// refitted on every row (joint_refit).
+inline constexpr double kJointTie = 0.02;
 inline constexpr std::size_t kGridCoarse = 16;   // grid values of the zoom search's first level
 inline constexpr std::size_t kGridZoom = 8;      // values per later level
 inline constexpr std::size_t kInPlaceTried = 2;  // effects refitted in an accepted effect's place (revisit)

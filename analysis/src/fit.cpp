@@ -52,8 +52,8 @@ bool invert(const std::vector<std::vector<double>>& a, std::vector<std::vector<d
   return true;
 }
 
-Fitter::Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data)
-    : model_(model), params_(std::move(params)), data_(data), yhat_(data.size()) {
+Fitter::Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data, unsigned threads)
+    : model_(model), params_(std::move(params)), data_(data), threads_(std::max(1u, threads)), yhat_(data.size()) {
   const std::size_t rows = data.segment_end(0) - data.segment_begin(0);
   if (rows >= 2) sample_period_s_ = data.span_s(0) / static_cast<double>(rows - 1);
 }
@@ -64,6 +64,10 @@ std::vector<double> Fitter::clamp(std::vector<double> x) const {
 }
 
 double Fitter::cost(const std::vector<double>& values, std::vector<double>* residual) {
+  return cost_into(values, yhat_, residual);
+}
+
+double Fitter::cost_into(const std::vector<double>& values, std::vector<double>& yhat, std::vector<double>* residual) {
   ++evaluations_;
   plant::Plant p = model_;
   try {
@@ -71,11 +75,11 @@ double Fitter::cost(const std::vector<double>& values, std::vector<double>* resi
   } catch (const std::invalid_argument&) {
     return kInf;
   }
-  if (!replay(p, data_, yhat_)) return kInf;
+  if (!replay(p, data_, yhat)) return kInf;
   double rss = 0;
   if (residual) residual->resize(data_.size());
   for (std::size_t k = 0; k < data_.size(); ++k) {
-    const double e = data_.y_pa[k] - yhat_[k];
+    const double e = data_.y_pa[k] - yhat[k];
     rss += e * e;
     if (residual) (*residual)[k] = e;
   }
@@ -100,9 +104,11 @@ std::vector<double> Fitter::best_start(double* rss) {
   if (params_.size() > 1 && combos.size() > kMaxStarts) combos.resize(kMaxStarts);
   double best = kInf;
   std::vector<double> best_x = combos.front();
-  for (const auto& x : combos) {
-    const double c = cost(x);
-    if (c < best) best = c, best_x = x;
+  {
+    std::vector<double> costs(combos.size(), kInf);
+    run_each(combos.size(), [&](std::vector<double>& yhat, std::size_t i) { costs[i] = cost_into(combos[i], yhat, nullptr); });
+    for (std::size_t i = 0; i < combos.size(); ++i)
+      if (costs[i] < best) best = costs[i], best_x = combos[i];  // in order: the first of equals, as before
   }
   // A lone parameter on a grid of starts (a user effect's, candidates.cpp) may have a cost with a
   // sharp optimum that LM's finite differences cannot follow (a stick-slip's breakaway 2 % off the
@@ -130,7 +136,8 @@ std::vector<double> Fitter::best_start(double* rss) {
 
 bool Fitter::jacobian(const std::vector<double>& x, const std::vector<double>& r0, std::vector<std::vector<double>>& cols) {
   cols.assign(x.size(), {});
-  for (std::size_t j = 0; j < x.size(); ++j) {
+  std::vector<char> ok(x.size(), 0);
+  run_each(x.size(), [&](std::vector<double>& yhat, std::size_t j) {
     // Forward difference of 1 % of the scale (a time: at least one sample period, see
     // FreeParam::sample_step), backwards at the upper bound.
     double h = 0.01 * params_[j].scale;
@@ -138,16 +145,16 @@ bool Fitter::jacobian(const std::vector<double>& x, const std::vector<double>& r
     auto xp = x;
     xp[j] = x[j] + h;
     if (xp[j] > params_[j].hi) h = -h, xp[j] = x[j] + h;
-    std::vector<double> r;
-    if (!std::isfinite(cost(xp, &r))) {
+    std::vector<double>& r = cols[j];
+    if (!std::isfinite(cost_into(xp, yhat, &r))) {
       h = -h;
       xp[j] = x[j] + h;
-      if (!std::isfinite(cost(xp, &r))) return false;
+      if (!std::isfinite(cost_into(xp, yhat, &r))) return;
     }
-    cols[j].resize(r0.size());
-    for (std::size_t k = 0; k < r0.size(); ++k) cols[j][k] = (r[k] - r0[k]) / h;
-  }
-  return true;
+    for (std::size_t k = 0; k < r0.size(); ++k) r[k] = (r[k] - r0[k]) / h;
+    ok[j] = 1;
+  });
+  return std::all_of(ok.begin(), ok.end(), [](char c) { return c != 0; });
 }
 
 FitResult Fitter::levenberg_marquardt(std::vector<double> x, int max_iter) {

@@ -3,11 +3,13 @@
 // parameters live in [lo, hi] (steps are projected onto the box) and are scaled by FreeParam::scale.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <vector>
 
 #include "hil/analysis/candidates.hpp"
 #include "hil/analysis/replay.hpp"
+#include "hil/parallel_for.hpp"
 
 namespace hil::analysis::detail {
 
@@ -22,7 +24,10 @@ struct FitResult {
 class Fitter {
  public:
   // `model`: the base with the effect attached (neutral values); params: the free parameters.
-  Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data);
+  // threads: replays of one Jacobian's columns and of the starting points run on up to this many
+  // threads (a fit run alone, as the joint refits are, would leave the other core idle); 1 when
+  // the fit itself is one of several run in parallel. The result does not depend on it.
+  Fitter(const plant::Plant& model, std::vector<FreeParam> params, const ReplayData& data, unsigned threads = 1);
 
   // RSS at `values` (+inf if the model cannot be replayed there). Also fills `residual` if given.
   double cost(const std::vector<double>& values, std::vector<double>* residual = nullptr);
@@ -35,19 +40,33 @@ class Fitter {
   // correlation (optional): the parameters' correlation matrix, (J^T J)^-1 normalised; left
   // empty when it cannot be computed.
   std::vector<double> uncertainty(const std::vector<double>& x, std::vector<std::vector<double>>* correlation = nullptr);
-  int evaluations() const { return evaluations_; }
+  int evaluations() const { return evaluations_.load(); }
   const std::vector<FreeParam>& params() const { return params_; }
 
  private:
   std::vector<double> clamp(std::vector<double> x) const;
+  // cost() with the prediction written into `yhat` (size data_.size()): one buffer per thread.
+  double cost_into(const std::vector<double>& values, std::vector<double>& yhat, std::vector<double>* residual);
+  // body(yhat, i) for i in [0, n), on threads_ threads, each with its own prediction buffer.
+  template <class Body>
+  void run_each(std::size_t n, Body&& body) {
+    if (threads_ <= 1 || n <= 1) {
+      for (std::size_t i = 0; i < n; ++i) body(yhat_, i);
+      return;
+    }
+    hil::parallel_for(
+        n, threads_, [&] { return std::vector<double>(data_.size()); },
+        [&](std::vector<double>& yhat, std::size_t i) { body(yhat, i); });
+  }
   bool jacobian(const std::vector<double>& x, const std::vector<double>& r0, std::vector<std::vector<double>>& cols);
 
   const plant::Plant& model_;
   std::vector<FreeParam> params_;
   const ReplayData& data_;
   double sample_period_s_ = 0;  // mean row spacing of the data's first segment (0: one row)
+  unsigned threads_ = 1;
   std::vector<double> yhat_;
-  int evaluations_ = 0;
+  std::atomic<int> evaluations_{0};
 };
 
 // Solves the small symmetric system A x = b (Gaussian elimination with pivoting); false if singular.
