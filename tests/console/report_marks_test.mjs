@@ -74,7 +74,7 @@ async function main() {
   const run = (await call(base, "GET", "/api/runs")).json.runs.find((r) => (r.id || "").includes("adaptive"));
   if (!run) return fail("no adaptive run listed");
 
-  const asked = await call(base, "POST", `/api/runs/${run.id}/analyses`, { kind: "compare" });
+  const asked = await call(base, "POST", `/api/runs/${run.id}/analyses`, { kind: "compare", model: run.plant || "nominal" });  // its own plant
   if (asked.status !== 202 && asked.status !== 200) return fail("compare: " + asked.status + " " + asked.text);
   const one = (j) => (j && j.analysis) || j || {};  // POST answers {analysis}, GET the analysis itself
   const aid = one(asked.json).id;
