@@ -171,8 +171,12 @@ ResidualReport compare_measurement(const plant::Plant& model, const Measurement&
 // ---------------------------------------------------------------------------------------------
 // Report
 
+report::RunMarks run_marks_beside(const std::filesystem::path& data_file, double end_s) {
+  return report::marks_from_events(data_file.parent_path() / "events.jsonl", end_s);
+}
+
 void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
-                           const std::string& model_label) {
+                           const std::string& model_label, const report::RunMarks& marks) {
   using report::Band;
   using report::Figure;
   using report::HLine;
@@ -197,25 +201,29 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
                               .style = Series::Style::step,
                               .dashed = true});
   }
-  doc.figure(Figure{.title = "Pressure: measured vs " + model_label + " (shaded: where the model fails)",
-                    .x_label = "time [s]",
-                    .y_label = "pressure [MPa]",
-                    .series = pressure,
-                    .bands = bands,
-                    .group = group,
-                    .height_px = 300});
+  // The run's events (operator injections, faults) on each time plot, in the run report's words.
+  const auto marked = [&](Figure f) {
+    report::mark_figure(f, marks, true);
+    doc.figure(f);
+  };
+  marked(Figure{.title = "Pressure: measured vs " + model_label + " (shaded: where the model fails)",
+                .x_label = "time [s]",
+                .y_label = "pressure [MPa]",
+                .series = pressure,
+                .bands = bands,
+                .group = group,
+                .height_px = 300});
   const double s3 = 3 * r.noise_sigma_pa / kpa;
-  doc.figure(
-      Figure{.title = "Residual: measured - " + model_label,
-             .x_label = "time [s]",
-             .y_label = "residual [kPa]",
-             .series = {Series{
-                 .name = "residual", .x = r.series.residual_kpa.t_s, .y = r.series.residual_kpa.value, .color = "#9467bd"}},
-             .bands = bands,
-             .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}, {0, "", false}},
-             .group = group,
-             .height_px = 220});
-  doc.figure(
+  marked(Figure{.title = "Residual: measured - " + model_label,
+                .x_label = "time [s]",
+                .y_label = "residual [kPa]",
+                .series = {Series{
+                    .name = "residual", .x = r.series.residual_kpa.t_s, .y = r.series.residual_kpa.value, .color = "#9467bd"}},
+                .bands = bands,
+                .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}, {0, "", false}},
+                .group = group,
+                .height_px = 220});
+  marked(
       Figure{.title = "Drive angle (encoder if logged, else command)",
              .x_label = "time [s]",
              .y_label = "angle [deg]",
@@ -369,7 +377,10 @@ ResidualReport run_compare(const CompareOptions& o) {
   detail::add_summary_table(doc, r);
   for (const auto& w : r.log_warnings) doc.note(w, true);
   doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
-  add_residual_sections(doc, r, "time", "model");
+  const report::RunMarks marks = run_marks_beside(o.data_file, r.t0_s + r.duration_s);
+  if (!marks.marks.empty()) doc.paragraph("What happened in the run: " + report::describe_marks(marks.marks) + ".");
+  if (!marks.unreadable.empty()) doc.note("events skipped: " + marks.unreadable, true);
+  add_residual_sections(doc, r, "time", "model", marks);
   // Both or neither: a full disk never leaves this JSON beside an older report.
   const std::string html = doc.html();
   hil::replace_files(std::vector<hil::FileText>{{o.out_dir / "compare.json", {json_text}}, {o.out_dir / "report.html", {html}}});

@@ -378,7 +378,9 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
                 which);
     const ResidualReport& last = d.explained ? d.files[i].after : d.files[i].before;
     doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
-    add_residual_sections(doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model");
+    add_residual_sections(
+        doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model",
+        i < data_files.size() ? run_marks_beside(data_files[i], last.t0_s + last.duration_s) : report::RunMarks{});
   }
   return doc.html();
 }

@@ -4,7 +4,7 @@
 // for the old commit's report.css and report.js. Given a BASE report (the same campaign written by
 // another build, e.g. main's before a change to the decimation), the old layer draws BASE's data
 // (what that layer drew when it was current) and BASE as written is measured too.
-// Per layer and round, a fresh headless Chromium opens the page from disk and reports:
+// Per layer and round, a fresh headless Chromium (report_page.mjs) opens the page from disk and reports:
 //   first render  ms from navigation start to the first frame after every plot was drawn
 //   plot script   ms the DOMContentLoaded handlers took (parsing the data, building, drawing)
 //   zoom          ms from a 10x x-zoom of the first plot (its group follows) to the next frame
@@ -13,13 +13,13 @@
 //   table rows    the rows of the tables dygraphs draws, summed over the plots (not for canvas)
 // Needs the console test's packages (puppeteer-core): run it from that test's node folder.
 //   build/bench/hilbench sim configs/campaigns/soak_random.yaml --no-telemetry --out /tmp/hour
-//   cp benchmarks/report/open_hour.mjs build/tests/console/node/ &&
+//   cp benchmarks/report/*.mjs build/tests/console/node/ &&
 //   node build/tests/console/node/open_hour.mjs /tmp/hour/soak_random/report.html . 42013a4 5 [BASE.html]
 import { execFileSync } from "node:child_process";
 import { mkdtempSync, readFileSync, rmSync, statSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
-import puppeteer from "puppeteer-core";
+import { inFreshPage, spread } from "./report_page.mjs";
 
 const [reportArg, sourceDir, oldRev, roundsArg, baseArg] = process.argv.slice(2);
 if (!reportArg || !sourceDir || !oldRev) {
@@ -27,7 +27,6 @@ if (!reportArg || !sourceDir || !oldRev) {
   process.exit(2);
 }
 const rounds = Number(roundsArg ?? 5);
-const chromium = process.env.HIL_CHROMIUM || "/usr/bin/chromium";
 const dir = mkdtempSync(join(tmpdir(), "hil-open-hour-"));
 const git = (path) => execFileSync("git", ["-C", sourceDir, "show", `${oldRev}:${path}`], { encoding: "utf8" });
 
@@ -50,29 +49,8 @@ if (baseArg) pages["dygraphs, base report"] = resolve(baseArg);
 pages[oldName] = join(dir, "old.html");
 writeFileSync(pages[oldName], old);
 
-// Runs in the page before its scripts: notes the first frame after the load event (every plot is
-// drawn synchronously in DOMContentLoaded, which ends before load, by both layers).
-const probe = () => {
-  window.__firstFrame = new Promise((done) =>
-    addEventListener("load", () => requestAnimationFrame(() => setTimeout(() => done(performance.now())))));
-};
-
-async function measure(file) {
-  const browser = await puppeteer.launch({ executablePath: chromium, headless: true,
-    args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run", "--allow-file-access-from-files"] });
-  try {
-    const page = await browser.newPage();
-    await page.setViewport({ width: 1400, height: 1000 });
-    const errors = [];
-    page.on("pageerror", (e) => errors.push(String(e)));
-    await page.evaluateOnNewDocument(probe);
-    // CPU time of the page's renderer process (its main thread and the raster threads), which a
-    // loaded machine stretches far less than the wall clock.
-    const cdp = await page.target().createCDPSession();
-    await cdp.send("Performance.enable");
-    const cpu = async () => (await cdp.send("Performance.getMetrics")).metrics.find((m) => m.name === "ProcessTime").value * 1e3;
-    const cpu0 = await cpu();
-    await page.goto("file://" + file, { waitUntil: "load" });
+const measure = (file) =>
+  inFreshPage("file://" + file, async ({ page, cpu, errors }) => {
     const opened = await page.evaluate(async () => {
       const first = await window.__firstFrame;
       const nav = performance.getEntriesByType("navigation")[0];
@@ -95,13 +73,9 @@ async function measure(file) {
       return performance.now() - t0;
     });
     const cpu2 = await cpu();
-    return Object.assign(opened, { zoom, openCpu: cpu1 - cpu0, zoomCpu: cpu2 - cpu1, pageErrors: errors.length });
-  } finally {
-    await browser.close();
-  }
-}
+    return Object.assign(opened, { zoom, openCpu: cpu1, zoomCpu: cpu2 - cpu1, pageErrors: errors.length });
+  }, { args: ["--allow-file-access-from-files"] });
 
-const median = (v) => v.slice().sort((a, b) => a - b)[Math.floor(v.length / 2)];
 const mb = (file) => (statSync(file).size / 1e6).toFixed(2) + " MB";
 console.log(`report: ${Object.entries(pages).map(([k, f]) => `${k} ${mb(f)}`).join(", ")}; ${rounds} rounds, median (min-max)`);
 console.log("| plotting layer | plots | table rows | first render (ms) | plot script (ms) | 10x zoom of a linked plot (ms) | CPU to open (ms) | CPU to zoom (ms) |");
@@ -109,8 +83,7 @@ console.log("|---|---|---|---|---|---|---|---|");
 const results = Object.fromEntries(Object.keys(pages).map((k) => [k, []]));
 for (let i = 0; i < rounds; ++i) for (const [name, file] of Object.entries(pages)) results[name].push(await measure(file));
 for (const [name, rs] of Object.entries(results)) {
-  const f = (key) => `${median(rs.map((r) => r[key])).toFixed(0)} (${Math.min(...rs.map((r) => r[key])).toFixed(0)}-` +
-    `${Math.max(...rs.map((r) => r[key])).toFixed(0)})`;
+  const f = (key) => spread(rs, key);
   const bad = rs.filter((r) => r.errors || r.pageErrors).length;
   console.log(`| ${name} | ${rs[0].plots} (group of ${rs[0].group})${bad ? ` ERRORS in ${bad} rounds` : ""} | ${rs[0].rows ?? "-"} | ` +
     `${f("first")} | ${f("script")} | ${f("zoom")} | ${f("openCpu")} | ${f("zoomCpu")} |`);

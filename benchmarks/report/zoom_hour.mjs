@@ -2,7 +2,7 @@
 // sample (issue 40, point 7)? The run is soak_random's `adaptive` run, one hour at 1 kHz (3.6 M
 // rows; how its folder is made: below), served by the real
 // `hilbench serve`, its report made once on the job worker (timed: "make"). Per round, a fresh
-// headless Chromium (1400x1000) opens GET /api/runs/ID/report.html and reports:
+// headless Chromium (1400x1000, report_page.mjs) opens GET /api/runs/ID/report.html and reports:
 //   first render  ms from navigation start to the first frame after every plot was drawn (all are
 //                 drawn in DOMContentLoaded, which ends before load)
 //   CPU to open   CPU ms of the page's renderer process to that frame (less stretched by the load)
@@ -14,7 +14,7 @@
 // Given BASE_HILBENCH_EXE (another build, e.g. main's before this change), its `hilbench report`
 // of the same run folder is opened from disk in alternating rounds (open only: it has no detail).
 // Needs the console test's packages (puppeteer-core): run it from that test's node folder.
-//   cp benchmarks/report/zoom_hour.mjs build/tests/console/node/
+//   cp benchmarks/report/*.mjs build/tests/console/node/
 //   node build/tests/console/node/zoom_hour.mjs build/bench/hilbench . 5 /tmp/hour_runs
 // (RUNS_DIR's run is made when it holds none yet, ~1 min, 325 MB; kept for the next call.)
 import { spawn, spawnSync } from "node:child_process";
@@ -22,7 +22,7 @@ import { createReadStream, existsSync, mkdirSync, mkdtempSync, readdirSync, read
 import { tmpdir } from "node:os";
 import { resolve, join } from "node:path";
 import { createInterface } from "node:readline";
-import puppeteer from "puppeteer-core";
+import { inFreshPage, spread } from "./report_page.mjs";
 
 const [exe, sourceDir, roundsArg, runsArg, baseExe] = process.argv.slice(2);
 if (!exe || !sourceDir) {
@@ -32,7 +32,6 @@ if (!exe || !sourceDir) {
 const rounds = Number(roundsArg ?? 5);
 const runs = resolve(runsArg ?? "/tmp/hil-hour-runs");
 const configs = resolve(sourceDir, "configs");
-const chromium = process.env.HIL_CHROMIUM || "/usr/bin/chromium";
 const window10 = [1795, 1805];  // s: 10 s in the middle of the hour
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
@@ -91,24 +90,8 @@ try {
   if (!made.ok) throw new Error("report: HTTP " + made.status + " " + (await made.text()));
   const makeMs = Date.now() - m0, pageBytes = statSync(join(runs, id, "report.html")).size;
 
-  const probe = () => {
-    window.__firstFrame = new Promise((done) =>
-      addEventListener("load", () => requestAnimationFrame(() => setTimeout(() => done(performance.now())))));
-  };
-  async function measure(url, zoomIt) {
-    const browser = await puppeteer.launch({ executablePath: chromium, headless: true,
-      args: ["--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--no-first-run"] });
-    try {
-      const page = await browser.newPage();
-      await page.setViewport({ width: 1400, height: 1000 });
-      const errors = [];
-      page.on("pageerror", (e) => errors.push(String(e)));
-      await page.evaluateOnNewDocument(probe);
-      const cdp = await page.target().createCDPSession();
-      await cdp.send("Performance.enable");
-      const cpu = async () => (await cdp.send("Performance.getMetrics")).metrics.find((m) => m.name === "ProcessTime").value * 1e3;
-      const cpu0 = await cpu();
-      await page.goto(url, { waitUntil: "load" });
+  const measure = (url, zoomIt) =>
+    inFreshPage(url, async ({ page, cpu, errors }) => {
       const opened = await page.evaluate(async () => {
         const first = await window.__firstFrame;
         const nav = performance.getEntriesByType("navigation")[0];
@@ -117,8 +100,8 @@ try {
           rows: charts.reduce((n, c) => n + (c.rows ? c.rows.length : 0), 0),
           thinned: charts.filter((c) => c.fig.querySelector(".hil-res.hil-thin")).length };
       });
-      const cpu1 = await cpu();
-      if (!zoomIt) return { ...opened, openCpu: cpu1 - cpu0, zoom: NaN, drawn: [], notes: [], pageErrors: errors };
+      const openCpu = await cpu();
+      if (!zoomIt) return { ...opened, openCpu, zoom: NaN, drawn: [], notes: [], pageErrors: errors };
       const zoom = await page.evaluate(async (w) => {
         const group = window.hilReport.charts.filter((c) => c.group === "t");
         const t0 = performance.now();
@@ -137,11 +120,8 @@ try {
         });
         return { ms, drawn, notes: group.map((c) => c.fig.querySelector(".hil-res").className) };
       }, window10);
-      return { ...opened, openCpu: cpu1 - cpu0, zoom: zoom.ms, drawn: zoom.drawn, notes: zoom.notes, pageErrors: errors };
-    } finally {
-      await browser.close();
-    }
-  }
+      return { ...opened, openCpu, zoom: zoom.ms, drawn: zoom.drawn, notes: zoom.notes, pageErrors: errors };
+    });
 
   let baseUrl = null;
   if (baseExe) {
@@ -154,9 +134,7 @@ try {
     rs.push(await measure(url, true));
     if (baseUrl) bs.push(await measure(baseUrl, false));
   }
-  const median = (v) => v.slice().sort((a, b) => a - b)[Math.floor(v.length / 2)];
-  const f = (set, key) => `${median(set.map((r) => r[key])).toFixed(0)} (${Math.min(...set.map((r) => r[key])).toFixed(0)}-` +
-    `${Math.max(...set.map((r) => r[key])).toFixed(0)})`;
+  const f = spread;
   const drawn = [...new Set(rs.flatMap((r) => r.drawn))];
   const bad = rs.filter((r) => r.errors || r.pageErrors.length || r.notes.some((n) => !n.includes("hil-full")));
   console.log(`run ${id}: telemetry.csv ${fileRows} rows (${(statSync(csv).size / 1e6).toFixed(0)} MB), ${inWindow} in ${window10.join("-")} s; ` +

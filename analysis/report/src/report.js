@@ -404,9 +404,12 @@
     })), series.map((s, i) => 's' + i));  // names may repeat or hold markup; dygraphs' labels must not
     chart.rows = toRows(series, spec.xLog, spec.yLog);
     chart.empty = !chart.rows.some(r => r.some((v, i) => i > 0 && v !== null && isFinite(v)));
+    // Lines 1 px wide: Skia draws a stroke of at most one device pixel as a hairline; at 1.25 px it
+    // outlines the stroke as a polygon and fills it, which for a min/max envelope (a zigzag of near
+    // vertical segments) cost half the renderer's CPU to open an hour's report (docs/benchmarks.md).
     const opts = {};
     series.forEach((s, i) => {
-      opts[chart.labels[i]] = Object.assign({ color: chart.items[i].color, strokeWidth: 1.25, stepPlot: s.style === 'step' },
+      opts[chart.labels[i]] = Object.assign({ color: chart.items[i].color, strokeWidth: 1, stepPlot: s.style === 'step' },
         s.style === 'points' ? { drawPoints: true, strokeWidth: 0, pointSize: 1.8 } : {}, s.dashed ? { strokePattern: [6, 4] } : {});
     });
     const items = series.length === 1 && !series[0].name ? [] : chart.items.slice();

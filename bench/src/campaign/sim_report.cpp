@@ -58,14 +58,6 @@ bool full_window(const std::vector<ReversalSummary>& rv, std::size_t i, double e
   return next - rv[i].t_s >= 1.0;
 }
 
-// The run's events as labelled lines on a time figure, its fault windows shaded.
-void mark(Figure& f, const RunMarks& m, bool with_bands, const std::string& prefix = "") {
-  for (const auto& e : m.marks) {
-    f.markers.push_back({e.t_s, prefix + e.label, C("event")});
-    if (with_bands && std::isfinite(e.end_s)) f.bands.push_back({e.t_s, e.end_s, prefix + e.label, C("fault_window")});
-  }
-}
-
 std::string describe_gap(const Campaign& c) {
   std::string text = "gap " + fmt("%.3g", units::rad_to_deg(c.gap_rad.initial())) + " deg";
   const auto& pts = c.gap_rad.points();
@@ -164,9 +156,9 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   // Recorded events per run (named when there are several); the programme, the same for all, once.
   for (std::size_t i = 0; i < runs.size(); ++i) {
     if (runs[i].marks_recorded)
-      mark(overlay, marks[i], false, runs.size() > 1 ? runs[i].name + ": " : "");
+      report::mark_figure(overlay, marks[i], false, runs.size() > 1 ? runs[i].name + ": " : "");
     else if (i == 0)
-      mark(overlay, marks[i], false);
+      report::mark_figure(overlay, marks[i], false);
   }
   doc.figure(overlay);
 
@@ -175,7 +167,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const auto& r = runs[i];
     Figure f{r.name + ": pressure vs reference", "time [s]", "pressure [MPa]"};
-    mark(f, marks[i], true);
+    report::mark_figure(f, marks[i], true);
     f.group = "t";
     f.max_buckets = kOverviewBuckets;
     f.series = {series(r, Col::p_ref_mpa, "reference", C("p_ref_mpa"), Series::Style::step, true),
@@ -185,7 +177,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const auto& r = runs[i];
     Figure f{r.name + ": touch state", "time [s]", "touch state Tf [-1, 0, +1]"};
-    mark(f, marks[i], true);
+    report::mark_figure(f, marks[i], true);
     f.group = "t";
     f.max_buckets = kOverviewBuckets;
     f.height_px = 180;
@@ -195,7 +187,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const auto& r = runs[i];
     Figure f{r.name + ": motor vs valve angle", "time [s]", "angle [deg]"};
-    mark(f, marks[i], true);
+    report::mark_figure(f, marks[i], true);
     f.group = "t";
     f.max_buckets = kOverviewBuckets;
     f.series = {series(r, Col::theta_cmd_deg, "command", C("theta_cmd_deg"), Series::Style::line, true),
@@ -211,7 +203,7 @@ void write_sim_report(const Campaign& c, const std::vector<RunOutcome>& runs, co
   for (std::size_t i = 0; i < runs.size(); ++i) {
     const auto& r = runs[i];
     Figure f{r.name + ": gap estimate vs true gap", "time [s]", "gap [deg]"};
-    mark(f, marks[i], true);
+    report::mark_figure(f, marks[i], true);
     f.group = "t";
     f.max_buckets = kOverviewBuckets;
     f.height_px = 200;

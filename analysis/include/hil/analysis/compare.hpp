@@ -15,6 +15,7 @@
 #include "hil/analysis/replay.hpp"
 #include "hil/analysis/residuals.hpp"
 #include "hil/plant/plant.hpp"
+#include "hil/report/run_marks.hpp"
 
 namespace hil::report {
 class Document;
@@ -42,9 +43,13 @@ ResidualReport compare_measurement(const plant::Plant& model, const Measurement&
 AnalyzerOptions analyzer_options_for(const plant::Plant& model);
 
 // Report sections for one replay (used by compare and, for the final model, by diagnose).
-// `group` links the time plots' zoom.
+// `group` links the time plots' zoom. `marks`: the run's events (a run folder's events.jsonl
+// beside the measurement, run_marks_beside), labelled lines on the time plots, faults shaded.
 void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
-                           const std::string& model_label);
+                           const std::string& model_label, const report::RunMarks& marks = {});
+// The events of the run whose telemetry `data_file` is (events.jsonl in its folder), up to the
+// report's end `end_s`; none for a measurement that is not in a run folder.
+report::RunMarks run_marks_beside(const std::filesystem::path& data_file, double end_s);
 std::string residual_json(const ResidualReport& r, int indent = 2);  // the compare.json body
 // compare.json's headline numbers (rows, fit, noise floor, RMSE, largest error, bias, noise), as
 // diagnose's before/after blocks and the server's analysis result give them.

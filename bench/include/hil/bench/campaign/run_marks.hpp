@@ -1,48 +1,24 @@
-// What happened during a run, as its report marks it: each event a labelled line at its time, a
-// fault a shaded window (start..end), and a sentence for the report's header ("gap 2.5 deg at
-// 7.300 s"). From a recorded run's events.jsonl (`hilbench report`, a served run's report) or from
-// the campaign's programme (`hilbench sim`, which has no operator). Not real-time: allocates.
+// What happened during a run, as its report marks it. A recorded run's events (events.jsonl) are
+// read by the report library (hil/report/run_marks.hpp, which compare and diagnose of a run's
+// telemetry use too); here, for `hilbench sim` (which has no operator), the campaign's programme.
+// Not real-time: allocates.
 #pragma once
 
-#include <filesystem>
-#include <limits>
-#include <string>
-#include <vector>
+#include <cstddef>
 
-#include <nlohmann/json_fwd.hpp>
+#include "hil/report/run_marks.hpp"
 
 namespace hil::bench {
 
 struct Campaign;
 
-struct RunMark {
-  double t_s = 0;
-  double end_s = std::numeric_limits<double>::quiet_NaN();  // a fault's window end; NaN: an instant
-  std::string label;                                        // "gap 2.5 deg", "sensor stuck 1.52 MPa"
-  std::string kind;                                         // the event's kind in events.jsonl
-};
-
-struct RunMarks {
-  std::vector<RunMark> marks;  // in time order
-  // Lines of events.jsonl that could not be read, first one named (file:line: why); empty: none.
-  std::string unreadable;
-};
-
-// The marked events of a recorded run (operator actions, injections, faults, trips, the safe state;
-// loop statistics such as overruns are not marked). A fault without a duration lasts until it
-// expires, is cleared, replaced, or the run ends at end_s. A missing file gives no marks; a line
-// that is not a JSON object with a finite t_s is skipped and counted in `unreadable`.
-RunMarks marks_from_events(const std::filesystem::path& events_jsonl, double end_s);
-
-// The label of an event of events.jsonl worth marking ("gap 2.5 deg", "sensor stuck 1.52 MPa",
-// "trip: overpressure"); empty for what is not marked (loop statistics, run bookkeeping). The one
-// wording of the reports and of the console's live plots (the event feed adds it as "mark").
-std::string mark_label(const nlohmann::json& event);
+using report::describe_marks;
+using report::mark_label;
+using report::marks_from_events;
+using report::RunMark;
+using report::RunMarks;
 
 // The programmed gap changes of a campaign (at most `max_marks`, the first ones).
 RunMarks marks_from_programme(const Campaign& c, std::size_t max_marks = 40);
-
-// "gap 2.5 deg at 7.300 s; sensor stuck 1.52 MPa 9.000-10.000 s" (at most max_items, then "and N more").
-std::string describe_marks(const std::vector<RunMark>& marks, std::size_t max_items = 12);
 
 }  // namespace hil::bench
