@@ -35,6 +35,9 @@ TEST(HiddenSuite, HealthyFilesAtTheNoiseExtremesSayNothingMissing) {
       draw_file(3702, "healthy_50hz_1kpa", {}, "filter 50 Hz", 1.0, Logger::bench),
       // 2.5 kPa of AR(1) noise in 1 kPa steps was read as white, 2.0 kPa: `unexplained` before.
       draw_file(3703, "healthy_daq_ar03", {}, "AR(1) phi 0.3", 2.5, Logger::daq),
+      // 1 kPa behind a 50 Hz filter in 1 kPa steps was read as white, 0.64 kPa for 1.08:
+      // `unexplained` before (every healthy DAQ file at 1 kPa of seeds 37 and 38).
+      draw_file(3704, "healthy_daq_50hz_1kpa", {}, "filter 50 Hz", 1.0, Logger::daq),
   };
   for (const auto& f : files) {
     const Score s = run_file(f, dir.path());
