@@ -123,6 +123,13 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
     }
     return list;
   };
+  // Each file's residual signature before any effect was added.
+  auto signature_before = [&] {
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
+      for (const auto& line : d.files[i].before.signature) out.push_back(line);
+    }
+  };
   // Effects that moved the fit but leave structure where no candidate acts stand in for an effect
   // outside the list: the file is not explained (acceptance of issue 37).
   std::string left;
@@ -139,10 +146,7 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
                   text::num(d.rmse_after_pa / d.noise_sigma_pa, 3) + " times the noise and " + left +
                   ", structure no candidate holds: they stand in for part of an effect outside the list. The misfit's "
                   "signature before them:");
-    for (std::size_t i = 0; i < d.files.size(); ++i) {
-      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
-      for (const auto& line : d.files[i].before.signature) out.push_back(line);
-    }
+    signature_before();
     out.push_back(fit_line);
     per_file(true);
   } else if (d.explained) {
@@ -205,10 +209,7 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
     out.push_back(
         "No candidate explains the residual: none earns its place, so none is named. The missing effect is "
         "something else; its signature:");
-    for (std::size_t i = 0; i < d.files.size(); ++i) {
-      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
-      for (const auto& line : d.files[i].before.signature) out.push_back(line);
-    }
+    signature_before();
   }
   // What the files themselves show comes first: a verdict on a file with a hole or stale readings
   // is read with that in mind.
