@@ -225,14 +225,14 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
     std::string after_name = "after";
     for (const auto& c : d.added) after_name += " + " + c.effect;
     doc.table({"model", "fit [%]", "noise floor [%]", "RMSE [kPa]", "max error [kPa]", "bias [kPa]"},
-              {row("before (as given)", f.before), row(d.explained ? after_name : "after (unchanged)", f.after)});
+              {row("before (as given)", f.before), row(d.added.empty() ? "after (unchanged)" : after_name, f.after)});
   }
   const auto& b = f.before.series;
   const auto& a = f.after.series;
   std::vector<Series> overlay = {
       Series{.name = "measured", .x = b.measured_mpa.t_s, .y = b.measured_mpa.value, .color = "#1f77b4"},
       Series{.name = "model before", .x = b.model_mpa.t_s, .y = b.model_mpa.value, .color = "#d62728"}};
-  if (d.explained)
+  if (!d.added.empty())
     overlay.push_back(
         Series{.name = "model after", .x = a.model_mpa.t_s, .y = a.model_mpa.value, .color = "#2ca02c", .dashed = true});
   std::vector<report::Band> bands;
@@ -260,7 +260,7 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
                     .height_px = 300});
   std::vector<Series> residuals = {
       Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
-  if (d.explained)
+  if (!d.added.empty())
     residuals.push_back(Series{.name = "residual after", .x = a.residual_kpa.t_s, .y = a.residual_kpa.value, .color = "#2ca02c"});
   const double s3 = 3 * f.before.noise_sigma_pa / kKpa;
   doc.figure(Figure{.title = "Residual before and after",
@@ -313,7 +313,9 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
     doc.heading("Files", 3);
     doc.table({"file", "path", "rows", "noise [kPa]", "noise floor [%]", "fit before [%]", "fit after [%]"}, rows);
   }
-  if (d.explained) {
+  // Effects that earned their place are shown, also when they only stand in (not explained: the
+  // signature below is then the residual's before them, with its plots against angle and velocity).
+  if (!d.added.empty()) {
     for (std::size_t i = 0; i < d.files.size(); ++i) {
       const std::string name = i < data_files.size() ? data_files[i].filename().string() : std::to_string(i + 1);
       add_before_after(doc, d, d.files[i],

@@ -5,6 +5,7 @@
 #include "diagnose_search.hpp"
 #include "hil/units.hpp"
 #include "text.hpp"
+#include "velocity_signature.hpp"
 
 namespace hil::analysis {
 
@@ -58,6 +59,41 @@ void localise_event_times(std::vector<FittedParam>& params, const ReplayData& da
   }
 }
 
+namespace {
+
+// What the effects found leave where no candidate acts (issue 37; analysis/README.md, Verdict), in
+// words, or "" when nothing: a ripple periodic in the drive angle or a misfit near zero velocity
+// named in what remains; or, in the velocity band the misfit was named in before them, a residual
+// still concentrated there by the band's own bars (velocity_signature.hpp: RMS inside at least
+// twice the noise, mean square inside kBandContrast times the one outside; no cap on the rows, the
+// band being the one found before, not searched again). The last is what a stick-slip leaves: a
+// larger gap and a sensor lag take its mean lag and its flip with the direction, and the stuck
+// phases stay in the band.
+std::string structure_left(const FileFit& f) {
+  const Diagnostics &before = f.before.diagnostics, &after = f.after.diagnostics;
+  const double sigma = f.before.noise_sigma_pa, kpa = units::kPaPerKpa;
+  if (!(sigma > 0) || at_noise_floor(f.after.error.rmse_pa, sigma)) return "";
+  if (after.angle_ripple_period_deg > 0)
+    return "what remains is periodic in the drive angle (a ripple of " + text::num(after.angle_ripple_kpa, 3) + " kPa with a " +
+           text::num(after.angle_ripple_period_deg, 3) + " deg period)";
+  if (after.velocity_band_deg_s > 0)
+    return "what remains lives at |velocity| < " + text::num(after.velocity_band_deg_s, 3) + " deg/s (RMS " +
+           text::num(after.velocity_band_rms_kpa, 3) + " kPa there, " + text::num(after.velocity_outside_rms_kpa, 3) +
+           " kPa elsewhere)";
+  if (before.velocity_band_deg_s > 0) {
+    const BandSplit left = split_at(after.vs_drive_velocity, before.velocity_band_deg_s);
+    if (left.rms_in_pa >= 2 * sigma &&
+        left.rms_in_pa * left.rms_in_pa >= VelocityProfile::kBandContrast * left.rms_out_pa * left.rms_out_pa)
+      return "the misfit was named at |velocity| < " + text::num(before.velocity_band_deg_s, 3) +
+             " deg/s before them, and what remains is there: " + text::num(left.rms_in_pa / kpa, 3) + " kPa RMS (" +
+             text::num(left.rms_in_pa / sigma, 3) + " times the noise) in " + text::num(100 * left.rows_share, 3) +
+             " % of the rows, " + text::num(left.rms_out_pa / kpa, 3) + " kPa elsewhere";
+  }
+  return "";
+}
+
+}  // namespace
+
 void write_verdict(Diagnosis& d, std::size_t n_files) {
   // The verdict in words.
   auto& out = d.summary;
@@ -77,14 +113,44 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
     }
     out.push_back(line + ".");
   };
-  if (d.explained) {
+  // The effects added, with their parameters.
+  auto found_list = [&](const std::string& sep) {
     std::string list;
     for (const auto& c : d.added) {
       std::string ps;
       for (const auto& p : c.parameters) ps += (ps.empty() ? "" : ", ") + param_text(p);
-      list += (list.empty() ? "" : "; then ") + c.effect + " (" + c.variant + ": " + ps + ")";
+      list += (list.empty() ? "" : sep) + c.effect + " (" + c.variant + ": " + ps + ")";
     }
-    out.push_back("Found: " + list + ".");
+    return list;
+  };
+  // Each file's residual signature before any effect was added.
+  auto signature_before = [&] {
+    for (std::size_t i = 0; i < d.files.size(); ++i) {
+      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
+      for (const auto& line : d.files[i].before.signature) out.push_back(line);
+    }
+  };
+  // Effects that moved the fit but leave structure where no candidate acts stand in for an effect
+  // outside the list: the file is not explained (acceptance of issue 37).
+  std::string left;
+  if (d.explained && !d.at_noise_floor) {
+    for (std::size_t i = 0; i < d.files.size() && left.empty(); ++i) {
+      left = structure_left(d.files[i]);
+      if (!left.empty() && n_files > 1) left = "in file " + std::to_string(i + 1) + ", " + left;
+    }
+  }
+  if (!left.empty()) {
+    d.explained = false;
+    d.verdict = "unexplained";
+    out.push_back("Not explained: " + found_list("; ") + " earned their place, but the residual stays " +
+                  text::num(d.rmse_after_pa / d.noise_sigma_pa, 3) + " times the noise and " + left +
+                  ", structure no candidate holds: they stand in for part of an effect outside the list. The misfit's "
+                  "signature before them:");
+    signature_before();
+    out.push_back(fit_line);
+    per_file(true);
+  } else if (d.explained) {
+    out.push_back("Found: " + found_list("; then ") + ".");
     if (n_files > 1) {
       std::string per_file_list;
       for (const auto& c : d.added)
@@ -143,10 +209,7 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
     out.push_back(
         "No candidate explains the residual: none earns its place, so none is named. The missing effect is "
         "something else; its signature:");
-    for (std::size_t i = 0; i < d.files.size(); ++i) {
-      if (n_files > 1) out.push_back("File " + std::to_string(i + 1) + ":");
-      for (const auto& line : d.files[i].before.signature) out.push_back(line);
-    }
+    signature_before();
   }
   // What the files themselves show comes first: a verdict on a file with a hole or stale readings
   // is read with that in mind.

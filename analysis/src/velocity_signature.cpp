@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace hil::analysis::detail {
 
@@ -72,6 +73,20 @@ VelocityBand VelocityProfile::band(double noise_sigma_pa) const {
     }
   }
   return out;
+}
+
+BandSplit split_at(const Binned& profile, double below_deg_s) {
+  double sum2_in = 0, n_in = 0, sum2_out = 0, n_out = 0;
+  for (std::size_t i = 0; i < profile.x.size(); ++i) {
+    const double k = static_cast<double>(profile.samples[i]), s2 = k * profile.rms_pa[i] * profile.rms_pa[i];
+    if (std::abs(profile.x[i]) < below_deg_s)
+      sum2_in += s2, n_in += k;
+    else
+      sum2_out += s2, n_out += k;
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  return {n_in > 0 ? std::sqrt(sum2_in / n_in) : nan, n_out > 0 ? std::sqrt(sum2_out / n_out) : nan,
+          n_in + n_out > 0 ? n_in / (n_in + n_out) : 0.0};
 }
 
 }  // namespace hil::analysis::detail

@@ -14,6 +14,8 @@
 // direction): the narrowest band |v| < X whose mean residual while opening (0 < v < X) and while
 // closing (-X < v < 0) differ by kFlipSigmas noise RMS, each side on at least kFlipMinRows of the
 // rows, and whose split by direction holds at least kFlipExcessShare of the excess power.
+// diagnose reads the band of the residual before the effects it found, in what remains after them
+// (rms_below: diagnose_words.cpp, the verdict).
 // Offline code: allocates.
 #pragma once
 
@@ -63,5 +65,13 @@ class VelocityProfile {
   double all_sum2_ = 0;
   std::size_t all_count_ = 0;
 };
+
+// The residual inside and outside |v| < below_deg_s from a profile's bins (binned() above): the
+// bins whose centre lies inside, so the band's edge is read to within half a bin (an eighth of an
+// asinh unit: 5 deg/s is read as 4.7). RMS NaN on a side no bin lies on.
+struct BandSplit {
+  double rms_in_pa = 0, rms_out_pa = 0, rows_share = 0;
+};
+BandSplit split_at(const Binned& profile, double below_deg_s);
 
 }  // namespace hil::analysis::detail

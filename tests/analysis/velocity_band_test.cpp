@@ -2,11 +2,13 @@
 // sticks until the transmission winds up by 0.4 deg (out_of_list_effect.cpp, not a candidate)
 // leaves a misfit whose sign follows the direction of motion from the slowest rows on. compare's
 // signature names the velocity band ("a misfit that flips with the direction of motion, at
-// |velocity| < X deg/s already ... stick-slip"), a healthy file names none, and diagnose does not
-// call it explained at the floor.
+// |velocity| < X deg/s already ... stick-slip"), a healthy file names none, and diagnose says
+// `explained: false` with that band in its signature, although a larger gap and a sensor lag earn
+// their place: they leave the band at about three times the noise (issue 37's acceptance).
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <regex>
 #include <string>
 
@@ -42,28 +44,32 @@ Scenario sticky_scenario() {
   return s;
 }
 
-TEST(VelocitySignature, AStickSlipNamesItsVelocityBandAndIsNotExplainedAtTheFloor) {
+TEST(VelocitySignature, AStickSlipIsNotExplainedAndItsVelocityBandIsNamed) {
   hil::test::TempDir dir;
   const fs::path sticky = hil::test::make_measurement(sticky_scenario(), dir.path());
+  if (const char* keep = std::getenv("HIL_ANALYSIS_KEEP")) {  // keep the generated file to look at
+    fs::create_directories(keep);
+    fs::copy_file(sticky, fs::path(keep) / sticky.filename(), fs::copy_options::overwrite_existing);
+  }
   const auto c = hil::test::run_compare(hil::test::nominal_model(), sticky, dir.path() / "cmp");
   const double band = named_band_deg_s(c.at("signature"));
   std::printf("[ velocity ] compare: band %.3g deg/s, json %s\n", band, c.at("diagnostics").at("velocity_band").dump().c_str());
   EXPECT_GT(band, 0) << c.at("signature").dump(1);
   EXPECT_GE(c.at("diagnostics").at("vs_drive_velocity").at("x").size(), 10u);
 
-  // diagnose: no candidate holds a stick-slip. Measured: a larger gap and a sensor lag stand in for
-  // part of it (`partly_explained`, 96.9 % for a floor of 99.0 %), so `explained` is true here: it
-  // is not called explained at the floor. At a reversal the stick is a play larger by the
-  // breakaway, and its mean lag while moving is a larger gap's: round 1's constant gap of 1.34 deg
-  // (credible) takes 86 % of the excess (analysis/README.md, Against the drive velocity).
-
+  // diagnose: no candidate holds a stick-slip. A larger gap and a sensor lag earn their place (they
+  // take its mean lag and its flip with the direction) but leave the stuck phases in the band at
+  // about three times the noise: not explained, and the signature is the misfit's before them,
+  // which names the band (analysis/README.md, Verdict).
   const auto d = hil::test::run_diagnose(hil::test::nominal_model(), sticky, dir.path() / "diag");
-  EXPECT_NE(d.at("verdict").get<std::string>(), "explained") << hil::test::brief(d);
+  std::printf("[ velocity ] diagnose: %s, band named %.3g deg/s\n%s\n", d.at("verdict").get<std::string>().c_str(),
+              named_band_deg_s(d.at("signature")), hil::test::brief(d).c_str());
+  EXPECT_FALSE(d.at("explained").get<bool>()) << hil::test::brief(d);
+  EXPECT_EQ(d.at("verdict").get<std::string>(), "unexplained") << hil::test::brief(d);
   EXPECT_FALSE(d.at("at_noise_floor").get<bool>()) << hil::test::brief(d);
-  // What remains after the stand-ins is no longer named by velocity (measured: the gap and the lag
-  // take the part that flips): printed, not asserted (issue 37's acceptance asks for it; not met).
-  std::printf("[ velocity ] diagnose: %s, band named in what remains: %.3g deg/s\n", d.at("verdict").get<std::string>().c_str(),
-              named_band_deg_s(d.at("signature")));
+  EXPECT_EQ(named_band_deg_s(d.at("signature")), band) << d.at("signature").dump(1);
+  // The report shows the residual against the velocity, where the band is seen.
+  EXPECT_NE(hil::test::slurp(dir.path() / "diag" / "report.html").find("Residual against drive velocity"), std::string::npos);
 
   // The other side: nothing missing, no band.
   Scenario healthy = sticky_scenario();

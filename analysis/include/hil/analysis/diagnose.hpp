@@ -148,7 +148,7 @@ struct Diagnosis {
   std::vector<FileFit> files;
   std::vector<Round> rounds;
   std::vector<CandidateResult> added;          // in the order found, values after the joint refit
-  bool explained = false;                      // at least one effect earned its place
+  bool explained = false;                      // an effect earned its place, and no stand-in (README, Verdict)
   bool at_noise_floor = false;                 // the final model's RMSE is within 10 % of the noise
   std::string verdict;                         // explained | partly_explained | unexplained | nothing_missing
   std::vector<Alternative> paths;              // when the search followed several first choices
