@@ -2,13 +2,15 @@
 // runs it (loop thread, recorder thread, files), for a fixed time at a chosen rate. Prints the
 // wake-up latency and compute time percentiles, overruns and telemetry loss from run.json.
 //   bench_rt_loop [--hz 1000] [--seconds 60] [--priority 80] [--cpu 1] [--rig configs/rigs/sim.yaml] [--keep DIR]
-//                 [--can loopback|IFACE]
+//                 [--can loopback|IFACE] [--compensator NAME]
 // Compare with cyclictest run the same way: benchmarks/rt/compare.sh.
 // --can: the CAN rig instead, against the simulator side in this process (the plant stepping
 // every 1 ms behind a CiA 402 drive emulator and a Modbus transducer emulator on 127.0.0.1, their
 // threads at SCHED_FIFO 75, the rig's I/O threads at 70): on the in-process loopback bus, or on
 // a SocketCAN interface (vcan0 in the qemu VM of run-on-vcan.sh). Its watchdog is set out of reach
 // (the benchmark measures; stale periods are counted and printed).
+// --compensator: the adaptive run with another registered compensator at its defaults (as
+// BM_Step/tracking_adaptive does), e.g. `tracking` against the default `robust` (issue 42).
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -97,8 +99,9 @@ int run(int argc, char** argv) {
   double hz = 1000, seconds = 60;
   int priority = 80, cpu = 1;
   std::string rig_file = HIL_SOURCE_DIR "/configs/rigs/sim.yaml";
-  std::string keep;  // keep the run folder here (telemetry.csv has every period's wake-up latency)
-  std::string can;   // the CAN rig: "loopback" or a SocketCAN interface
+  std::string keep;         // keep the run folder here (telemetry.csv has every period's wake-up latency)
+  std::string can;          // the CAN rig: "loopback" or a SocketCAN interface
+  std::string compensator;  // empty: the campaign's own (robust)
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--hz")
@@ -115,10 +118,12 @@ int run(int argc, char** argv) {
       keep = v;
     else if (a == "--can")
       can = v;
+    else if (a == "--compensator")
+      compensator = v;
     else {
       std::fprintf(stderr,
                    "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR] [--can "
-                   "loopback|IFACE]\n");
+                   "loopback|IFACE] [--compensator NAME]\n");
       return 2;
     }
   }
@@ -144,6 +149,14 @@ int run(int argc, char** argv) {
   req.rig.loop.priority = priority;
   req.rig.loop.cpu = cpu;
   req.runs = {"adaptive"};
+  if (!compensator.empty()) {
+    for (auto& r : req.campaign.runs)
+      if (r.name == "adaptive") {
+        r.controller.compensator = compensator;
+        r.controller.compensator_params.clear();  // its defaults
+        r.controller.validate();                  // an unknown name is an error here, not in the loop
+      }
+  }
   req.source = "benchmark";
 
   const std::string mlock = lock_memory();
