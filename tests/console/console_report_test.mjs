@@ -8,7 +8,7 @@
 //  - a gap change and a sensor fault injected through the page appear as labelled markers on the
 //    live plots ("gap 3.7 deg", "sensor stuck ...") and the fault as a shaded window;
 //  - the verdict panel shows the run's checks when it ends: the failing one as FAIL with its value
-//    and limit, the passing ones as pass;
+//    and limit, the passing ones as pass, no cell cut off at the card's edge;
 //  - the run's report marks the same events (labels drawn on its canvases), shades the fault window
 //    and says in its header what happened ("gap 3.7 deg at ... s");
 //  - with prefers-color-scheme: dark the page is dark.
@@ -134,6 +134,13 @@ async function main() {
   if (!verdicts.some((v) => v.verdict === "pass" && /^\d/.test(v.cells[2]))) fail("no passing check shown: " + JSON.stringify(verdicts));
   const summary = await page.$eval("#verdict-summary", (e) => e.textContent);
   if (!/^console_checks: [1-9]\d* passed, [1-9]\d* failed/.test(summary)) fail("verdict summary: " + summary);
+  // Every value and limit is readable where it stands (at 1400 px the checks are a third of the
+  // screen): the table is not wider than its card, so no cell is cut off at the edge ("≤ 0" for "≤ 0.2").
+  const clipped = await page.$eval("#verdict-table", (t) => {
+    const wrap = t.parentElement.getBoundingClientRect();
+    return [...t.querySelectorAll("td")].filter((td) => td.getBoundingClientRect().right > wrap.right + 1).map((td) => td.textContent);
+  });
+  if (clipped.length) fail("checks cut off at the card's edge: " + JSON.stringify(clipped));
 
   phase("judged");
   // The run's report: the same marks, the fault window shaded, the header saying what happened.
