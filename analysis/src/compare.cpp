@@ -181,6 +181,10 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   using report::Figure;
   using report::HLine;
   using report::Series;
+  // What the operator did and what failed, in words before the plots that mark it (compare and
+  // diagnose say it the same way).
+  if (!marks.marks.empty()) doc.paragraph("What happened in the run: " + report::describe_marks(marks.marks) + ".");
+  if (!marks.unreadable.empty()) doc.note("events skipped: " + marks.unreadable, true);
   const double kpa = kPaPerKpa;
   std::vector<Band> bands;
   for (std::size_t i = 0; i < r.failing.size(); ++i) {
@@ -304,19 +308,21 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
                       .hlines = {{0, "", false}},
                       .height_px = 220});
   }
-  auto binned = [&](const Binned& b, const std::string& title) {
+  auto binned = [&](const Binned& b, const std::string& title, bool against_time = false) {
     std::vector<double> mean, rmsv;
     for (double v : b.mean_pa) mean.push_back(v / kpa);
     for (double v : b.rms_pa) rmsv.push_back(v / kpa);
-    doc.figure(Figure{.title = title,
-                      .x_label = b.quantity + " [" + b.unit + "]",
-                      .y_label = "residual [kPa]",
-                      .series = {Series{.name = "mean", .x = b.x, .y = mean, .color = "#1f77b4"},
-                                 Series{.name = "RMS", .x = b.x, .y = rmsv, .color = "#ff7f0e", .dashed = true}},
-                      .hlines = {{0, "", false}},
-                      .height_px = 220});
+    Figure f{.title = title,
+             .x_label = b.quantity + " [" + b.unit + "]",
+             .y_label = "residual [kPa]",
+             .series = {Series{.name = "mean", .x = b.x, .y = mean, .color = "#1f77b4"},
+                        Series{.name = "RMS", .x = b.x, .y = rmsv, .color = "#ff7f0e", .dashed = true}},
+             .hlines = {{0, "", false}},
+             .height_px = 220};
+    if (against_time) report::mark_figure(f, marks, true);
+    doc.figure(f);
   };
-  binned(d.vs_time, "Residual against time (per window)");
+  binned(d.vs_time, "Residual against time (per window)", true);
   binned(d.vs_burned, "Residual against burned propellant (model)");
   binned(d.vs_dpdt, "Residual against dPg/dt (model)");
   binned(d.vs_pressure, "Residual against measured pressure");
@@ -377,10 +383,7 @@ ResidualReport run_compare(const CompareOptions& o) {
   detail::add_summary_table(doc, r);
   for (const auto& w : r.log_warnings) doc.note(w, true);
   doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
-  const report::RunMarks marks = run_marks_beside(o.data_file, r.t0_s + r.duration_s);
-  if (!marks.marks.empty()) doc.paragraph("What happened in the run: " + report::describe_marks(marks.marks) + ".");
-  if (!marks.unreadable.empty()) doc.note("events skipped: " + marks.unreadable, true);
-  add_residual_sections(doc, r, "time", "model", marks);
+  add_residual_sections(doc, r, "time", "model", run_marks_beside(o.data_file, r.t0_s + r.duration_s));
   // Both or neither: a full disk never leaves this JSON beside an older report.
   const std::string html = doc.html();
   hil::replace_files(std::vector<hil::FileText>{{o.out_dir / "compare.json", {json_text}}, {o.out_dir / "report.html", {html}}});

@@ -207,9 +207,10 @@ std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& m
 namespace {
 
 // One file's before and after: table, overlay, residuals, error by regime. `group`: the plots
-// that zoom together (one group per file: the files have their own clocks).
+// that zoom together (one group per file: the files have their own clocks). `marks`: the run's
+// events on the time plots, as compare marks them.
 void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& f, const std::string& title,
-                      const std::string& group) {
+                      const std::string& group, const report::RunMarks& marks) {
   using report::Figure;
   using report::Series;
   doc.heading(title);
@@ -251,26 +252,30 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
            c.effect + " " + p.key + " = " + text::num(p.value + f.time_origin_s, 5) + ": anywhere in this span fits as well",
            "rgba(44,160,44,0.30)"});
     }
-  doc.figure(Figure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
-                    .x_label = "time [s]",
-                    .y_label = "pressure [MPa]",
-                    .series = overlay,
-                    .bands = bands,
-                    .group = group,
-                    .height_px = 300});
+  Figure pressure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
+                  .x_label = "time [s]",
+                  .y_label = "pressure [MPa]",
+                  .series = overlay,
+                  .bands = bands,
+                  .group = group,
+                  .height_px = 300};
+  report::mark_figure(pressure, marks, true);
+  doc.figure(pressure);
   std::vector<Series> residuals = {
       Series{.name = "residual before", .x = b.residual_kpa.t_s, .y = b.residual_kpa.value, .color = "#d62728"}};
   if (!d.added.empty())
     residuals.push_back(Series{.name = "residual after", .x = a.residual_kpa.t_s, .y = a.residual_kpa.value, .color = "#2ca02c"});
   const double s3 = 3 * f.before.noise_sigma_pa / kKpa;
-  doc.figure(Figure{.title = "Residual before and after",
-                    .x_label = "time [s]",
-                    .y_label = "residual [kPa]",
-                    .series = residuals,
-                    .bands = bands,
-                    .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
-                    .group = group,
-                    .height_px = 240});
+  Figure residual{.title = "Residual before and after",
+                  .x_label = "time [s]",
+                  .y_label = "residual [kPa]",
+                  .series = residuals,
+                  .bands = bands,
+                  .hlines = {{s3, "+3 sigma noise", true}, {-s3, "-3 sigma noise", true}},
+                  .group = group,
+                  .height_px = 240};
+  report::mark_figure(residual, marks, true);
+  doc.figure(residual);
   {
     report::Bars bars{
         .title = "RMS error by regime, before and after", .y_label = "RMS error [kPa]", .categories = {}, .groups = {}};
@@ -315,12 +320,17 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
   }
   // Effects that earned their place are shown, also when they only stand in (not explained: the
   // signature below is then the residual's before them, with its plots against angle and velocity).
+  // The run's events (a run folder's events.jsonl beside each file) to the end of its data.
+  const auto marks_of = [&](std::size_t i) {
+    const ResidualReport& r = d.files[i].before;
+    return i < data_files.size() ? run_marks_beside(data_files[i], r.t0_s + r.duration_s) : report::RunMarks{};
+  };
   if (!d.added.empty()) {
     for (std::size_t i = 0; i < d.files.size(); ++i) {
       const std::string name = i < data_files.size() ? data_files[i].filename().string() : std::to_string(i + 1);
       add_before_after(doc, d, d.files[i],
                        several ? "Before and after: file " + std::to_string(i + 1) + ", " + name : "Before and after",
-                       several ? "time" + std::to_string(i + 1) : "time");
+                       several ? "time" + std::to_string(i + 1) : "time", marks_of(i));
     }
   }
 
@@ -380,9 +390,8 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
                 which);
     const ResidualReport& last = d.explained ? d.files[i].after : d.files[i].before;
     doc.note(text::join(last.signature, " "), !(last.fit_pct >= last.noise_floor_fit_pct - 1));
-    add_residual_sections(
-        doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model",
-        i < data_files.size() ? run_marks_beside(data_files[i], last.t0_s + last.duration_s) : report::RunMarks{});
+    add_residual_sections(doc, last, several ? "time" + std::to_string(i + 1) : "time", d.explained ? "model after" : "model",
+                          marks_of(i));
   }
   return doc.html();
 }

@@ -1,8 +1,8 @@
 // Markers in every report (issue 40, point 4): the events of a served run (an operator's gap change
 // and a sensor fault, injected through the API into paper_adaptive's adaptive run on the sim rig)
-// are labelled markers on the time plots of the Compare analysis of that run, in the run report's
-// words ("gap 3.7 deg", "sensor stuck ..."), the fault's window shaded (a legend entry of its
-// own), and its header says what happened and when; the run's own report marks the same.
+// are labelled markers on the time plots of the Compare and the Diagnose analyses of that run, in
+// the run report's words ("gap 3.7 deg", "sensor stuck ..."), the fault's window shaded (a legend
+// entry of its own), and each says what happened and when; the run's own report marks the same.
 // In Debian's Chromium against the real `hilbench serve`.
 //   node report_marks_test.mjs HILBENCH_EXE SOURCE_DIR
 import { harness, sleep } from "./harness.mjs";
@@ -74,26 +74,31 @@ async function main() {
   const run = (await call(base, "GET", "/api/runs")).json.runs.find((r) => (r.id || "").includes("adaptive"));
   if (!run) return fail("no adaptive run listed");
 
-  const asked = await call(base, "POST", `/api/runs/${run.id}/analyses`, { kind: "compare", model: run.plant || "nominal" });  // its own plant
-  if (asked.status !== 202 && asked.status !== 200) return fail("compare: " + asked.status + " " + asked.text);
+  // Compare and Diagnose of the run, against its own plant, each queued on the job worker.
   const one = (j) => (j && j.analysis) || j || {};  // POST answers {analysis}, GET the analysis itself
-  const aid = one(asked.json).id;
-  const done = await until("the compare analysis done", () => call(base, "GET", `/api/runs/${run.id}/analyses/${aid}`),
-    (a) => one(a.json).state === "done" || one(a.json).state === "failed", 120_000);
-  if (one(done.json).state !== "done") return fail("compare: " + JSON.stringify(done.json));
+  const checks = [];
+  for (const kind of ["compare", "diagnose"]) {
+    const asked = await call(base, "POST", `/api/runs/${run.id}/analyses`, { kind, model: run.plant || "nominal" });
+    if (asked.status !== 202 && asked.status !== 200) return fail(`${kind}: ${asked.status} ${asked.text}`);
+    const aid = one(asked.json).id;
+    const done = await until(`the ${kind} analysis done`, () => call(base, "GET", `/api/runs/${run.id}/analyses/${aid}`),
+      (a) => one(a.json).state === "done" || one(a.json).state === "failed", 150_000);
+    if (one(done.json).state !== "done") return fail(`${kind}: ${JSON.stringify(done.json)}`);
+    checks.push([kind, `${base}/api/runs/${run.id}/analyses/${aid}/report.html`, "What happened in the run: "]);
+  }
 
   const gapLabel = `gap ${injectedGapDeg} deg`;
-  const checks = [["compare", `${base}/api/runs/${run.id}/analyses/${aid}/report.html`, "What happened in the run: "],
-    ["run report", `${base}/api/runs/${run.id}/report.html?wait=1`, "What happened in adaptive"]];
+  checks.push(["run report", `${base}/api/runs/${run.id}/report.html?wait=1`, "What happened in adaptive"]);
   const seen = [];
   for (const [name, url, header] of checks) {
     const r = await reportMarks(browser, url, problems);
     if (r.errors) fail(`${name}: ${r.errors} plots could not be drawn`);
-    // Compare has 3 time plots (pressure, residual, drive angle): each marks both; the run report at least as many.
+    // Every plot against time marks both (compare: pressure, residual, drive angle, residual per
+    // window; diagnose also its before-and-after pressure and residual; at least 3 in each report).
     const withGap = r.plots.filter((p) => p.markers && p.markers.includes(gapLabel));
     const withFault = r.plots.filter((p) => p.markers && p.markers.some((m) => /^sensor stuck/.test(m)));
-    if (withGap.length < 3 || withFault.length < 3)
-      fail(`${name}: ${withGap.length} plots mark "${gapLabel}", ${withFault.length} the sensor fault (want 3): ${JSON.stringify(r.plots)}`);
+    if (r.plots.length < 3 || withGap.length < r.plots.length || withFault.length < r.plots.length)
+      fail(`${name}: of ${r.plots.length} time plots ${withGap.length} mark "${gapLabel}", ${withFault.length} the sensor fault: ${JSON.stringify(r.plots)}`);
     if (!r.bands.some((b) => /^sensor stuck/.test(b))) fail(`${name}: no shaded sensor-fault window in a legend: ${JSON.stringify(r.bands)}`);
     const said = r.paragraphs.find((t) => t.startsWith(header)) || "";
     if (!new RegExp(`${gapLabel} at \\d+\\.\\d{3} s`).test(said) || !/sensor stuck[^;]* \d+\.\d{3}-\d+\.\d{3} s/.test(said))

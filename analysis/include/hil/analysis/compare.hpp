@@ -44,7 +44,8 @@ AnalyzerOptions analyzer_options_for(const plant::Plant& model);
 
 // Report sections for one replay (used by compare and, for the final model, by diagnose).
 // `group` links the time plots' zoom. `marks`: the run's events (a run folder's events.jsonl
-// beside the measurement, run_marks_beside), labelled lines on the time plots, faults shaded.
+// beside the measurement, run_marks_beside), said in words first ("What happened in the run: ..."),
+// then labelled lines on the time plots, faults shaded.
 void add_residual_sections(report::Document& doc, const ResidualReport& r, const std::string& group,
                            const std::string& model_label, const report::RunMarks& marks = {});
 // The events of the run whose telemetry `data_file` is (events.jsonl in its folder), up to the
