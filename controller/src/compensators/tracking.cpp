@@ -33,6 +33,7 @@ struct TrackingState {
   double target_rad = 0;        // where the traverse takes the motor
   long presume_wait = 0;        // steps before the play model's flank may be trusted
   double ki_dt_rad_per_pa = 0;  // the integral controller's KI x period, as it last showed
+  double contact_s = 0;         // when the observer last confirmed contact with a flank
 };
 
 class TrackingCompensator final : public CompensatorOf<TrackingCompensator, TrackingState> {
@@ -121,13 +122,23 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
     ObserverInputs obs_in{in.cmd_step_rad, in.error_pa, in.p_meas_pa, in.motor_rad, in.tau_s, in.volume_m3, presumed};
     obs_in.noise_rms_pa = noise_pa;
+    const int touch_before = s.obs.touch;
     const ObserverOutputs obs = observer_.step(s.obs, obs_in);
+    if (obs.touch != 0 && touch_before == 0) s.contact_s = s.now_s;
 
-    // The gap: level and rate (alpha-beta). A measurement corrects the level extrapolated to now
-    // and the rate by the innovation over the time since the last one; between measurements the
-    // estimate follows the rate (a gap that wears open keeps opening between reversals).
+    // The gap: level and rate (alpha-beta). A measurement corrects the level extrapolated to its
+    // time and the rate by the innovation over the time since the last one; between measurements
+    // the estimate follows the rate (a gap that wears open keeps opening between reversals).
     if (!constant) {
-      if (obs.gap_measured) tracker_.measure(s.gap, obs.gap_measured_rad, s.now_s);
+      // The fit measures the motor's travel from its last push on the old flank (the observer's
+      // sample; its history counts these periods: sample i ends at (i + 1) periods) to the
+      // contact with the new one (when the observer confirmed it, a few filter constants late).
+      // The old push may be most of a reversal interval old: the damped loop (below) settles a
+      // step without a second push and the motor then holds still until the next reversal, so
+      // the measurement taken as of now would put a gap growing at 0.5 deg/s up to 0.3 deg behind.
+      if (obs.gap_measured)
+        tracker_.measure_travel(s.gap, obs.gap_measured_rad,
+                                static_cast<double>(s.obs.transition_extreme_at + 1) * setup_.period_s, s.contact_s);
       const double before = s.gap_est_rad;
       s.gap_est_rad = tracker_.estimate_rad(s.gap, s.now_s, s.gap_est_rad);
       // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
