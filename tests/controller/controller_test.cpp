@@ -148,6 +148,33 @@ TEST(Controller, TrackingFirstJumpAssumesThePriorGap) {
   }
 }
 
+// The tracking compensator's damping (docs/tracking_compensator.md section 5): the command also
+// integrates tau LP(dP/dt), so on a pressure ramp of slope r (the filters settled, the dead-band
+// of damping_sigmas off) it adds KI dT tau_obs r each period, tau_obs the scheduled chamber time
+// constant times the observer's time_constant_scale (0.9); with damping_gain 0 it adds nothing.
+TEST(Controller, TrackingDampingAddsKiTimesTauTimesTheSlope) {
+  for (const double gain : {0.0, 1.0}) {
+    auto p = nominal_params(Compensation::adaptive, "tracking");
+    const auto* info = find_compensator("tracking");
+    ASSERT_NE(info, nullptr);
+    p.compensator_params = hil::param_defaults(info->specs);
+    for (std::size_t i = 0; i < info->specs.size(); ++i) {
+      if (info->specs[i].key == "damping_gain") p.compensator_params[i] = gain;
+      if (info->specs[i].key == "damping_sigmas") p.compensator_params[i] = 0;
+    }
+    const Controller c(p);
+    auto s = c.initial_state(11 * kDeg, 1.05e6, +1);  // opening, the pressure above the reference
+    const double slope_pa_s = 50e3;
+    ControllerOutputs out;
+    for (int k = 0; k < 1500; ++k) out = c.step(s, {1.05e6 + slope_pa_s * k * p.period_s, 1e6, s.motor_model_rad});
+    EXPECT_EQ(out.motion_intention, +1);  // no reversal: every period's comp_rad is the damping
+    const double tau_obs_s = 0.9 * p.chamber.time_constant_s(1e6, s.volume_m3);
+    EXPECT_NEAR(out.comp_rad, gain * out.ki_rad_per_pa_s * p.period_s * tau_obs_s * slope_pa_s,
+                0.01 * out.ki_rad_per_pa_s * p.period_s * tau_obs_s * slope_pa_s)
+        << gain;
+  }
+}
+
 TEST(Controller, InvalidParametersAreRejected) {
   auto p = nominal_params(Compensation::constant, "robust");
   p.period_s = 0;

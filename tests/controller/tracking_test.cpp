@@ -93,6 +93,32 @@ TEST(TrackingGapTracker, AConstantGrowthIsPredictedExactlyFromTheSecondMeasureme
   }
 }
 
+// A fit measures the motor's travel from its last push on the old flank (at p) to the contact
+// with the new one (at c): with the play symmetric about the motor, half the gap at p plus half at
+// c. Taken as of the midpoint, a constant growth is predicted exactly from the second measurement
+// on; taken as of the contact, as if it were the gap then, it stays r (c - p) / 2 behind.
+TEST(TrackingGapTracker, ATravelMeasuresTheGapAtTheMidpointOfItsPushAndContact) {
+  const GapTracker tr{1, 1, 1 * kDeg, 6 * kDeg};
+  const double rate = 0.5 * kDeg;  // deg/s
+  auto gap = [&](double t) { return 1 * kDeg + rate * t; };
+  const double push[] = {0.3, 1.7, 3.1, 4.4}, contact[] = {1.05, 2.56, 3.2, 5.58};  // pushes as old as 1.2 s
+  GapTracker::State mid, at_contact;
+  for (int i = 0; i < 4; ++i) {
+    const double travel = gap(push[i]) / 2 + gap(contact[i]) / 2;
+    tr.measure_travel(mid, travel, push[i], contact[i]);
+    tr.measure(at_contact, travel, contact[i]);
+    if (i == 0) continue;
+    for (double later : {0.0, 1.5}) EXPECT_NEAR(tr.estimate_rad(mid, contact[i] + later, 0), gap(contact[i] + later), 1e-12);
+  }
+  EXPECT_NEAR(tr.estimate_rad(at_contact, contact[3], 0), gap(contact[3]) - rate * (contact[3] - push[3]) / 2, 1e-12);
+  // A push older than the last measurement's midpoint does not put the measurement before it.
+  GapTracker::State s;
+  tr.measure(s, 1 * kDeg, 2.0);
+  tr.measure_travel(s, 1.5 * kDeg, 0.5, 3.0);  // midpoint 1.75 < 2.0: taken as of 2.0
+  EXPECT_EQ(s.at_s, 2.0);
+  EXPECT_NEAR(tr.estimate_rad(s, 2.0, 0), 1.5 * kDeg, 1e-12);
+}
+
 TEST(TrackingGapTracker, AGrowthThatStopsIsLearntInTwoMeasurements) {
   const GapTracker tr{1, 1, 1 * kDeg, 6 * kDeg};
   GapTracker::State s;

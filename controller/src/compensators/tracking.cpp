@@ -28,10 +28,12 @@ struct TrackingState {
   // the play model of the law, on the motor's angle (the command leads it by the drive's lag)
   double gap_pos_rad = 0;  // believed motor position in the gap
   double motor_prev_rad = 0;
-  double cmd_rad = 0;     // the controller's integral command with the jumps, as sent
-  double lead_rad = 0;    // the traverse's lead still in cmd_rad (taken back on arrival)
-  double target_rad = 0;  // where the traverse takes the motor
-  long presume_wait = 0;  // steps before the play model's flank may be trusted
+  double cmd_rad = 0;           // the controller's integral command with the jumps, as sent
+  double lead_rad = 0;          // the traverse's lead still in cmd_rad (taken back on arrival)
+  double target_rad = 0;        // where the traverse takes the motor
+  long presume_wait = 0;        // steps before the play model's flank may be trusted
+  double ki_dt_rad_per_pa = 0;  // the integral controller's KI x period, as it last showed
+  double contact_s = 0;         // when the observer last confirmed contact with a flank
 };
 
 class TrackingCompensator final : public CompensatorOf<TrackingCompensator, TrackingState> {
@@ -48,7 +50,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
           with_fallback(kIntentionDeadbandSpec, 0.1),
       }},
       kObserverSpecs,
-      std::array<ParamSpec, 7>{{
+      std::array<ParamSpec, 9>{{
           {"level_gain", 1e-3, 1, false, false, 1.0, "share of a measurement's innovation taken into the gap level"},
           {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
           {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
@@ -56,6 +58,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
           with_fallback(kContactOverlapSpec, 0.15),
           {"lead_lags", 0, 10, false, false, 1.0, "the traverse's command leads the motor by this many slew x drive lag"},
           {"gap_prior_deg", 0, 90, false, false, 2.0, "the least gap the law assumes until one is measured (adaptive)"},
+          {"damping_gain", 0, 2, false, false, 1.0,
+           "share of tau x dP/dt added to the integral's error (1: it integrates P_eq - P_ref)"},
+          {"damping_sigmas", 0, 100, false, false, 1.0, "tau x dP/dt within this many sigmas of P_eq's noise is not added"},
       }});
   // Where each value sits in kSpecs.
   enum : std::size_t {
@@ -71,7 +76,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     kGapMax,
     kOverlap,
     kLeadLags,
-    kGapPrior
+    kGapPrior,
+    kDampingGain,
+    kDampingSigmas
   };
 
   TrackingCompensator(const CompensatorSetup& setup, std::span<const double> v)
@@ -83,7 +90,9 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
         contact_overlap_rad_(v[kOverlap] * units::kRadPerDeg),
         lead_rad_(v[kLeadLags] * setup.motor.rate_limit_rad_s * setup.motor.time_constant_s),
         reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s),
-        gap_prior_rad_(v[kGapPrior] * units::kRadPerDeg) {}
+        gap_prior_rad_(v[kGapPrior] * units::kRadPerDeg),
+        damping_gain_(v[kDampingGain]),
+        damping_sigmas_(v[kDampingSigmas]) {}
 
   TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     TrackingState s;
@@ -113,13 +122,23 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     const int presumed = !gap_known || s.presume_wait > 0 ? 0 : s.gap_pos_rad >= near ? 1 : s.gap_pos_rad <= -near ? -1 : 0;
     ObserverInputs obs_in{in.cmd_step_rad, in.error_pa, in.p_meas_pa, in.motor_rad, in.tau_s, in.volume_m3, presumed};
     obs_in.noise_rms_pa = noise_pa;
+    const int touch_before = s.obs.touch;
     const ObserverOutputs obs = observer_.step(s.obs, obs_in);
+    if (obs.touch != 0 && touch_before == 0) s.contact_s = s.now_s;
 
-    // The gap: level and rate (alpha-beta). A measurement corrects the level extrapolated to now
-    // and the rate by the innovation over the time since the last one; between measurements the
-    // estimate follows the rate (a gap that wears open keeps opening between reversals).
+    // The gap: level and rate (alpha-beta). A measurement corrects the level extrapolated to its
+    // time and the rate by the innovation over the time since the last one; between measurements
+    // the estimate follows the rate (a gap that wears open keeps opening between reversals).
     if (!constant) {
-      if (obs.gap_measured) tracker_.measure(s.gap, obs.gap_measured_rad, s.now_s);
+      // The fit measures the motor's travel from its last push on the old flank (the observer's
+      // sample; its history counts these periods: sample i ends at (i + 1) periods) to the
+      // contact with the new one (when the observer confirmed it, a few filter constants late).
+      // The old push may be most of a reversal interval old: the damped loop (below) settles a
+      // step without a second push and the motor then holds still until the next reversal, so
+      // the measurement taken as of now would put a gap growing at 0.5 deg/s up to 0.3 deg behind.
+      if (obs.gap_measured)
+        tracker_.measure_travel(s.gap, obs.gap_measured_rad,
+                                static_cast<double>(s.obs.transition_extreme_at + 1) * setup_.period_s, s.contact_s);
       const double before = s.gap_est_rad;
       s.gap_est_rad = tracker_.estimate_rad(s.gap, s.now_s, s.gap_est_rad);
       // Where the motor sits in the gap, in the new gap: on a flank it stays on that flank.
@@ -133,6 +152,23 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     s.motor_prev_rad = in.motor_rad;
     s.cmd_rad += in.cmd_step_rad;
     out.reversed = obs.reversed;
+    // Damping (docs/tracking_compensator.md section 5): the integral controller integrates
+    // P - P_ref, which lags the valve by the chamber's tau, so it winds on after the valve has
+    // gone far enough and the loop rings: an undershoot after a step, then an overshoot, each a
+    // reversal and a crossing of the whole gap. Adding KI dT tau LP(dP/dt) to the command makes
+    // it integrate P_eq - P_ref = LP(P) + tau LP(dP/dt) - P_ref, the pressure the valve holds now:
+    // the chamber's lag is cancelled and the loop no longer overshoots. KI dT is the controller's
+    // own, read from its step (cmd_step = KI dT error); tau dP/dt within damping_sigmas of P_eq's
+    // noise is left out, so the transducer's noise does not walk the motor across the gap.
+    if (in.error_pa != 0) s.ki_dt_rad_per_pa = in.cmd_step_rad / in.error_pa;
+    if (setup_.compensation != Compensation::none && damping_gain_ > 0) {
+      const double lead_pa = s.obs.p_eq_pa - s.obs.p_lp2;  // tau LP(dP/dt)
+      const double quiet_pa = damping_sigmas_ * observer_.p_eq_noise_pa(in.tau_s, noise_pa);
+      const double damp_rad =
+          damping_gain_ * s.ki_dt_rad_per_pa * std::copysign(std::max(std::abs(lead_pa) - quiet_pa, 0.0), lead_pa);
+      out.comp_rad += damp_rad;
+      s.cmd_rad += damp_rad;
+    }
     // The traverse's lead comes back out of the command once the motor will reach the target
     // within this step (at the slew limit), as the controller's own boost does.
     if (s.lead_rad != 0 && s.lead_rad * (s.target_rad - in.motor_rad) <= reach_rad_ * std::abs(s.lead_rad)) {
@@ -190,6 +226,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   NoiseEstimator noise_;
   GapTracker tracker_;
   double contact_overlap_rad_, lead_rad_, reach_rad_, gap_prior_rad_;
+  double damping_gain_, damping_sigmas_;
 };
 
 }  // namespace

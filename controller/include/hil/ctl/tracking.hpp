@@ -76,6 +76,13 @@ struct GapTracker {
     }
     s.at_s = now_s;
   }
+  // A gap measured as the motor's travel from its last push on one flank (at old_push_s) to its
+  // contact with the other (at contact_s): the play is symmetric about the motor, so the travel
+  // is half the gap at the one plus half the gap at the other, the gap at their midpoint for a
+  // growth linear over that time. Taken as of then (not before the last measurement).
+  void measure_travel(State& s, double gap_rad, double old_push_s, double contact_s) const noexcept {
+    measure(s, gap_rad, std::max(0.5 * (old_push_s + contact_s), s.at_s));
+  }
   // The gap now; `fallback` before the first measurement.
   double estimate_rad(const State& s, double now_s, double fallback) const noexcept {
     if (s.measurements == 0) return fallback;
