@@ -102,6 +102,14 @@ int run(int argc, char** argv) {
   std::string keep;         // keep the run folder here (telemetry.csv has every period's wake-up latency)
   std::string can;          // the CAN rig: "loopback" or a SocketCAN interface
   std::string compensator;  // empty: the campaign's own (robust)
+  const auto usage = [] {
+    std::fprintf(stderr,
+                 "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR] [--can "
+                 "loopback|IFACE] [--compensator NAME]\n");
+    return 2;
+  };
+  // Every option takes a value: a lone word (`--help`, a value forgotten) is the usage, not a run.
+  if (argc % 2 == 0) return usage();
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--hz")
@@ -120,12 +128,8 @@ int run(int argc, char** argv) {
       can = v;
     else if (a == "--compensator")
       compensator = v;
-    else {
-      std::fprintf(stderr,
-                   "usage: bench_rt_loop [--hz N] [--seconds S] [--priority P] [--cpu C] [--rig FILE] [--keep DIR] [--can "
-                   "loopback|IFACE] [--compensator NAME]\n");
-      return 2;
-    }
+    else
+      return usage();
   }
   // paper_adaptive, stretched to the benchmark's length and rate.
   const std::string text = hil::read_text_file(HIL_SOURCE_DIR "/configs/campaigns/paper_adaptive.yaml");
