@@ -6,6 +6,7 @@
 // 0.3 deg, where `robust` fails both.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -71,6 +72,53 @@ TEST(TrackingCorner, HoldsWhereTheRobustCompensatorFails) {
     // The same point defeats the robust compensator: the corner is a real test.
     EXPECT_GT(std::stod(rows[i][r_stall]), 0.5);
     EXPECT_GT(std::stod(rows[i][r_gap]), 0.3);
+  }
+}
+
+// The cells of the shipped sweep that held out longest (issue 42): the smallest gaps at 10 kPa with
+// a 5 ms drive lag, where `none`'s own stall is short and the command's noise shook the motor in
+// the gap (mean stall vs none 0.25-0.33 before the in-gap step filter, docs/tracking_compensator.md
+// section 6). Per cell of the 5 seeds, as the acceptance counts: mean stall_vs_none <= 0.25.
+TEST(TrackingCorner, SmallGapsAtTenKpaWithAFastDriveHoldTheMeanStall) {
+  TempDir dir;
+  const fs::path sweep =
+      dir.write("small.yaml", "name: small\ncampaign: " + source_path("configs/sweeps/compensators_campaign.yaml").string() +
+                                  "\nruns: [none, tracking]\naxes:\n"
+                                  "  - path: campaign.gap.initial_deg\n    values: [0.2, 0.35]\n"
+                                  "  - path: campaign.gap.changes[0].drift.to_deg\n"
+                                  "    relative_to: campaign.gap.initial_deg\n    values: [0, 0.5, 1]\n"
+                                  "  - path: campaign.sensor_noise_kpa\n    values: [10]\n"
+                                  "  - path: plant.effects.motor_servo.time_constant_s\n    values: [0.005]\n"
+                                  "  - path: campaign.seed\n    values: [1, 2, 3, 4, 5]\n");
+  const SweepPlan plan = plan_sweep(sweep);
+  ASSERT_EQ(plan.points.size(), 30u);
+  const fs::path out = dir.path() / "out";
+  fs::create_directories(out);
+  write_plan(out, plan);
+  SweepRunOptions options;
+  options.progress = false;
+  run_sweep(out, plan, options);
+  ASSERT_EQ(write_sweep_outputs(out, plan).missing, 0);
+
+  const auto rows = csv_rows(slurp(out / "sweep.csv"));
+  ASSERT_EQ(rows.size(), 31u);
+  auto column = [&](const std::string& name) {
+    const auto it = std::find(rows[0].begin(), rows[0].end(), name);
+    EXPECT_NE(it, rows[0].end()) << name;
+    return static_cast<std::size_t>(it - rows[0].begin());
+  };
+  const std::size_t gap0 = column("campaign.gap.initial_deg"), growth = column("campaign.gap.changes[0].drift.to_deg"),
+                    t_stall = column("tracking.stall_vs_none");
+  std::map<std::string, std::vector<double>> cells;
+  for (std::size_t i = 1; i < rows.size(); ++i)
+    cells[rows[i][gap0] + " deg, growth to +" + rows[i][growth]].push_back(std::stod(rows[i][t_stall]));
+  ASSERT_EQ(cells.size(), 6u);
+  for (const auto& [cell, stalls] : cells) {
+    SCOPED_TRACE(cell);
+    ASSERT_EQ(stalls.size(), 5u);
+    double sum = 0;
+    for (double s : stalls) sum += s;
+    EXPECT_LE(sum / 5, 0.25);
   }
 }
 

@@ -2,7 +2,9 @@
 // the RMS of white Gaussian noise on a chamber-like pressure (E|d2| = sqrt(12/pi) s), ignores a
 // pressure step, and reads nothing on a noise-free signal; the gap tracker predicts a gap growing
 // at a constant rate exactly from its second measurement on, learns a stop in two, and believes
-// no rate beyond its limit.
+// no rate beyond its limit; the in-gap step filter keeps of white steps the variance of one
+// first-order stage, alpha / (2 - alpha), passes a constant walk at its own speed, and loses no
+// step (at a flank all it held passes).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -141,6 +143,50 @@ TEST(TrackingGapTracker, NoRateBeyondItsLimitAndNoGapOutsideItsRange) {
   EXPECT_EQ(tr.estimate_rad(s, 9, 0), 6 * kDeg);  // the largest gap
   tr.measure(s, 0.2 * kDeg, 2);                   // shrinking fast: clamped at 0, not negative
   EXPECT_EQ(tr.estimate_rad(s, 30, 0), 0);
+}
+
+TEST(TrackingGapStepFilter, InTheGapWhiteStepsKeepOneStagesVarianceAndAWalkItsSpeed) {
+  const double alpha = 1 - std::exp(-kDt / 0.03);  // 30 ms, the default
+  const GapStepFilter f{alpha};
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0, 1e-5);
+  double held = 0, sum = 0, sum2 = 0;
+  const int n = 400000;
+  for (int k = 0; k < n; ++k) {
+    const double passed = f.pass_rad(held, noise(rng), true);
+    sum += passed;
+    sum2 += passed * passed;
+  }
+  // One first-order stage keeps alpha / (2 - alpha) of white noise's variance (0.033 at 30 ms).
+  EXPECT_NEAR(sum2 / n / (1e-5 * 1e-5), alpha / (2 - alpha), 0.03 * alpha / (2 - alpha));
+  // A constant walk (the integral's response to a steady error) passes at its own speed: in the
+  // steady state what is held is c (1 - alpha) / alpha, and every period passes c.
+  held = 0;
+  const double c = 2e-6;
+  double passed = 0;
+  for (int k = 0; k < 2000; ++k) passed = f.pass_rad(held, c, true);
+  EXPECT_NEAR(passed, c, 1e-12);
+  EXPECT_NEAR(held, c * (1 - alpha) / alpha, 1e-12);
+}
+
+TEST(TrackingGapStepFilter, NoStepIsLostAndAtAFlankAllThatIsHeldPasses) {
+  const GapStepFilter f{1 - std::exp(-kDt / 0.03)};
+  double held = 0, passed = 0, steps = 0;
+  for (int k = 0; k < 50; ++k) {
+    const double step = 1e-5 * std::sin(0.3 * k) + 3e-6;
+    steps += step;
+    passed += f.pass_rad(held, step, true);
+    EXPECT_NEAR(passed + held, steps, 1e-15);
+  }
+  EXPECT_GT(std::abs(held), 0);
+  // At a flank this period's step and all that was held reach the command now.
+  passed += f.pass_rad(held, 1e-6, false);
+  EXPECT_EQ(held, 0);
+  EXPECT_NEAR(passed, steps + 1e-6, 1e-15);
+  // With no filter (0 ms) every step passes unchanged.
+  const GapStepFilter none{1};
+  EXPECT_EQ(none.pass_rad(held, 4e-6, true), 4e-6);
+  EXPECT_EQ(held, 0);
 }
 
 }  // namespace

@@ -5,8 +5,10 @@
 // the robust one's (at each motion reversal a jump to the flank ahead, contact_overlap_deg past
 // it) made aware of the drive's lag: the play model of the gap runs on the motor's angle, not on
 // the command that leads it, and the jump carries a lead of slew x lag, taken back on arrival.
+// While the motor is inside the gap the command's steps are low-passed (the valve stands there,
+// so their noise is only stall).
 //
-// The noise estimator and the gap tracker are in hil/ctl/tracking.hpp.
+// The noise estimator, the gap tracker and the in-gap step filter are in hil/ctl/tracking.hpp.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -34,6 +36,7 @@ struct TrackingState {
   long presume_wait = 0;        // steps before the play model's flank may be trusted
   double ki_dt_rad_per_pa = 0;  // the integral controller's KI x period, as it last showed
   double contact_s = 0;         // when the observer last confirmed contact with a flank
+  double held_rad = 0;          // the command's steps held back while the motor is in the gap
 };
 
 class TrackingCompensator final : public CompensatorOf<TrackingCompensator, TrackingState> {
@@ -50,7 +53,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
           with_fallback(kIntentionDeadbandSpec, 0.1),
       }},
       kObserverSpecs,
-      std::array<ParamSpec, 9>{{
+      std::array<ParamSpec, 10>{{
           {"level_gain", 1e-3, 1, false, false, 1.0, "share of a measurement's innovation taken into the gap level"},
           {"rate_gain", 0, 2, false, false, 1.0, "share of the innovation over the time since the last one taken into the rate"},
           {"rate_max_deg_s", 0, 100, false, false, 1.0, "the largest gap growth (or shrink) rate believed"},
@@ -61,6 +64,8 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
           {"damping_gain", 0, 2, false, false, 1.0,
            "share of tau x dP/dt added to the integral's error (1: it integrates P_eq - P_ref)"},
           {"damping_sigmas", 0, 100, false, false, 1.0, "tau x dP/dt within this many sigmas of P_eq's noise is not added"},
+          {"gap_filter_ms", 0, 1e3, false, false, 30.0,
+           "inside the gap the command's steps are low-passed with this time constant (0: not)"},
       }});
   // Where each value sits in kSpecs.
   enum : std::size_t {
@@ -78,7 +83,8 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     kLeadLags,
     kGapPrior,
     kDampingGain,
-    kDampingSigmas
+    kDampingSigmas,
+    kGapFilter
   };
 
   TrackingCompensator(const CompensatorSetup& setup, std::span<const double> v)
@@ -92,7 +98,8 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
         reach_rad_(setup.motor.rate_limit_rad_s * setup.period_s),
         gap_prior_rad_(v[kGapPrior] * units::kRadPerDeg),
         damping_gain_(v[kDampingGain]),
-        damping_sigmas_(v[kDampingSigmas]) {}
+        damping_sigmas_(v[kDampingSigmas]),
+        gap_filter_{v[kGapFilter] > 0 ? 1 - std::exp(-setup.period_s / (v[kGapFilter] * 1e-3)) : 1.0} {}
 
   TrackingState initial(double theta_cmd_rad, double p_meas_pa, int touch) const noexcept {
     TrackingState s;
@@ -160,6 +167,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
     // the chamber's lag is cancelled and the loop no longer overshoots. KI dT is the controller's
     // own, read from its step (cmd_step = KI dT error); tau dP/dt within damping_sigmas of P_eq's
     // noise is left out, so the transducer's noise does not walk the motor across the gap.
+    double step_rad = in.cmd_step_rad;  // the command's step this period, the integral's and the damping's
     if (in.error_pa != 0) s.ki_dt_rad_per_pa = in.cmd_step_rad / in.error_pa;
     if (setup_.compensation != Compensation::none && damping_gain_ > 0) {
       const double lead_pa = s.obs.p_eq_pa - s.obs.p_lp2;  // tau LP(dP/dt)
@@ -168,6 +176,18 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
           damping_gain_ * s.ki_dt_rad_per_pa * std::copysign(std::max(std::abs(lead_pa) - quiet_pa, 0.0), lead_pa);
       out.comp_rad += damp_rad;
       s.cmd_rad += damp_rad;
+      step_rad += damp_rad;
+    }
+    // Inside the gap (docs/tracking_compensator.md section 6) the valve stands, so the command's
+    // noise only shakes the motor there: at 10 kPa and a 5 ms drive lag that shaking was most of
+    // the stall at gaps of 0.2-0.35 deg. The steps are low-passed while the play model puts the
+    // motor clear of both flanks (a known gap, no traverse under way); at a flank all passes.
+    if (setup_.compensation != Compensation::none) {
+      const bool in_gap =
+          gap_known && s.presume_wait == 0 && s.lead_rad == 0 && std::abs(s.gap_pos_rad) < gap / 2 - kFlankMarginRad;
+      const double held_back_rad = gap_filter_.pass_rad(s.held_rad, step_rad, in_gap) - step_rad;
+      out.comp_rad += held_back_rad;
+      s.cmd_rad += held_back_rad;
     }
     // The traverse's lead comes back out of the command once the motor will reach the target
     // within this step (at the slew limit), as the controller's own boost does.
@@ -194,6 +214,7 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
         const double jump_rad = s.target_rad - s.cmd_rad + s.lead_rad;
         out.comp_rad += jump_rad;
         s.cmd_rad += jump_rad;
+        s.held_rad = 0;  // the jump aims the command itself: steps held back before it are void
         // The drive needs the crossing at its slew limit plus a few lags to really get there.
         s.presume_wait =
             std::lround((travel_rad / setup_.motor.rate_limit_rad_s + 3 * setup_.motor.time_constant_s) / setup_.period_s);
@@ -227,6 +248,11 @@ class TrackingCompensator final : public CompensatorOf<TrackingCompensator, Trac
   GapTracker tracker_;
   double contact_overlap_rad_, lead_rad_, reach_rad_, gap_prior_rad_;
   double damping_gain_, damping_sigmas_;
+  GapStepFilter gap_filter_;
+  // The motor counts as in the gap only this far clear of a flank (0.01 deg): at the flank it
+  // pushes, the command's noise moves it back by thousandths of a degree, which must not turn the
+  // filter on while the valve is coupled.
+  static constexpr double kFlankMarginRad = 0.01 * units::kRadPerDeg;
 };
 
 }  // namespace

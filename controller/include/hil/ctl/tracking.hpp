@@ -1,5 +1,6 @@
-// The two estimators of the tracking compensator (controller/src/compensators/tracking.cpp,
-// derivation in docs/tracking_compensator.md), apart so they can be tested against closed forms.
+// The two estimators and the in-gap step filter of the tracking compensator
+// (controller/src/compensators/tracking.cpp, derivation in docs/tracking_compensator.md), apart
+// so they can be tested against closed forms.
 // Real-time safe: plain state, noexcept, no allocation.
 #pragma once
 
@@ -87,6 +88,25 @@ struct GapTracker {
   double estimate_rad(const State& s, double now_s, double fallback) const noexcept {
     if (s.measurements == 0) return fallback;
     return std::clamp(s.level_rad + s.rate_rad_s * (now_s - s.at_s), 0.0, gap_max_rad);
+  }
+};
+
+// The command's steps while the motor is inside the gap (docs/tracking_compensator.md section 6).
+// There the valve stands whatever the motor does, so the command's high-frequency part (the
+// integral's share of the transducer noise, KI dT per Pa every period) moves nothing the loop can
+// see and is stall when the motor's speed exceeds the metric's threshold. In the gap the steps
+// are low-passed (a first-order lag of time constant T: alpha = 1 - exp(-dT / T) of what is held
+// back passes each period); at a flank, or while a traverse is under way, all that is held passes
+// at once. No step is lost: what passed plus what is held is the sum of the steps.
+struct GapStepFilter {
+  double alpha = 1;  // per-period share of the held steps that passes in the gap (1: no filter)
+
+  // Takes one period's command step; returns what of the steps reaches the command this period.
+  double pass_rad(double& held_rad, double step_rad, bool in_gap) const noexcept {
+    held_rad += step_rad;
+    const double passed_rad = in_gap ? alpha * held_rad : held_rad;
+    held_rad -= passed_rad;
+    return passed_rad;
   }
 };
 
