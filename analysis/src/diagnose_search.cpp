@@ -225,6 +225,8 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
       fresh.push_back(vi != t.fit.variant);
     }
   }
+  std::vector<int> counted;  // replays round 1 already counted
+  for (const auto& f : forms) counted.push_back(f.fit.evaluations);
   parallel_for(forms.size(), ctx.threads, [&](std::size_t i) {
     VariantFit& f = forms[i].fit;
     if (fresh[i]) {
@@ -233,7 +235,7 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
     }
     refine_variant(ctx, base0, *forms[i].cand, f);
   });
-  for (const auto& f : forms) evaluations += f.fit.evaluations;
+  for (std::size_t i = 0; i < forms.size(); ++i) evaluations += forms[i].fit.evaluations - counted[i];
   auto dbic_alone = [&](const VariantFit& f) {
     return std::isfinite(f.wrss_full) ? ctx.criterion.delta_bic(f.wrss_full, r1.whitened_rss_before, f.k()) : kInf;
   };
