@@ -42,6 +42,9 @@ inline constexpr double kMinExcessShare = 0.25;  // of the model's excess error 
 inline constexpr double kMinNoiseShare = 0.05;   // of N sigma^2
 inline constexpr double kFloorTolerance = 1.1;   // RSS within 10 % of N sigma^2: at the noise floor
 inline constexpr double kSkipAtFloor = 1.03;     // RSS within 3 %: no candidate can earn its place
+// Two effects added at once (rescue_pair, diagnose_search.hpp) remove together what two added one
+// by one would have had to: a quarter of the excess each.
+inline constexpr double kPairExcessShare = 2 * kMinExcessShare;
 
 // Why a candidate does not earn its place against the current model (empty: it does): dBIC below
 // kBicMargin, and a real improvement: `gain` (RSS removed) at least a quarter of the excess

@@ -95,7 +95,18 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   RoundOutcome first = run_round(su, base0, {}, pool, d.evaluations);
   root.rss = first.round.rss_before_pa2;
   Path chosen;
-  if (first.earning.empty() || s.max_rounds < 1) {
+  // Round 1 added nothing above the floor while candidates fail only the excess share: two effects
+  // may mask each other; their pairs are fitted jointly (rescue_pair) and an accepted pair's path
+  // is continued as any other.
+  if (first.earning.empty() && s.max_rounds >= 2 && rescue_pair(su, base0, first, chosen, d.rescue, d.evaluations)) {
+    if (s.progress) {
+      spdlog::info("diagnose: round 1: nothing earns its place alone; pair rescue adds {} + {} ({:.1f} s)",
+                   chosen.added[0].cand->name, chosen.added[1].cand->name,
+                   std::chrono::duration<double>(Clock::now() - t_start).count());
+    }
+    continue_path(su, base0, pool, chosen, s.max_rounds, d.evaluations);
+  } else if (first.earning.empty() || s.max_rounds < 1) {
+    if (!d.rescue.empty()) first.round.note = "pair rescue: " + d.rescue;
     root.rounds.push_back(std::move(first.round));
     chosen = std::move(root);
     if (s.progress) spdlog::info("diagnose: round 1: nothing earns its place");

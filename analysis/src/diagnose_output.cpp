@@ -154,6 +154,7 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
         {{"effects", p.effects}, {"fit_pct", number(p.fit_pct)}, {"delta_bic_to_chosen", number(p.bic)}, {"chosen", p.chosen}});
   j["paths_followed"] = paths;
   j["revisions"] = d.revisions;
+  j["rescue"] = d.rescue;
   j["rivals"] = nlohmann::json::array();
   for (const auto& r : d.rivals)
     j["rivals"].push_back({{"effect", r.effect},
@@ -339,13 +340,14 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
     doc.heading("Round " + std::to_string(ri + 1) + ": candidates ranked against the model" +
                     (ri == 0 ? " as given" : " with the effects found so far"),
                 3);
-    if (!r.note.empty()) {
+    if (r.ranking.empty()) {
       doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) + " %. Not run: " + r.note + ".");
       continue;
     }
     doc.paragraph("Fit before this round " + text::fixed(r.fit_before_pct, 2) +
                   " %; dBIC on the residual prewhitened by the noise model, every row counted. " +
-                  (r.added.empty() ? std::string("Nothing earns its place: the search stops.") : "Added: " + r.added + "."));
+                  (r.added.empty() ? std::string("Nothing earns its place: the search stops.") : "Added: " + r.added + ".") +
+                  (r.note.empty() ? std::string() : " Note: " + r.note + "."));
     std::vector<std::vector<std::string>> rows;
     std::vector<std::string> cats;
     std::vector<double> explained;

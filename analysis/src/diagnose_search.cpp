@@ -125,6 +125,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     if (!std::isfinite(v.rss_full)) {
       if (c.why_not.empty()) c.why_not = "could not be fitted";
     } else if (std::string why = why_not_earning(c.delta_bic, gain, excess, su.noise_rss); !why.empty()) {
+      // Against no excess the share rule cannot fail: what is left is the dBIC and the noise share.
+      if (why_not_earning(c.delta_bic, gain, 0, su.noise_rss).empty()) out.short_of_share.push_back({pool[v.candidate], v});
       c.why_not = std::move(why);
     } else {
       c.earns_place = true;
@@ -132,6 +134,8 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     }
     rd.ranking.push_back(c);
   }
+  std::stable_sort(out.short_of_share.begin(), out.short_of_share.end(),
+                   [&](const Added& a, const Added& b) { return dbic(a.fit) < dbic(b.fit); });
   return out;
 }
 
@@ -187,6 +191,147 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     path.added.push_back(r.earning.front());
     path.rounds.push_back(std::move(r.round));
   }
+}
+
+bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome& first, Path& path, std::string& told,
+                 int& evaluations) {
+  const Round& r1 = first.round;
+  const Context& ctx = su.ctx;
+  const double excess = std::max(r1.rss_before_pa2 - su.noise_rss, 0.0);
+  if (r1.rss_before_pa2 <= kFloorTolerance * su.noise_rss || first.short_of_share.size() < 2) return false;
+  // Which pairs: every pair among the kRescueTop best by dBIC, and the best with each of the rest
+  // (the weaker member of a masking pair can rank anywhere: a file like e42 put the burn rate
+  // sixth, behind a sensor lag, a delay and a rate limit that each nibble at the misfit).
+  const std::size_t n_top = first.short_of_share.size();
+  auto paired = [&](std::size_t i, std::size_t j) { return i == 0 || j < kRescueTop; };
+  // Every form of each member, alone on every row: the form a candidate's fit alone prefers need
+  // not be the one the other effect masks (on e42 the burn rate's exponent n fitted best alone; the
+  // erosion cancels its coefficient a).
+  std::vector<Added> forms;
+  std::vector<std::size_t> member;  // forms[i] is a form of first.short_of_share[member[i]]
+  std::vector<char> fresh;          // not fitted in round 1
+  for (std::size_t m = 0; m < n_top; ++m) {
+    const Added& t = first.short_of_share[m];
+    for (std::size_t vi = 0; vi < t.cand->variants.size(); ++vi) {
+      if (t.cand->variants[vi].extension) continue;  // only in place of an accepted simpler form (extend_forms)
+      Added f = t;
+      if (vi != t.fit.variant) {
+        f.fit = VariantFit{};
+        f.fit.candidate = t.fit.candidate;
+        f.fit.variant = vi;
+      }
+      forms.push_back(std::move(f));
+      member.push_back(m);
+      fresh.push_back(vi != t.fit.variant);
+    }
+  }
+  std::vector<int> counted;  // replays round 1 already counted
+  for (const auto& f : forms) counted.push_back(f.fit.evaluations);
+  parallel_for(forms.size(), ctx.threads, [&](std::size_t i) {
+    VariantFit& f = forms[i].fit;
+    if (fresh[i]) {
+      fit_variant(ctx, base0, *forms[i].cand, f);
+      if (std::isfinite(f.rss_coarse)) evaluate_full(ctx, base0, *forms[i].cand, f);
+    }
+    refine_variant(ctx, base0, *forms[i].cand, f);
+  });
+  for (std::size_t i = 0; i < forms.size(); ++i) evaluations += forms[i].fit.evaluations - counted[i];
+  auto dbic_alone = [&](const VariantFit& f) {
+    return std::isfinite(f.wrss_full) ? ctx.criterion.delta_bic(f.wrss_full, r1.whitened_rss_before, f.k()) : kInf;
+  };
+  // Each member alone: its best form by the criterion; the bar for the other member beside it.
+  std::vector<std::size_t> alone(n_top, forms.size());
+  for (std::size_t i = 0; i < forms.size(); ++i)
+    if (alone[member[i]] == forms.size() || dbic_alone(forms[i].fit) < dbic_alone(forms[alone[member[i]]].fit))
+      alone[member[i]] = i;
+  auto pct = [](double part, double whole) { return text::num(100 * (whole > 0 ? part / whole : 0), 3) + " %"; };
+  struct Taken {
+    std::vector<Added> pair;
+    Score score;
+    double beside_dbic = kNaN;  // the second member against the first alone
+    std::size_t first = 0;      // the first member's index in `member`
+  };
+  Taken best;
+  double best_bic = kInf;
+  std::string tried;
+  for (std::size_t i = 0; i < n_top; ++i)
+    for (std::size_t j = i + 1; j < n_top; ++j) {
+      if (!paired(i, j)) continue;
+      // The two members' forms in every combination, refitted jointly; the lowest BIC stands for the pair.
+      std::vector<Added> pair;
+      Score sc;
+      double pair_bic = kInf;
+      for (std::size_t fa = 0; fa < forms.size(); ++fa)
+        for (std::size_t fb = 0; fb < forms.size(); ++fb) {
+          if (member[fa] != i || member[fb] != j) continue;
+          if (!std::isfinite(forms[fa].fit.rss_full) || !std::isfinite(forms[fb].fit.rss_full)) continue;
+          std::vector<Added> trial = {forms[fa], forms[fb]};  // the lower dBIC alone first
+          joint_refit(ctx, base0, trial, evaluations);
+          const Score t = score_of(ctx, apply_added(base0, trial));
+          evaluations += 1;
+          if (const double b = path_bic(su, trial, t.wrss); b < pair_bic) pair_bic = b, pair = std::move(trial), sc = t;
+        }
+      if (pair.empty()) continue;
+      const std::string name = pair[0].cand->name + " (" + pair[0].cand->variants[pair[0].fit.variant].name + ") + " +
+                               pair[1].cand->name + " (" + pair[1].cand->variants[pair[1].fit.variant].name + ")";
+      std::string why;
+      if (!(r1.rss_before_pa2 - sc.rss >= kPairExcessShare * excess))
+        why = "together " + pct(r1.rss_before_pa2 - sc.rss, excess) + " of the excess (needs " +
+              text::num(100 * kPairExcessShare, 3) + " %)";
+      double beside_dbic = kNaN;
+      std::string each;
+      for (std::size_t m = 0; m < 2 && why.empty(); ++m) {
+        const VariantFit& other = forms[alone[m == 0 ? j : i]].fit;  // the other member alone
+        const double dbic = ctx.criterion.delta_bic(sc.wrss, other.wrss_full, pair[m].fit.k());
+        const double left = std::max(other.rss_full - su.noise_rss, 0.0);
+        if (std::string w = why_not_earning(dbic, other.rss_full - sc.rss, left, su.noise_rss); !w.empty())
+          why = pair[m].cand->name + " beside " + pair[1 - m].cand->name + ": " + w;
+        each += (m ? "; " : "") + pair[m].cand->name + " beside " + pair[1 - m].cand->name + " dBIC " + text::num(dbic, 4) +
+                ", " + pct(other.rss_full - sc.rss, left) + " of the excess " + pair[1 - m].cand->name + " alone leaves";
+        if (m == 1) beside_dbic = dbic;
+      }
+      tried += (tried.empty() ? "" : "; ") + name + (why.empty() ? " taken (" : " not taken: ") +
+               (why.empty() ? "together " + pct(r1.rss_before_pa2 - sc.rss, excess) + " of the excess; " + each + ")" : why);
+      if (!why.empty()) continue;
+      if (pair_bic < best_bic) {
+        best_bic = pair_bic;
+        best = {std::move(pair), sc, beside_dbic, i};
+      }
+    }
+  told = "no single candidate removes " + text::num(100 * kMinExcessShare, 3) + " % of the excess, but " + std::to_string(n_top) +
+         " fail only that rule; fitted in pairs (among the best " + std::to_string(kRescueTop) +
+         " by dBIC, and the best with each other), every form of each: " + tried;
+  if (su.progress) spdlog::info("diagnose: round 1, pair rescue: {}", tried);
+  if (best.pair.empty()) return false;
+  const Added& a = best.pair[0];
+  const Added& b = best.pair[1];
+  path = Path{};
+  path.rounds.push_back(r1);
+  path.rounds.back().added = a.cand->name;
+  path.rounds.back().note = "pair rescue: " + told;
+  // The second member's round: against the first alone, with the pair's joint values.
+  Round r2;
+  const VariantFit& a_alone = forms[alone[best.first]].fit;
+  r2.rss_before_pa2 = a_alone.rss_full;
+  r2.whitened_rss_before = a_alone.wrss_full;
+  r2.fit_before_pct = fit_percent(a_alone.rss_full, su.spread, ctx.full.size());
+  CandidateResult c = describe(*b.cand, b.fit, apply_added(base0, {a}));
+  c.fit_before_pct = r2.fit_before_pct;
+  c.fit_after_pct = fit_percent(best.score.rss, su.spread, ctx.full.size());
+  c.rss_pa2 = best.score.rss;
+  c.delta_bic = best.beside_dbic;
+  const double left = std::max(a_alone.rss_full - su.noise_rss, 0.0);
+  c.excess_explained = left > 0 ? (a_alone.rss_full - best.score.rss) / left : 0;
+  c.earns_place = true;
+  c.why_not.clear();
+  r2.ranking.push_back(std::move(c));
+  r2.added = b.cand->name;
+  r2.note = "pair rescue: " + b.cand->name + " fitted jointly with " + a.cand->name + " (round 1), judged against " +
+            a.cand->name + " alone";
+  path.rounds.push_back(std::move(r2));
+  path.added = std::move(best.pair);
+  path.rss = best.score.rss, path.wrss = best.score.wrss;
+  return true;
 }
 
 // One free parameter of an effect in two variants of its candidate: the same effect and key.

@@ -40,6 +40,7 @@ inline constexpr int kRevisitPasses = 3;         // passes of one revisit that m
 inline constexpr int kFormRevisions = 2;         // times revise_variants may send the model back to the revisit
 inline constexpr int kForwardAgain = 2;          // forward rounds after a revision changed the model (diagnose)
 inline constexpr int kVariantPasses = 3;         // passes of revise_variants
+inline constexpr std::size_t kRescueTop = 3;     // candidates short only of the excess share fitted in pairs (rescue_pair)
 
 // Candidates, variants and grid values run on the threads through the one parallel loop
 // (hil/parallel_for.hpp): each index once, the first error (cancellation) rethrown.
@@ -139,6 +140,9 @@ struct Setup {
 struct RoundOutcome {
   Round round;
   std::vector<Added> earning;  // candidates that earn their place, best first
+  // Candidates that fail only the excess-share rule (dBIC below the margin, 5 % of the noise
+  // power), lowest dBIC first: what rescue_pair may fit in pairs.
+  std::vector<Added> short_of_share;
 };
 
 // Ranks the candidates of `pool` against base0 with `added`: fits, criterion, the ones that earn their place.
@@ -159,6 +163,22 @@ std::vector<const Candidate*> remaining(const std::vector<const Candidate*>& poo
 // Adds the chosen effect, refits jointly, and continues greedily until nothing earns its place.
 void continue_path(const Setup& su, const plant::Plant& base0, const std::vector<const Candidate*>& pool, Path& path,
                    int max_rounds, int& evaluations);
+
+// Round 1 added nothing although the model is above the noise floor: two effects can mask each
+// other (a higher burn rate and an eroded throat nearly cancel, so neither alone removes a quarter
+// of the excess), and every candidate then fails only the excess-share rule. Of
+// `first.short_of_share` (lowest dBIC first), every pair among the kRescueTop first and the first
+// with each of the rest is fitted jointly, every form of each (joint_refit, both free, from their
+// single fits and from fresh starts); a pair's forms with the lowest whole-model BIC stand for it. A pair is accepted when together they
+// remove kPairExcessShare of the excess (what two effects added one by one would have to) and
+// each earns its place beside the other by why_not_earning against the other alone (its single
+// fit on every row): dBIC, a quarter of the excess that the other leaves, 5 % of the noise power.
+// Of the accepted pairs the lowest whole-model BIC is kept: `path` gets round 1 (adding the
+// member with the lower dBIC alone) and a round for the second member against the first, and the
+// caller continues it as any path. `told` says which pairs were tried and why each was or was not
+// taken (round 1's note). False, `path` untouched, when no pair is accepted or none was tried.
+bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome& first, Path& path, std::string& told,
+                 int& evaluations);
 
 // BIC of a whole model (criterion.hpp): N ln W + k ln N, k all added effects' free parameters.
 double path_bic(const Setup& su, const std::vector<Added>& added, double wrss);

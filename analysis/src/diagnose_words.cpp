@@ -211,6 +211,7 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
         "something else; its signature:");
     signature_before();
   }
+  if (!d.rescue.empty()) out.push_back("Round 1, pair rescue: " + d.rescue + ".");
   // What the files themselves show comes first: a verdict on a file with a hole or stale readings
   // is read with that in mind.
   std::vector<std::string> log_lines;

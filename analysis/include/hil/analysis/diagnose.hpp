@@ -88,7 +88,9 @@ struct Round {
   double whitened_rss_before = 0;        // the criterion's: the residual whitened by the noise model
   std::vector<CandidateResult> ranking;  // best first (lowest dBIC)
   std::string added;                     // empty: nothing earned its place
-  std::string note;                      // why the round did not fit candidates, if it did not
+  // Why the round did not fit candidates (ranking empty), or how it chose differently from the
+  // ranking (a pair rescue, a revisit).
+  std::string note;
 };
 
 // One path of the search (a first choice followed greedily), for the report.
@@ -153,6 +155,7 @@ struct Diagnosis {
   std::string verdict;                         // explained | partly_explained | unexplained | nothing_missing
   std::vector<Alternative> paths;              // when the search followed several first choices
   std::vector<std::string> revisions;          // choices the forward-backward revisit changed, in words
+  std::string rescue;                          // round 1 added nothing: the pairs tried jointly, in words (empty: none)
   std::vector<ParamCorrelation> correlations;  // |rho| >= kReportCorrelation, between added effects
   std::vector<NotIdentifiable> not_identifiable;
   std::vector<Rival> rivals;         // explanations this file does not tell from the one found
