@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -15,11 +14,12 @@
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/bench/campaign/sweep.hpp"
 #include "hil/ctl/compensator.hpp"
-#include "temp_file.hpp"
+#include "sweep_rows.hpp"
 
 namespace {
 
 using namespace hil::bench;
+using hil::test::column;
 using hil::test::slurp;
 using hil::test::source_path;
 using hil::test::TempDir;
@@ -36,25 +36,6 @@ std::string campaign_yaml() {
          "controller:\n  test_known_gap: {jump_scale: 0.5}\n"
          "runs:\n  - name: none\n    compensation: none\n"
          "  - name: jump\n    compensation: constant\n    compensator: test_known_gap\n";
-}
-
-std::vector<std::vector<std::string>> csv(const std::string& text) {
-  std::vector<std::vector<std::string>> rows;
-  std::stringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> cells;
-    std::stringstream l(line);
-    for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
-    rows.push_back(cells);
-  }
-  return rows;
-}
-
-std::size_t column(const std::vector<std::string>& header, const std::string& name) {
-  const auto it = std::find(header.begin(), header.end(), name);
-  EXPECT_NE(it, header.end()) << name;
-  return static_cast<std::size_t>(it - header.begin());
 }
 
 TEST(CompensatorPart, RegisteredFromItsOwnFileWithItsSpecs) {
@@ -75,7 +56,7 @@ TEST(CompensatorPart, CampaignRunsItWithTheParametersOfItsBlock) {
   options.progress = false;
   run_campaign(c, options);
 
-  const auto rows = csv(slurp(dir.path() / "part/jump/telemetry.csv"));
+  const auto rows = hil::test::csv_rows(slurp(dir.path() / "part/jump/telemetry.csv"));
   const std::size_t comp = column(rows[0], "comp_deg"), intention = column(rows[0], "motion_intention");
   int jumps = 0, flips = 0;
   for (std::size_t i = 1; i < rows.size(); ++i) {
@@ -128,18 +109,8 @@ TEST(CompensatorPart, SweepSelectsItPerPoint) {
                                                      "    values: [test_known_gap, robust]\n"
                                                      "  - path: controller.test_known_gap.jump_scale\n"
                                                      "    values: [0, 1]\n");
-  const SweepPlan plan = plan_sweep(sweep);
-  ASSERT_EQ(plan.points.size(), 4u);
-  const fs::path out = dir.path() / "out";
-  fs::create_directories(out);
-  write_plan(out, plan);
-  SweepRunOptions options;
-  options.progress = false;
-  run_sweep(out, plan, options);
-  ASSERT_EQ(write_sweep_outputs(out, plan).missing, 0);
-
-  const auto rows = csv(slurp(out / "sweep.csv"));
-  ASSERT_EQ(rows.size(), 5u);
+  const auto rows = hil::test::run_sweep_rows(dir, sweep, 4);
+  ASSERT_FALSE(rows.empty());
   const std::size_t who = column(rows[0], "campaign.runs[1].compensator"),
                     scale = column(rows[0], "controller.test_known_gap.jump_scale"),
                     ratio = column(rows[0], "jump.stall_vs_none"), gap = column(rows[0], "jump.gap_error_deg");

@@ -7,33 +7,19 @@
 #include <gtest/gtest.h>
 
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
-#include "hil/bench/campaign/sweep.hpp"
-#include "temp_file.hpp"
+#include "sweep_rows.hpp"
 
 namespace {
 
 using namespace hil::bench;
-using hil::test::slurp;
+using hil::test::column;
+using hil::test::run_sweep_rows;
 using hil::test::source_path;
 using hil::test::TempDir;
 namespace fs = std::filesystem;
-
-std::vector<std::vector<std::string>> csv_rows(const std::string& text) {
-  std::vector<std::vector<std::string>> rows;
-  std::stringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::vector<std::string> cells;
-    std::stringstream l(line);
-    for (std::string c; std::getline(l, c, ',');) cells.push_back(c);
-    rows.push_back(cells);
-  }
-  return rows;
-}
 
 TEST(TrackingCorner, HoldsWhereTheRobustCompensatorFails) {
   TempDir dir;
@@ -45,26 +31,12 @@ TEST(TrackingCorner, HoldsWhereTheRobustCompensatorFails) {
                                    "    relative_to: campaign.gap.initial_deg\n    values: [2]\n"
                                    "  - path: campaign.sensor_noise_kpa\n    values: [10]\n"
                                    "  - path: plant.effects.motor_servo.time_constant_s\n    values: [0.05]\n");
-  const SweepPlan plan = plan_sweep(sweep);
-  ASSERT_EQ(plan.points.size(), 2u);
-  const fs::path out = dir.path() / "out";
-  fs::create_directories(out);
-  write_plan(out, plan);
-  SweepRunOptions options;
-  options.progress = false;
-  run_sweep(out, plan, options);
-  ASSERT_EQ(write_sweep_outputs(out, plan).missing, 0);
-
-  const auto rows = csv_rows(slurp(out / "sweep.csv"));
-  ASSERT_EQ(rows.size(), 3u);
-  auto column = [&](const std::string& name) {
-    const auto it = std::find(rows[0].begin(), rows[0].end(), name);
-    EXPECT_NE(it, rows[0].end()) << name;
-    return static_cast<std::size_t>(it - rows[0].begin());
-  };
-  const std::size_t gap0 = column("campaign.gap.initial_deg"), t_stall = column("tracking.stall_vs_none"),
-                    t_gap = column("tracking.gap_error_deg"), r_stall = column("robust.stall_vs_none"),
-                    r_gap = column("robust.gap_error_deg");
+  const auto rows = run_sweep_rows(dir, sweep, 2);
+  ASSERT_FALSE(rows.empty());
+  const auto& head = rows[0];
+  const std::size_t gap0 = column(head, "campaign.gap.initial_deg"), t_stall = column(head, "tracking.stall_vs_none"),
+                    t_gap = column(head, "tracking.gap_error_deg"), r_stall = column(head, "robust.stall_vs_none"),
+                    r_gap = column(head, "robust.gap_error_deg");
   for (std::size_t i = 1; i < rows.size(); ++i) {
     SCOPED_TRACE("initial gap " + rows[i][gap0] + " deg");
     EXPECT_LE(std::stod(rows[i][t_stall]), 0.5);
@@ -90,25 +62,12 @@ TEST(TrackingCorner, SmallGapsAtTenKpaWithAFastDriveHoldTheMeanStall) {
                                   "  - path: campaign.sensor_noise_kpa\n    values: [10]\n"
                                   "  - path: plant.effects.motor_servo.time_constant_s\n    values: [0.005]\n"
                                   "  - path: campaign.seed\n    values: [1, 2, 3, 4, 5]\n");
-  const SweepPlan plan = plan_sweep(sweep);
-  ASSERT_EQ(plan.points.size(), 30u);
-  const fs::path out = dir.path() / "out";
-  fs::create_directories(out);
-  write_plan(out, plan);
-  SweepRunOptions options;
-  options.progress = false;
-  run_sweep(out, plan, options);
-  ASSERT_EQ(write_sweep_outputs(out, plan).missing, 0);
-
-  const auto rows = csv_rows(slurp(out / "sweep.csv"));
-  ASSERT_EQ(rows.size(), 31u);
-  auto column = [&](const std::string& name) {
-    const auto it = std::find(rows[0].begin(), rows[0].end(), name);
-    EXPECT_NE(it, rows[0].end()) << name;
-    return static_cast<std::size_t>(it - rows[0].begin());
-  };
-  const std::size_t gap0 = column("campaign.gap.initial_deg"), growth = column("campaign.gap.changes[0].drift.to_deg"),
-                    t_stall = column("tracking.stall_vs_none");
+  const auto rows = run_sweep_rows(dir, sweep, 30);
+  ASSERT_FALSE(rows.empty());
+  const auto& head = rows[0];
+  const std::size_t gap0 = column(head, "campaign.gap.initial_deg"),
+                    growth = column(head, "campaign.gap.changes[0].drift.to_deg"),
+                    t_stall = column(head, "tracking.stall_vs_none");
   std::map<std::string, std::vector<double>> cells;
   for (std::size_t i = 1; i < rows.size(); ++i)
     cells[rows[i][gap0] + " deg, growth to +" + rows[i][growth]].push_back(std::stod(rows[i][t_stall]));
