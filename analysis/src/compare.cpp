@@ -319,8 +319,10 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
                         Series{.name = "RMS", .x = b.x, .y = rmsv, .color = "#ff7f0e", .dashed = true}},
              .hlines = {{0, "", false}},
              .height_px = 220};
-    if (against_time) report::mark_figure(f, marks, true);
-    doc.figure(f);
+    if (against_time)
+      marked(std::move(f));
+    else
+      doc.figure(f);
   };
   binned(d.vs_time, "Residual against time (per window)", true);
   binned(d.vs_burned, "Residual against burned propellant (model)");
