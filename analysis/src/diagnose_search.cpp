@@ -208,8 +208,8 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
   // not be the one the other effect masks (on e42 the burn rate's exponent n fitted best alone; the
   // erosion cancels its coefficient a).
   std::vector<Added> forms;
-  std::vector<std::size_t> member;  // forms[i] is a form of first.short_of_share[member[i]]
-  std::vector<char> fresh;          // not fitted in round 1
+  std::vector<std::vector<std::size_t>> forms_of(n_top);  // each member's forms, indices into `forms`
+  std::vector<char> fresh;                                // not fitted in round 1
   for (std::size_t m = 0; m < n_top; ++m) {
     const Added& t = first.short_of_share[m];
     for (std::size_t vi = 0; vi < t.cand->variants.size(); ++vi) {
@@ -220,8 +220,8 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
         f.fit.candidate = t.fit.candidate;
         f.fit.variant = vi;
       }
+      forms_of[m].push_back(forms.size());
       forms.push_back(std::move(f));
-      member.push_back(m);
       fresh.push_back(vi != t.fit.variant);
     }
   }
@@ -240,16 +240,17 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
     return std::isfinite(f.wrss_full) ? ctx.criterion.delta_bic(f.wrss_full, r1.whitened_rss_before, f.k()) : kInf;
   };
   // Each member alone: its best form by the criterion; the bar for the other member beside it.
-  std::vector<std::size_t> alone(n_top, forms.size());
-  for (std::size_t i = 0; i < forms.size(); ++i)
-    if (alone[member[i]] == forms.size() || dbic_alone(forms[i].fit) < dbic_alone(forms[alone[member[i]]].fit))
-      alone[member[i]] = i;
+  std::vector<std::size_t> alone(n_top);
+  for (std::size_t m = 0; m < n_top; ++m)
+    alone[m] = *std::min_element(forms_of[m].begin(), forms_of[m].end(), [&](std::size_t x, std::size_t y) {
+      return dbic_alone(forms[x].fit) < dbic_alone(forms[y].fit);
+    });
   auto pct = [](double part, double whole) { return text::num(100 * (whole > 0 ? part / whole : 0), 3) + " %"; };
   struct Taken {
     std::vector<Added> pair;
     Score score;
     double beside_dbic = kNaN;  // the second member against the first alone
-    std::size_t first = 0;      // the first member's index in `member`
+    std::size_t first = 0;      // the first member's index in first.short_of_share
   };
   Taken best;
   double best_bic = kInf;
@@ -261,9 +262,8 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
       std::vector<Added> pair;
       Score sc;
       double pair_bic = kInf;
-      for (std::size_t fa = 0; fa < forms.size(); ++fa)
-        for (std::size_t fb = 0; fb < forms.size(); ++fb) {
-          if (member[fa] != i || member[fb] != j) continue;
+      for (const std::size_t fa : forms_of[i])
+        for (const std::size_t fb : forms_of[j]) {
           if (!std::isfinite(forms[fa].fit.rss_full) || !std::isfinite(forms[fb].fit.rss_full)) continue;
           std::vector<Added> trial = {forms[fa], forms[fb]};  // the lower dBIC alone first
           joint_refit(ctx, base0, trial, evaluations);
