@@ -298,11 +298,9 @@ std::string replay() {
     for (const auto& c : cases) {
       const std::string request = request_text(c, port, run);
       const std::string shown = c.raw.empty() ? c.method + " " + c.target : "raw: " + c.raw.substr(0, c.raw.find('\r'));
-      out += "### " + shown +
-             (c.auth == Auth::none  ? " (no token)"
-              : c.auth == Auth::bad ? " (wrong token)"
-                                    : "") +
-             (c.body.empty() ? "" : " " + c.body.substr(0, 80)) + "\n";
+      out += "### " + shown + (c.auth == Auth::none ? " (no token)" : c.auth == Auth::bad ? " (wrong token)" : "");
+      if (!c.body.empty()) out.append(" ").append(c.body, 0, 80);
+      out += "\n";
       out += record(exchange(port, request), c) + "\n";
     }
   };

@@ -108,7 +108,9 @@ TEST(LiveChecks, DecidedAsSoonAsTheRecordsAllowAndAsTheEndSays) {
     const LiveCheck& l = live.at(f.check);
     EXPECT_EQ(l.result.value, f.value) << f.check;
     EXPECT_EQ(l.result.samples, f.samples) << f.check;
-    if (l.decided) EXPECT_STREQ(to_string(l.verdict), to_string(f.verdict)) << f.check;
+    if (l.decided) {
+      EXPECT_STREQ(to_string(l.verdict), to_string(f.verdict)) << f.check;
+    }
   }
   EXPECT_TRUE(live.at("safe").decided);
   EXPECT_NEAR(live.at("steps").result.value, 0.5 * std::exp(-1.0) / 1.5, 1e-9);

@@ -24,7 +24,11 @@ using hil::test::source_path;
 
 namespace {
 
-std::string q(const std::filesystem::path& p) { return "'" + p.string() + "'"; }
+std::string q(const std::filesystem::path& p) {
+  std::string quoted(1, '\'');
+  quoted.append(p.string()).push_back('\'');
+  return quoted;
+}
 
 // Two runs of 1.5 s (1 500 periods each): a check that passes, one that cannot.
 std::filesystem::path short_campaign(const hil::test::TempDir& dir) {

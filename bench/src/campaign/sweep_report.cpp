@@ -54,12 +54,6 @@ std::size_t index_of(const std::vector<std::string>& names, const std::string& n
   return static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
 }
 
-const SweepBound* bound_of(const SweepPlan& plan, const std::string& metric) {
-  for (const auto& t : plan.thresholds)
-    if (t.metric == metric) return &t;
-  return nullptr;
-}
-
 std::string bound_text(const SweepBound& b) {
   std::string s = b.metric;
   if (b.min) s += " >= " + number_text(*b.min);

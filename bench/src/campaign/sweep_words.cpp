@@ -70,6 +70,11 @@ bool ends_with(std::string_view s, std::string_view tail) {
   return s.size() > tail.size() && s.substr(s.size() - tail.size()) == tail;
 }
 
+// `keys` is the last dotted part(s) of `rest`: "a.b.keys", not "a.bkeys".
+bool ends_with_key(std::string_view rest, std::string_view keys) {
+  return ends_with(rest, keys) && rest[rest.size() - keys.size() - 1] == '.';
+}
+
 // The keys of an axis path without its list indices: "campaign.gap.changes[0].drift.to_deg" ->
 // {campaign, gap, changes, drift, to_deg}.
 std::vector<std::string> keys_of(const std::string& path) {
@@ -199,7 +204,7 @@ AxisWords axis_words(const SweepPlan& plan, const SweepAxis& a) {
         rest += keys[i];
       }
       for (const CampaignKey& k : kCampaignKeys) {
-        if (rest == k.keys || ends_with(rest, "." + std::string(k.keys))) {
+        if (rest == k.keys || ends_with_key(rest, k.keys)) {
           says_increment = !a.relative_to.empty() && !k.relative.empty();
           w.label = says_increment ? k.relative : k.label;
           break;

@@ -41,7 +41,7 @@
 namespace hil::analysis {
 
 struct FittedParam {
-  std::string effect, key;
+  std::string effect{}, key{};
   double value = 0;
   double sigma = 0;        // 1-sigma; NaN when not computed (grid-searched step times)
   double model_value = 0;  // in the model before the fit (NaN: the block is new)
@@ -64,7 +64,7 @@ struct FittedParam {
   std::string limit_text() const;  // " (at the end of its search range, LO to HI: ...)", or empty
   // What the nominal plant makes credible (candidates.hpp FreeParam::credible_*; NaN: no bound).
   double credible_lo = std::numeric_limits<double>::quiet_NaN(), credible_hi = std::numeric_limits<double>::quiet_NaN();
-  std::string credible_why;
+  std::string credible_why{};
   bool implausible() const { return std::isfinite(value) && (value < credible_lo || value > credible_hi); }
   std::string plausibility_text() const;  // " (implausible: beyond ...)", or empty
 };

@@ -43,8 +43,8 @@ struct RigKindInfo {
   std::string_view kind{};  // the rig file's `kind:`; set by HIL_REGISTER_RIG_KIND from its first argument
   std::string_view doc;     // one line, for listings
   // Declared by a kind without devices (sim); a kind with a drive gets capabilities_of(devices).
-  RigCapabilities capabilities;
-  RigDeviceNeeds devices;
+  RigCapabilities capabilities{};
+  RigDeviceNeeds devices{};
   // A new, unconfigured rig of this kind from its validated file (opens nothing; the clients open
   // their devices at configure). `can_transport` carries CAN frames (empty: SocketCAN).
   std::unique_ptr<Rig> (*make)(const RigKindInfo& self, const RigConfig& config, const drv::CanTransportFactory& can_transport);
