@@ -33,7 +33,7 @@ window.hilEvents = function hilEvents({ $, body, apiText, ApiRefusal, onMarks })
   const kUnits = [["_deg", " deg"], ["_mpa", " MPa"], ["_kpa", " kPa"], ["_us", " µs"], ["_ms", " ms"], ["_s", " s"]];
   // What a few kinds say in a sentence of their own; the rest list their fields.
   const kSaid = {
-    gap_change: (e) => "true gap " + e.gap_deg + " deg from now on",
+    gap_change: (e) => "true gap " + (typeof e.gap_deg === "number" ? String(+e.gap_deg.toFixed(6)) : "?") + " deg from now on",
     gap_programme: () => "the gap follows the campaign's programme again",
     loop_start: (e) => [W.realtime(e.sched), W.cpuLatency(e.cpu_dma_latency), e.warning, e.mlock_warning].filter((x) => x).join("; "),
   };
