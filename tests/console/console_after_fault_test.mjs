@@ -14,7 +14,7 @@
 //  - words: the loop's scheduling and the CPU latency in words, no plot title cut on a phone
 //    (390x844), the link state shown there while live; 3 000 overruns over three seconds
 //    (appended to the aborted run's events.jsonl) are one "overruns" line with their count.
-// Screenshots at 1400x900 and 390x844 after the restart are kept in the temp folder
+// Screenshots at 1400x900 and 390x844 after the restart, after the abort and during the new run are kept in the temp folder
 // (HIL_KEEP_SCREENSHOTS=1 keeps it). Times are printed; the one bound asserted (5 s) is the issue's.
 //   node console_after_fault_test.mjs HILBENCH_EXE SOURCE_DIR
 import { appendFileSync } from "node:fs";
@@ -139,6 +139,11 @@ async function main() {
   if (!(await waitFor(page, "the badge says SAFE after the abort", () => document.body.dataset.state === "idle" && document.body.dataset.badge === "safe" &&
       getComputedStyle(document.getElementById("state")).textTransform === "uppercase" && document.getElementById("state").textContent === "safe", undefined, 30_000))) return;
   const aborted = await panels(page);
+  await page.screenshot({ path: join(dir, "after-abort-1400.png") });
+  await page.setViewport({ width: 390, height: 844 });
+  await sleep(400);
+  await page.screenshot({ path: join(dir, "after-abort-390.png") });
+  await page.setViewport({ width: 1400, height: 900 });
   if (!/last: run 'none' of paper_adaptive aborted at \d\d:\d\d:\d\d: operator abort/.test(aborted.what)) fail("the header after the abort: " + aborted.what);
 
   // 3 000 overruns over three seconds of the aborted run: one line with their count on a page opened now.
@@ -165,6 +170,11 @@ async function main() {
   if (!(await waitFor(page, "the latch marked as the previous run's", () => document.body.dataset.latchedPrevious === "1" &&
       /^Previous run: SAFE STATE in run 'none'/.test(document.getElementById("latch-text").textContent)))) return;
   await waitFor(page, "the third run's checks only", (d) => document.body.dataset.verdictsDirs === d, third);
+  await page.screenshot({ path: join(dir, "new-run-1400.png") });
+  await page.setViewport({ width: 390, height: 844 });
+  await sleep(400);
+  await page.screenshot({ path: join(dir, "new-run-390.png") });
+  await page.setViewport({ width: 1400, height: 900 });
   const during = await h.openConsole(base, "paper_adaptive", problems);
   if (!during) return;
   if (!(await waitFor(during, "a page opened during the run shows its checks only", (d) => document.body.dataset.liveRun === "none" &&
