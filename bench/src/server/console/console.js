@@ -153,7 +153,7 @@
         refreshRuns();
       } else if (m.type === "dropped") {
         droppedTotal = m.total;
-        events.add("dropped", m.messages + " telemetry messages dropped (" + m.why + ")", "");
+        events.add("dropped", W.plural(m.messages, "telemetry message") + " dropped (" + m.why + ")", "");
       }
     };
   }

@@ -78,7 +78,8 @@ window.hilVerdicts = function hilVerdicts({ $, body }) {
     tr.dataset.verdict = v.state === "running" ? "pending" : "none";
     const td = document.createElement("td");
     td.colSpan = 4;
-    td.textContent = W.run(run) + ": " + (v.state === "running" ? "under way; its checks show as they are judged" : W.ended({ ...v, run, outcome: v.state }, { noCampaign: true }) + "; no checks judged");
+    td.textContent = v.state === "running" ? W.run(run) + " under way; its checks show as they are judged" :
+      W.ended({ ...v, run, outcome: v.state }, { noCampaign: true }) + "; no checks judged";
     td.className = "about";
     tr.append(td);
     return tr;
