@@ -1,10 +1,12 @@
 // The console's trust parts without a server (issue 40): the operator link's rule (operator_link.hpp)
 // on made-up times, the stream's state for a runner status (status_stream.hpp), the event feed by
 // offset (event_feed.hpp) on a written events.jsonl, and the rig file's require_operator keys with
-// their located errors. The same parts run in the real server in tests/console/console_link_test.mjs.
+// their located errors; what a restarted server's status says of the last run (issue 52). The same
+// parts run in the real server in tests/console/console_link_test.mjs and console_after_fault_test.mjs.
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <string>
@@ -99,6 +101,74 @@ TEST(StatusStream, SafeIsACommandedSafeStateTrippedAnInterlockEachWithItsReason)
   EXPECT_EQ(m["state"], "idle");
   EXPECT_TRUE(m["reason"].is_null());
   EXPECT_EQ(m["last"]["outcome"], "aborted");
+}
+
+// The status carries the last run's end whatever the state, and which campaign of its name runs.
+TEST(StatusStream, CarriesTheLastRunAndTheCampaignsStart) {
+  const json last_run = {{"dir", "d"}, {"run", "none"}, {"outcome", "interrupted"}, {"reason", "why"}};
+  json m = hil::bench::status_message({{"state", "idle"}, {"last_run", last_run}}, 1, 0);
+  EXPECT_EQ(m["last_run"], last_run);
+  m = hil::bench::status_message(
+      {{"state", "running"}, {"campaign_started_utc", "2026-12-08T03:00:00.000Z"}, {"last_run", last_run}}, 2, 0);
+  EXPECT_EQ(m["campaign_started_utc"], "2026-12-08T03:00:00.000Z");
+  EXPECT_EQ(m["last_run"]["outcome"], "interrupted");
+}
+
+namespace {
+// A run folder with a run.json of `outcome` (no lock held: its server is gone).
+std::filesystem::path run_folder(const std::filesystem::path& runs, const std::string& name, hil::bench::Outcome outcome) {
+  hil::bench::RunRecord r;
+  r.campaign = "paper_adaptive";
+  r.run = name.substr(name.rfind('_') + 1);
+  r.start_utc = "2026-12-08T03:00:00.000Z";
+  r.pid = 4242;
+  r.period_s = 1e-3;
+  r.duration_s = 18;
+  r.outcome = outcome;
+  if (outcome != hil::bench::Outcome::running) r.stop_utc = "2026-12-08T03:00:18.000Z", r.reason = "operator abort: x";
+  r.ended = outcome != hil::bench::Outcome::running;  // the end keys, "trip" among them, are written
+  if (outcome == hil::bench::Outcome::aborted) r.trip = hil::bench::RunRecord::Trip{"operator abort", 4.0, {}, {}};
+  const auto dir = runs / name;
+  std::filesystem::create_directories(dir);
+  hil::bench::write_run_record(dir, r);
+  return dir;
+}
+}  // namespace
+
+// At a server's start the newest ended run is the status's last_run: a run its dead server left
+// "running" once marked interrupted (with the restarted server's reason), else the newest one that
+// ended; a folder that is a symbolic link, holds no run.json or an unreadable one is passed over.
+TEST(LastRun, TheNewestEndedRunOfTheRunsFolderAfterTheInterruptedScan) {
+  using hil::bench::Outcome;
+  const hil::test::TempDir runs;
+  EXPECT_FALSE(hil::bench::newest_ended_run(runs.path()).has_value());
+  run_folder(runs.path(), "20261208T030000Z_paper_adaptive_adaptive", Outcome::aborted);
+  std::filesystem::create_directories(runs.path() / "20261208T040000Z_paper_adaptive_empty");
+  const auto bad = runs.path() / "20261208T050000Z_paper_adaptive_bad";
+  std::filesystem::create_directories(bad);
+  std::ofstream(bad / "run.json") << "{not json";
+  std::filesystem::create_directory_symlink(runs.path() / "20261208T030000Z_paper_adaptive_adaptive",
+                                            runs.path() / "20261208T060000Z_paper_adaptive_link");
+  auto last = hil::bench::newest_ended_run(runs.path());
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->dir, "20261208T030000Z_paper_adaptive_adaptive");
+  EXPECT_EQ(last->outcome, Outcome::aborted);
+  EXPECT_EQ(last->to_json()["trip"], "operator abort");
+  EXPECT_EQ(last->to_json()["outcome"], "aborted");
+
+  run_folder(runs.path(), "20261208T070000Z_paper_adaptive_none", Outcome::running);  // its server was killed
+  EXPECT_EQ(hil::bench::newest_ended_run(runs.path())->dir,
+            "20261208T030000Z_paper_adaptive_adaptive");  // a run under way is no end
+  ASSERT_EQ(hil::bench::mark_interrupted_runs(runs.path()).size(), 1u);
+  last = hil::bench::newest_ended_run(runs.path());
+  ASSERT_TRUE(last.has_value());
+  EXPECT_EQ(last->dir, "20261208T070000Z_paper_adaptive_none");
+  EXPECT_EQ(last->run, "none");
+  EXPECT_EQ(last->outcome, Outcome::interrupted);
+  ASSERT_TRUE(last->reason.has_value());
+  EXPECT_NE(last->reason->find("pid 4242"), std::string::npos) << *last->reason;
+  EXPECT_FALSE(last->stop_utc.empty());
+  EXPECT_TRUE(last->to_json()["trip"].is_null());
 }
 
 TEST(EventFeed, OperatorEventsWholeOverrunsPerSecondAndOnlyWholeLinesFromAnOffset) {

@@ -93,7 +93,7 @@ async function main() {
   if (atFail.rows.calm_first_second?.verdict !== "pass" || atFail.rows.calm_first_second.cells[1] !== "pass")
     fail("calm_first_second when early_error_fails turned FAIL: " + JSON.stringify(atFail.rows.calm_first_second));
   const summary = await page.$eval("#verdict-summary", (e) => e.textContent);
-  if (!/adaptive under way at \d+\.\d s: 1 failed, 1 pass so far, 2 pending/.test(summary)) fail("summary while running: " + summary);
+  if (!/run 'adaptive' under way at \d+\.\d s: 1 failed, 1 pass so far, 2 pending/.test(summary)) fail("summary while running: " + summary);
 
   // Stop: the final verdicts replace the live ones and agree with them.
   await page.click("#stop");

@@ -120,6 +120,7 @@ int run_serve(const ServeArgs& args) {
   ro.runs_dir = api.runs_dir;
   ro.version = HIL_VERSION;
   ro.mlock_warning = mlock_warning;
+  ro.last_run = newest_ended_run(api.runs_dir);  // an interrupted run above included: the console says what became of it
   ro.on_row = [&hub](const TelemetryRecord& r) { hub.publish_row(r); };
   ro.on_notice = [&hub](const nlohmann::json& j) {
     hub.publish_notice(j);

@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include <fstream>
+#include <functional>
 #include <optional>
 
 #include <spdlog/spdlog.h>
@@ -181,6 +182,25 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
   }
   std::sort(marked.begin(), marked.end());
   return marked;
+}
+
+std::optional<LastRun> newest_ended_run(const std::filesystem::path& runs_dir) {
+  constexpr std::size_t kLooked = 50;  // folders without an ended record (analyses, a live run) passed over
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
+    if (!e.is_symlink() && e.is_directory() && plain_file(e.path() / "run.json")) names.push_back(e.path().filename().string());
+  }
+  std::sort(names.begin(), names.end(), std::greater<>());
+  for (std::size_t i = 0; i < names.size() && i < kLooked; ++i) {
+    try {
+      const RunRecord r = read_run_record_inside(runs_dir / names[i]);
+      if (r.outcome != Outcome::running) return LastRun::of(names[i], r);
+    } catch (const std::exception& ex) {
+      spdlog::warn("{}: unreadable run.json ({}); not the last run", (runs_dir / names[i]).string(), ex.what());
+    }
+  }
+  return std::nullopt;
 }
 
 }  // namespace hil::bench

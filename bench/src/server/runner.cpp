@@ -84,7 +84,29 @@ struct CampaignRunner::Active {
   std::vector<std::pair<std::string, RunSummary>> summaries;  // of finished runs, for checks against another run
 };
 
-CampaignRunner::CampaignRunner(RunnerOptions options) : o_(std::move(options)) {}
+CampaignRunner::CampaignRunner(RunnerOptions options) : o_(std::move(options)), last_run_(o_.last_run) {}
+
+LastRun LastRun::of(const std::string& dir, const RunRecord& r) {
+  return {dir,
+          r.campaign,
+          r.run,
+          r.start_utc,
+          r.stop_utc.value_or(""),
+          r.outcome,
+          r.reason,
+          r.trip ? std::optional(r.trip->reason) : std::nullopt};
+}
+
+json LastRun::to_json() const {
+  return {{"dir", dir},
+          {"campaign", campaign},
+          {"run", run},
+          {"start_utc", start_utc},
+          {"stop_utc", stop_utc},
+          {"outcome", to_string(outcome)},
+          {"reason", reason ? json(*reason) : json(nullptr)},
+          {"trip", trip ? json(*trip) : json(nullptr)}};
+}
 
 CampaignRunner::~CampaignRunner() {
   {
@@ -368,6 +390,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     notice({{"type", "run_start"},
             {"t_s", 0.0},  // the new run's clock (the stream's last row is the previous run's end)
             {"campaign", c.name},
+            {"campaign_started_utc", utc_iso(a.started_utc)},
             {"run", run.name},
             {"dir", dir.filename().string()},
             {"period_s", c.period_s},
@@ -429,6 +452,7 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
       {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", reason_or_null}};
   json end = {{"type", "run_end"},
               {"campaign", c.name},
+              {"campaign_started_utc", utc_iso(a.started_utc)},
               {"run", run.name},
               {"dir", dir.filename().string()},
               {"outcome", to_string(outcome)},
@@ -436,6 +460,10 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
               // the interlock that ended it, or "operator abort" (the console latches SAFE or TRIPPED on it)
               {"trip", info.trip ? json(info.trip->reason) : json(nullptr)}};
   if (!info.checks.is_null()) summary["checks"] = end["checks"] = info.checks;
+  {
+    std::lock_guard lock(mutex_);
+    last_run_ = LastRun::of(dir.filename().string(), info);
+  }
   notice(end);
   std::lock_guard lock(mutex_);
   a.finished.push_back(summary);
@@ -445,6 +473,7 @@ json CampaignRunner::status() const {
   std::lock_guard lock(mutex_);
   json s;
   s["last"] = last_.is_null() ? json(nullptr) : last_;
+  s["last_run"] = last_run_ ? last_run_->to_json() : json(nullptr);
   if (!active_) {
     s["state"] = "idle";
     return s;
@@ -452,6 +481,7 @@ json CampaignRunner::status() const {
   const Active& a = *active_;
   const Campaign& c = a.req.campaign;
   s["campaign"] = c.name;
+  s["campaign_started_utc"] = utc_iso(a.started_utc);  // which campaign of that name: a console's panels belong to one
   s["source"] = a.req.source;
   s["rig"] = a.req.rig.name;
   s["speed"] = a.req.speed;

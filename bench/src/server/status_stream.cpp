@@ -32,7 +32,7 @@ json status_message(const json& s, std::uint64_t seq, double silent_s) {
     }
   }
   json m = {{"type", "status"}, {"seq", seq}, {"state", state}, {"reason", reason}};
-  for (const char* key : {"campaign", "run", "runs", "rig", "run_dir", "run_index", "runs_total"})
+  for (const char* key : {"campaign", "campaign_started_utc", "run", "runs", "rig", "run_dir", "run_index", "runs_total"})
     if (s.contains(key)) m[key] = s[key];
   if (s.contains("progress")) {
     const json& p = s["progress"];
@@ -47,9 +47,12 @@ json status_message(const json& s, std::uint64_t seq, double silent_s) {
   if (state == "idle" && s.contains("last") && s["last"].is_object()) {
     const json& last = s["last"];
     m["last"] = {{"campaign", last.value("campaign", "")},
+                 {"started_utc", last.value("started_utc", "")},
                  {"outcome", last.value("outcome", "")},
                  {"reason", last.contains("reason") ? last["reason"] : json(nullptr)}};
   }
+  // What became of the last run (a crash's restart included): the console's header says it.
+  if (s.contains("last_run")) m["last_run"] = s["last_run"];
   return m;
 }
 

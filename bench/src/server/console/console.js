@@ -8,6 +8,7 @@
 (() => {
   const body = document.body;
   const $ = (id) => document.getElementById(id);
+  const W = window.hilWords;
 
   // ---------------------------------------------------------------------------------------------
   // Errors: counted where a test can see them, and shown.
@@ -20,14 +21,18 @@
   window.addEventListener("error", (e) => noteError(String(e.message)));
   window.addEventListener("unhandledrejection", (e) => noteError(String(e.reason && e.reason.message ? e.reason.message : e.reason)));
 
-  // The last message, in green (ok) or red; it clears itself after kMessageMs unless sticky (what
-  // an abort came to), and a restored link clears it (what the lost link made is stale then).
+  // The last message, in green (ok: true), yellow (ok: "warn": answered, but nothing was done) or
+  // red; it clears itself after kMessageMs unless sticky (an abort not delivered), a restored link
+  // clears it (what the lost link made is stale then), and another run's start clears one about a
+  // run (ofRun: an abort's answer, an injection's).
   const kMessageMs = 10000;
   let messageTimer = null;
-  function showMessage(text, ok, sticky) {
+  function showMessage(text, ok, sticky, ofRun) {
     const m = $("message");
+    m.dataset.ofRun = ofRun ? "1" : "";
     m.textContent = text;
-    m.className = ok ? "message ok" : "message";
+    m.dataset.kind = ok === "warn" ? "warn" : ok ? "ok" : "bad";
+    m.className = "message " + m.dataset.kind;
     m.hidden = false;
     clearTimeout(messageTimer);
     if (!sticky) messageTimer = setTimeout(() => (m.hidden = true), kMessageMs);
@@ -129,27 +134,70 @@
       }
       if (m.type === "row") return live.addRow(m);
       if (m.type === "status") {
+        if (m.run_dir && m.state !== "idle") runShown(m.run_dir, m);
         linkState.status(m);
         verdicts.live(m);
-        if (m.run_dir && m.state !== "idle") events.setCurrent(m.run_dir);
+        if (m.state === "idle") lastRunShown(m.last_run);
       } else if (m.type === "run_start") {
-        live.clear();
+        runShown(m.dir, m);
         verdicts.runStart(m);
-        events.setCurrent(m.dir);
       } else if (m.type === "run_end") {
         linkState.runEnd(m);
         verdicts.runEnd(m);
-        events.add("run_end", m.run + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), m.outcome === "completed" ? "" : "trip");
+        plotsOf(m.dir, { ...m, stop_utc: new Date().toISOString() });
+        events.add("run_end", W.ended(m, { noCampaign: true }), m.outcome === "completed" ? "" : "trip");
         events.follow(m.dir);
         refreshRuns();
       } else if (m.type === "campaign_end") {
-        events.add("campaign_end", m.campaign + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), "");
+        events.add("campaign_end", "campaign " + m.campaign + ": " + m.outcome + (m.reason ? " (" + m.reason + ")" : ""), "");
         refreshRuns();
       } else if (m.type === "dropped") {
         droppedTotal = m.total;
-        events.add("dropped", m.messages + " telemetry messages dropped (" + m.why + ")", "");
+        events.add("dropped", W.plural(m.messages, "telemetry message") + " dropped (" + m.why + ")", "");
       }
     };
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // Every panel belongs to one run. A run seen start (run_start, or a status naming another run
+  // folder): the plots, events, checks and latch of the one before are cleared or marked as the
+  // previous run's, and messages about it go. Idle: the last run's end (status last_run, also a
+  // run a dead server left, marked interrupted by the restarted one) says what became of the run
+  // the panels show.
+  let shownDir = "";
+  let lastFollowed = "";
+  function runShown(dir, m) {
+    if (!dir || dir === shownDir) return;
+    const first = shownDir === "";
+    shownDir = dir;
+    if (!first || m.type === "run_start") live.clear();
+    if (!first && $("message").dataset.ofRun === "1" && !linkState.aborting()) clearMessages();
+    linkState.newRun(dir);
+    events.setCurrent(dir);
+    plotsOf(dir, m);
+  }
+  function lastRunShown(r) {
+    if (!r || !r.dir) return;
+    if (shownDir === "" || shownDir === r.dir) {
+      shownDir = r.dir;
+      events.setCurrent(r.dir);
+      plotsOf(r.dir, r);
+      if (lastFollowed !== r.dir + "|" + r.outcome) {  // its end (and an interrupted run's "interrupted" event) once
+        lastFollowed = r.dir + "|" + r.outcome;
+        events.follow(r.dir);
+      }
+    }
+    verdicts.lastRun(r);
+  }
+  // The plots' caption: whose telemetry it is, and how that run ended.
+  function plotsOf(dir, m) {
+    if (dir !== shownDir) return;
+    if (live.counts().held === 0 && !(m.outcome === "running" || !m.outcome)) return $("plots-run").replaceChildren();  // nothing of it drawn
+    const ended = m.outcome && m.outcome !== "running";
+    $("plots-run").textContent = ended ? W.ended(m) : W.run(m.run) + " of " + (m.campaign || "?") + " under way";
+    $("plots-run").className = "plots-run" + (ended && m.outcome !== "completed" ? " bad" : "");
+    $("plots-run").dataset.run = dir;
+    $("plots-run").dataset.outcome = ended ? m.outcome : "running";
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -175,8 +223,12 @@
     for (const box of $("runs-choice").querySelectorAll("input")) box.disabled = active;
     if (!m) return;
     if (state === "idle") {
-      const last = m.last;
-      $("what").textContent = last && last.campaign ? "last: " + last.campaign + ": " + last.outcome + (last.reason ? " (" + last.reason + ")" : "") : "";
+      // How the last run ended (completed / aborted / interrupted, when and why), from the server's record.
+      const r = m.last_run;
+      $("what").textContent = r ? "no run under way · last: " + W.ended(r) : "no run under way";
+      $("what").title = $("what").textContent;
+      $("what").dataset.run = r ? r.dir : "";
+      $("what").dataset.outcome = r ? r.outcome : "";
       $("progress").value = 0;
       $("run-time").textContent = "";
       shownCampaign = "";
@@ -184,8 +236,11 @@
     }
     // The run's time apart, never cut off (on a phone what runs wraps below it).
     $("run-time").textContent = "t " + fmt(m.run_t_s, 1) + " / " + fmt(m.duration_s, 0) + " s";
-    $("what").textContent = (m.campaign || "?") + " · " + (m.run || "?") + " (" + ((m.run_index ?? 0) + 1) + "/" + (m.runs_total ?? "?") + ") on " +
-      (m.rig || "?");
+    $("what").textContent = (m.campaign || "?") + " · " + W.run(m.run) + " (" + ((m.run_index ?? 0) + 1) + " of " + (m.runs_total ?? "?") + ") on rig " +
+      W.quoted(m.rig);
+    $("what").title = $("what").textContent;
+    $("what").dataset.run = m.run_dir || "";
+    $("what").dataset.outcome = "running";
     $("progress").value = m.fraction || 0;
     // The controls show what runs (started here, by another console or through the API).
     const key = m.campaign + "|" + m.rig + "|" + (m.runs || []).join(",");
@@ -209,7 +264,7 @@
     const loop = s.loop;
     const tel = s.telemetry || {};
     if (loop) {
-      items.push(["scheduling", loop.sched + (loop.memory_locked ? ", memory locked" : ", memory not locked"), false]);
+      items.push(["scheduling", W.realtime(loop.sched) + (loop.memory_locked ? "; memory locked" : "; memory not locked"), false, W.kRealtimeTip]);
       if (loop.rt_warning) items.push(["real-time warning", loop.rt_warning, true]);
       items.push(["periods", loop.periods, false]);
       items.push(["wake-up latency p50/p99/max", latency(loop.wake_latency_us), false]);
@@ -230,9 +285,10 @@
     const counts = live.counts();
     items.push(["live view: rows received / held", counts.received + " / " + counts.held, false]);
     items.push(["live view: messages dropped", droppedTotal, droppedTotal > 0]);
-    dl.replaceChildren(...items.flatMap(([k, v, bad]) => {
+    dl.replaceChildren(...items.flatMap(([k, v, bad, tip]) => {
       const dt = document.createElement("dt");
       dt.textContent = k;
+      if (tip) dt.title = tip;
       const dd = document.createElement("dd");
       dd.textContent = String(v);
       if (bad) dd.className = "bad";
@@ -252,7 +308,7 @@
     }
 
     if (state !== "idle" && s.run_dir) {
-      events.setCurrent(s.run_dir);
+      runShown(s.run_dir, s);
       events.follow(s.run_dir);
     }
     if (state !== lastState && (state === "idle" || lastState === "")) refreshRuns();
@@ -369,7 +425,7 @@
   const numberIn = (id) => Number($(id).value);
   async function inject(kind, payload, text) {
     // The file records the injection (events.js lists it once): the page adds no copy of its own.
-    if (await act("inject " + kind, "POST", "/api/inject/" + kind, payload)) showMessage("inject " + text + ": accepted", true);
+    if (await act("inject " + kind, "POST", "/api/inject/" + kind, payload)) showMessage("inject " + text + ": accepted", true, false, true);
   }
   $("inject-gap").addEventListener("click", () => {
     const gap = numberIn("gap-deg");

@@ -34,19 +34,26 @@ window.hilPlots = function hilPlots({ $, body, palette }) {
   }
 
   // Each signal in the one palette's colour (common/palette/signals.txt), as in every report;
-  // every axis with its quantity and unit.
+  // every axis with its quantity and unit. A plot's title is a heading above it (it wraps on a
+  // phone instead of being cut) with what it shows in words on hover.
   const P = palette;
   const plotDefs = [
-    { id: "pressure", title: "Pressure vs reference", yLabel: "pressure [MPa]", labels: ["pressure reference", "measured pressure"],
+    { id: "pressure", title: "Pressure vs reference", tip: "the measured line pressure against the campaign's reference", yLabel: "pressure [MPa]", labels: ["pressure reference", "measured pressure"],
       cols: [C.p_ref_mpa, C.p_meas_mpa], colors: [P.p_ref_mpa, P.p_meas_mpa] },
-    { id: "angles", title: "Angles: command, motor, valve; compensation jumps", yLabel: "angle [deg]",
+    { id: "angles", title: "Angles: command, motor, valve; compensation jumps",
+      tip: "the angle commanded to the drive, the motor's and the valve's (where the rig knows it); a dot where the backlash compensation jumps the command",
+      yLabel: "angle [deg]",
       labels: ["command", "motor", "valve", "compensation jump"], cols: [C.theta_cmd_deg, C.theta_motor_deg, C.theta_valve_deg, -1],
       colors: [P.theta_cmd_deg, P.theta_motor_deg, P.theta_valve_deg, P.comp_deg],
       series: { command: { strokePattern: [6, 4] }, "compensation jump": { strokeWidth: 0, drawPoints: true, pointSize: 4 } } },
-    { id: "observer", title: "Touch Tf, intention Mf (±1: a flank drives, 0: in the gap)", yLabel: "state [-1, 0, +1]",
+    { id: "observer", title: "Which gear flank drives the valve, and where the command goes",
+      tip: "touch state (Tf): +1 the positive flank of the gear drives the valve, −1 the negative one, 0 none (the motor crosses the backlash gap); " +
+        "motion intention (Mf): +1 the command rises, −1 it falls, 0 it holds",
+      yLabel: "state [-1, 0, +1]",
       labels: ["touch state", "motion intention"], cols: [C.touch_state, C.motion_intention], colors: [P.touch_state, P.motion_intention],
       stepPlot: true, valueRange: [-1.4, 1.4] },
-    { id: "gap", title: "Gap: estimate vs true", yLabel: "gap [deg]", labels: ["gap estimate", "true gap"],
+    { id: "gap", title: "Backlash gap: estimate vs true", tip: "the observer's estimate of the gear's backlash gap against the true one (known on a simulated valve)",
+      yLabel: "gap [deg]", labels: ["gap estimate", "true gap"],
       cols: [C.gap_est_deg, C.gap_true_deg], colors: [P.gap_est_deg, P.gap_true_deg], series: { "true gap": { strokePattern: [6, 4] } } },
   ];
   const plots = {};
@@ -178,10 +185,13 @@ window.hilPlots = function hilPlots({ $, body, palette }) {
       const legend = document.createElement("div");
       legend.className = "legend";
       div.after(legend);
+      const heading = document.createElement("h3");
+      heading.className = "plot-title";
+      heading.textContent = def.title;
+      heading.title = def.tip;
+      div.before(heading);
       plots[def.id] = new Dygraph(div, plotData(def), {
         labels: ["t [s]", ...def.labels],
-        title: def.title,
-        titleHeight: 20,
         xlabel: "run time t [s]",
         ylabel: def.yLabel,
         colors: def.colors,

@@ -48,6 +48,21 @@ class BadField : public std::invalid_argument {
 // Returns the folders it marked. Safe while another server runs on the same folder.
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
 
+// The end of the last run a server knows: in the status as "last_run", so that a console opened
+// or reconnected after it (a restart after a crash included) says what became of the run it shows.
+struct LastRun {
+  std::string dir;  // the run folder's name
+  std::string campaign, run, start_utc, stop_utc;
+  Outcome outcome = Outcome::completed;
+  std::optional<std::string> reason;
+  std::optional<std::string> trip;  // the interlock that ended it, or "operator abort"
+  static LastRun of(const std::string& dir, const RunRecord& record);
+  nlohmann::json to_json() const;
+};
+// The newest run folder (by its name, which starts with the run's UTC start) whose run.json says
+// it ended; nullopt when there is none. At a server's start, after mark_interrupted_runs.
+std::optional<LastRun> newest_ended_run(const std::filesystem::path& runs_dir);
+
 // A start's `speed` (loop periods per dT of wall time): from a hundredth of real time to a hundred
 // times it, and never a loop period longer than kMaxWallPeriodS of wall time. The loop waits a
 // whole period before it reads an abort, a stop or SIGTERM, so a slower pace leaves the bench
@@ -79,6 +94,7 @@ struct RunnerOptions {
   std::function<void(const TelemetryRecord&)> on_row;    // recorder thread, every row
   std::function<void(const nlohmann::json&)> on_notice;  // run started / finished; any thread
   drv::CanTransportFactory can_transport;                // the CAN rigs' bus; empty: SocketCAN (tests: a loopback bus)
+  std::optional<LastRun> last_run;                       // what the runs folder held at start (newest_ended_run)
 };
 
 class CampaignRunner {
@@ -123,8 +139,9 @@ class CampaignRunner {
 
   RunnerOptions o_;
   mutable std::mutex mutex_;
-  std::shared_ptr<Active> active_;  // the running campaign, or null
-  nlohmann::json last_;             // the last finished campaign
+  std::shared_ptr<Active> active_;   // the running campaign, or null
+  nlohmann::json last_;              // the last finished campaign
+  std::optional<LastRun> last_run_;  // the last ended run (this server's, or the runs folder's at start)
   std::thread thread_;
   std::mutex unrecorded_mutex_;                  // not mutex_: a retried write must not hold up status()
   std::map<std::string, RunRecord> unrecorded_;  // by run folder name; see unrecorded_end
