@@ -10,7 +10,7 @@
 set -euo pipefail
 
 build_pkgs=(build-essential cmake ninja-build ccache pkg-config git libjs-dygraphs
-  libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev libcli11-dev
+  libboost-dev libspdlog-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev libmodbus-dev libcli11-dev libzstd-dev
   libgtest-dev libgmock-dev libbenchmark-dev)
 test_pkgs=(chromium qemu-system-x86 busybox-static cpio can-utils iproute2 kmod socat
   python3 python3-pymodbus python3-serial python3-serial-asyncio python3-junitparser mbpoll procps

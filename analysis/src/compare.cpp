@@ -193,7 +193,7 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   // Change points of the residual's level, as narrow blue bands (a line the plot can zoom to).
   const double mark_s = 0.15 * r.window_width_s;
   for (const double t : r.change_points_s)
-    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
+    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)", "change points"});
   std::vector<Series> pressure = {
       Series{.name = "measured", .x = r.series.measured_mpa.t_s, .y = r.series.measured_mpa.value, .color = "#1f77b4"},
       Series{.name = model_label, .x = r.series.model_mpa.t_s, .y = r.series.model_mpa.value, .color = "#d62728"}};
@@ -286,7 +286,7 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
   {
     std::vector<Band> peak_bands;
     for (const auto& pk : d.peaks)
-      peak_bands.push_back({pk.hz * 0.97, pk.hz * 1.03, text::num(pk.hz, 3) + " Hz", "rgba(255,160,0,0.35)"});
+      peak_bands.push_back({pk.hz * 0.97, pk.hz * 1.03, text::num(pk.hz, 3) + " Hz", "rgba(255,160,0,0.35)", "named peaks"});
     doc.figure(Figure{.title = "Residual spectrum (Welch, Hann); peaks marked",
                       .x_label = "frequency [Hz]",
                       .y_label = "PSD [kPa^2/Hz]",
@@ -378,7 +378,7 @@ ResidualReport run_compare(const CompareOptions& o) {
   j["wall_s"] = info.wall_s;
   const std::string json_text = j.dump(2) + "\n";
 
-  report::Document doc("Model validation: " + o.data_file.filename().string());
+  report::Document doc("Model validation: " + o.model_file.stem().string() + " on " + measurement_label(o.data_file));
   doc.paragraph("Model " + o.model_file.string() + " replayed open loop on " + o.data_file.string() + " (" +
                 std::to_string(r.rows) + " rows, " + text::num(r.duration_s, 4) + " s, " +
                 (info.has_encoder ? "motor encoder replayed" : "no encoder: the motor model acts on the command") + ").");

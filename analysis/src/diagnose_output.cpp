@@ -242,7 +242,7 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
   // Change points of the residual before (where in time something changed), as in compare's report.
   const double mark_s = 0.15 * f.before.window_width_s;
   for (const double t : f.before.change_points_s)
-    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)"});
+    bands.push_back({t - mark_s, t + mark_s, "change point " + text::num(t, 4) + " s", "rgba(31,119,180,0.55)", "change points"});
   // Where a step found in this file may have happened: the span of times that fit as well.
   for (const auto& c : d.added)
     for (const auto& p : c.parameters) {
@@ -251,7 +251,7 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
       bands.push_back(
           {p.lo + f.time_origin_s, p.hi + f.time_origin_s,
            c.effect + " " + p.key + " = " + text::num(p.value + f.time_origin_s, 5) + ": anywhere in this span fits as well",
-           "rgba(44,160,44,0.30)"});
+           "rgba(44,160,44,0.30)", "where a found step fits as well"});
     }
   Figure pressure{.title = "Pressure: measured, model before and after (shaded: where the model before fails)",
                   .x_label = "time [s]",
@@ -295,8 +295,9 @@ void add_before_after(report::Document& doc, const Diagnosis& d, const FileFit& 
 
 std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::path& model_file, const DataFiles& data_files) {
   const bool several = d.files.size() > 1;
-  const std::string first = data_files.empty() ? std::string("data") : data_files.front().filename().string();
-  report::Document doc("Diagnosis: " + first + (several ? " and " + std::to_string(d.files.size() - 1) + " more" : ""));
+  const std::string first = data_files.empty() ? std::string("data") : measurement_label(data_files.front());
+  report::Document doc("Diagnosis: " + first + (several ? " and " + std::to_string(d.files.size() - 1) + " more" : "") +
+                       ", model " + model_file.stem().string());
   doc.paragraph("Model " + model_file.string() + " against " + files_text(data_files) + " (" + std::to_string(d.rows) +
                 " rows, " + (d.has_encoder ? "motor encoder replayed" : "no encoder") + "). Each candidate effect was " +
                 "fitted to the data and ranked by an information criterion; the best one that earns its place is added " +
@@ -328,7 +329,7 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
   };
   if (!d.added.empty()) {
     for (std::size_t i = 0; i < d.files.size(); ++i) {
-      const std::string name = i < data_files.size() ? data_files[i].filename().string() : std::to_string(i + 1);
+      const std::string name = i < data_files.size() ? measurement_label(data_files[i]) : std::to_string(i + 1);
       add_before_after(doc, d, d.files[i],
                        several ? "Before and after: file " + std::to_string(i + 1) + ", " + name : "Before and after",
                        several ? "time" + std::to_string(i + 1) : "time", marks_of(i));

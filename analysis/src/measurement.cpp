@@ -1,6 +1,7 @@
 #include "hil/analysis/measurement.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -197,6 +198,37 @@ Measurement load_measurement(const std::filesystem::path& file) {
   m.first_data_line = reader.first_data_line();
   if (m.rows.size() < kMinRows) fail_too_short(file, m.rows.size() == 0 ? header_line(file) + 1 : last_line, m.rows.size());
   return m;
+}
+
+namespace {
+
+// The folders that name a run's file, outermost first: a bench run's folder (it holds run.json,
+// its name is the run's start, campaign and run), or a sim's <campaign>/<run>/ of telemetry.csv;
+// none for any other file.
+std::vector<std::string> run_folders(const std::filesystem::path& file) {
+  std::error_code ec;
+  const auto dir = std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec).parent_path();
+  if (std::filesystem::is_regular_file(dir / "run.json", ec)) return {dir.filename().string()};
+  if (file.stem() != "telemetry") return {};
+  if (dir.parent_path().filename().empty()) return {dir.filename().string()};
+  return {dir.parent_path().filename().string(), dir.filename().string()};
+}
+
+}  // namespace
+
+std::string measurement_label(const std::filesystem::path& file) {
+  std::string label;
+  for (const auto& f : run_folders(file)) label += f + "/";
+  return label + file.filename().string();
+}
+
+std::string measurement_name(const std::filesystem::path& file) {
+  const auto folders = run_folders(file);
+  std::string name = folders.empty() ? file.stem().string() : folders.front();
+  if (folders.size() > 1) name += "_" + folders.back();
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-' && c != '+') c = '_';
+  return name.empty() ? std::string("data") : name;
 }
 
 }  // namespace hil::analysis

@@ -2,58 +2,12 @@
 #include <cstring>
 
 #include "hil/mcap.hpp"
+#include "mcap_internal.hpp"
 
 namespace hil::mcap {
-namespace {
 
-constexpr std::string_view kMagic("\x89MCAP0\r\n", 8);
-
-// A bounds-checked cursor over a record's body: every read past its end is a "field X: the
-// record ends early" error, never a read out of bounds.
-struct Fields {
-  std::string_view b;
-  std::size_t pos = 0;
-  const char* record;  // its name, for the message
-  std::string short_of(const char* field) const {
-    return std::string(record) + " record: field '" + field + "' runs past the record's end";
-  }
-  template <class T>
-  bool num(T& v) {
-    if (b.size() - pos < sizeof(T)) return false;
-    std::uint64_t x = 0;
-    for (std::size_t i = 0; i < sizeof(T); ++i) x |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(b[pos + i])) << (8 * i);
-    v = static_cast<T>(x), pos += sizeof(T);
-    return true;
-  }
-  bool bytes(std::uint64_t n, std::string_view& out) {
-    if (b.size() - pos < n) return false;
-    out = b.substr(pos, n), pos += n;
-    return true;
-  }
-  bool str(std::string_view& out) {
-    std::uint32_t n = 0;
-    return num(n) && bytes(n, out);
-  }
-  bool str(std::string& out) {
-    std::string_view v;
-    if (!str(v)) return false;
-    out.assign(v);
-    return true;
-  }
-  bool kv(KeyValues& out) {
-    std::string_view m;
-    if (!str(m)) return false;
-    Fields inner{m, 0, record};
-    while (inner.pos < m.size()) {
-      std::string k, v;
-      if (!inner.str(k) || !inner.str(v)) return false;
-      out.emplace_back(std::move(k), std::move(v));
-    }
-    return true;
-  }
-};
-
-}  // namespace
+using detail::Fields;
+using detail::kMagic;
 
 Reader::Reader(const std::filesystem::path& file) : path_(file) {
   f_ = std::fopen(file.c_str(), "rb");
@@ -167,21 +121,27 @@ bool Reader::next(Message& m) {
         in_chunk_ = false;
         continue;
       }
-      const std::uint64_t at = chunk_data_at_ + chunk_pos_;
-      if (chunk_.size() - chunk_pos_ < 9) fail(at, "a record inside a chunk runs past the chunk's end");
+      // A record of a compressed chunk has no byte in the file: the chunk's offset, and where in
+      // its decompressed records.
+      const std::uint64_t at = chunk_compressed_ ? chunk_at_ : chunk_data_at_ + chunk_pos_;
+      const std::size_t pos = chunk_pos_;
+      const auto inner = [&](const std::string& what) {
+        return chunk_compressed_ ? "byte " + std::to_string(pos) + " of the chunk's decompressed records: " + what : what;
+      };
+      if (chunk_.size() - chunk_pos_ < 9) fail(at, inner("a record inside a chunk runs past the chunk's end"));
       const auto op = static_cast<std::uint8_t>(chunk_[chunk_pos_]);
       std::uint64_t n = 0;
       for (int i = 0; i < 8; ++i)
         n |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(chunk_[chunk_pos_ + 1 + i])) << (8 * i);
-      if (n > chunk_.size() - chunk_pos_ - 9) fail(at, "a record inside a chunk runs past the chunk's end");
+      if (n > chunk_.size() - chunk_pos_ - 9) fail(at, inner("a record inside a chunk runs past the chunk's end"));
       const std::string_view body(chunk_.data() + chunk_pos_ + 9, n);
       chunk_pos_ += 9 + n;
       if (op == 0x05) {
         Fields r{body, 0, "message"};
         if (!r.num(m.channel_id) || !r.num(m.sequence) || !r.num(m.log_time_ns) || !r.num(m.publish_time_ns))
-          fail(at, r.short_of("channel_id, sequence, log_time or publish_time"));
+          fail(at, inner(r.short_of("channel_id, sequence, log_time or publish_time")));
         if (channels_.count(m.channel_id) == 0)
-          fail(at, "a message on channel " + std::to_string(m.channel_id) + ", which no earlier channel record defines");
+          fail(at, inner("a message on channel " + std::to_string(m.channel_id) + ", which no earlier channel record defines"));
         m.data = body.substr(r.pos), m.offset = at;
         return true;
       }
@@ -189,7 +149,7 @@ bool Reader::next(Message& m) {
         take(op, body, at);
         continue;
       }
-      fail(at, "opcode " + std::to_string(op) + " inside a chunk (only schema, channel and message records may be there)");
+      fail(at, inner("opcode " + std::to_string(op) + " inside a chunk (only schema, channel and message records may be there)"));
     }
     if (done_ || f_ == nullptr) return false;
     std::uint8_t op = 0;
@@ -212,23 +172,13 @@ bool Reader::next(Message& m) {
       return true;
     }
     if (op == 0x06) {
-      Fields r{record_, 0, "chunk"};
-      std::uint64_t start = 0, end = 0, size = 0, records_size = 0;
-      std::uint32_t crc = 0;
-      std::string_view compression, records;
-      if (!r.num(start) || !r.num(end) || !r.num(size) || !r.num(crc) || !r.str(compression) || !r.num(records_size) ||
-          !r.bytes(records_size, records))
-        fail(at, r.short_of("message_start_time .. records"));
-      if (!compression.empty())
-        fail(at, "chunk compressed with '" + std::string(compression.substr(0, 40)) +
-                     "': this reader reads uncompressed chunks only (hilbench writes them so)");
-      if (size != records.size())
-        fail(at, "chunk: uncompressed_size " + std::to_string(size) + " but its records hold " + std::to_string(records.size()) +
-                     " bytes");
-      if (crc != 0 && crc != crc32(records)) fail(at, "chunk: its CRC-32 does not match its records (a damaged file)");
-      chunk_.assign(records);
+      detail::ChunkFields c;
+      if (std::string e = detail::parse_chunk(record_, c); !e.empty()) fail(at, e);
+      if (std::string e = detail::chunk_records(c, chunk_); !e.empty()) fail(at, e);
       chunk_pos_ = 0, in_chunk_ = true;
-      chunk_data_at_ = at + 9 + r.pos - records.size();
+      chunk_at_ = at;
+      chunk_compressed_ = !c.compression.empty();
+      chunk_data_at_ = at + 9 + static_cast<std::uint64_t>(c.records.data() - record_.data());
       continue;
     }
     take(op, record_, at);

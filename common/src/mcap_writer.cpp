@@ -3,58 +3,18 @@
 #include <cstring>
 
 #include "hil/mcap.hpp"
+#include "mcap_internal.hpp"
 
 namespace hil::mcap {
+
+using namespace detail;
+
 namespace {
 
-constexpr std::string_view kMagic("\x89MCAP0\r\n", 8);
-
-// Opcodes (spec, "Records").
-enum Op : std::uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-  kMessageIndex = 0x07,
-  kChunkIndex = 0x08,
-  kAttachment = 0x09,
-  kAttachmentIndex = 0x0A,
-  kStatistics = 0x0B,
-  kMetadata = 0x0C,
-  kMetadataIndex = 0x0D,
-  kSummaryOffset = 0x0E,
-  kDataEnd = 0x0F,
-};
-
-// Little-endian fields, strings and maps as the spec's "Serialization" section has them.
-void u8(std::string& o, std::uint8_t v) { o.push_back(static_cast<char>(v)); }
-template <class T>
-void le(std::string& o, T v) {
-  for (std::size_t i = 0; i < sizeof(T); ++i) o.push_back(static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff));
-}
-void str(std::string& o, std::string_view s) {
-  le<std::uint32_t>(o, static_cast<std::uint32_t>(s.size()));
-  o.append(s);
-}
 void kv_map(std::string& o, const KeyValues& m) {
   std::string body;
   for (const auto& [k, v] : m) str(body, k), str(body, v);
   str(o, body);  // a map is its byte length, then the pairs
-}
-template <class V>
-void id_map(std::string& o, const std::map<std::uint16_t, V>& m) {
-  std::string body;
-  for (const auto& [k, v] : m) le<std::uint16_t>(body, k), le<std::uint64_t>(body, v);
-  str(o, body);
-}
-std::string framed(std::uint8_t opcode, std::string_view body) {
-  std::string r;
-  u8(r, opcode);
-  le<std::uint64_t>(r, body.size());
-  r.append(body);
-  return r;
 }
 
 }  // namespace
@@ -74,8 +34,8 @@ std::uint32_t crc32(std::string_view data, std::uint32_t crc) {
   return ~crc;
 }
 
-Writer::Writer(const std::filesystem::path& file, std::string_view profile, std::size_t chunk_bytes)
-    : path_(file), chunk_bytes_(chunk_bytes) {
+Writer::Writer(const std::filesystem::path& file, std::string_view profile, std::size_t chunk_bytes, Compression compression)
+    : path_(file), chunk_bytes_(chunk_bytes), compression_(compression) {
   f_ = std::fopen(file.c_str(), "wb");
   if (f_ == nullptr) throw McapError(file.string() + ": cannot create: " + std::strerror(errno));
   put(kMagic);
@@ -144,32 +104,34 @@ void Writer::message(std::uint16_t channel_id, std::uint64_t log_time_ns, std::s
   le<std::uint64_t>(index, log_time_ns), le<std::uint64_t>(index, chunk_.size());
   if (chunk_.empty() || log_time_ns < chunk_start_ns_) chunk_start_ns_ = log_time_ns;
   if (chunk_.empty() || log_time_ns > chunk_end_ns_) chunk_end_ns_ = log_time_ns;
-  if (message_count_ == 0 || log_time_ns < start_ns_) start_ns_ = log_time_ns;
-  if (message_count_ == 0 || log_time_ns > end_ns_) end_ns_ = log_time_ns;
-  ++message_count_, ++channel_counts_[channel_id];
+  count_message(channel_id, log_time_ns);
   chunk_ += framed(kMessage, b);
   if (chunk_.size() >= chunk_bytes_) flush_chunk();
 }
 
 void Writer::flush_chunk() {
   if (!chunk_.empty()) {
+    const bool zstd = compression_ == Compression::zstd;
     std::string b;
     le<std::uint64_t>(b, chunk_start_ns_), le<std::uint64_t>(b, chunk_end_ns_);
     le<std::uint64_t>(b, chunk_.size());
-    le<std::uint32_t>(b, crc32(chunk_));
-    str(b, "");  // uncompressed: no compression library is linked for it
-    le<std::uint64_t>(b, chunk_.size());
-    b += chunk_;
-    ChunkIndex ci{chunk_start_ns_, chunk_end_ns_, 0, 0, 0, chunk_.size(), {}};
+    le<std::uint32_t>(b, crc32(chunk_));  // of the uncompressed records
+    str(b, zstd ? "zstd" : "");
+    const std::size_t size_at = b.size();
+    le<std::uint64_t>(b, 0);  // the records' length, known once they are in
+    if (zstd)
+      zstd_compress(chunk_, b, path_.string());
+    else
+      b += chunk_;
+    const std::uint64_t records_bytes = b.size() - size_at - 8;
+    for (std::size_t i = 0; i < 8; ++i) b[size_at + i] = static_cast<char>((records_bytes >> (8 * i)) & 0xff);
+    ChunkIndex ci{chunk_start_ns_, chunk_end_ns_, 0, 0, 0, records_bytes, chunk_.size(), zstd ? "zstd" : "", {}};
     // One write for the chunk and its indexes: a crash leaves it whole or cut, never interleaved.
     std::string out = framed(kChunk, b);
     ci.offset = offset_, ci.length = out.size();
     for (const auto& [channel, entries] : chunk_index_) {
-      std::string mi;
-      le<std::uint16_t>(mi, channel);
-      str(mi, entries);
       ci.index_offsets[channel] = offset_ + out.size();
-      const std::string r = framed(kMessageIndex, mi);
+      const std::string r = message_index(channel, entries);
       ci.index_length += r.size();
       out += r;
     }
@@ -181,6 +143,13 @@ void Writer::flush_chunk() {
     failed_ = true;
     throw McapError(path_.string() + ": cannot write: " + std::strerror(errno));
   }
+}
+
+std::string Writer::message_index(std::uint16_t channel, std::string_view entries) {
+  std::string mi;
+  le<std::uint16_t>(mi, channel);
+  str(mi, entries);
+  return framed(kMessageIndex, mi);
 }
 
 void Writer::metadata(std::string_view name, const KeyValues& values) {
@@ -238,8 +207,8 @@ void Writer::close() {
         le<std::uint64_t>(b, c.length);
     id_map(b, c.index_offsets);
     le<std::uint64_t>(b, c.index_length);
-    str(b, "");
-    le<std::uint64_t>(b, c.size), le<std::uint64_t>(b, c.size);
+    str(b, c.compression);
+    le<std::uint64_t>(b, c.compressed_size), le<std::uint64_t>(b, c.uncompressed_size);
     bodies.push_back(std::move(b));
   }
   group(kChunkIndex, bodies);

@@ -66,8 +66,8 @@ Plant Plant::from_yaml(const cfg::Node& root) {
       const std::string hint = cfg::closest(name, effect_names());
       std::string known;
       for (const auto& n : effect_names()) known += (known.empty() ? "" : ", ") + n;
-      node.fail("unknown effect '" + name + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") +
-                "; known effects: " + known);
+      node.fail("unknown effect '" + name + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)") + "; known effects: " +
+                known + " (an effect added to the sources is known once hilbench is rebuilt: " + "scripts/build.sh hilbench)");
     }
     effects.push_back(info->from_yaml(node));
   }

@@ -62,8 +62,9 @@ std::filesystem::path record_run(const ServerProcess& server) {
 // A small telemetry file of our own: `rows` rows of a pressure square wave, p_meas_mpa at row
 // `bad_row` set to `bad_p`. Written with the writer the recorder uses, chunks of ~`chunk` bytes.
 std::filesystem::path make_mcap(const std::filesystem::path& file, std::size_t rows, std::size_t bad_row = SIZE_MAX,
-                                const std::string& bad_p = "500.0", std::size_t chunk = 4096) {
-  hil::mcap::Writer w(file, "", chunk);
+                                const std::string& bad_p = "500.0",
+                                hil::mcap::Compression compression = hil::mcap::Compression::zstd) {
+  hil::mcap::Writer w(file, "", 4096, compression);
   const auto schema = w.add_schema("hilbench/telemetry", "jsonschema",
                                    R"({"type":"object","properties":{"t_s":{},"theta_cmd_deg":{},"p_meas_mpa":{}}})");
   const auto ch = w.add_channel(schema, hil::telemetry::kTopic, "json");
@@ -253,7 +254,8 @@ TEST(RunMcap, HostileFilesAreRefusedNamingTheRecordOffset) {
             std::string::npos);
 
   // A damaged chunk: one byte of a message flipped; its CRC says so, naming the chunk's offset.
-  const auto good = make_mcap(dir.path() / "good.mcap", 300);
+  // Uncompressed chunks (as other writers may write them): a message's offset is in the file.
+  const auto good = make_mcap(dir.path() / "good.mcap", 300, SIZE_MAX, "", hil::mcap::Compression::none);
   std::string bytes = slurp_bytes(good);
   const std::uint64_t at = offset_of_message(good, 10);
   bytes[at + 30] ^= 0x01;

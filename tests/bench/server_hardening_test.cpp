@@ -15,6 +15,8 @@
 #include <fstream>
 #include <thread>
 
+#include "hil/mcap.hpp"
+#include "hil/telemetry_schema.hpp"
 #include "run_command.hpp"
 #include "server_process.hpp"
 #include "small_disk.hpp"
@@ -215,6 +217,18 @@ TEST(ServerHardening, ARunWhoseServerWasKilledIsMarkedInterruptedWithTheRowsOnDi
   ASSERT_FALSE(events.empty());
   EXPECT_EQ(events.back()["kind"], "interrupted");
   EXPECT_NE(second.log().find("marked interrupted"), std::string::npos);
+  // telemetry.mcap finished: it ends in a footer and the magic, and holds the messages of its
+  // whole chunks (the rows the CSV has, flushed with it), which run.json counts.
+  hil::mcap::Reader mcap(dir / "telemetry.mcap");
+  hil::mcap::Message m;
+  std::size_t messages = 0, telemetry = 0;
+  while (mcap.next(m)) ++messages, telemetry += mcap.channels().at(m.channel_id).topic == hil::telemetry::kTopic;
+  EXPECT_FALSE(mcap.truncated());
+  const std::string bytes = hil::test::slurp(dir / "telemetry.mcap");
+  EXPECT_EQ(bytes.substr(bytes.size() - 8), std::string("\x89MCAP0\r\n", 8));
+  EXPECT_EQ(run["interrupted"]["telemetry.mcap"]["messages"], messages) << run["interrupted"].dump();
+  EXPECT_GT(telemetry, rows / 2);
+  EXPECT_LE(telemetry, rows);
 }
 
 TEST(ServerHardening, TokensMustBeRealAndNeverReachTheLog) {

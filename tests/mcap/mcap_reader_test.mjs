@@ -1,20 +1,24 @@
-// A run's telemetry.mcap, read by MCAP's own TypeScript reader (@mcap/core) against the real
-// `hilbench serve`:
-//  1. a completed run of paper_adaptive: the indexed reader takes its summary (statistics, chunk
-//     indexes, footer CRC); the stream reader, checking every chunk's CRC, yields every message
-//     in file order; every message is valid against its channel's JSON Schema (ajv); the
-//     telemetry messages are telemetry.csv's rows, value for value; the events are events.jsonl's
-//     lines; the campaign, plant and rig snapshot are metadata records equal to run.json's, and
-//     run.json is an attachment, byte for byte;
+// A run's telemetry.mcap, read by MCAP's own TypeScript reader (@mcap/core, its zstd chunks
+// decompressed by @mcap/support's handlers) against the real `hilbench serve`:
+//  1. a completed run of paper_adaptive: zstd chunks, the file smaller than telemetry.csv; the
+//     indexed reader takes its summary (statistics, chunk indexes, footer CRC); the stream reader,
+//     checking every chunk's CRC, yields every message in file order; every message is valid
+//     against its channel's JSON Schema (ajv); the telemetry messages are telemetry.csv's rows,
+//     value for value, logged at wall-clock times (the run's start plus t_s / speed, within the
+//     run's start and stop); the events are events.jsonl's lines; the campaign, plant and rig
+//     snapshot are metadata records equal to run.json's, and run.json is an attachment, byte for byte;
 //  2. a copy of that file cut inside a chunk, and a run whose server was killed with SIGKILL
 //     mid-way: the stream reader recovers every message of every whole chunk, counted here
-//     independently by walking the file's records, and they are telemetry.csv's first rows.
+//     independently by walking the file's records, and they are telemetry.csv's first rows;
+//  3. after a restart of the server, that killed run's file has its summary and footer: the
+//     indexed reader opens it and reads every message the stream reader recovered.
 //   node mcap_reader_test.mjs HILBENCH_EXE SOURCE_DIR
 import { spawn } from "node:child_process";
-import { mkdtempSync, readFileSync, existsSync, rmSync, openSync } from "node:fs";
+import { mkdtempSync, readFileSync, existsSync, rmSync, openSync, statSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { McapIndexedReader, McapStreamReader } from "@mcap/core";
+import { loadDecompressHandlers } from "@mcap/support";
 import AjvModule from "ajv";
 
 const Ajv = AjvModule.default ?? AjvModule; // CommonJS under node
@@ -23,6 +27,7 @@ const dir = mkdtempSync(join(tmpdir(), "hil-mcap-"));
 let server;
 let failed = false;
 const decoder = new TextDecoder();
+const decompressHandlers = await loadDecompressHandlers();
 
 function fail(message) {
   failed = true;
@@ -43,6 +48,11 @@ const deadline = setTimeout(() => {
   finish();
 }, 240_000);
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+// The run's log clock, from its metadata record "clock" (start_unix_ns, speed).
+function logClock(clockMetadata) {
+  return { start: BigInt(clockMetadata?.get("start_unix_ns") ?? "0"), speed: Number(clockMetadata?.get("speed") ?? "0") };
+}
 
 async function startServer() {
   const log = openSync(join(dir, "server.log"), "a");
@@ -85,11 +95,16 @@ function wholeChunks(buf) {
     if (at + 9 + len > buf.length) break;
     if (op === 0x06) {
       ++chunks;
+      const uncompressed = view.getBigUint64(at + 9 + 16, true);
       let p = at + 9 + 8 + 8 + 8 + 4;
-      p += 4 + view.getUint32(p, true); // compression
+      const compression = decoder.decode(buf.subarray(p + 4, p + 4 + view.getUint32(p, true)));
+      p += 4 + view.getUint32(p, true);
       const size = Number(view.getBigUint64(p, true));
       p += 8;
-      for (let q = p; q < p + size; q += 9 + Number(view.getBigUint64(q + 1, true))) if (buf[q] === 0x05) ++messages;
+      check(compression === "zstd", `chunk at ${at}: compression '${compression}'`);
+      const records = compression === "zstd" ? decompressHandlers.zstd(buf.subarray(p, p + size), uncompressed) : buf.subarray(p, p + size);
+      const rv = new DataView(records.buffer, records.byteOffset, records.byteLength);
+      for (let q = 0; q < records.length; q += 9 + Number(rv.getBigUint64(q + 1, true))) if (records[q] === 0x05) ++messages;
     }
     at += 9 + len;
     end = at;
@@ -99,15 +114,16 @@ function wholeChunks(buf) {
 
 // Every message the stream reader yields (CRCs checked), and whether it reached the file's end.
 function streamRead(buf) {
-  const reader = new McapStreamReader({ validateCrcs: true });
+  const reader = new McapStreamReader({ validateCrcs: true, decompressHandlers });
   reader.append(buf);
-  const channels = new Map(), schemas = new Map(), messages = [];
+  const channels = new Map(), schemas = new Map(), messages = [], metadata = new Map();
   for (let r; (r = reader.nextRecord()); ) {
-    if (r.type === "Schema") schemas.set(r.id, r);
+    if (r.type === "Metadata") metadata.set(r.name, r.metadata);
+    else if (r.type === "Schema") schemas.set(r.id, r);
     else if (r.type === "Channel") channels.set(r.id, r);
     else if (r.type === "Message") messages.push({ topic: channels.get(r.channelId).topic, logTime: r.logTime, data: r.data, schema: schemas.get(channels.get(r.channelId).schemaId) });
   }
-  return { messages, done: reader.done(), remaining: reader.bytesRemaining() };
+  return { messages, metadata, done: reader.done(), remaining: reader.bytesRemaining() };
 }
 
 const ajv = new Ajv({ allowUnionTypes: true });
@@ -125,7 +141,8 @@ function validate(m) {
 }
 
 // The telemetry messages against the CSV's rows, from the first: same count, same values.
-function sameRows(label, telemetry, csv, wantAll) {
+function sameRows(label, telemetry, csv, wantAll, clock) {
+  check(clock.start > 1_700_000_000_000_000_000n && clock.speed > 0, `${label}: log clock ${clock.start} ns, speed ${clock.speed}`);
   if (wantAll) check(telemetry.length === csv.rows.length, `${label}: ${telemetry.length} telemetry messages, telemetry.csv has ${csv.rows.length} rows`);
   else check(telemetry.length <= csv.rows.length, `${label}: more messages (${telemetry.length}) than CSV rows (${csv.rows.length})`);
   let bad = 0;
@@ -135,10 +152,16 @@ function sameRows(label, telemetry, csv, wantAll) {
     for (const [k, name] of csv.names.entries()) {
       if (payload[name] !== Number(row[k]) && ++bad <= 3) fail(`${label}: row ${i} column ${name}: MCAP ${payload[name]}, CSV ${row[k]}`);
     }
-    const t = BigInt(Math.round(Number(row[0]) * 1e9));
-    if ((logTime > t ? logTime - t : t - logTime) > 1n && ++bad <= 3) fail(`${label}: row ${i}: log time ${logTime} ns, t_s ${row[0]}`);
+    const t = clock.start + BigInt(Math.round((Number(row[0]) * 1e9) / clock.speed));
+    if ((logTime > t ? logTime - t : t - logTime) > 1n && ++bad <= 3) fail(`${label}: row ${i}: log time ${logTime} ns, t_s ${row[0]}: expected ${t}`);
   });
   if (Object.keys(telemetry[0]?.payload ?? {}).join() !== csv.names.join()) fail(`${label}: fields ${Object.keys(telemetry[0]?.payload ?? {})} vs CSV ${csv.names}`);
+}
+
+// The indexed reader over a file's bytes (it reads the footer, checks its CRC and the magic).
+function openIndexed(file) {
+  return McapIndexedReader.Initialize({ readable: { size: async () => BigInt(file.length),
+    read: async (offset, length) => file.subarray(Number(offset), Number(offset + length)) }, decompressHandlers });
 }
 
 async function completedRun(base) {
@@ -157,8 +180,8 @@ async function completedRun(base) {
   const runJson = readFileSync(join(run, "run.json"));
 
   // The summary, through the indexed reader (it reads the footer, checks its CRC and the magic).
-  const indexed = await McapIndexedReader.Initialize({ readable: { size: async () => BigInt(file.length),
-    read: async (offset, length) => file.subarray(Number(offset), Number(offset + length)) } });
+  const indexed = await openIndexed(file);
+  check(file.length < statSync(join(run, "telemetry.csv")).size, `telemetry.mcap ${file.length} bytes, telemetry.csv ${statSync(join(run, "telemetry.csv")).size}`);
   const topics = new Map([...indexed.channelsById.values()].map((c) => [c.topic, c]));
   check(topics.has("/hilbench/telemetry") && topics.has("/hilbench/events") && topics.size === 2, "channels: " + [...topics.keys()]);
   const stats = indexed.statistics;
@@ -192,7 +215,13 @@ async function completedRun(base) {
     if (m.topic === "/hilbench/telemetry") telemetry.push({ payload, logTime: m.logTime });
     else eventsRead.push(payload);
   }
-  sameRows("completed run", telemetry, csv, true);
+  const clock = logClock(metadata.get("clock"));
+  check(clock.speed === 10, "clock speed " + clock.speed);
+  sameRows("completed run", telemetry, csv, true, clock);
+  const [first, last] = [telemetry[0].logTime, telemetry[telemetry.length - 1].logTime];
+  const [startNs, stopNs] = [BigInt(Date.parse(record.start_utc)) * 1_000_000n, BigInt(Date.parse(record.stop_utc)) * 1_000_000n];
+  check(first >= startNs - 1_000_000_000n && last <= stopNs + 1_000_000_000n,
+    `log times ${first}..${last} ns are not within the run's ${record.start_utc}..${record.stop_utc}`);
   check(JSON.stringify(eventsRead) === JSON.stringify(events), `events differ from events.jsonl: ${eventsRead.length} vs ${events.length} lines`);
   check(events.some((e) => e.kind === "run_start"), "no run_start in events.jsonl");
 
@@ -203,7 +232,7 @@ async function completedRun(base) {
   const recovered = streamRead(cut);
   check(!recovered.done && recovered.remaining === cut.length - walked.end, `cut copy: ${recovered.remaining} bytes left unread, the last whole record ends ${cut.length - walked.end} bytes before the cut`);
   check(recovered.messages.length === walked.messages, `cut copy: ${recovered.messages.length} messages read, the whole chunks hold ${walked.messages}`);
-  sameRows("cut copy", recovered.messages.filter((m) => m.topic === "/hilbench/telemetry").map((m) => ({ payload: validate(m), logTime: m.logTime })), csv, false);
+  sameRows("cut copy", recovered.messages.filter((m) => m.topic === "/hilbench/telemetry").map((m) => ({ payload: validate(m), logTime: m.logTime })), csv, false, clock);
   console.log(`completed run: ${csv.rows.length} rows, ${events.length} events, ${indexed.chunkIndexes.length} chunks, ${file.length} bytes; ` +
     `cut at ${cut.length}: ${recovered.messages.length} messages in ${walked.chunks} whole chunks`);
 }
@@ -228,14 +257,49 @@ async function killedRun(base) {
   check(walked.chunks >= 5 && recovered.messages.length === walked.messages, `killed run: ${recovered.messages.length} messages read, ${walked.messages} in ${walked.chunks} whole chunks`);
   const telemetry = recovered.messages.filter((m) => m.topic === "/hilbench/telemetry").map((m) => ({ payload: validate(m), logTime: m.logTime }));
   check(telemetry.length >= 1000, `killed run: only ${telemetry.length} rows recovered`);
-  sameRows("killed run", telemetry, csv, false);
+  sameRows("killed run", telemetry, csv, false, logClock(recovered.metadata.get("clock")));
   console.log(`killed run: ${file.length} bytes, ${walked.chunks} whole chunks, ${telemetry.length} rows recovered of ${csv.rows.length} in the CSV`);
+  return { run, recovered };
+}
+
+// The next server's start finishes the killed run's file: the indexed reader opens it, and reads
+// every message the stream reader recovered from the cut file, in its whole chunks.
+async function restartedRun(killed) {
+  await startServer();
+  let record;
+  for (let i = 0; i < 100; ++i) {  // the start's scan of the runs folder
+    record = JSON.parse(readFileSync(join(killed.run, "run.json"), "utf8"));
+    if (record.outcome !== "running") break;
+    await sleep(100);
+  }
+  check(record.outcome === "interrupted", "the killed run's outcome: " + record.outcome);
+  const finished = record.interrupted?.["telemetry.mcap"];
+  check(finished && finished.messages === killed.recovered.messages.length,
+    "run.json's interrupted record of telemetry.mcap: " + JSON.stringify(finished) + `, ${killed.recovered.messages.length} messages recovered`);
+  const file = readFileSync(join(killed.run, "telemetry.mcap"));
+  let indexed;
+  try {
+    indexed = await openIndexed(file);
+  } catch (e) {
+    fail("the indexed reader refuses the finished file: " + e);
+    return;
+  }
+  check(indexed.statistics?.messageCount === BigInt(killed.recovered.messages.length),
+    `finished file: statistics say ${indexed.statistics?.messageCount} messages, ${killed.recovered.messages.length} were in whole chunks`);
+  const read = [];
+  for await (const m of indexed.readMessages()) read.push(m);
+  check(read.length === killed.recovered.messages.length, `finished file: the indexed reader read ${read.length} messages`);
+  const keys = (ms) => ms.map((m) => `${m.logTime} ${decoder.decode(m.data)}`).sort();
+  check(JSON.stringify(keys(read)) === JSON.stringify(keys(killed.recovered.messages)), "finished file: the indexed reader's messages are not the recovered ones");
+  const all = streamRead(file);
+  check(all.done && all.messages.length === read.length, `finished file: the stream reader reached its end (${all.done}) with ${all.messages.length} messages`);
+  console.log(`restarted: the killed run's file finished (${file.length} bytes, ${indexed.chunkIndexes.length} chunks, ${read.length} messages)`);
 }
 
 async function main() {
   const base = await startServer();
   await completedRun(base);
-  await killedRun(base);
+  await restartedRun(await killedRun(base));
 }
 
 main().catch((e) => fail(String(e?.stack ?? e))).finally(() => {

@@ -288,7 +288,8 @@ void Document::figure(const Figure& fig) {
       append_number(json, b.x0);
       json += ",\"x1\":";
       append_number(json, b.x1);
-      json += ",\"label\":" + json_string(b.label) + ",\"color\":" + json_string(b.color) + "}";
+      json += ",\"label\":" + json_string(b.label) + ",\"legend\":" + json_string(b.legend) +
+              ",\"color\":" + json_string(b.color) + "}";
     }
     json += "],\"hlines\":[";
     for (std::size_t i = 0; i < fig.hlines.size(); ++i) {

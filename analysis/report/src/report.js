@@ -359,6 +359,10 @@
       ctx.fillRect(a, area.y, c - a, area.h);
     }
     Object.assign(ctx, { globalAlpha: 1, strokeStyle: '#5b6475', fillStyle: '#5b6475', font: '11px sans-serif' });
+    // A line's label sits above it at the left, else below it, else right of the labels it would
+    // overlap (lines closer than a label's height, e.g. +-3 sigma on a wide range); the boxes drawn
+    // are listed on the canvas (data-hline-labels) for tests.
+    const boxes = [], overlaps = b => boxes.some(o => b.x < o.x + o.w && o.x < b.x + b.w && b.y < o.y + o.h && o.y < b.y + b.h);
     for (const h of spec.hlines || []) {
       const y = Math.round(g.toDomYCoord(h.y)) + 0.5;
       if ((spec.yLog && !(h.y > 0)) || !(y >= area.y && y <= area.y + area.h)) continue;
@@ -367,8 +371,20 @@
       ctx.moveTo(area.x, y);
       ctx.lineTo(area.x + area.w, y);
       ctx.stroke();
-      if (h.label) ctx.fillText(h.label, area.x + 4, y - 3);
+      if (!h.label) continue;
+      const w = Math.ceil(ctx.measureText(h.label).width), lh = 12;
+      const above = y - 3 - lh >= area.y, below = y + 3 + lh <= area.y + area.h;
+      const rows = [above ? y - 3 - lh : null, below ? y + 3 : null, above ? null : y + 3].filter(v => v !== null);
+      let box = null;
+      for (let x = area.x + 4; !box && x + w <= area.x + area.w; ) {
+        box = rows.map(top => ({ x, y: top, w, h: lh })).find(b => !overlaps(b)) || null;
+        if (!box) x = Math.max(...boxes.filter(o => o.x + o.w >= x).map(o => o.x + o.w)) + 8;
+      }
+      if (!box) continue;  // no room left on the plot: the line alone
+      ctx.fillText(h.label, box.x, box.y + lh - 2);
+      boxes.push(Object.assign(box, { label: h.label }));
     }
+    ctx.canvas.setAttribute('data-hline-labels', JSON.stringify(boxes.map(b => [b.label, b.x, b.y, b.w, b.h])));
     // Events as labelled dashed lines; a label that would overlap the one before goes a row lower
     // (three rows), and the labels drawn are listed on the canvas (data-markers) for tests.
     Object.assign(ctx, { font: '10px sans-serif', textBaseline: 'top' });
@@ -413,8 +429,10 @@
         s.style === 'points' ? { drawPoints: true, strokeWidth: 0, pointSize: 1.8 } : {}, s.dashed ? { strokePattern: [6, 4] } : {});
     });
     const items = series.length === 1 && !series[0].name ? [] : chart.items.slice();
+    // One legend entry per kind of band (its legend name, else its label): twelve change points are one entry.
     for (const b of spec.bands || []) {
-      if (b.label && !items.some(it => it.name === b.label && !it.toggles)) items.push({ name: b.label, color: b.color || '#d62728', kind: 'box band' });
+      const name = b.legend || b.label;
+      if (name && !items.some(it => it.name === name && !it.toggles)) items.push({ name, color: b.color || '#d62728', kind: 'box band' });
     }
     if (chart.group) groups.set(chart.group, (groups.get(chart.group) || []).concat([chart]));
     const ink = inkCounter(chart), axis = log => Object.assign({ logscale: !!log }, log ? { axisLabelFormatter: fmtLogTick } : {});
@@ -460,7 +478,8 @@
     // Each category's label gets its slot's width and wraps in it.
     const slot = Math.max(30, ((fig.clientWidth || 600) - 70) / Math.max(1, cats.length));
     const ink = inkCounter(chart);
-    const label = c => '<span title="' + esc(c) + '">' + esc(c.length > 28 ? c.slice(0, 27) + '\u2026' : c) + '</span>';
+    // A name_with_underscores may break after each underscore; a word longer than its slot anywhere.
+    const label = c => '<span title="' + esc(c) + '">' + esc(c.length > 28 ? c.slice(0, 27) + '\u2026' : c).replace(/_/g, '_<wbr>') + '</span>';
     chart.graph = new Dygraph(chart.div, chart.rows.length ? chart.rows : [[0, ...grs.map(() => null)]], Object.assign({}, COMMON, {
       labels: ['category', ...chart.labels], ylabel: esc(spec.yLabel || ''), includeZero: true, valueRange: chart.empty ? [0, 1] : null,
       dateWindow: [-0.5, Math.max(0.5, cats.length - 0.5)], plotter: ink.plotters(barPlotter(chart)), xAxisHeight: 46,

@@ -144,7 +144,8 @@ void mark_figure(Figure& figure, const RunMarks& marks, bool with_bands, const s
   const std::string line(palette::color("event")), window(palette::color("fault_window"));
   for (const auto& e : marks.marks) {
     figure.markers.push_back({e.t_s, prefix + e.label, line});
-    if (with_bands && std::isfinite(e.end_s)) figure.bands.push_back({e.t_s, e.end_s, prefix + e.label, window});
+    if (with_bands && std::isfinite(e.end_s))
+      figure.bands.push_back({e.t_s, e.end_s, prefix + e.label, window, prefix + "fault windows"});
   }
 }
 

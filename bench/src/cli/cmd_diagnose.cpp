@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "cmd_shared.hpp"
 #include "commands.hpp"
 #include "hil/analysis/diagnose.hpp"
 #include "hil/config.hpp"
@@ -25,7 +26,8 @@ CommandRun define_diagnose(CLI::App& cmd) {
       ->type_name("FILE.csv")
       ->allow_extra_args(false)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  cmd.add_option("--out", args->out_dir, "where the report goes (default out/diagnose-<first FILE>)")
+  cmd.add_option("--out", args->out_dir,
+                 "where the report goes (default out/diagnose-<first RUN or FILE>-<MODEL>, never another run's)")
       ->type_name("DIR")
       ->check(path_value());
   cmd.add_option("--write-model", args->write_model, "write the model with the effects found")
@@ -48,7 +50,8 @@ CommandRun define_diagnose(CLI::App& cmd) {
       }
       o.data_files.emplace_back(f);
     }
-    o.out_dir = args->out_dir.empty() ? "out/diagnose-" + o.data_files.front().stem().string() : args->out_dir;
+    o.out_dir = args->out_dir.empty() ? default_analysis_dir("diagnose", o.data_files, o.model_file, "diagnosis.json")
+                                      : std::filesystem::path(args->out_dir);
     o.write_model = args->write_model;
     o.quiet = args->quiet;
     o.settings.candidates = cfg::comma_list(args->candidates);

@@ -36,7 +36,7 @@ const Command kCommands[] = {
     {"run", "run a campaign on a rig without the server, recorded as hilbench serve records it", hil::bench::define_run},
     {"sweep", "run a campaign over a grid or distribution of conditions, on every core or on Slurm; robustness maps",
      hil::bench::define_sweep},
-    {"effects", "list the physical effects a plant file may use", hil::bench::define_effects},
+    {"effects", "list the physical effects a plant file may use, with their parameters", hil::bench::define_effects},
     {"compensators", "list the compensators a campaign may use, with their parameters", hil::bench::define_compensators},
     {"serve", "the bench server: real-time loop, operator API (HTTP/JSON, WebSocket telemetry)", hil::bench::define_serve},
     {"ctl", "command-line client of hilbench serve", hil::bench::define_ctl},

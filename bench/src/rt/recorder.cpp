@@ -99,6 +99,7 @@ Recorder::Recorder(const std::filesystem::path& dir, const std::vector<std::pair
     const std::uint16_t schema = mcap_->add_schema(schema_name(*c), "jsonschema", schema_json(*c));
     (c == &mcap_telemetry_ ? mcap_rows_channel_ : mcap_events_channel_) = mcap_->add_channel(schema, c->topic, "json");
   }
+  clock_start_ns_.store(unix_now_ns());        // until start_clock: rows of a recorder used without a loop
   mcap_->metadata("telemetry", csv_metadata);  // what telemetry.csv's "# key: value" lines say
   mcap_->flush_chunk();
   thread_ = std::thread([this, avoid_cpu] { writer(avoid_cpu); });
@@ -117,6 +118,16 @@ void Recorder::metadata(const std::string& name, const mcap::KeyValues& values) 
     fail(e);
   }
 }
+
+void Recorder::start_clock(double speed) {
+  const LogClock c{unix_now_ns(), speed > 0 ? speed : 1.0};
+  clock_start_ns_.store(c.start_unix_ns), clock_speed_.store(c.speed);
+  metadata("clock", {{"log_time", "the wall clock (UTC, ns since 1970) at which the record was due: start_unix_ns + t_s / speed"},
+                     {"start_unix_ns", std::to_string(c.start_unix_ns)},
+                     {"speed", nlohmann::json(c.speed).dump()}});
+}
+
+LogClock Recorder::clock() const noexcept { return {clock_start_ns_.load(), clock_speed_.load()}; }
 
 std::string Recorder::seal(const std::string& run_json) {
   std::unique_ptr<mcap::Writer> w;
@@ -162,8 +173,11 @@ void Recorder::log(const nlohmann::json& event) {
     if (!failed_.load()) {
       events_file_->append(line);
       events_written_.fetch_add(1);
-      const std::uint64_t t_ns = event.contains("t_s") && event["t_s"].is_number() ? row_time_ns(event["t_s"].get<double>())
-                                                                                   : last_row_ns_.load(std::memory_order_relaxed);
+      // The loop's events at their run time; the others (run start and end, requests) when written.
+      const std::uint64_t t_ns =
+          event.contains("t_s") && event["t_s"].is_number()
+              ? clock().at(event["t_s"].get<double>())
+              : static_cast<std::uint64_t>(now.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(now.tv_nsec);
       std::lock_guard mcap_lock(mcap_mutex_);
       if (mcap_) mcap_->message(mcap_events_channel_, t_ns, std::string_view(line).substr(0, line.size() - 1));
       return;
@@ -181,6 +195,7 @@ bool Recorder::drain() {
     any = true;
     for (std::size_t i = 0; i < n; ++i) log(event_json(ev[i]));
   }
+  const LogClock clock = this->clock();
   for (std::size_t n; (n = telemetry_.pop(batch_.data(), batch_.size())) > 0;) {
     any = true;
     for (std::size_t i = 0; i < n; ++i) {
@@ -191,7 +206,7 @@ bool Recorder::drain() {
           csv_->row(std::span<const double>(row.data(), n));
           // The same row in telemetry.mcap: the same columns and decimals (payload_json).
           const TelemetryRow full = telemetry_row(batch_[i]);
-          const std::uint64_t t_ns = row_time_ns(batch_[i].step.t_s);
+          const std::uint64_t t_ns = clock.at(batch_[i].step.t_s);
           last_row_ns_.store(t_ns, std::memory_order_relaxed);
           std::lock_guard mcap_lock(mcap_mutex_);  // released before a catch: fail() takes events_mutex_
           if (mcap_) mcap_->message(mcap_rows_channel_, t_ns, payload_json(mcap_telemetry_, full));

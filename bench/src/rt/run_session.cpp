@@ -145,6 +145,7 @@ void RunSession::run_loop(const RunSessionHooks& hooks) {
              cpu_latency ? (cpu_latency->warning().empty() ? json(rc_.loop.cpu_dma_latency_us) : json(cpu_latency->warning()))
                          : json(nullptr)}});
   if (hooks.loop_ready) hooks.loop_ready(*loop_, requests_, rt_);
+  rec_.start_clock(speed_);  // the loop's run time 0, as it starts below
   go.release();
   t.join();
   switch (loop_->end()) {

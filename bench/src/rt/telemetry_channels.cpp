@@ -1,6 +1,7 @@
 #include "hil/bench/rt/telemetry_channels.hpp"
 
 #include <cmath>
+#include <ctime>
 #include <limits>
 
 #include <nlohmann/json.hpp>
@@ -97,6 +98,18 @@ std::uint64_t row_time_ns(double t_s) {
   if (t_s >= 1.8e10) return std::numeric_limits<std::uint64_t>::max();  // 570 years: beyond any run
   const double scale = std::pow(10.0, telemetry::column(Col::t_s).decimals);
   return static_cast<std::uint64_t>(std::llround(std::round(t_s * scale) / scale * 1e9));
+}
+
+std::uint64_t LogClock::at(double t_s) const {
+  const double since_start_ns = static_cast<double>(row_time_ns(t_s)) / (speed > 0 ? speed : 1.0);
+  if (!(since_start_ns < 9e18)) return std::numeric_limits<std::uint64_t>::max();  // beyond any run
+  return start_unix_ns + static_cast<std::uint64_t>(std::llround(since_start_ns));
+}
+
+std::uint64_t unix_now_ns() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return static_cast<std::uint64_t>(now.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(now.tv_nsec);
 }
 
 }  // namespace hil::bench

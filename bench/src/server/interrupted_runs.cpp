@@ -1,6 +1,6 @@
 // A server's start: run folders whose run.json still says "running" although no live process
 // holds their lock were left by a server that died. Each is given an honest record of what is on
-// disk. The folder is hostile input like any other: a symbolic link (the folder, its run.json,
+// disk, and its telemetry.mcap its summary and footer. The folder is hostile input like any other: a symbolic link (the folder, its run.json,
 // its telemetry or events) is never followed, so nothing outside the runs folder is read, trimmed
 // or written, and run.json is bounded in size and nesting before it is parsed.
 #include <algorithm>
@@ -92,6 +92,18 @@ std::optional<RunRecord> take_unrenamed_record(const std::filesystem::path& dir)
   return newest;
 }
 
+// finish_run_mcap, said in the server's log.
+json finish_mcap(const std::filesystem::path& dir) {
+  json done = finish_run_mcap(dir);
+  if (done.contains("error"))
+    spdlog::error("{}: telemetry.mcap not finished: {}", dir.string(), done["error"].get<std::string>());
+  if (done.contains("messages"))
+    spdlog::warn("{}: telemetry.mcap of an interrupted run finished: {} messages in {} chunks, {} bytes of a cut record removed",
+                 dir.string(), done["messages"].get<std::uint64_t>(), done["chunks"].get<std::uint64_t>(),
+                 done["bytes_trimmed"].get<std::uint64_t>());
+  return done;
+}
+
 }  // namespace
 
 std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
@@ -128,6 +140,7 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
         continue;  // the run's end, as its server wrote it
       }
     }
+    if (info.outcome == Outcome::interrupted) finish_mcap(dir);  // marked by a server that did not finish it
     if (info.outcome != Outcome::running) continue;
     try {
       // The reserve is freed first: on a full disk it is the room the lines below need.
@@ -137,6 +150,8 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       for (const char* file : {"telemetry.csv", "events.jsonl"}) {
         if (plain_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
       }
+      const json mcap = finish_mcap(dir);  // its summary and footer: an indexed reader opens it
+      if (mcap.contains("bytes_trimmed")) trimmed["telemetry.mcap"] = mcap["bytes_trimmed"];
       const auto csv = dir / "telemetry.csv";
       const std::uint64_t rows = plain_file(csv) ? csv_rows(csv) : 0;
       const auto last_write = plain_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
@@ -155,6 +170,7 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       }
       info.stop_utc = utc_iso(last_utc);
       info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
+      if (!mcap.is_null()) info.interrupted["telemetry.mcap"] = mcap;
       // Only what the files show: the counts the dead process kept are unknown, and left out.
       RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
       tel.rows_written = rows;

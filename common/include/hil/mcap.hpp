@@ -1,12 +1,14 @@
 // MCAP (https://mcap.dev/spec, major version 0), the container Foxglove, Lichtblick and
 // PlotJuggler open: a small writer and a strict reader of our own (Debian packages no MCAP
-// library). The writer puts messages in uncompressed chunks, each with its CRC-32 and followed by
-// its message indexes, and ends the file with a summary (schemas, channels, statistics, chunk,
-// attachment and metadata indexes, summary offsets) and a footer whose CRC covers it. A chunk is
-// written whole and flushed to the OS, so a file whose writer was killed reads back up to its last
-// whole chunk. The reader streams records in bounded memory (one chunk at a time); anything
-// malformed is an McapError naming the file and the byte offset of the record at fault; a file
-// cut short (a crash) ends at its last whole record, which truncated() then says.
+// library; zstd is Debian's libzstd). The writer puts messages in chunks (zstd-compressed unless
+// told otherwise), each with the CRC-32 of its records and followed by its message indexes, and
+// ends the file with a summary (schemas, channels, statistics, chunk, attachment and metadata
+// indexes, summary offsets) and a footer whose CRC covers it. A chunk is written whole and flushed
+// to the OS, so a file whose writer was killed reads back up to its last whole chunk, and
+// Writer::finish gives such a file its summary and footer. The reader streams records in bounded
+// memory (one chunk at a time, uncompressed or zstd); anything malformed is an McapError naming
+// the file and the byte offset of the record at fault; a file cut short (a crash) ends at its last
+// whole record, which truncated() then says.
 // Setup/offline code: allocates, does I/O and throws.
 #pragma once
 
@@ -35,11 +37,22 @@ using KeyValues = std::vector<std::pair<std::string, std::string>>;
 // CRC-32 (ISO-HDLC, the one zlib and MCAP use) of data, continuing from crc (0 to start).
 std::uint32_t crc32(std::string_view data, std::uint32_t crc = 0);
 
+enum class Compression : std::uint8_t { none, zstd };
+
+// What Writer::finish found and did.
+struct Finished {
+  bool was_whole = false;       // it had its footer and closing magic: nothing was done
+  std::uint64_t bytes_cut = 0;  // the end of the file cut short by the crash, removed
+  std::uint64_t chunks = 0, messages = 0;
+  bool indexes_rebuilt = false;  // the last chunk's message indexes were cut, and are written anew
+};
+
 class Writer {
  public:
   // Creates `file` (truncating) and writes the magic and the header; throws McapError naming it.
   // A chunk is closed once it holds chunk_bytes (or by flush_chunk).
-  Writer(const std::filesystem::path& file, std::string_view profile, std::size_t chunk_bytes = 1 << 20);
+  Writer(const std::filesystem::path& file, std::string_view profile, std::size_t chunk_bytes = 1 << 20,
+         Compression compression = Compression::zstd);
   ~Writer();  // closes the file as close() does when nothing was written wrong; never throws
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
@@ -57,13 +70,28 @@ class Writer {
   // The last chunk, Data End, the summary, the footer and the closing magic; then the file is closed.
   void close();
   std::uint64_t messages() const { return message_count_; }
+
+  // Finishes a file whose writer died (kill -9, power): the bytes after its last whole record are
+  // removed, the message indexes of its last chunk written anew if they were cut, then what close()
+  // writes (Data End, summary, footer, magic), after `before_close` (e.g. an attachment). A file
+  // that already ends in a footer is left as it is (was_whole). Throws McapError naming the file
+  // and the record at fault when the file is not one to finish (no MCAP magic or header, a damaged
+  // chunk): such a file is left untouched, nothing whole is ever removed.
+  static Finished finish(const std::filesystem::path& file, const std::function<void(Writer&)>& before_close = {});
   const std::filesystem::path& file() const { return path_; }
 
  private:
   struct ChunkIndex {
-    std::uint64_t start_ns, end_ns, offset, length, index_length, size;
+    std::uint64_t start_ns, end_ns, offset, length, index_length, compressed_size, uncompressed_size;
+    std::string compression;
     std::map<std::uint16_t, std::uint64_t> index_offsets;
   };
+  struct Resume {};
+  Writer(Resume, const std::filesystem::path& file, std::FILE* f);                    // finish(): a file opened for update
+  static std::string message_index(std::uint16_t channel, std::string_view entries);  // the record, framed
+  void count_message(std::uint16_t channel_id, std::uint64_t log_time_ns);            // into the statistics
+  struct ResumeWalk;
+  void resume(std::uint8_t opcode, std::string_view body, std::uint64_t at, ResumeWalk& walk);  // finish(): one record
   struct AttachmentIndex {
     std::uint64_t offset, length, log_time_ns, size;
     std::string name, media_type;
@@ -75,6 +103,7 @@ class Writer {
   std::FILE* f_ = nullptr;
   std::uint64_t offset_ = 0;
   std::size_t chunk_bytes_;
+  Compression compression_ = Compression::zstd;
   std::vector<std::string> schemas_, channels_;  // their records' bodies, for the summary
   std::vector<std::uint32_t> sequence_;          // per channel (index id - 1)
   std::map<std::uint16_t, std::uint64_t> channel_counts_;
@@ -102,7 +131,7 @@ struct Message {
   std::uint32_t sequence = 0;
   std::uint64_t log_time_ns = 0, publish_time_ns = 0;
   std::string_view data;     // valid until the next call of next()
-  std::uint64_t offset = 0;  // of its record in the file (inside its chunk: chunks are uncompressed)
+  std::uint64_t offset = 0;  // of its record in the file; of its chunk's record when that chunk is compressed
 };
 
 // Streams the records of a file from its start: schemas and channels as they come, and messages
@@ -140,8 +169,8 @@ class Reader {
   std::vector<std::pair<std::string, std::string>> attachments_;
   std::string record_, chunk_;  // the last record; the records of the chunk being read
   std::size_t chunk_pos_ = 0;
-  std::uint64_t chunk_data_at_ = 0;  // file offset of the chunk's records
-  bool in_chunk_ = false, done_ = false, truncated_ = false;
+  std::uint64_t chunk_at_ = 0, chunk_data_at_ = 0;  // file offsets of the chunk record and of its records
+  bool in_chunk_ = false, chunk_compressed_ = false, done_ = false, truncated_ = false;
 };
 
 }  // namespace hil::mcap

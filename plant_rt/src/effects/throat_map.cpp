@@ -11,6 +11,9 @@ class ThroatMap final : public Effect {
  public:
   static constexpr std::string_view kKind = "throat_map";
   static constexpr Stage kStage = Stage::throat;
+  static constexpr std::string_view kTablesDoc =
+      "angle_deg: valve angles [deg], strictly increasing, within -360..360 (at least two); "
+      "area_mm2: the throat area [mm^2] at each angle, positive, not falling, at most 100000";
 
   ThroatMap(std::vector<double> angle_deg, std::vector<double> area_mm2)
       : angle_deg_(std::move(angle_deg)), area_mm2_(std::move(area_mm2)) {

@@ -98,6 +98,15 @@ inline constexpr std::size_t kMinRows = 50;
 // fewer than kMinRows data rows ("too short to fit").
 Measurement load_measurement(const std::filesystem::path& file);
 
+// What a report calls a measurement file: "<run folder>/<file>" for a bench run's file (its
+// folder holds run.json), "<campaign>/<run>/telemetry.csv" for a sim's (every run records the same
+// file name), else the file's name.
+std::string measurement_label(const std::filesystem::path& file);
+// A name for what is made of the file (an output folder): the bench run's folder name,
+// "<campaign>_<run>" for a sim's telemetry, else the file's stem. Only letters, digits and "._-+"
+// (others become '_').
+std::string measurement_name(const std::filesystem::path& file);
+
 // File line of the header row (after "# key: value" metadata and blank lines).
 std::size_t header_line(const std::filesystem::path& file);
 

@@ -37,8 +37,9 @@ struct Series {
 
 struct Band {  // shaded x-interval, e.g. a failing time window
   double x0 = 0, x1 = 0;
-  std::string label = "";
-  std::string color = "";  // empty: translucent red
+  std::string label = "";   // in the cursor's read-out over it
+  std::string color = "";   // empty: translucent red
+  std::string legend = "";  // its legend entry, one for every band of that name; empty: the label
 };
 
 struct Marker {  // a labelled vertical line at x, e.g. an event of the run (an injected gap change)

@@ -5,9 +5,11 @@
 // files only ever hold whole lines (LineFile). The first write error stops the writing, sets
 // failed() for the loop to see, and every row after it is counted as not written.
 // Beside them, telemetry.mcap (telemetry_channels.hpp): the rows on the telemetry topic and the
-// events on the events topic, in uncompressed chunks closed at every flush (a crash loses what
-// the CSV loses), snapshots as metadata records (metadata()), and, once the run's record is
-// final, run.json as an attachment and the summary (seal()).
+// events on the events topic, in zstd chunks closed at every flush (a crash loses what the CSV
+// loses), snapshots as metadata records (metadata()), and, once the run's record is final,
+// run.json as an attachment and the summary (seal()). Its log times are wall-clock (LogClock,
+// from start_clock()); a file its server died writing is finished by the next server
+// (mark_interrupted_runs).
 #pragma once
 
 #include <atomic>
@@ -55,6 +57,10 @@ class Recorder {
 
   // A Metadata record in telemetry.mcap (the run's campaign, plant, rig). Any thread.
   void metadata(const std::string& name, const mcap::KeyValues& values);
+  // Run time 0 is now, and the run goes at `speed` (run seconds per second): the log clock of
+  // telemetry.mcap from here, said in its metadata record "clock". Called as the loop starts.
+  void start_clock(double speed);
+  LogClock clock() const noexcept;
 
   // Drains both rings, stops the writer thread and closes the CSV (telemetry.mcap stays open for
   // seal). Call after the loop thread has ended. Returns the first write error ("" when none);
@@ -89,8 +95,10 @@ class Recorder {
   std::mutex mcap_mutex_;  // the writer thread (rows) and log() (events) both write it
   TelemetryChannel mcap_telemetry_;
   std::uint16_t mcap_rows_channel_ = 0, mcap_events_channel_ = 0;
-  std::atomic<std::uint64_t> last_row_ns_{0};  // the time stamp of an event that has no t_s
-  std::mutex events_mutex_;                    // log() is called from any thread
+  std::atomic<std::uint64_t> last_row_ns_{0};  // the last row's log time (run.json's attachment)
+  std::atomic<std::uint64_t> clock_start_ns_{0};
+  std::atomic<double> clock_speed_{1};
+  std::mutex events_mutex_;  // log() is called from any thread
   RowSink on_row_;
   std::chrono::milliseconds flush_period_;
   bool with_truth_;

@@ -38,6 +38,13 @@ std::string utc_iso(std::chrono::system_clock::time_point t);
 // `rows_per_run` telemetry rows each, with their reserves.
 void check_room_for_runs(const std::filesystem::path& runs_dir, double rows_per_run, std::size_t runs);
 
+// The telemetry.mcap of a run whose process died, given its summary and footer
+// (mcap::Writer::finish: the crash's cut tail removed, nothing whole). What was done, for the
+// run's interrupted record: {"bytes_trimmed", "chunks", "messages", "indexes_rebuilt"}, or
+// {"was_whole": true}, or {"error": why it is left as it is}; null when the folder has no such
+// plain file (a symbolic link is never followed). Never throws.
+nlohmann::json finish_run_mcap(const std::filesystem::path& dir);
+
 class RunFolder {
  public:
   // Makes <runs_dir>/<UTC start>_<campaign>_<run>/ (with _2, _3... when taken), takes its lock,

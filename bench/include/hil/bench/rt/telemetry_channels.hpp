@@ -37,4 +37,14 @@ std::string payload_json(const TelemetryChannel& c, const TelemetryRow& row);
 // A row's time stamp in ns: its t_s as telemetry.csv has it (negative and NaN give 0).
 std::uint64_t row_time_ns(double t_s);
 
+// The log times of a run's telemetry.mcap: the wall clock (UTC, ns since 1970) at which a record
+// of run time t_s was due, the loop's start plus t_s / speed, so a viewer shows the day and hour
+// of the run (the run's own time is the message's t_s).
+struct LogClock {
+  std::uint64_t start_unix_ns = 0;  // the wall clock at run time 0
+  double speed = 1;                 // run seconds per wall-clock second
+  std::uint64_t at(double t_s) const;
+};
+std::uint64_t unix_now_ns();  // the wall clock now (CLOCK_REALTIME)
+
 }  // namespace hil::bench
