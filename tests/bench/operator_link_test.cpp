@@ -3,6 +3,8 @@
 // offset (event_feed.hpp) on a written events.jsonl, and the rig file's require_operator keys with
 // their located errors; what a restarted server's status says of the last run (issue 52). The same
 // parts run in the real server in tests/console/console_link_test.mjs and console_after_fault_test.mjs.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -16,6 +18,7 @@
 #include "hil/bench/rt/rig_config.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "server/event_feed.hpp"
+#include "server/request_guard.hpp"
 #include "server/operator_link.hpp"
 #include "server/status_stream.hpp"
 #include "temp_file.hpp"
@@ -171,6 +174,18 @@ TEST(LastRun, TheNewestEndedRunOfTheRunsFolderAfterTheInterruptedScan) {
   EXPECT_TRUE(last->to_json()["trip"].is_null());
 }
 
+namespace {
+
+// The feed of DIR/events.jsonl, opened as the route opens it.
+json feed(const std::filesystem::path& dir, std::uint64_t offset, std::uint64_t max_bytes = hil::bench::kEventFeedMaxBytes) {
+  const auto f = hil::bench::open_inside(dir, {"events.jsonl"});
+  const json r = hil::bench::event_feed(f.fd, f.size, "events.jsonl", offset, max_bytes);
+  ::close(f.fd);
+  return r;
+}
+
+}  // namespace
+
 TEST(EventFeed, OperatorEventsWholeOverrunsPerSecondAndOnlyWholeLinesFromAnOffset) {
   hil::test::TempDir dir;
   std::string text;
@@ -179,12 +194,12 @@ TEST(EventFeed, OperatorEventsWholeOverrunsPerSecondAndOnlyWholeLinesFromAnOffse
             "\n";
     if (i % 500 == 0) text += json{{"utc", "u"}, {"t_s", 3 + i * 0.001}, {"kind", "gap_change"}, {"gap_deg", i}}.dump() + "\n";
   }
-  const auto file = dir.write("events.jsonl", text + "{\"kind\": \"half a li");  // a line being written
+  dir.write("events.jsonl", text + "{\"kind\": \"half a li");  // a line being written
   std::uint64_t offset = 0;
   int gap_changes = 0, overruns = 0, looks = 0;
   json worst = json::object();
   for (;; ++looks) {
-    const json r = hil::bench::event_feed(file, offset, 16 * 1024);
+    const json r = feed(dir.path(), offset, 16 * 1024);
     for (const auto& e : r["events"]) {
       gap_changes += e["kind"] == "gap_change";
       // The label the console marks it with, the reports' wording (run_marks.hpp).
@@ -205,9 +220,37 @@ TEST(EventFeed, OperatorEventsWholeOverrunsPerSecondAndOnlyWholeLinesFromAnOffse
   EXPECT_EQ(worst, json({{"3", 54.0}, {"4", 54.0}, {"5", 54.0}}));
   EXPECT_GT(looks, 5);
   // An offset inside a line, or past the end: a 400's field, never a torn line.
-  const std::string inside = error_of([&] { hil::bench::event_feed(file, 3); });
+  const std::string inside = error_of([&] { feed(dir.path(), 3); });
   EXPECT_NE(inside.find("'offset' 3 is not the start of a line"), std::string::npos) << inside;
-  EXPECT_NE(error_of([&] { hil::bench::event_feed(file, 1u << 30); }).find("past the end"), std::string::npos);
+  EXPECT_NE(error_of([&] { feed(dir.path(), 1u << 30); }).find("past the end"), std::string::npos);
+}
+
+// A line longer than one answer covers (a 300 KiB line gave a next_offset inside itself, which
+// the next call refused: the feed stood still) is skipped whole, counted, with a note; the feed
+// goes on from the line after it. One still being written (no newline yet) is waited for.
+TEST(EventFeed, ALineLongerThanTheLimitIsSkippedWholeAndCounted) {
+  hil::test::TempDir dir;
+  const std::string before = json{{"utc", "u"}, {"t_s", 1.0}, {"kind", "gap_change"}, {"gap_deg", 1}}.dump() + "\n";
+  const std::string huge = "{\"kind\": \"x\", \"pad\": \"" + std::string(300 * 1024, 'a') + "\"}\n";
+  const std::string after = json{{"utc", "u"}, {"t_s", 2.0}, {"kind", "gap_change"}, {"gap_deg", 2}}.dump() + "\n";
+  dir.write("events.jsonl", before + huge + after);
+  json r = feed(dir.path(), 0);
+  EXPECT_EQ(r["events"].size(), 1u) << r.dump().substr(0, 300);
+  ASSERT_EQ(r["next_offset"], before.size());
+  r = feed(dir.path(), before.size());
+  EXPECT_EQ(r["next_offset"], before.size() + huge.size()) << r.dump().substr(0, 300);
+  EXPECT_EQ(r["too_long"], 1);
+  EXPECT_EQ(r["unreadable"], 1);
+  EXPECT_NE(r.value("note", "").find("skipped"), std::string::npos) << r.dump().substr(0, 300);
+  r = feed(dir.path(), r["next_offset"]);  // accepted: the start of a line
+  ASSERT_EQ(r["events"].size(), 1u) << r.dump();
+  EXPECT_EQ(r["events"][0]["gap_deg"], 2);
+  EXPECT_EQ(r["next_offset"], before.size() + huge.size() + after.size());
+  // A long line without its newline yet: nothing skipped, the offset stays for a later look.
+  dir.write("events.jsonl", before + huge.substr(0, huge.size() - 1));
+  r = feed(dir.path(), before.size());
+  EXPECT_EQ(r["next_offset"], before.size());
+  EXPECT_FALSE(r.contains("too_long"));
 }
 
 TEST(RigFile, RequireOperatorKeysAreCheckedWhereTheyAre) {

@@ -662,16 +662,20 @@ TEST(Sweep, SlurmSubmitsAnArrayAndAnAggregationJobAfterIt) {
   // The resources go to both jobs; the CPUs per task to the array's tasks only.
   const std::string resources =
       "--parsable --partition=debug --time=1:30:00 --mem=2G --account=lab --qos=short --constraint=avx2 ";
-  EXPECT_NE(calls.find(resources + "--cpus-per-task=2 --array=0,2%2 " + (out / "slurm" / "array.sh").string()), std::string::npos)
+  // Each job's name and logs on sbatch's command line, never in the script: a log per attempt, so
+  // that a resubmission keeps the failed attempt's error.
+  const std::string logs = (out / "slurm" / "logs").string();
+  EXPECT_NE(calls.find(resources + "--cpus-per-task=2 --array=0,2%2 --job-name=sweep-small --output=" + logs +
+                       "/shard-%A_%a.out --error=" + logs + "/shard-%A_%a.err " + (out / "slurm" / "array.sh").string()),
+            std::string::npos)
       << calls;
-  EXPECT_NE(calls.find(resources + "--dependency=afterany:101 " + (out / "slurm" / "aggregate.sh").string()), std::string::npos)
+  EXPECT_NE(calls.find(resources + "--dependency=afterany:101 --job-name=sweep-small-aggregate --output=" + logs +
+                       "/aggregate-%j.out --error=" + logs + "/aggregate-%j.err " + (out / "slurm" / "aggregate.sh").string()),
+            std::string::npos)
       << calls;
   const std::string array = slurp(out / "slurm" / "array.sh");
   EXPECT_NE(array.find(fs::canonical(hilbench()).string()), std::string::npos) << array;
   EXPECT_NE(array.find("--shard \"${SLURM_ARRAY_TASK_ID}/3\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\""), std::string::npos) << array;
-  // A log per attempt: a resubmission keeps the failed attempt's error.
-  EXPECT_NE(array.find("shard-%A_%a.err"), std::string::npos) << array;
-  EXPECT_NE(slurp(out / "slurm" / "aggregate.sh").find("aggregate-%j.err"), std::string::npos);
   EXPECT_NE(slurp(out / "slurm" / "aggregate.sh").find("--aggregate"), std::string::npos);
   const auto jobs = nlohmann::json::parse(slurp(out / "slurm" / "jobs.json"));
   EXPECT_EQ(jobs["submissions"][0]["array"], "101");

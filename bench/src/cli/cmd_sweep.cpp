@@ -205,6 +205,7 @@ int run_sweep_mode(const SweepArgs& args) {
     throw UsageError("needs SWEEP.yaml");
   if (args.slurm) {
     check_slurm_options(args.slurm_options);
+    if (!args.out_dir.empty()) check_slurm_folder(std::filesystem::absolute(args.out_dir));  // before the folder is made
     return run_slurm(args);
   }
 

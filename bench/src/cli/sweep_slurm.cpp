@@ -1,14 +1,17 @@
 #include "sweep_slurm.hpp"
 
+#include <fcntl.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <map>
-#include <regex>
 #include <set>
 #include <sstream>
 
@@ -19,16 +22,12 @@
 #include "hil/line_file.hpp"
 #include "hil/text_file.hpp"
 
+extern char** environ;
+
 namespace hil::bench {
 namespace {
 
 using json = nlohmann::json;
-
-std::string quoted(const std::string& s) {
-  std::string q = "'";
-  for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
 
 std::string trimmed(std::string s) {
   while (!s.empty() && (s.back() == '\n' || s.back() == '\r' || s.back() == ' ')) s.pop_back();
@@ -43,19 +42,35 @@ std::string last_line(const std::string& text) {
   return trimmed(text.substr(from == std::string::npos ? 0 : from + 1, end + 1 - (from == std::string::npos ? 0 : from + 1)));
 }
 
-// Runs `argv` through sh, every argument quoted; returns its exit status; stdout into `out`, stderr into `err`.
+// Runs `argv` (the program found on PATH), no shell between: every argument reaches it as it is.
+// Its exit status (-1 when it could not run or died of a signal); stdout into `out`, stderr into `err`.
 int run_program(const std::vector<std::string>& argv, std::string& out, std::string& err, const std::filesystem::path& scratch) {
   const auto out_file = scratch / ".cmd.out", err_file = scratch / ".cmd.err";
-  std::string cmd;
-  for (const auto& a : argv) cmd += (cmd.empty() ? "" : " ") + quoted(a);
-  cmd += " >" + quoted(out_file.string()) + " 2>" + quoted(err_file.string()) + " </dev/null";
-  const int raw = std::system(cmd.c_str());
-  out = hil::read_text_file(out_file);
-  err = hil::read_text_file(err_file);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&fa, 1, out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_addopen(&fa, 2, err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int spawned = posix_spawnp(&pid, args[0], &fa, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  int raw = 0;
+  if (spawned == 0) {
+    while (::waitpid(pid, &raw, 0) < 0 && errno == EINTR) {}
+  }
   std::error_code ec;
+  out = std::filesystem::exists(out_file, ec) ? hil::read_text_file(out_file) : "";
+  err = std::filesystem::exists(err_file, ec) ? hil::read_text_file(err_file) : "";
   std::filesystem::remove(out_file, ec);
   std::filesystem::remove(err_file, ec);
-  return raw != -1 && WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  if (spawned != 0) {
+    err = argv[0] + ": cannot run: " + std::strerror(spawned);
+    return -1;
+  }
+  return WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
 }
 
 bool on_path(const std::string& program) {
@@ -91,12 +106,6 @@ std::string utc_now() {
   return buf;
 }
 
-// sbatch options the submission sets itself: given through --sbatch-arg they would split the
-// sweep's logs from --status, or chain the jobs differently.
-const std::set<std::string> kOwnSbatchOptions = {"--array",      "-a", "--output",   "-o", "--error",    "-e",
-                                                 "--dependency", "-d", "--job-name", "-J", "--parsable", "--wrap",
-                                                 "--chdir",      "-D", "--input",    "-i", "--open-mode"};
-
 // The options of a submission as sbatch arguments, in the order the flags are documented.
 std::vector<std::string> common_sbatch_args(const SlurmOptions& o) {
   std::vector<std::string> a;
@@ -112,17 +121,17 @@ std::vector<std::string> common_sbatch_args(const SlurmOptions& o) {
 // The hilbench command line that submits the same way again (what --status tells to run).
 std::string resubmit_command(const std::filesystem::path& dir, const json& submission) {
   std::string cmd =
-      "hilbench sweep --out " + quoted(dir.string()) + " --slurm --tasks " + std::to_string(submission.value("tasks", 8L));
+      "hilbench sweep --out " + sh_quoted(dir.string()) + " --slurm --tasks " + std::to_string(submission.value("tasks", 8L));
   if (const long k = submission.value("max_parallel_asked", 0L); k > 0) cmd += " --max-parallel " + std::to_string(k);
   const json o = submission.value("options", json::object());
   for (const char* key : {"partition", "time", "mem", "account", "qos"}) {
     if (o.contains(key) && o[key].is_string() && !o[key].get<std::string>().empty())
-      cmd += std::string(" --") + key + " " + quoted(o[key].get<std::string>());
+      cmd += std::string(" --") + key + " " + sh_quoted(o[key].get<std::string>());
   }
   if (const int c = o.value("cpus_per_task", 0); c > 0) cmd += " --cpus-per-task " + std::to_string(c);
   if (o.contains("sbatch_args") && o["sbatch_args"].is_array()) {
     for (const auto& a : o["sbatch_args"])
-      if (a.is_string()) cmd += " --sbatch-arg=" + quoted(a.get<std::string>());  // '=': the value starts with a dash
+      if (a.is_string()) cmd += " --sbatch-arg=" + sh_quoted(a.get<std::string>());  // '=': the value starts with a dash
   }
   return cmd;
 }
@@ -175,13 +184,18 @@ std::map<std::string, JobState> job_states(const std::string& id, const std::fil
     }
   }
   if (on_path("scontrol") && run_program({"scontrol", "-o", "show", "job", id}, out, err, scratch) == 0) {
-    static const std::regex kField(R"((ArrayTaskId|JobState|ExitCode)=(\S+))");
     std::stringstream lines(out);
     for (std::string l; std::getline(lines, l);) {
+      // "Key=value" fields parted by spaces; a value is what follows '=' up to the next space.
       std::string task, state, code;
-      for (std::sregex_iterator m(l.begin(), l.end(), kField), end; m != end; ++m) {
-        const std::string key = (*m)[1], value = (*m)[2];
-        (key == "ArrayTaskId" ? task : key == "JobState" ? state : code) = value;
+      std::stringstream fields(l);
+      for (std::string f; fields >> f;) {
+        const auto eq = f.find('=');
+        if (eq == std::string::npos || eq + 1 == f.size()) continue;
+        const std::string key = f.substr(0, eq), value = f.substr(eq + 1);
+        if (key == "ArrayTaskId") task = value;
+        if (key == "JobState") state = value;
+        if (key == "ExitCode") code = value;
       }
       if (!state.empty()) states[task] = {state, code};
     }
@@ -206,15 +220,21 @@ std::map<std::string, JobState> job_states(const std::string& id, const std::fil
 // The logs of each array task, attempt by attempt: DIR/slurm/logs/shard-JOB_TASK.err (older
 // hilbench wrote shard-TASK.err: job 0). Sorted by task, then by job id (the newest attempt last).
 std::map<long, std::vector<std::pair<long, std::filesystem::path>>> task_logs(const std::filesystem::path& logs) {
-  static const std::regex kName(R"(shard-(?:(\d+)_)?(\d+)\.err)");
   std::map<long, std::vector<std::pair<long, std::filesystem::path>>> by_task;
   std::error_code ec;
+  const auto number = [](const std::string& s) {
+    return !s.empty() && s.size() <= 18 && s.find_first_not_of("0123456789") == std::string::npos;
+  };
   for (const auto& e : std::filesystem::directory_iterator(logs, ec)) {
+    // shard-JOB_TASK.err, or shard-TASK.err
     const std::string name = e.path().filename().string();
-    std::smatch m;
-    if (!std::regex_match(name, m, kName)) continue;
-    const long job = m[1].matched ? std::stol(m[1]) : 0;
-    by_task[std::stol(m[2])].emplace_back(job, e.path());
+    if (name.rfind("shard-", 0) != 0 || name.size() < 11 || name.substr(name.size() - 4) != ".err") continue;
+    const std::string middle = name.substr(6, name.size() - 10);
+    const auto u = middle.find('_');
+    const std::string job = u == std::string::npos ? "0" : middle.substr(0, u);
+    const std::string task = u == std::string::npos ? middle : middle.substr(u + 1);
+    if (!number(job) || !number(task)) continue;
+    by_task[std::stol(task)].emplace_back(std::stol(job), e.path());
   }
   for (auto& [task, files] : by_task) std::sort(files.begin(), files.end());
   return by_task;
@@ -230,54 +250,14 @@ std::string file_last_line(const std::filesystem::path& file) {
 
 }  // namespace
 
-void check_slurm_options(const SlurmOptions& o) {
-  // Slurm's time formats: minutes, minutes:seconds, hours:minutes:seconds, days-hours,
-  // days-hours:minutes, days-hours:minutes:seconds; and UNLIMITED.
-  static const std::regex kTime(R"(\d+(:\d{1,2}){0,2}|\d+-\d+(:\d{1,2}){0,2}|UNLIMITED|INFINITE)");
-  static const std::regex kMem(R"(\d+[KMGT]?)");
-  static const std::regex kName(R"([A-Za-z0-9_.@+-]{1,128})");
-  if (!o.time.empty() && !std::regex_match(o.time, kTime))
-    throw UsageError("--time '" + o.time + "': not a Slurm time limit (minutes, M:S, H:M:S, D-H, D-H:M or D-H:M:S)");
-  if (!o.mem.empty() && !std::regex_match(o.mem, kMem))
-    throw UsageError("--mem '" + o.mem + "': not a Slurm memory size (a whole number, optionally K, M, G or T)");
-  if (!o.account.empty() && !std::regex_match(o.account, kName))
-    throw UsageError("--account '" + o.account + "': not a Slurm account name (letters, digits, _ . @ + -)");
-  if (!o.qos.empty() && !std::regex_match(o.qos, kName))
-    throw UsageError("--qos '" + o.qos + "': not a Slurm QOS name (letters, digits, _ . @ + -)");
-  if (!o.partition.empty() && !std::regex_match(o.partition, kName))
-    throw UsageError("--partition '" + o.partition + "': not a Slurm partition name (letters, digits, _ . @ + -)");
-  for (const auto& a : o.sbatch_args) {
-    if (a.size() < 2 || a[0] != '-' || a.find_first_of("\n\r") != std::string::npos)
-      throw UsageError("--sbatch-arg '" + a + "': one sbatch option, as sbatch takes it (e.g. --constraint=avx2)");
-    // "--name=value" or "-xVALUE": the option's own name.
-    const std::string name = a[1] == '-' ? a.substr(0, a.find('=')) : a.substr(0, 2);
-    if (kOwnSbatchOptions.count(name))
-      throw UsageError("--sbatch-arg '" + a + "': " + name +
-                       " is set by hilbench sweep --slurm itself (the array, its logs, the aggregation after it)");
-  }
-}
-
 int submit_to_slurm(const SweepPlan& plan, const std::filesystem::path& dir, const std::vector<long>& shards, long tasks,
                     long missing, const SlurmOptions& o) {
   const auto slurm_dir = dir / "slurm";
-  std::filesystem::create_directories(slurm_dir / "logs");
   const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
-  const std::string head = "#!/bin/sh\n# Written by hilbench sweep --slurm for sweep " + plan.name +
-                           ": the nodes need this binary and the shared folder, nothing else.\n";
-  // Logs per attempt (%A the array's job id, %j the aggregation's): a resubmission never
-  // overwrites the error of the attempt that failed.
-  replace_file(slurm_dir / "array.sh", head + "#SBATCH --job-name=sweep-" + plan.name +
-                                           "\n#SBATCH --output=" + (slurm_dir / "logs" / "shard-%A_%a.out").string() +
-                                           "\n#SBATCH --error=" + (slurm_dir / "logs" / "shard-%A_%a.err").string() +
-                                           "\n# Each task runs as many points at once as the CPUs Slurm gave it.\nexec " +
-                                           quoted(exe) + " sweep --out " + quoted(dir.string()) +
-                                           " --shard \"${SLURM_ARRAY_TASK_ID}/" + std::to_string(tasks) +
-                                           "\" --jobs \"${SLURM_CPUS_PER_TASK:-1}\"\n");
-  replace_file(slurm_dir / "aggregate.sh",
-               head + "#SBATCH --job-name=sweep-" + plan.name +
-                   "-aggregate\n#SBATCH --output=" + (slurm_dir / "logs" / "aggregate-%j.out").string() +
-                   "\n#SBATCH --error=" + (slurm_dir / "logs" / "aggregate-%j.err").string() + "\nexec " + quoted(exe) +
-                   " sweep --out " + quoted(dir.string()) + " --aggregate\n");
+  const SlurmScripts scripts = slurm_scripts(exe, dir, plan.name, tasks);  // checks the folder's name first
+  std::filesystem::create_directories(slurm_dir / "logs");
+  replace_file(slurm_dir / "array.sh", scripts.array);
+  replace_file(slurm_dir / "aggregate.sh", scripts.aggregate);
   std::filesystem::permissions(slurm_dir / "array.sh", std::filesystem::perms::owner_exec, std::filesystem::perm_options::add);
   std::filesystem::permissions(slurm_dir / "aggregate.sh", std::filesystem::perms::owner_exec,
                                std::filesystem::perm_options::add);
@@ -289,10 +269,12 @@ int submit_to_slurm(const SweepPlan& plan, const std::filesystem::path& dir, con
   std::vector<std::string> array_args = common;
   if (o.cpus_per_task > 0) array_args.push_back("--cpus-per-task=" + std::to_string(o.cpus_per_task));
   array_args.push_back("--array=" + list + "%" + std::to_string(parallel));
+  for (auto& a : array_job_args(dir, plan.name)) array_args.push_back(std::move(a));
   array_args.push_back((slurm_dir / "array.sh").string());
   const std::string array_id = sbatch(array_args, slurm_dir);
   std::vector<std::string> aggregate_args = common;  // one CPU: it reads rows and writes three files
   aggregate_args.push_back("--dependency=afterany:" + array_id);
+  for (auto& a : aggregate_job_args(dir, plan.name)) aggregate_args.push_back(std::move(a));
   aggregate_args.push_back((slurm_dir / "aggregate.sh").string());
   const std::string aggregate_id = sbatch(aggregate_args, slurm_dir);
 
@@ -337,7 +319,7 @@ int say_slurm_status(const std::filesystem::path& dir, long missing) {
   const auto jobs_file = dir / "slurm" / "jobs.json";
   if (!std::filesystem::exists(jobs_file)) {
     if (missing == 0) return 0;
-    std::printf("  to run what is missing: hilbench sweep --out %s (here), or with --slurm\n", quoted(dir.string()).c_str());
+    std::printf("  to run what is missing: hilbench sweep --out %s (here), or with --slurm\n", sh_quoted(dir.string()).c_str());
     return 1;
   }
   json jobs;

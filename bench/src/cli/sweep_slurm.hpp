@@ -8,25 +8,9 @@
 #include <vector>
 
 #include "hil/bench/campaign/sweep.hpp"
+#include "slurm_script.hpp"
 
 namespace hil::bench {
-
-// sbatch options of a submission. Empty strings and 0 are "not given" (Slurm's own defaults).
-struct SlurmOptions {
-  std::string partition;
-  std::string time;                      // --time, a Slurm time limit ("90", "1:30:00", "2-00")
-  std::string mem;                       // --mem per node ("4G")
-  std::string account;                   // --account
-  std::string qos;                       // --qos
-  int cpus_per_task = 0;                 // --cpus-per-task of the array's tasks (each task runs --jobs this many points)
-  int max_parallel = 0;                  // at most this many tasks at once (0: all)
-  int tasks = 8;                         // shards of the sweep
-  std::vector<std::string> sbatch_args;  // anything else, passed to sbatch as given ("--constraint=avx2")
-};
-
-// Throws UsageError naming the option for a value Slurm would refuse, or an sbatch argument that
-// would take over what the submission itself sets (--array, --output, --dependency, ...).
-void check_slurm_options(const SlurmOptions& o);
 
 // Submits the shards of `plan` that still miss points (`shards`, of `tasks`) as a job array and
 // an aggregation job after it; writes DIR/slurm/{array,aggregate}.sh and appends the submission to

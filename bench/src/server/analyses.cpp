@@ -1,5 +1,7 @@
 #include "analyses.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -209,14 +211,12 @@ std::vector<json> finished_analyses(const fs::path& run_dir) {
 }
 
 void refuse_linked_run_files(const fs::path& run_dir) {
-  for (const char* name : {"run.json", "telemetry.csv", "events.jsonl"}) {
-    std::error_code ec;
-    const auto type = fs::symlink_status(run_dir / name, ec).type();
-    if (type == fs::file_type::not_found) continue;
-    if (type == fs::file_type::symlink)
-      throw std::runtime_error((run_dir / name).string() +
-                               ": is a symbolic link (not followed: a run's files stay in its folder)");
-    if (type != fs::file_type::regular) throw std::runtime_error((run_dir / name).string() + ": is not a regular file");
+  // Opened as the routes open them (open_inside: no link at any part, no FIFO or device), then
+  // closed: the report and the analyses read these files by name.
+  for (const char* name : {"run.json", "telemetry.csv", "telemetry.mcap", "events.jsonl"}) {
+    bool missing = false;
+    const OpenedFile f = open_inside(run_dir.parent_path(), {run_dir.filename().string(), name}, &missing);
+    if (f.fd >= 0) ::close(f.fd);
   }
 }
 

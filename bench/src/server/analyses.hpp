@@ -76,7 +76,7 @@ nlohmann::json make_run_report(const std::filesystem::path& run_dir, const JobQu
 bool run_report_current(const std::filesystem::path& run_dir);
 
 // Throws std::runtime_error naming the file when one of the files a report or an analysis reads
-// in the run folder (run.json, telemetry.csv, events.jsonl) is a symbolic link or not a regular
+// in the run folder (run.json, telemetry.csv, telemetry.mcap, events.jsonl) is a symbolic link or not a regular
 // file: it is never followed (a link to /etc/shadow had its first line quoted in the error).
 void refuse_linked_run_files(const std::filesystem::path& run_dir);
 

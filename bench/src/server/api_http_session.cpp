@@ -70,8 +70,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       if (auto refused = api_->refused_header(req)) return send(std::move(*refused), false);
       const Target target = parse_target(std::string_view(req.target().data(), req.target().size()));
       if (websocket::is_upgrade(req) && api_->authorised(req, target)) return upgrade(std::move(req), target);
-      if (!websocket::is_upgrade(req) && target.path.size() >= 2 && target.path[0] == "api" && target.path[1] == "runs")
-        return answer_on_files_thread(std::move(req), target);
+      if (!websocket::is_upgrade(req) && api_->answered_on_worker(req, target)) return answer_on_worker(std::move(req), target);
       Reply reply = api_->answer(req, target);
       // A refused upgrade ends the connection, as Beast's own refusals of a handshake do: the
       // client asked for a WebSocket, not for more HTTP on this connection.
@@ -85,15 +84,27 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
   }
 
-  // A request under /api/runs reads run folders: answered on the run files' thread
-  // (Impl::files), sent from here. The connection waits; the io thread does not.
-  void answer_on_files_thread(Request req, const Target& target) {
+  // A request that reads files or parses a large body: answered on the request worker
+  // (Impl::worker), sent from here. The connection waits; the io thread does not. One that waited
+  // longer than the worker's budget for it is refused unread: its client has waited long enough
+  // to be told, and the work behind it is not made longer.
+  void answer_on_worker(Request req, const Target& target) {
     const bool keep_alive = req.keep_alive();
     auto asked = std::make_shared<const std::pair<Request, Target>>(std::move(req), target);
-    asio::post(api_->files, [self = shared_from_this(), asked, keep_alive] {
+    const auto queued = std::chrono::steady_clock::now();
+    asio::post(api_->worker, [self = shared_from_this(), asked, keep_alive, queued] {
       Reply reply;
       try {
-        reply = self->api_->answer(asked->first, asked->second);
+        const auto waited = std::chrono::steady_clock::now() - queued;
+        if (waited > ApiServer::Impl::kWorkerWaitBudget) {
+          reply = error_reply(
+              http::status::service_unavailable, "the server is busy",
+              "this request waited " + std::to_string(std::chrono::duration_cast<std::chrono::seconds>(waited).count()) +
+                  " s for the request worker (the limit is " + std::to_string(ApiServer::Impl::kWorkerWaitBudget.count()) +
+                  " s) behind other requests that read files or parse campaigns; try again");
+        } else {
+          reply = self->api_->answer(asked->first, asked->second);
+        }
       } catch (const std::exception& e) {
         spdlog::error("{} {}: {}", std::string(asked->first.method_string()), loggable_target(asked->first.target()), e.what());
         reply = error_reply(http::status::internal_server_error, "internal error", e.what());

@@ -1,5 +1,5 @@
 // The HTTP session of one connection: reads a request (the parser's limits), answers it through
-// the router (on the io thread, or on the run files' thread for /api/runs), writes the answer (a
+// the router (on the io thread, or on the request worker: api_router.hpp Thread), writes the answer (a
 // file streamed from disk, a HEAD's header alone, an answer that waits for a job), and hands a
 // WebSocket upgrade to the telemetry stream. The listener (api_listener.cpp) opens and evicts them.
 #pragma once

@@ -159,6 +159,16 @@ bool ApiServer::Impl::authorised(const Request& req, const Target& t) const {
   return q != t.query.end() && constant_time_equal(q->second, options.token);
 }
 
+bool ApiServer::Impl::answered_on_worker(const Request& req, const Target& t) const {
+  if (req.body().size() > kIoThreadBodyBytes) return true;
+  std::vector<std::string> args;
+  for (const auto& r : routes()) {
+    const bool head_of_get = req.method() == http::verb::head && r.method == http::verb::get;
+    if ((r.method == req.method() || head_of_get) && match(r.path, t.path, args)) return r.thread == Thread::worker;
+  }
+  return false;  // no route: the 404 or 405 is answered at once
+}
+
 Reply ApiServer::Impl::handle(const Request& req, const Target& t) {
   std::vector<std::string> args;
   std::string allow;  // the methods the path takes, for a 405

@@ -28,11 +28,22 @@ struct Call {
   Fields body() const;
 };
 
+// Where a route is answered. The io thread serves status, stop, abort, the injections and the
+// telemetry streams, and must never wait: a route that reads files or parses what a client sent
+// (a campaign, a rig, its checks, every run folder's file) is answered on the request worker
+// (ApiServer::Impl::worker), and so is any request whose body is larger than kIoThreadBodyBytes.
+enum class Thread { io, worker };
+
+// The largest body a request answered on the io thread may have; a larger one is parsed on the
+// request worker (a 700 KB campaign posted to /api/start held abort for 22 s on the io thread).
+inline constexpr std::size_t kIoThreadBodyBytes = 8 * 1024;
+
 // One endpoint: the method, the path ("{name}" matches one segment, handed to the handler in
 // order), what it does (GET /api lists this table), the handler, the query options it takes
 // (`token`, authorised(), is every route's) and its body's fields. `place` orders the table: GET
 // /api lists it in that order, and a path is matched against the rows in it (a literal segment
-// before a "{name}" at the same place: /api/runs/{id}/events before /api/runs/{id}/{file}).
+// before a "{name}" at the same place: /api/runs/{id}/events before /api/runs/{id}/{file}), and the
+// thread it is answered on.
 struct Route {
   int place;
   http::verb method;
@@ -41,6 +52,7 @@ struct Route {
   Reply (*handle)(const Call& call);
   FieldSpecs query = {};
   FieldSpecs body = {};
+  Thread thread = Thread::io;
 };
 
 // Each resource's rows (routes_*.cpp, telemetry_stream.cpp).

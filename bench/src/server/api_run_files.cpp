@@ -20,13 +20,10 @@ bool plain_file(const std::filesystem::directory_entry& e) {
   return e.symlink_status(ec).type() == std::filesystem::file_type::regular;
 }
 
-// A file below `base` (parts: plain names), opened now without following a symbolic link at any
-// part (open_inside): what is served is the file that was checked, never one a link points at
-// outside the runs folder (a tester's events.jsonl -> /etc/passwd was served). 404 `missing`
-// when it is not there, 403 naming the path (never its content) when it is a link or no file.
-Reply opened_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing) {
-  std::filesystem::path path = base;
-  for (const auto& p : parts) path /= p;
+RunFile open_run_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing) {
+  RunFile r;
+  r.name = base.string();
+  for (const auto& p : parts) r.name += "/" + p;
   bool absent = false;
   OpenedFile f;
   try {
@@ -35,12 +32,20 @@ Reply opened_file(const std::filesystem::path& base, const std::vector<std::stri
     throw ApiError{http::status::forbidden, "file not served", e.what()};
   }
   if (absent) throw ApiError{http::status::not_found, "unknown file", missing};
-  Reply r;
-  r.file = path;
   r.fd = std::shared_ptr<const int>(new int(f.fd), [](const int* fd) {
     if (*fd >= 0) ::close(*fd);
     delete fd;
   });
+  r.size = f.size;
+  return r;
+}
+
+Reply opened_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing) {
+  std::filesystem::path path = base;
+  for (const auto& p : parts) path /= p;
+  Reply r;
+  r.file = path;
+  r.fd = open_run_file(base, parts, missing).fd;
   return r;
 }
 

@@ -2,7 +2,9 @@
 // files opened without following a link, and its record once the run has ended.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -16,6 +18,17 @@ bool is_run_dir(const std::filesystem::path& runs_dir, const std::string& id);
 
 // Whether a folder entry is a regular file itself, not a link to one.
 bool plain_file(const std::filesystem::directory_entry& e);
+
+// A file below `base` (parts: plain names) opened through open_inside, the one way a run
+// folder's files are opened: 404 `missing` (which names it) when it is not there, 403 naming the
+// path (never its content) when it is a symbolic link, a FIFO, a device or no regular file. The
+// descriptor is closed with the last copy of `fd`.
+struct RunFile {
+  std::shared_ptr<const int> fd;
+  std::uint64_t size = 0;
+  std::string name;  // "base/part/...", for errors
+};
+RunFile open_run_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing);
 
 // A file below `base` (parts: plain names), opened now without following a symbolic link at any
 // part (open_inside): what is served is the file that was checked, never one a link points at

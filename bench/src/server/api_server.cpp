@@ -63,8 +63,8 @@ ApiServer::~ApiServer() {
   if (impl_) {
     beast::error_code ec;
     impl_->acceptor.close(ec);
-    impl_->files.stop();  // what waits is dropped; what runs is a bounded read
-    impl_->files.join();
+    impl_->worker.stop();  // what waits is dropped; what runs is a bounded read or parse
+    impl_->worker.join();
     stop_jobs();
   }
 }

@@ -3,7 +3,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fstream>
+#include <optional>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -11,6 +11,7 @@
 
 #include "hil/bench/campaign/run_marks.hpp"
 #include "hil/bench/server/runner.hpp"
+#include "request_guard.hpp"
 
 namespace hil::bench {
 
@@ -18,35 +19,43 @@ using nlohmann::json;
 
 bool summarised_event_kind(const std::string& kind) { return kind == "overrun" || kind == "cmd_limited"; }
 
-json event_feed(const std::filesystem::path& events_file, std::uint64_t offset, std::uint64_t max_bytes) {
-  std::ifstream in(events_file, std::ios::binary);
-  if (!in) throw std::runtime_error(events_file.string() + ": cannot open (" + std::strerror(errno) + ")");
-  in.seekg(0, std::ios::end);
-  const auto size = static_cast<std::uint64_t>(in.tellg());
+namespace {
+
+// Where the line that starts before `from` ends: the byte after its newline, or nullopt while it
+// has none yet (being written). Read in chunks: the scan holds no more than one in memory.
+std::optional<std::uint64_t> end_of_line(int fd, std::uint64_t from, std::uint64_t size, const std::string& name) {
+  constexpr std::size_t kChunk = 64 * 1024;
+  for (std::uint64_t at = from; at < size; at += kChunk) {
+    const std::string chunk = read_at(fd, at, kChunk, name);
+    if (const auto nl = chunk.find('\n'); nl != std::string::npos) return at + nl + 1;
+    if (chunk.size() < kChunk) break;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+json event_feed(int fd, std::uint64_t size, const std::string& name, std::uint64_t offset, std::uint64_t max_bytes) {
   if (offset > size) {
     throw BadField("offset", "'offset' " + std::to_string(offset) + " is past the end of events.jsonl (" + std::to_string(size) +
                                  " bytes); start again from 0");
   }
-  if (offset > 0) {  // a line's start follows a newline: any other offset would cut a line in two
-    in.seekg(static_cast<std::streamoff>(offset - 1));
-    if (in.get() != '\n') {
-      throw BadField("offset", "'offset' " + std::to_string(offset) +
-                                   " is not the start of a line of events.jsonl; use a next_offset this endpoint gave");
-    }
+  // A line's start follows a newline: any other offset would cut a line in two.
+  if (offset > 0 && read_at(fd, offset - 1, 1, name) != "\n") {
+    throw BadField("offset", "'offset' " + std::to_string(offset) +
+                                 " is not the start of a line of events.jsonl; use a next_offset this endpoint gave");
   }
-  const std::uint64_t want = std::min<std::uint64_t>(size - offset, max_bytes);
-  std::string chunk(want, '\0');
-  in.seekg(static_cast<std::streamoff>(offset));
-  in.read(chunk.data(), static_cast<std::streamsize>(want));
-  chunk.resize(static_cast<std::size_t>(in.gcount()));
+  std::string chunk = read_at(fd, offset, static_cast<std::size_t>(std::min<std::uint64_t>(size - offset, max_bytes)), name);
 
-  // Whole lines only. A line longer than a whole chunk (no event is) is skipped as unreadable so
-  // that the feed still moves on.
+  // Whole lines only. A line longer than a whole chunk (no event is) is skipped to its end, so
+  // that the feed moves on from the start of the next line.
   std::size_t end = chunk.rfind('\n');
-  std::uint64_t unreadable = 0;
+  std::uint64_t unreadable = 0, too_long = 0;
   std::uint64_t next = offset;
   if (end == std::string::npos) {
-    if (chunk.size() == max_bytes) next = offset + chunk.size(), ++unreadable;
+    if (chunk.size() == max_bytes) {
+      if (const auto after = end_of_line(fd, offset + chunk.size(), size, name)) next = *after, ++unreadable, ++too_long;
+    }
     chunk.clear();
   } else {
     chunk.resize(end + 1);
@@ -92,8 +101,14 @@ json event_feed(const std::filesystem::path& events_file, std::uint64_t offset, 
       }
     }
   }
-  return {{"offset", offset}, {"next_offset", next},    {"size", size},
-          {"events", events}, {"summaries", summaries}, {"unreadable", unreadable}};
+  json answer = {{"offset", offset}, {"next_offset", next},    {"size", size},
+                 {"events", events}, {"summaries", summaries}, {"unreadable", unreadable}};
+  if (too_long > 0) {
+    answer["too_long"] = too_long;
+    answer["note"] = "a line of more than " + std::to_string(max_bytes) + " bytes (at byte " + std::to_string(offset) +
+                     ") is no event this feed reads: skipped; next_offset is the line after it";
+  }
+  return answer;
 }
 
 }  // namespace hil::bench

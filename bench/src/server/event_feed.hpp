@@ -6,7 +6,7 @@
 #pragma once
 
 #include <cstdint>
-#include <filesystem>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -16,10 +16,14 @@ namespace hil::bench {
 inline constexpr std::uint64_t kEventFeedMaxBytes = 256 * 1024;
 
 // {"offset", "next_offset", "size", "events": [...], "summaries": [{"kind", "t0_s", "count",
-// "utc" (of the first), "worst_late_us" and "worst_t_s" (overruns)}], "unreadable": n}. Only whole lines are read: a line
-// being written is left for the next call. Throws BadField("offset") for an offset past the end or
-// not at the start of a line, std::runtime_error when the file cannot be read.
-nlohmann::json event_feed(const std::filesystem::path& events_file, std::uint64_t offset,
+// "utc" (of the first), "worst_late_us" and "worst_t_s" (overruns)}], "unreadable": n}, read
+// from `fd` (events.jsonl opened by open_inside, `size` bytes; `name` for errors). Only whole
+// lines are read: a line being written is left for the next call. A line longer than max_bytes
+// (no event is) is skipped whole: next_offset is the start of the line after it, and the answer
+// counts it in "unreadable" and "too_long" with a "note" (a next_offset inside it was refused by
+// the next call, and the feed stood still). Throws BadField("offset") for an offset past the end
+// or not at the start of a line, std::runtime_error when the file cannot be read.
+nlohmann::json event_feed(int fd, std::uint64_t size, const std::string& name, std::uint64_t offset,
                           std::uint64_t max_bytes = kEventFeedMaxBytes);
 
 // Whether a kind is a loop statistic summarised per second rather than listed ("overrun",

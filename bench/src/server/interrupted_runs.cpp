@@ -3,10 +3,12 @@
 // disk, and its telemetry.mcap its summary and footer. The folder is hostile input like any other: a symbolic link (the folder, its run.json,
 // its telemetry or events) is never followed, so nothing outside the runs folder is read, trimmed
 // or written, and run.json is bounded in size and nesting before it is parsed.
-#include <algorithm>
+#include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <optional>
 
 #include <spdlog/spdlog.h>
@@ -24,7 +26,7 @@ namespace {
 using nlohmann::json;
 using SysClock = std::chrono::system_clock;
 
-constexpr std::streamoff kEventTailBytes = 64 * 1024;  // an event line is a few hundred bytes
+constexpr std::uint64_t kEventTailBytes = 64 * 1024;  // an event line is a few hundred bytes
 
 // A plain file: not a symbolic link (whatever it points to), not a folder.
 bool plain_file(const std::filesystem::path& p) {
@@ -32,33 +34,46 @@ bool plain_file(const std::filesystem::path& p) {
   return std::filesystem::symlink_status(p, ec).type() == std::filesystem::file_type::regular;
 }
 
-// Telemetry rows in a CSV on disk: lines that are neither metadata (#) nor the header.
-std::uint64_t csv_rows(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
+// Telemetry rows in a run's CSV on disk: lines that are neither metadata (#) nor the header. Opened
+// as every file of a run folder is (open_inside: no link, no FIFO or device), read in chunks.
+std::uint64_t csv_rows(const std::filesystem::path& dir, const std::string& file) {
+  const OpenedFile f = open_inside(dir, {file});
+  const std::shared_ptr<const int> fd(new int(f.fd), [](const int* p) {
+    ::close(*p);
+    delete p;
+  });
   std::uint64_t rows = 0;
-  bool header = false;
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    if (!header) {
-      header = true;
-      continue;
+  bool header = false, line_start = true, counted = false;
+  constexpr std::size_t kChunk = 1 << 20;
+  for (std::uint64_t at = 0;; at += kChunk) {
+    const std::string chunk = read_at(*fd, at, kChunk, (dir / file).string());
+    for (const char c : chunk) {
+      if (line_start) {
+        // A line counts once it has a first byte that is not '#' nor its end.
+        counted = c == '#' || c == '\n';
+        if (!counted && header) ++rows;
+        if (!counted) header = true;
+      }
+      line_start = c == '\n';
     }
-    ++rows;
+    if (chunk.size() < kChunk) break;
   }
   return rows;
 }
 
 // The last line of a run's events.jsonl when it is the kFinalRecordUnwritten event, else null.
-json final_event_unrecorded(const std::filesystem::path& events) {
-  if (!plain_file(events)) return nullptr;
+json final_event_unrecorded(const std::filesystem::path& dir) {
+  bool missing = false;
+  const OpenedFile f = open_inside(dir, {"events.jsonl"}, &missing);
+  if (missing) return nullptr;
+  const std::shared_ptr<const int> fd(new int(f.fd), [](const int* p) {
+    ::close(*p);
+    delete p;
+  });
   // Only its tail: an event log of a long run is large, and its last line is all that matters.
-  std::ifstream in(events, std::ios::binary);
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  const std::streamoff from_byte = std::max<std::streamoff>(0, size - kEventTailBytes);
-  in.seekg(from_byte);
-  std::string text(static_cast<std::size_t>(size - from_byte), '\0');
-  if (!in.read(text.data(), static_cast<std::streamsize>(text.size())) || text.size() < 2) return nullptr;
+  const std::uint64_t from_byte = f.size > kEventTailBytes ? f.size - kEventTailBytes : 0;
+  const std::string text = read_at(*fd, from_byte, static_cast<std::size_t>(f.size - from_byte), (dir / "events.jsonl").string());
+  if (text.size() < 2) return nullptr;
   const auto from = text.rfind('\n', text.size() - 2);
   const json last =
       json::parse(text.begin() + static_cast<long>(from == std::string::npos ? 0 : from + 1), text.end(), nullptr, false);
@@ -153,11 +168,11 @@ std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::
       const json mcap = finish_mcap(dir);  // its summary and footer: an indexed reader opens it
       if (mcap.contains("bytes_trimmed")) trimmed["telemetry.mcap"] = mcap["bytes_trimmed"];
       const auto csv = dir / "telemetry.csv";
-      const std::uint64_t rows = plain_file(csv) ? csv_rows(csv) : 0;
+      const std::uint64_t rows = plain_file(csv) ? csv_rows(dir, "telemetry.csv") : 0;
       const auto last_write = plain_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
       const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
       const std::string found = utc_iso(SysClock::now());
-      const json end = final_event_unrecorded(dir / "events.jsonl");
+      const json end = plain_file(dir / "events.jsonl") ? final_event_unrecorded(dir) : json(nullptr);
       if (!end.is_null()) {  // the run ended; only its final run.json was not written
         info.outcome = outcome_from(end.value("outcome", "interrupted"));
         info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +

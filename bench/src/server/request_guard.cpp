@@ -290,6 +290,22 @@ OpenedFile open_inside(const std::filesystem::path& base, const std::vector<std:
   throw std::runtime_error(base.string() + ": no file named");
 }
 
+std::string read_at(int fd, std::uint64_t offset, std::size_t max_bytes, const std::string& name) {
+  std::string out(max_bytes, '\0');
+  std::size_t got = 0;
+  while (got < out.size()) {
+    const ssize_t n = ::pread(fd, out.data() + got, out.size() - got, static_cast<off_t>(offset + got));
+    if (n == 0) break;
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      throw std::runtime_error(name + ": cannot read: " + std::strerror(errno));
+    }
+    got += static_cast<std::size_t>(n);
+  }
+  out.resize(got);
+  return out;
+}
+
 nlohmann::json read_json_inside(const std::filesystem::path& base, const std::vector<std::string>& parts, std::size_t max_bytes,
                                 std::size_t max_depth) {
   const std::string name = shown(base, parts, parts.size());

@@ -97,15 +97,24 @@ nlohmann::json read_json_inside(const std::filesystem::path& base, const std::ve
 // nesting before it is parsed; a run.json nested 20 000 deep held the server 7 s and 800 MB).
 RunRecord read_run_record_inside(const std::filesystem::path& dir);
 
-// A file below `base` opened for reading, each part without following a symbolic link (the
-// folders O_DIRECTORY): the descriptor (the caller owns it) and its size. Throws
-// std::runtime_error naming the file as above, without its content; `missing` is set instead of
-// throwing when a part does not exist (ENOENT), and -1 returned.
+// A file below `base` opened for reading: the one way the server opens a file of a run folder
+// (run.json, events.jsonl, telemetry.csv, reports, analyses, the file route, the interrupted-run
+// scan). Each part is opened without following a symbolic link (O_NOFOLLOW; the folders
+// O_DIRECTORY), the last one O_NONBLOCK so that a FIFO cannot hold the open, and it must be a
+// regular file (fstat after the open: a FIFO, a device or a socket is refused). A regular file's
+// read never waits for a writer, so the caller's bounded read (read_at) is its time bound too.
+// Returns the descriptor (the caller owns it) and its size. Throws std::runtime_error naming the
+// file as above, without its content; `missing` is set instead of throwing when a part does not
+// exist (ENOENT), and -1 returned.
 struct OpenedFile {
   int fd = -1;
   std::uint64_t size = 0;
 };
 OpenedFile open_inside(const std::filesystem::path& base, const std::vector<std::string>& parts, bool* missing = nullptr);
+
+// At most max_bytes of an open file from byte `offset` (fewer at its end). Throws
+// std::runtime_error naming `name` when the read fails.
+std::string read_at(int fd, std::uint64_t offset, std::size_t max_bytes, const std::string& name);
 
 // Whether `file` resolves (symbolic links followed) to a path inside `folder` (which is resolved
 // too). False when either does not exist.

@@ -93,11 +93,23 @@ Reply models(ApiServer::Impl& api) {
 
 std::vector<Route> config_routes() {
   return {
-      {50, http::verb::get, "/api/campaigns", "the campaign files the server can run",
-       [](const Call& c) { return campaigns(c.api); }},
-      {60, http::verb::get, "/api/rigs", "the rig files", [](const Call& c) { return rigs(c.api); }},
-      {70, http::verb::get, "/api/models", "the plant models a run can be analysed against",
-       [](const Call& c) { return models(c.api); }},
+      {50,
+       http::verb::get,
+       "/api/campaigns",
+       "the campaign files the server can run",
+       [](const Call& c) { return campaigns(c.api); },
+       {},
+       {},
+       Thread::worker},
+      {60, http::verb::get, "/api/rigs", "the rig files", [](const Call& c) { return rigs(c.api); }, {}, {}, Thread::worker},
+      {70,
+       http::verb::get,
+       "/api/models",
+       "the plant models a run can be analysed against",
+       [](const Call& c) { return models(c.api); },
+       {},
+       {},
+       Thread::worker},
   };
 }
 

@@ -302,7 +302,7 @@ std::vector<Route> control_routes() {
       {80, http::verb::get, "/api/status", "the campaign running now, its loop's health and interlocks",
        [](const Call& c) { return json_reply(http::status::ok, c.api.runner.status()); }},
       {90, http::verb::post, "/api/start", "start a campaign: {campaign | campaign_yaml, rig, runs, speed}", start, kStartQuery,
-       kStartBody},
+       kStartBody, Thread::worker},
       {100, http::verb::post, "/api/stop", "end the campaign after the run's current period",
        [](const Call& c) { return stop(c.api); }},
       {110, http::verb::post, "/api/abort", "safe state now, then end the campaign: {reason}", abort, {}, kAbortBody},

@@ -72,8 +72,8 @@ Reply run_events(const Call& c) {
   require_run(api, id);
   const double offset = query_number(c.target, spec_of(c.route.query, "offset"), 0);
   try {
-    return json_reply(http::status::ok,
-                      event_feed(api.options.runs_dir / id / "events.jsonl", static_cast<std::uint64_t>(offset)));
+    const RunFile f = open_run_file(api.options.runs_dir, {id, "events.jsonl"}, "run '" + id + "' has no events.jsonl");
+    return json_reply(http::status::ok, event_feed(*f.fd, f.size, f.name, static_cast<std::uint64_t>(offset)));
   } catch (const BadField& e) {
     throw ApiError{http::status::bad_request, "bad field", e.what(), e.field};
   }
@@ -165,19 +165,48 @@ Reply run_report(const Call& c) {
 
 std::vector<Route> run_routes() {
   return {
-      {130, http::verb::get, "/api/runs", "the recorded runs, newest first", [](const Call& c) { return runs(c.api); }},
-      {140, http::verb::get, "/api/runs/{id}", "a run's record and its files",
-       [](const Call& c) { return run(c.api, c.args[0]); }},
-      {150, http::verb::get, "/api/runs/{id}/report.html",
+      {130,
+       http::verb::get,
+       "/api/runs",
+       "the recorded runs, newest first",
+       [](const Call& c) { return runs(c.api); },
+       {},
+       {},
+       Thread::worker},
+      {140,
+       http::verb::get,
+       "/api/runs/{id}",
+       "a run's record and its files",
+       [](const Call& c) { return run(c.api, c.args[0]); },
+       {},
+       {},
+       Thread::worker},
+      {150,
+       http::verb::get,
+       "/api/runs/{id}/report.html",
        "a run's paper-style report (HTML, made on the job worker once the run has ended; ?wait=0: 202 and the job's state until "
        "made)",
-       run_report, kReportQuery},
-      {200, http::verb::get, "/api/runs/{id}/events",
+       run_report,
+       kReportQuery,
+       {},
+       Thread::worker},
+      {200,
+       http::verb::get,
+       "/api/runs/{id}/events",
        "a run's events from byte ?offset=N of events.jsonl (0 when not given): operator events whole, loop statistics "
        "summarised per second; follow next_offset",
-       run_events, kEventsQuery},
-      {210, http::verb::get, "/api/runs/{id}/{file}", "one file of a run",
-       [](const Call& c) { return run_file(c.api, c.args[0], c.args[1]); }},
+       run_events,
+       kEventsQuery,
+       {},
+       Thread::worker},
+      {210,
+       http::verb::get,
+       "/api/runs/{id}/{file}",
+       "one file of a run",
+       [](const Call& c) { return run_file(c.api, c.args[0], c.args[1]); },
+       {},
+       {},
+       Thread::worker},
   };
 }
 

@@ -1,9 +1,5 @@
 // GET /api/runs/{id}/telemetry?from_s=&to_s=&columns=: a time range of a run's telemetry.csv at
 // full resolution (telemetry_range.hpp), what a served report fetches when it is zoomed in.
-#include <unistd.h>
-
-#include <memory>
-
 #include "api_router.hpp"
 #include "api_run_files.hpp"
 #include "hil/bench/server/runner.hpp"
@@ -42,24 +38,11 @@ Reply telemetry_range(const Call& c) {
   }
   if (q.columns.size() > telemetry::kColumns.size() * 2)
     throw ApiError{http::status::bad_request, "bad field", "'columns' names more columns than a telemetry row has", "columns"};
-  bool missing = false;
-  OpenedFile f;
+  const RunFile f = open_run_file(
+      api.options.runs_dir, {id, "telemetry.csv"},
+      "run '" + id + "' has no telemetry.csv (the range is read from it; a run that kept only telemetry.mcap has none)");
   try {
-    f = open_inside(api.options.runs_dir, {id, "telemetry.csv"}, &missing);
-  } catch (const std::exception& e) {
-    throw ApiError{http::status::forbidden, "file not read", e.what()};
-  }
-  if (missing) {
-    throw ApiError{
-        http::status::not_found, "no telemetry.csv",
-        "run '" + id + "' has no telemetry.csv (the range is read from it; a run that kept only telemetry.mcap has none)"};
-  }
-  const std::shared_ptr<const int> fd(new int(f.fd), [](const int* p) {
-    ::close(*p);
-    delete p;
-  });
-  try {
-    return body_reply(http::status::ok, telemetry_range_json(*fd, f.size, id + "/telemetry.csv", q), "application/json");
+    return body_reply(http::status::ok, telemetry_range_json(*f.fd, f.size, id + "/telemetry.csv", q), "application/json");
   } catch (const BadField& e) {
     throw ApiError{http::status::bad_request, "bad field", e.what(), e.field};
   } catch (const std::runtime_error& e) {
@@ -70,10 +53,15 @@ Reply telemetry_range(const Call& c) {
 }  // namespace
 
 std::vector<Route> telemetry_range_routes() {
-  return {{205, http::verb::get, "/api/runs/{id}/telemetry",
+  return {{205,
+           http::verb::get,
+           "/api/runs/{id}/telemetry",
            "a time range of a run's telemetry.csv at full resolution: ?from_s=&to_s=&columns=a,b (at most ?max_rows=, 20000 "
            "when not given), as JSON arrays",
-           telemetry_range, kRangeQuery}};
+           telemetry_range,
+           kRangeQuery,
+           {},
+           Thread::worker}};
 }
 
 }  // namespace hil::bench::api
