@@ -63,7 +63,8 @@ json analyse(const hil::bench::ApiClient& api, const std::string& run, const std
   const std::string id = posted.json()["analysis"]["id"];
   const auto end = std::chrono::steady_clock::now() + 300s;
   while (std::chrono::steady_clock::now() < end) {
-    for (const auto& a : api.get("/api/runs/" + run + "/analyses").json()["analyses"])
+    const json list = api.get("/api/runs/" + run + "/analyses").json();  // kept: the loop refers into it
+    for (const auto& a : list["analyses"])
       if (a["id"] == id && (a["state"] == "done" || a["state"] == "failed")) return a;
     std::this_thread::sleep_for(50ms);
   }
