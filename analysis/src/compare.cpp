@@ -24,12 +24,11 @@ using units::kPaPerKpa;
 // Replays row by row and feeds the analyzer. `next` yields chunks of rows in file order.
 template <class NextChunk>
 ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRows& first, NextChunk&& next, AnalyzerOptions opt,
-                                  ReplayInfo* info, const std::filesystem::path& file, std::size_t first_line) {
+                                  ReplayInfo* info, const std::filesystem::path& file, RunInputs run) {
   const plant::Plant quiet = noise_free(model);
   const ReplayStart start = estimate_start(first);
-  (void)first_line;
   Replayer rep(quiet);
-  const double yhat0 = rep.start(start);
+  const double yhat0 = rep.start(start, run.gap_at(first.t_s[0]));
   LogChecks checks(opt.model_lo_pa, opt.model_hi_pa);
   checks.start(start.p0_pa, yhat0, start.motor0_rad);
   if (info) info->start = start;
@@ -42,7 +41,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
   MotorChannel mc;
   mc.present = enc;
   double sum_d = 0, sum_d2 = 0;
-  double cmd_prev = first.theta_cmd_rad[0];
+  double cmd_prev = first.theta_cmd_rad[0], t_prev = first.t_s[0];
   bool first_row = true;
   std::size_t row = 0;
   const MeasurementRows* rows = &first;
@@ -52,6 +51,7 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
       const double t = rows->t_s[k];
       const double motor = enc ? rows->theta_motor_rad[k] : plant::kNaN;
       const double cmd = rows->theta_cmd_rad[k];
+      if (!first_row && !run.gap.empty()) rep.set_gap(run.gap_at(t_prev));
       const double yhat = first_row ? yhat0 : rep.advance_interpolated(t, cmd_prev, cmd, motor);
       // The reader refuses what could make the prediction non-finite; a model that still diverges
       // must stop here, not turn every metric into NaN.
@@ -71,16 +71,25 @@ ResidualReport replay_and_analyze(const plant::Plant& model, const MeasurementRo
         if (std::abs(d) > mc.max_abs_deg) mc.max_abs_deg = std::abs(d), mc.t_at_max_s = t;
         ++mc.samples;
       }
-      checks.add(t, rows->p_meas_pa[k]);
+      const bool left_out = run.leave_out(row, t);
       first_row = false;
       ++row;
       cmd_prev = cmd;
+      t_prev = t;
+      // A left-out row is replayed (the plant's state runs on) but neither checked nor analysed.
+      if (left_out) {
+        checks.skip(t);
+        continue;
+      }
+      checks.add(t, rows->p_meas_pa[k]);
       an.add({t, rows->p_meas_pa[k], yhat, enc ? motor : cmd, ref ? rows->p_ref_pa[k] : plant::kNaN, rep.burned_kg()});
     }
     rows = next(buffer) ? &buffer : nullptr;
   }
   ResidualReport r = an.finish();
   r.log_warnings = checks.warnings(r.noise_sigma_pa);
+  r.run_notes = run.notes(row);
+  r.rows_left_out = run.rows_left_out();
   if (mc.samples > 0) {
     mc.bias_deg = sum_d / static_cast<double>(mc.samples);
     mc.rmse_deg = std::sqrt(sum_d2 / static_cast<double>(mc.samples));
@@ -115,9 +124,9 @@ AnalyzerOptions analyzer_options_for(const plant::Plant& model) {
 }
 
 ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info,
-                            const Progress& progress, const std::atomic<bool>* cancel) {
+                            const Progress& progress, const std::atomic<bool>* cancel, const CsvDialect& dialect) {
   const auto t0 = Clock::now();
-  MeasurementReader reader(data_file);
+  MeasurementReader reader(data_file, dialect);
   MeasurementRows first;
   constexpr std::size_t kChunk = 65536;
   if (!reader.next(first, kChunk) || first.size() < kMinRows) {
@@ -153,7 +162,7 @@ ResidualReport compare_file(const plant::Plant& model, const std::filesystem::pa
     }
     return reader.next(rows, kChunk);
   };
-  ResidualReport r = replay_and_analyze(model, first, next, opt, info, data_file, reader.first_data_line());
+  ResidualReport r = replay_and_analyze(model, first, next, opt, info, data_file, run_inputs_beside(data_file));
   if (progress) progress(1.0, reader.rows_read());
   if (info) info->wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return r;
@@ -165,7 +174,9 @@ ResidualReport compare_measurement(const plant::Plant& model, const Measurement&
   opt.expected_duration_s = m.rows.t_s.back() - m.rows.t_s.front();
   opt.keep_series = keep_series;
   auto none = [](MeasurementRows&) { return false; };
-  return replay_and_analyze(model, m.rows, none, opt, nullptr, m.file, m.first_data_line);
+  RunInputs run = m.run;
+  run.left_out_counts_reset();
+  return replay_and_analyze(model, m.rows, none, opt, nullptr, m.file, std::move(run));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -360,7 +371,7 @@ ResidualReport run_compare(const CompareOptions& o) {
     };
   }
   ReplayInfo info;
-  const ResidualReport r = compare_file(model, o.data_file, &info, progress, o.cancel);
+  const ResidualReport r = compare_file(model, o.data_file, &info, progress, o.cancel, o.dialect);
   if (line) line->end();
   throw_if_cancelled(o.cancel);
 
@@ -383,6 +394,7 @@ ResidualReport run_compare(const CompareOptions& o) {
                 std::to_string(r.rows) + " rows, " + text::num(r.duration_s, 4) + " s, " +
                 (info.has_encoder ? "motor encoder replayed" : "no encoder: the motor model acts on the command") + ").");
   detail::add_summary_table(doc, r);
+  for (const auto& w : r.run_notes) doc.note("The run's record: " + w, false);
   for (const auto& w : r.log_warnings) doc.note(w, true);
   doc.note(text::join(r.signature, " "), !(r.fit_pct >= r.noise_floor_fit_pct - 1));
   add_residual_sections(doc, r, "time", "model", run_marks_beside(o.data_file, r.t0_s + r.duration_s));

@@ -66,7 +66,7 @@ class Criterion {
   // One noise model per segment of `data` (file).
   Criterion(const ReplayData& data, std::vector<NoiseModel> noise) : data_(data), noise_(std::move(noise)) {}
 
-  double rows() const { return static_cast<double>(data_.size()); }
+  double rows() const { return static_cast<double>(data_.scored_rows()); }  // left-out rows are no evidence
   // Sum of squares of the residual (every row of `data`) whitened by each file's noise model.
   double whitened_rss(std::span<const double> residual_pa) const {
     double sum = 0;

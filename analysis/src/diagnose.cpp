@@ -54,20 +54,21 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     FileFit f;
     f.rows = files[i]->rows.size();
     f.time_origin_s = full.segments[i].start.t0_s;
+    f.acquisition = files[i]->acquisition, f.first_line = files[i]->first_data_line;
     f.before = compare_measurement(base0, *files[i], s.keep_series);
-    const double n = static_cast<double>(f.rows);
+    const double n = static_cast<double>(files[i]->scored_rows());  // a run's left-out rows are no evidence
     noise_rss += n * f.before.noise_sigma_pa * f.before.noise_sigma_pa;
     spread2 += n * f.before.y_spread_pa * f.before.y_spread_pa;
     rss_before += n * f.before.error.rmse_pa * f.before.error.rmse_pa;
     d.files.push_back(std::move(f));
   }
   d.before = d.files.front().before;
-  const double N = static_cast<double>(full.size());
+  const double N = static_cast<double>(full.scored_rows());
   const double spread = std::sqrt(spread2 / N);
   d.noise_sigma_pa = std::sqrt(noise_rss / N);
-  d.noise_floor_fit_pct = fit_percent(noise_rss, spread, full.size());
+  d.noise_floor_fit_pct = fit_percent(noise_rss, spread, full.scored_rows());
   d.rmse_before_pa = std::sqrt(rss_before / N);
-  d.fit_before_pct = fit_percent(rss_before, spread, full.size());
+  d.fit_before_pct = fit_percent(rss_before, spread, full.scored_rows());
   std::vector<NoiseModel> noise;
   for (const auto& f : d.files) noise.push_back(f.before.noise);
   const detail::Criterion criterion(full, std::move(noise));
@@ -140,7 +141,7 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
     for (std::size_t i = 0; i < paths.size(); ++i) {
       Alternative alt;
       for (const auto& a : paths[i].added) alt.effects.push_back(a.cand->name);
-      alt.fit_pct = fit_percent(paths[i].rss, su.spread, full.size());
+      alt.fit_pct = fit_percent(paths[i].rss, su.spread, full.scored_rows());
       alt.bic = bic(paths[i]) - bic(paths[best]);
       alt.chosen = i == best;
       d.paths.push_back(alt);
@@ -230,11 +231,11 @@ Diagnosis diagnose(const plant::Plant& model, const std::vector<const Measuremen
   for (std::size_t i = 0; i < files.size(); ++i) {
     FileFit& f = d.files[i];
     f.after = added.empty() ? f.before : compare_measurement(segment_model(current, full, i), *files[i], s.keep_series);
-    rss_after += static_cast<double>(f.rows) * f.after.error.rmse_pa * f.after.error.rmse_pa;
+    rss_after += static_cast<double>(files[i]->scored_rows()) * f.after.error.rmse_pa * f.after.error.rmse_pa;
   }
   d.after = d.files.front().after;
   d.rmse_after_pa = std::sqrt(rss_after / N);
-  d.fit_after_pct = fit_percent(rss_after, spread, full.size());
+  d.fit_after_pct = fit_percent(rss_after, spread, full.scored_rows());
   for (auto& c : d.added) c.fit_after_pct = d.fit_after_pct;
   // Several files: the rig as the last file saw it (a step in an earlier run is in force from 0 s).
   d.fitted = std::make_shared<const plant::Plant>(segment_model(apply_added(model, added), full, files.size() - 1));

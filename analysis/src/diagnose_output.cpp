@@ -92,6 +92,8 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
     const FileFit& f = d.files[i];
     files.push_back({{"data_file", i < data_files.size() ? data_files[i].string() : ""},
                      {"rows", f.rows},
+                     {"acquisition", f.acquisition},
+                     {"first_line", f.first_line},
                      {"time_origin_s", f.time_origin_s},
                      {"noise_sigma_kpa", number(f.before.noise_sigma_pa / kKpa)},
                      {"noise_floor_fit_pct", number(f.before.noise_floor_fit_pct)},
@@ -99,7 +101,9 @@ std::string diagnosis_json(const Diagnosis& d, const std::filesystem::path& mode
                      {"fit_before_pct", number(f.before.fit_pct)},
                      {"fit_after_pct", number(f.after.fit_pct)},
                      {"signature", d.explained ? f.after.signature : f.before.signature},
-                     {"log_warnings", f.before.log_warnings}});
+                     {"log_warnings", f.before.log_warnings},
+                     {"rows_left_out", f.before.rows_left_out},
+                     {"run_notes", f.before.run_notes}});
   }
   j["files"] = files;
   // Which fitted parameters the files share (one rig) and which are per file (an event time: the
@@ -416,10 +420,10 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
   check_model_output(o);  // before minutes of fitting, not after
   const plant::Plant model = plant::Plant::load(o.model_file);
   std::vector<Measurement> data;
-  data.reserve(o.data_files.size());
+  DataFiles names;  // per Measurement: its file (a file of several acquisitions, once for each)
   for (const auto& f : o.data_files) {
     throw_if_cancelled(o.settings.cancel);
-    data.push_back(load_measurement(f));
+    for (auto& m : load_acquisitions(f, o.dialect)) data.push_back(std::move(m)), names.push_back(f);
     if (data.back().has_encoder != data.front().has_encoder) {
       throw std::invalid_argument(f.string() + ": " + (data.back().has_encoder ? "has" : "has no") +
                                   " theta_motor_deg column, but " + o.data_files.front().string() + " " +
@@ -434,13 +438,13 @@ Diagnosis run_diagnose(const DiagnoseOptions& o) {
   const Diagnosis d = diagnose(model, files, s);
   throw_if_cancelled(s.cancel);
   std::filesystem::create_directories(o.out_dir);
-  const std::string json_text = diagnosis_json(d, o.model_file, o.data_files);
-  const std::string html = diagnosis_report_html(d, o.model_file, o.data_files);
+  const std::string json_text = diagnosis_json(d, o.model_file, names);
+  const std::string html = diagnosis_report_html(d, o.model_file, names);
   std::vector<hil::FileText> outputs{{o.out_dir / "diagnosis.json", {json_text}}, {o.out_dir / "report.html", {html}}};
   std::string model_text;
   if (!o.write_model.empty()) {
     if (o.write_model.has_parent_path()) std::filesystem::create_directories(o.write_model.parent_path());
-    model_text = fitted_model_yaml(d, o.model_file, o.data_files);
+    model_text = fitted_model_yaml(d, o.model_file, names);
     outputs.push_back({o.write_model, {model_text}});
   }
   hil::replace_files(outputs);  // all or none: never a new diagnosis beside an older report

@@ -26,7 +26,7 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     const Score sc = score_of(ctx, current);
     rd.rss_before_pa2 = sc.rss, rd.whitened_rss_before = sc.wrss;
   }
-  rd.fit_before_pct = fit_percent(rd.rss_before_pa2, su.spread, full.size());
+  rd.fit_before_pct = fit_percent(rd.rss_before_pa2, su.spread, full.scored_rows());
   evaluations += 1;
 
   std::vector<VariantFit> jobs;
@@ -118,7 +118,7 @@ RoundOutcome run_round(const Setup& su, const plant::Plant& base0, const std::ve
     const VariantFit& v = jobs[i];
     CandidateResult c = describe(*pool[v.candidate], v, current);
     c.fit_before_pct = rd.fit_before_pct;
-    c.fit_after_pct = fit_percent(v.rss_full, su.spread, full.size());
+    c.fit_after_pct = fit_percent(v.rss_full, su.spread, full.scored_rows());
     c.delta_bic = dbic(v);
     const double gain = rd.rss_before_pa2 - v.rss_full;
     c.excess_explained = excess > 0 ? gain / excess : 0;
@@ -167,7 +167,7 @@ void continue_path(const Setup& su, const plant::Plant& base0, const std::vector
     if (path.rss <= kSkipAtFloor * su.noise_rss) {
       Round done;
       done.rss_before_pa2 = path.rss;
-      done.fit_before_pct = fit_percent(path.rss, su.spread, su.ctx.full.size());
+      done.fit_before_pct = fit_percent(path.rss, su.spread, su.ctx.full.scored_rows());
       done.note =
           "the model is at the noise floor (RSS within 3 % of N sigma^2): no candidate can remove 5 % of the "
           "noise power, so none is fitted";
@@ -314,10 +314,10 @@ bool rescue_pair(const Setup& su, const plant::Plant& base0, const RoundOutcome&
   const VariantFit& a_alone = forms[alone[best.first]].fit;
   r2.rss_before_pa2 = a_alone.rss_full;
   r2.whitened_rss_before = a_alone.wrss_full;
-  r2.fit_before_pct = fit_percent(a_alone.rss_full, su.spread, ctx.full.size());
+  r2.fit_before_pct = fit_percent(a_alone.rss_full, su.spread, ctx.full.scored_rows());
   CandidateResult c = describe(*b.cand, b.fit, apply_added(base0, {a}));
   c.fit_before_pct = r2.fit_before_pct;
-  c.fit_after_pct = fit_percent(best.score.rss, su.spread, ctx.full.size());
+  c.fit_after_pct = fit_percent(best.score.rss, su.spread, ctx.full.scored_rows());
   c.rss_pa2 = best.score.rss;
   c.delta_bic = best.beside_dbic;
   const double left = std::max(a_alone.rss_full - su.noise_rss, 0.0);
@@ -467,7 +467,7 @@ std::vector<Rival> revisit(const Setup& su, const plant::Plant& base0, const std
         changed = true;
       } else if (dbic < kRivalBic) {
         rivals.push_back({e.cand->name, a.cand->name, a.cand->variants[a.fit.variant].name, dbic,
-                          fit_percent(alt.rss, su.spread, su.ctx.full.size())});
+                          fit_percent(alt.rss, su.spread, su.ctx.full.scored_rows())});
       }
     }
     if (!changed) break;

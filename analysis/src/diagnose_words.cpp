@@ -216,8 +216,8 @@ void write_verdict(Diagnosis& d, std::size_t n_files) {
   // is read with that in mind.
   std::vector<std::string> log_lines;
   for (std::size_t i = 0; i < d.files.size(); ++i)
-    for (const auto& w : d.files[i].before.log_warnings)
-      log_lines.push_back(n_files > 1 ? "File " + std::to_string(i + 1) + ": " + w : w);
+    for (const auto* lines : {&d.files[i].before.run_notes, &d.files[i].before.log_warnings})
+      for (const auto& w : *lines) log_lines.push_back(n_files > 1 ? "File " + std::to_string(i + 1) + ": " + w : w);
   out.insert(out.begin(), log_lines.begin(), log_lines.end());
 }
 

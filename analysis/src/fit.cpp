@@ -234,7 +234,8 @@ std::vector<double> Fitter::uncertainty(const std::vector<double>& x, std::vecto
   std::vector<double> r;
   const double c = cost(x, &r);
   std::vector<std::vector<double>> cols;
-  if (!std::isfinite(c) || p == 0 || r.size() <= p || !jacobian(x, r, cols)) return sigma;
+  const std::size_t n = data_.scored_rows();  // a run's left-out rows carry no residual
+  if (!std::isfinite(c) || p == 0 || n <= p || !jacobian(x, r, cols)) return sigma;
   std::vector<std::vector<double>> a(p, std::vector<double>(p, 0)), inv;
   for (std::size_t i = 0; i < p; ++i)
     for (std::size_t j = i; j < p; ++j) {
@@ -243,7 +244,7 @@ std::vector<double> Fitter::uncertainty(const std::vector<double>& x, std::vecto
       a[i][j] = a[j][i] = s;
     }
   if (!invert(a, inv)) return sigma;
-  const double s2 = c / static_cast<double>(r.size() - p);
+  const double s2 = c / static_cast<double>(n - p);
   const double tau = integrated_autocorrelation_time(r);
   for (std::size_t i = 0; i < p; ++i) {
     if (inv[i][i] > 0) sigma[i] = std::sqrt(s2 * tau * inv[i][i]);

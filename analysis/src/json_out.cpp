@@ -190,6 +190,7 @@ std::string summary_text(const ResidualReport& r, const std::string& model_name)
     }
     s += "\n";
   }
+  for (const auto& line : r.run_notes) s += "  * " + line + "\n";
   for (const auto& line : r.log_warnings) s += "  ! " + line + "\n";
   for (const auto& line : r.signature) s += "  - " + line + "\n";
   return s;
@@ -209,7 +210,9 @@ nlohmann::json headline_json(const ResidualReport& r) {
           {"max_error_kpa", number(r.error.max_abs_pa / kKpa)},
           {"max_error_t_s", number(r.error.t_at_max_s)},
           {"bias_kpa", number(r.error.bias_pa / kKpa)},
-          {"noise_sigma_kpa", number(r.noise_sigma_pa / kKpa)}};
+          {"noise_sigma_kpa", number(r.noise_sigma_pa / kKpa)},
+          {"rows_left_out", r.rows_left_out},
+          {"run_notes", r.run_notes}};
 }
 
 }  // namespace hil::analysis

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -19,6 +20,10 @@ class LogChecks {
   // The model's reach in pressure (NaN: unknown).
   LogChecks(double model_lo_pa, double model_hi_pa) : model_lo_pa_(model_lo_pa), model_hi_pa_(model_hi_pa) {}
   void add(double t_s, double p_pa);  // each row, in file order
+  // A row left out (a run's fault window, run_inputs.hpp): no hole, and no repeat across it.
+  void skip(double t_s) {
+    if (rows_ > 0) t_prev_s_ = t_s, p_prev_pa_ = std::numeric_limits<double>::quiet_NaN();
+  }
   // The replay's start: the measured pressure of the first rows, what the model makes there at the
   // measured angle (Plant::settle_nearest), and that angle.
   void start(double p0_pa, double yhat0_pa, double angle0_rad);

@@ -15,9 +15,13 @@ using telemetry::Col;
 
 // The measurement format (physics.md section 4, the first columns of the telemetry schema), in the
 // schema's order so that values[telemetry::index(c)] is column c.
-CsvRequest measurement_request() {
+CsvRequest measurement_request(const CsvDialect& dialect, bool acquisitions) {
   auto n = [](Col c) { return std::string(telemetry::name(c)); };
-  return {{n(Col::t_s), n(Col::theta_cmd_deg), n(Col::p_meas_mpa)}, {n(Col::theta_motor_deg), n(Col::p_ref_mpa)}, n(Col::t_s)};
+  return {{n(Col::t_s), n(Col::theta_cmd_deg), n(Col::p_meas_mpa)},
+          {n(Col::theta_motor_deg), n(Col::p_ref_mpa)},
+          n(Col::t_s),
+          dialect,
+          acquisitions};
 }
 
 }  // namespace
@@ -43,6 +47,7 @@ std::size_t header_line(const std::filesystem::path& file) {
 
 void MeasurementRows::clear() {
   for (auto* v : {&t_s, &theta_cmd_rad, &p_meas_pa, &theta_motor_rad, &p_ref_pa}) v->clear();
+  restarts.clear();
 }
 
 void MeasurementRows::reserve_like(const MeasurementRows& o, std::size_t rows) {
@@ -57,6 +62,7 @@ void MeasurementRows::reserve_like(const MeasurementRows& o, std::size_t rows) {
 }
 
 void MeasurementRows::append(const MeasurementRows& o) {
+  for (const std::size_t r : o.restarts) restarts.push_back(size() + r);
   auto cat = [](std::vector<double>& a, const std::vector<double>& b) { a.insert(a.end(), b.begin(), b.end()); };
   cat(t_s, o.t_s);
   cat(theta_cmd_rad, o.theta_cmd_rad);
@@ -65,8 +71,8 @@ void MeasurementRows::append(const MeasurementRows& o) {
   cat(p_ref_pa, o.p_ref_pa);
 }
 
-MeasurementReader::MeasurementReader(const std::filesystem::path& file)
-    : file_(file), reader_(file, measurement_request(), telemetry::kTopic) {
+MeasurementReader::MeasurementReader(const std::filesystem::path& file, const CsvDialect& dialect, bool acquisitions)
+    : file_(file), reader_(file, measurement_request(dialect, acquisitions), telemetry::kTopic) {
   has_encoder_ = reader_.header().present[3];
   has_reference_ = reader_.header().present[4];
 }
@@ -82,7 +88,8 @@ void MeasurementReader::check_rows(const CsvChunk& c) {
   const auto& t = c.values[telemetry::index(Col::t_s)];
   for (std::size_t r = 0; r < c.rows(); ++r) {
     const std::size_t line = c.lines[r];
-    const std::size_t k = rows_read_ + r;  // row index in the file
+    if (std::find(c.restarts.begin(), c.restarts.end(), r) != c.restarts.end()) acquisition_row_ = rows_read_ + r;
+    const std::size_t k = rows_read_ + r - acquisition_row_;  // row index in the acquisition
     if (k == 0) t_first_s_ = t_last_s_ = t[r];
     const double dt = t[r] - t_last_s_;
     if (dt > L::kMaxGapS) {
@@ -147,6 +154,7 @@ bool MeasurementReader::next(MeasurementRows& rows, std::size_t max_rows) {
   if (rows_read_ == 0) first_data_line_ = chunk_.first_line;
   const std::size_t n = chunk_.rows();
   rows_read_ += n;
+  rows.restarts = chunk_.restarts;
   rows.t_s = std::move(chunk_.values[telemetry::index(Col::t_s)]);
   rows.theta_cmd_rad = std::move(chunk_.values[telemetry::index(Col::theta_cmd_deg)]);
   for (double& v : rows.theta_cmd_rad) v = telemetry::to_si(Col::theta_cmd_deg, v);
@@ -173,8 +181,10 @@ void fail_too_short(const std::filesystem::path& file, std::size_t line, std::si
                  " (the first 50 ms settle the model, the rest carries the dynamics)");
 }
 
-Measurement load_measurement(const std::filesystem::path& file) {
-  MeasurementReader reader(file);
+namespace {
+
+Measurement read_whole(const std::filesystem::path& file, const CsvDialect& dialect, bool acquisitions) {
+  MeasurementReader reader(file, dialect, acquisitions);
   Measurement m;
   m.file = file;
   m.has_encoder = reader.has_encoder();
@@ -200,7 +210,39 @@ Measurement load_measurement(const std::filesystem::path& file) {
   return m;
 }
 
-namespace {
+// The run's record beside a recorded run's telemetry: its left-out rows marked.
+void add_run_record(Measurement& m) {
+  const auto& file = m.file;
+  m.run = run_inputs_beside(file);
+  if (!m.run.left_out.empty()) {
+    m.left_out.resize(m.rows.size());
+    for (std::size_t k = 0; k < m.rows.size(); ++k) m.left_out[k] = m.run.leave_out(k, m.rows.t_s[k]) ? 1 : 0;
+    if (m.scored_rows() < kMinRows)
+      throw CsvError(file.string() + ": " + std::to_string(m.run.rows_left_out()) + " of " + std::to_string(m.rows.size()) +
+                     " rows are inside the run's fault windows (" + m.run.notes(m.rows.size()).front() + "); fewer than " +
+                     std::to_string(kMinRows) + " rows are left to compare or fit");
+  }
+}
+
+// Rows [b, e) of `all` as a Measurement of their own.
+Measurement piece(const Measurement& all, std::size_t b, std::size_t e, std::size_t acquisition, std::size_t line) {
+  Measurement m;
+  m.file = all.file;
+  m.has_encoder = all.has_encoder;
+  m.has_reference = all.has_reference;
+  m.metadata = all.metadata;
+  m.acquisition = acquisition;
+  m.first_data_line = line;
+  auto cut = [&](std::vector<double>& to, const std::vector<double>& from) {
+    if (!from.empty()) to.assign(from.begin() + static_cast<std::ptrdiff_t>(b), from.begin() + static_cast<std::ptrdiff_t>(e));
+  };
+  cut(m.rows.t_s, all.rows.t_s);
+  cut(m.rows.theta_cmd_rad, all.rows.theta_cmd_rad);
+  cut(m.rows.p_meas_pa, all.rows.p_meas_pa);
+  cut(m.rows.theta_motor_rad, all.rows.theta_motor_rad);
+  cut(m.rows.p_ref_pa, all.rows.p_ref_pa);
+  return m;
+}
 
 // The folders that name a run's file, outermost first: a bench run's folder (it holds run.json,
 // its name is the run's start, campaign and run), or a sim's <campaign>/<run>/ of telemetry.csv;
@@ -229,6 +271,32 @@ std::string measurement_name(const std::filesystem::path& file) {
   for (char& c : name)
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-' && c != '+') c = '_';
   return name.empty() ? std::string("data") : name;
+}
+
+Measurement load_measurement(const std::filesystem::path& file, const CsvDialect& dialect) {
+  Measurement m = read_whole(file, dialect, false);
+  add_run_record(m);
+  return m;
+}
+
+std::vector<Measurement> load_acquisitions(const std::filesystem::path& file, const CsvDialect& dialect) {
+  Measurement all = read_whole(file, dialect, true);
+  if (all.rows.restarts.empty()) {
+    add_run_record(all);
+    return {std::move(all)};
+  }
+  std::vector<std::size_t> cuts = {0};
+  cuts.insert(cuts.end(), all.rows.restarts.begin(), all.rows.restarts.end());
+  cuts.push_back(all.rows.size());
+  // File lines of each acquisition's first row: counted from the header (no blank or comment line
+  // between rows is assumed; the error of a too short one names its first row).
+  std::vector<Measurement> out;
+  for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+    const std::size_t line = all.first_data_line + cuts[i];
+    if (cuts[i + 1] - cuts[i] < kMinRows) fail_too_short(file, line, cuts[i + 1] - cuts[i]);
+    out.push_back(piece(all, cuts[i], cuts[i + 1], i + 1, line));
+  }
+  return out;
 }
 
 }  // namespace hil::analysis

@@ -24,10 +24,11 @@ plant::Plant noise_free(const plant::Plant& model) {
   return model.find("pressure_sensor") ? model.without("pressure_sensor") : model;
 }
 
-double Replayer::start(const ReplayStart& s) {
+double Replayer::start(const ReplayStart& s, double gap_rad) {
   // The motor angle is measured; if the model cannot make the measured pressure with it, the
   // valve rests on the flank that comes closest and the misfit shows from the first row on.
-  model_.settle_nearest(state_, s.p0_pa, s.motor0_rad, 0.0);
+  gap_rad_ = gap_rad;
+  model_.settle_nearest(state_, s.p0_pa, s.motor0_rad, 0.0, gap_rad);
   last_t_s_ = s.t0_s;
   last_motor_rad_ = s.motor0_rad;  // the first encoder angle, or the first command (never ramped: no encoder)
   burned_kg_ = 0;
@@ -61,6 +62,30 @@ plant::Plant segment_model(const plant::Plant& model, const ReplayData& data, st
   return out;
 }
 
+namespace {
+
+// File m's run record into d's rows from b on (d's other files' rows: nothing left out, no input).
+void add_run_inputs(ReplayData& d, const Measurement& m, std::size_t b) {
+  const bool left = !m.left_out.empty(), gap = !m.run.gap.empty();
+  if ((left || !d.left_out.empty()) && d.left_out.size() < b) d.left_out.resize(b, 0);
+  if ((gap || !d.gap_rad.empty()) && d.gap_rad.size() < b) d.gap_rad.resize(b, plant::kNaN);
+  if (left) {
+    d.left_out.insert(d.left_out.end(), m.left_out.begin(), m.left_out.end());
+    d.rows_left_out += m.run.rows_left_out();
+  } else if (!d.left_out.empty()) {
+    d.left_out.resize(d.size(), 0);
+  }
+  if (gap) {
+    // The step to row k runs from t[k-1]: the input in force then.
+    d.gap_rad.push_back(m.run.gap_at(m.rows.t_s[0]));
+    for (std::size_t k = 1; k < m.rows.size(); ++k) d.gap_rad.push_back(m.run.gap_at(m.rows.t_s[k - 1]));
+  } else if (!d.gap_rad.empty()) {
+    d.gap_rad.resize(d.size(), plant::kNaN);
+  }
+}
+
+}  // namespace
+
 ReplayData replay_data(const Measurement& m) { return replay_data(std::vector<const Measurement*>{&m}); }
 
 ReplayData replay_data(const std::vector<const Measurement*>& files) {
@@ -82,6 +107,7 @@ ReplayData replay_data(const std::vector<const Measurement*>& files) {
     d.motor_rad.insert(d.motor_rad.end(), r.theta_motor_rad.begin(), r.theta_motor_rad.end());
     d.cmd_held_rad.push_back(r.theta_cmd_rad[0]);
     for (std::size_t k = 1; k < r.size(); ++k) d.cmd_held_rad.push_back(r.theta_cmd_rad[k - 1]);
+    add_run_inputs(d, *m, b);
   }
   return d;
 }
@@ -98,6 +124,8 @@ ReplayData decimate(const ReplayData& full, std::size_t m) {
     for (std::size_t k = b; k < n; k += m) {
       d.t_s.push_back(full.t_s[k]);
       d.y_pa.push_back(full.y_pa[k]);
+      if (!full.left_out.empty()) d.rows_left_out += full.left_out[k], d.left_out.push_back(full.left_out[k]);
+      if (!full.gap_rad.empty()) d.gap_rad.push_back(full.gap_rad[k > b ? k - m + 1 : k]);
       if (enc) d.motor_rad.push_back(full.motor_rad[k]);
       if (k == b) {
         d.cmd_held_rad.push_back(full.cmd_held_rad[b]);
@@ -124,8 +152,9 @@ bool replay(const plant::Plant& model, const ReplayData& data, std::span<double>
     std::optional<plant::Plant> moved;  // several files: this one's event times
     if (data.segments.size() > 1) moved = segment_model(model, data, i);
     Replayer r(moved ? *moved : model);
+    const bool gap = !data.gap_rad.empty();
     try {
-      yhat[b] = r.start(data.segments[i].start);
+      yhat[b] = r.start(data.segments[i].start, gap ? data.gap_rad[b] : plant::kNaN);
     } catch (const std::out_of_range&) {
       return false;
     }
@@ -133,6 +162,7 @@ bool replay(const plant::Plant& model, const ReplayData& data, std::span<double>
     const bool interpolate = data.decimation == 1;
     for (std::size_t k = b + 1; k < e; ++k) {
       const double motor = enc ? data.motor_rad[k] : plant::kNaN;
+      if (gap) r.set_gap(data.gap_rad[k]);
       if (interpolate) {
         // The command logged at row k is held over the next step; the last row's is not kept (nothing follows it).
         const double cmd_row = k + 1 < e ? data.cmd_held_rad[k + 1] : data.cmd_held_rad[k];
@@ -146,6 +176,9 @@ bool replay(const plant::Plant& model, const ReplayData& data, std::span<double>
     }
     if (!std::isfinite(yhat[e - 1])) return false;
   }
+  // Rows left out are predicted as measured: every residual, sum and fit sees 0 there.
+  for (std::size_t k = 0; k < data.left_out.size(); ++k)
+    if (data.left_out[k]) yhat[k] = data.y_pa[k];
   return true;
 }
 

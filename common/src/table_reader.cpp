@@ -84,6 +84,7 @@ TableReader::TableReader(const std::filesystem::path& file, CsvRequest request, 
     const auto it = std::find(header_.names.begin(), header_.names.end(), all[c]);
     field_of_.push_back(it == header_.names.end() ? -1 : static_cast<int>(it - header_.names.begin()));
     header_.present.push_back(field_of_.back() >= 0);
+    header_.field.push_back(field_of_.back());
     if (c < request_.required.size() && field_of_.back() < 0) {
       std::string have;
       for (const auto& n : header_.names) have += (have.empty() ? "" : ", ") + n;
@@ -100,8 +101,16 @@ std::uint64_t TableReader::file_bytes() const { return csv_ ? csv_->file_bytes()
 
 std::string TableReader::where(std::size_t line, std::string_view column) const {
   if (csv_) {
+    // The requested column's field (it may be read from a column of another name or unit).
+    std::vector<std::string> all = request_.required;
+    all.insert(all.end(), request_.optional.begin(), request_.optional.end());
+    const auto req = std::find(all.begin(), all.end(), column);
+    const auto r = static_cast<std::size_t>(req - all.begin());
+    const int field = req != all.end() && r < header_.field.size() ? header_.field[r] : -1;
     const auto it = std::find(header_.names.begin(), header_.names.end(), column);
-    const std::size_t col = it == header_.names.end() ? 1 : static_cast<std::size_t>(it - header_.names.begin()) + 1;
+    const std::size_t col = field >= 0                  ? static_cast<std::size_t>(field) + 1
+                            : it == header_.names.end() ? 1
+                                                        : static_cast<std::size_t>(it - header_.names.begin()) + 1;
     return header_.file.string() + ":" + std::to_string(line) + ":" + std::to_string(col) + ": column '" + std::string(column) +
            "'";
   }

@@ -98,7 +98,7 @@ RunMarks marks_from_events(const std::filesystem::path& events_jsonl, double end
       close(open_sensor, t);
     if (kind == "drive_fault" || kind == "faults_cleared" || (kind == "fault_expired" && text(e, "fault") == "drive"))
       close(open_drive, t);
-    RunMark m{t, std::nan(""), label, kind};
+    RunMark m{t, std::nan(""), label, kind, text(e, "source"), kind == "gap_change" ? number(e, "gap_deg") : std::nan("")};
     const bool off = e.contains("on") && e["on"].is_boolean() && !e["on"].get<bool>();
     if (is_fault(kind) && text(e, "mode") != "none" && !off) {
       const double d = number(e, "duration_s");

@@ -1,4 +1,5 @@
 // hilbench compare --model MODEL.yaml --data FILE.csv|telemetry.mcap [--out DIR] [--quiet]
+//                  [--separator S] [--decimal D] [--columns COL=NAME,...]
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -8,6 +9,7 @@
 
 #include "cmd_shared.hpp"
 #include "commands.hpp"
+#include "csv_format_options.hpp"
 #include "hil/analysis/compare.hpp"
 #include "hil/json_file.hpp"
 
@@ -66,6 +68,7 @@ CommandRun define_compare(CLI::App& cmd) {
     std::string model_file, out_dir;
     std::vector<std::string> data_files;  // every --data given: more than one is refused
     bool quiet = false;
+    CsvFormatArgs format;
   };
   auto args = std::make_shared<CompareArgs>();
   cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
@@ -79,9 +82,11 @@ CommandRun define_compare(CLI::App& cmd) {
   cmd.add_option("--out", args->out_dir, "where the report goes (default out/compare-<RUN or FILE>-<MODEL>, never another run's)")
       ->type_name("DIR")
       ->check(path_value());
+  add_csv_format_options(cmd, args->format);
   cmd.add_flag("--quiet", args->quiet, "no summary on stdout");
   return [args] {
     analysis::CompareOptions o;
+    o.dialect = args->format.dialect();
     o.model_file = args->model_file;
     if (args->data_files.size() > 1) {
       throw UsageError("--data given " + std::to_string(args->data_files.size()) +

@@ -1,10 +1,11 @@
 // hilbench diagnose --model MODEL.yaml --data FILE.csv [--data MORE.csv ...] [--out DIR] [--write-model FITTED.yaml]
-//                   [--candidates a,b] [--threads N] [--quiet]
+//                   [--candidates a,b] [--threads N] [--quiet] [--separator S] [--decimal D] [--columns COL=NAME,...]
 #include <filesystem>
 #include <memory>
 
 #include "cmd_shared.hpp"
 #include "commands.hpp"
+#include "csv_format_options.hpp"
 #include "hil/analysis/diagnose.hpp"
 #include "hil/config.hpp"
 
@@ -16,6 +17,7 @@ CommandRun define_diagnose(CLI::App& cmd) {
     std::vector<std::string> data_files;
     unsigned threads = 0;  // 0: the fitter's default, min(2, hardware)
     bool quiet = false;
+    CsvFormatArgs format;
   };
   auto args = std::make_shared<DiagnoseArgs>();
   cmd.add_option("--model", args->model_file, "the plant model")->required()->type_name("MODEL.yaml");
@@ -35,9 +37,11 @@ CommandRun define_diagnose(CLI::App& cmd) {
       ->check(path_value());
   cmd.add_option("--candidates", args->candidates, "fit only these candidate effects")->type_name("a,b");
   cmd.add_option("--threads", args->threads, "worker threads of the fitter")->type_name("N")->check(whole_number(1, 64));
+  add_csv_format_options(cmd, args->format);
   cmd.add_flag("--quiet", args->quiet, "no summary on stdout");
   return [args] {
     analysis::DiagnoseOptions o;
+    o.dialect = args->format.dialect();
     o.model_file = args->model_file;
     // Each --data is a run of the rig: one file given twice (or by another name, ./x or a link)
     // was fitted as two runs, its rows counted twice.

@@ -64,6 +64,8 @@ json diagnose_summary(const analysis::Diagnosis& d) {
           {"added", added},
           {"candidates", candidates},
           {"not_identifiable", not_identifiable},
+          {"rows_left_out", d.before.rows_left_out},
+          {"run_notes", d.before.run_notes},  // the run's own record: fault windows left out, gap inputs
           {"summary", d.summary}};
 }
 

@@ -35,8 +35,10 @@ using Progress = std::function<void(double fraction, std::size_t rows)>;
 
 // Streams `data_file` through `model` (its sensor noise is ignored) and analyses the residual.
 // `cancel` set (from another thread): throws Cancelled before the next chunk of rows.
+// dialect: the file's CSV dialect (csv_reader.hpp; detected when unset).
 ResidualReport compare_file(const plant::Plant& model, const std::filesystem::path& data_file, ReplayInfo* info = nullptr,
-                            const Progress& progress = {}, const std::atomic<bool>* cancel = nullptr);
+                            const Progress& progress = {}, const std::atomic<bool>* cancel = nullptr,
+                            const CsvDialect& dialect = {});
 // The same on a measurement already in memory (diagnose: before/after).
 ResidualReport compare_measurement(const plant::Plant& model, const Measurement& m, bool keep_series = true);
 
@@ -58,6 +60,7 @@ nlohmann::json headline_json(const ResidualReport& r);
 
 struct CompareOptions {
   std::filesystem::path model_file, data_file, out_dir;
+  CsvDialect dialect;  // the file's CSV dialect (--separator, --decimal, --columns)
   bool progress = true;
   bool quiet = false;
   // When set, called instead of the progress line on stderr (the server's job shows it).

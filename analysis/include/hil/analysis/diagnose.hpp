@@ -132,6 +132,9 @@ struct NotIdentifiable {
 struct FileFit {
   std::size_t rows = 0;
   double time_origin_s = 0;  // file time of its row 0: the fitted model's t = 0 for it
+  // Of several acquisitions appended in one file: which (1, 2, ...; 0: the file holds one) and the
+  // file line of its first row.
+  std::size_t acquisition = 0, first_line = 0;
   ResidualReport before, after;
 };
 
@@ -194,6 +197,9 @@ std::string fitted_model_yaml(const Diagnosis& d, const std::filesystem::path& m
 struct DiagnoseOptions {
   std::filesystem::path model_file, out_dir, write_model;  // write_model empty: none
   DataFiles data_files;                                    // one or more (see diagnose above)
+  // The files' CSV dialect (--separator, --decimal, --columns); a file of several acquisitions
+  // appended (time restarting) is read as one file each (load_acquisitions).
+  CsvDialect dialect;
   DiagnoseSettings settings;
   bool quiet = false;
 };

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "hil/analysis/run_inputs.hpp"
 #include "hil/table_reader.hpp"
 
 namespace hil::analysis {
@@ -24,6 +25,7 @@ namespace hil::analysis {
 // Rows of a measurement in SI. theta_motor_rad / p_ref_pa are empty when the file lacks them.
 struct MeasurementRows {
   std::vector<double> t_s, theta_cmd_rad, p_meas_pa, theta_motor_rad, p_ref_pa;
+  std::vector<std::size_t> restarts;  // rows where a new acquisition starts (its time restarted)
   std::size_t size() const { return t_s.size(); }
   void clear();
   void append(const MeasurementRows& other);
@@ -55,7 +57,10 @@ struct MeasurementLimits {
 // next() reaches the end of a file of at least kMinRows rows.
 class MeasurementReader {
  public:
-  explicit MeasurementReader(const std::filesystem::path& file);
+  // dialect: the logger's CSV (csv_reader.hpp: separator, decimal mark, --columns; detected when
+  // unset). acquisitions: time may restart (acquisitions appended to one file, MeasurementRows::
+  // restarts); otherwise a restart is refused as time going backwards.
+  explicit MeasurementReader(const std::filesystem::path& file, const CsvDialect& dialect = {}, bool acquisitions = false);
   bool has_encoder() const { return has_encoder_; }
   bool has_reference() const { return has_reference_; }
   const CsvHeader& header() const { return reader_.header(); }
@@ -75,6 +80,7 @@ class MeasurementReader {
   std::size_t first_line_ = 0, rows_read_ = 0, first_data_line_ = 0;
   // Running state of the checks.
   double t_first_s_ = 0, t_last_s_ = 0;
+  std::size_t acquisition_row_ = 0;  // file row of the current acquisition's first row
   double p_min_pa_ = 0, p_max_pa_ = 0;
   std::size_t last_data_line_ = 0;
   void check_rows(const CsvChunk& chunk);
@@ -88,15 +94,25 @@ struct Measurement {
   MeasurementRows rows;
   bool has_encoder = false, has_reference = false;
   std::size_t first_data_line = 0;  // file line of row 0, for messages
+  std::size_t acquisition = 0;      // of several appended in one file: 1, 2, ... (0: the file holds one)
   std::vector<std::pair<std::string, std::string>> metadata;
+  // A recorded run's own record (run_inputs.hpp): the rows left out (counted) and the gap inputs.
+  RunInputs run;
+  // Per row: left out of the fit (empty: none is).
+  std::vector<std::uint8_t> left_out;
+  std::size_t scored_rows() const { return rows.size() - run.rows_left_out(); }
 };
 
 // Minimum rows for compare and diagnose (a fit needs a settle window and some dynamics).
 inline constexpr std::size_t kMinRows = 50;
 
 // Loads the whole file; throws CsvError (file:line:column) for bad content and for a file with
-// fewer than kMinRows data rows ("too short to fit").
-Measurement load_measurement(const std::filesystem::path& file);
+// fewer than kMinRows data rows ("too short to fit"). The telemetry of a recorded run comes with
+// its run's record (run_inputs_beside), its left-out rows marked.
+Measurement load_measurement(const std::filesystem::path& file, const CsvDialect& dialect = {});
+// A file of one or more acquisitions appended (time restarting at or below the first row's): one
+// Measurement each, in file order, to be diagnosed as files of one rig. Each needs kMinRows rows.
+std::vector<Measurement> load_acquisitions(const std::filesystem::path& file, const CsvDialect& dialect = {});
 
 // What a report calls a measurement file: "<run folder>/<file>" for a bench run's file (its
 // folder holds run.json), "<campaign>/<run>/telemetry.csv" for a sim's (every run records the same

@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -55,7 +56,10 @@ class Replayer {
   explicit Replayer(const plant::Plant& model) : model_(model), state_(model.make_state(1)) {}
   // Steady state at the measured start; when the model cannot reach p0 with the measured motor
   // angle, the valve rests where it comes closest. Returns the prediction for row 0.
-  double start(const ReplayStart& s);
+  // gap_rad: the gap input in force at the start (NaN: the model's own; run_inputs.hpp).
+  double start(const ReplayStart& s, double gap_rad = plant::kNaN);
+  // The gap input of the steps from here on (a recorded run's operator changed it; NaN: the model's own).
+  void set_gap(double gap_rad) noexcept { gap_rad_ = gap_rad; }
   // Prediction at row time t_s; cmd_held_rad: the command in force since the previous row;
   // motor_rad: the encoder at t_s (NaN: the motor model acts). Real-time safe.
   // A gap in the log (a dropout) is crossed in steps of at most kMaxStepS, the inputs held (the
@@ -93,6 +97,7 @@ class Replayer {
   plant::PlantState state_;
   double last_t_s_ = 0;                  // file time of the last row
   double last_motor_rad_ = plant::kNaN;  // the encoder at it (NaN: none)
+  double gap_rad_ = plant::kNaN;         // the gap input (NaN: the model's own)
   double burned_kg_ = 0;
 
   double lost_step(double t_s, double motor_rad) noexcept {
@@ -113,7 +118,7 @@ class Replayer {
       const double motor = ramp_motor && i + 1 < n
                                ? last_motor_rad_ + static_cast<double>(i + 1) * inv_n * (motor_rad - last_motor_rad_)
                                : motor_rad;
-      model_.step(state_, {cmd, motor, plant::kNaN}, h_s);
+      model_.step(state_, {cmd, motor, gap_rad_}, h_s);
       burned_kg_ += state_.s.mdot_gen_kg_s * h_s;
     }
     last_t_s_ = t_s;
@@ -132,6 +137,13 @@ struct ReplayData {
   std::vector<double> cmd_held_rad;  // [k]: command in force over (t[k-1], t[k]]; [segment begin] unused
   std::vector<double> motor_rad;     // [k]: encoder at t[k]; empty: no encoder
   std::vector<double> y_pa;          // measured pressure at t[k]
+  // A recorded run's own record (run_inputs.hpp), per row; empty: none. left_out[k]: row k is
+  // replayed but not scored (replay() predicts it as measured, so its residual is 0); gap_rad[k]:
+  // the gap input over the step to t[k] (NaN: the model's own).
+  std::vector<std::uint8_t> left_out;
+  std::vector<double> gap_rad;
+  std::size_t rows_left_out = 0;
+  std::size_t scored_rows() const { return size() - rows_left_out; }
   struct Segment {
     std::size_t begin = 0;  // first row of this file
     ReplayStart start;

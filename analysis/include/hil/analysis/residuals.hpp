@@ -133,6 +133,10 @@ struct ResidualReport {
   // What the file itself shows that the replay cannot undo (holes, stale or clipped readings,
   // another unit): filled by the replay (compare.hpp, log_checks.hpp), said before anything else.
   std::vector<std::string> log_warnings;
+  // What a recorded run's own record changed (run_inputs.hpp): rows left out, gap inputs. `rows`
+  // and every statistic above count the rows kept.
+  std::vector<std::string> run_notes;
+  std::size_t rows_left_out = 0;
   MotorChannel motor;  // filled by the replay (compare.hpp)
   ReportSeries series;
 };

@@ -23,6 +23,8 @@ struct RunMark {
   double end_s = std::numeric_limits<double>::quiet_NaN();  // a fault's window end; NaN: an instant
   std::string label;                                        // "gap 2.5 deg", "sensor stuck 1.52 MPa"
   std::string kind;                                         // the event's kind in events.jsonl
+  std::string source;                                       // who made it: operator, safety, loop
+  double value = std::numeric_limits<double>::quiet_NaN();  // a gap change's gap [deg]; NaN otherwise
 };
 
 struct RunMarks {
