@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "hil/line_file.hpp"
+#include "hil/output_path.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/report/report.hpp"
 #include "hil/units.hpp"
@@ -355,6 +356,9 @@ void add_residual_sections(report::Document& doc, const ResidualReport& r, const
 std::string residual_json(const ResidualReport& r, int indent) { return detail::residual_to_json(r).dump(indent); }
 
 ResidualReport run_compare(const CompareOptions& o) {
+  // --out's files: new, or ones a compare wrote; never an input, a device, a FIFO or a link.
+  check_output_file("--out", o.out_dir / "report.html", {o.model_file, o.data_file}, "the report", report::kGeneratorTag);
+  check_output_file("--out", o.out_dir / "compare.json", {o.model_file, o.data_file}, "compare.json");
   const plant::Plant model = plant::Plant::load(o.model_file);
   Progress progress = o.on_progress;
   std::optional<ProgressLine> line;

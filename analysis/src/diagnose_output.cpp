@@ -405,12 +405,15 @@ std::string diagnosis_report_html(const Diagnosis& d, const std::filesystem::pat
 
 namespace {
 
-// --write-model must not overwrite an input nor be a folder; said before the fit.
+// --write-model and the files of --out: new, or ones a diagnose wrote; never an input, a folder,
+// a device, a FIFO or a link. Said before the fit.
 void check_model_output(const DiagnoseOptions& o) {
-  if (o.write_model.empty()) return;
   std::vector<std::filesystem::path> inputs = o.data_files;
   inputs.push_back(o.model_file);
-  check_output_file("--write-model", o.write_model, inputs, "the fitted model");
+  check_output_file("--out", o.out_dir / "report.html", inputs, "the report", report::kGeneratorTag);
+  check_output_file("--out", o.out_dir / "diagnosis.json", inputs, "diagnosis.json");
+  if (o.write_model.empty()) return;
+  check_output_file("--write-model", o.write_model, inputs, "the fitted model", "Fitted by hilbench diagnose");
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 
 #include "run_command.hpp"
 #include "server_process.hpp"
@@ -69,4 +70,65 @@ TEST(CtlJunit, ServedVerdictsAsJunitAndACheckSetToFailExitsThree) {
   EXPECT_NE(*drc, 0);
   EXPECT_NE(hil::test::slurp(server.dir() / "detach.log").find("excludes"), std::string::npos)
       << hil::test::slurp(server.dir() / "detach.log");
+}
+
+namespace {
+
+// The XML `ctl start --junit` wrote after `stop_with` ended the campaign; checked against the
+// Jenkins xUnit schema's rules (tests/support/junit_schema_check.py).
+std::string served_junit_after(const hil::test::ServerProcess& server, const std::string& rig,
+                               const std::function<void(const hil::bench::ApiClient&)>& stop_with, int& rc) {
+  const auto yaml = server.dir() / "long_run.yaml";
+  std::ofstream(yaml) << hil::test::short_campaign_yaml(30, "long_run")
+                      << "checks:\n  - {name: no_safe_state, signal: safe_state, max: 0}\n";
+  const auto junit = server.dir() / "junit.xml";
+  const auto log = server.dir() / "ctl.log";
+  const std::string url = "http://127.0.0.1:" + std::to_string(server.port());
+  const pid_t pid = hil::test::spawn(
+      {hil::test::hilbench_exe(), "ctl", "--server", url, "start", yaml.string(), "--rig", rig, "--junit", junit.string()}, log);
+  stop_with(server.client());
+  const auto exit = hil::test::wait_exit(pid, 60s);
+  EXPECT_TRUE(exit.has_value());
+  rc = exit.value_or(-1);
+  const auto check = hil::test::run_command(
+      "/usr/bin/python3 " + hil::test::source_path("tests/support/junit_schema_check.py").string() + " " + junit.string());
+  EXPECT_EQ(check.status, 0) << check.output;
+  return hil::test::slurp(junit) + "\n" + hil::test::slurp(log);
+}
+
+}  // namespace
+
+// A campaign stopped during its first run gave 2 tests, 0 failures: the stopped run and the run
+// never run are errors, with their reasons, never passed or skipped.
+TEST(CtlJunit, AStoppedCampaignListsItsRunsAsErrors) {
+  hil::test::ServerProcess server;
+  int rc = 0;
+  const std::string xml = served_junit_after(
+      server, "sim",
+      [](const hil::bench::ApiClient& api) {
+        hil::test::wait_status(
+            api, [](const json& s) { return s.value("state", "") == "running"; }, 30s);
+        api.post("/api/stop", json::object());
+      },
+      rc);
+  EXPECT_NE(rc, 0) << xml;
+  EXPECT_NE(xml.find("<error type=\"stopped\" message=\"run none stopped: operator stop\""), std::string::npos) << xml;
+  EXPECT_NE(xml.find("classname=\"long_run.adaptive\" name=\"completed\" time=\"0.000\">\n      <error type=\"not run\""),
+            std::string::npos)
+      << xml;
+  EXPECT_EQ(xml.find("<skipped"), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("errors=\"0\""), std::string::npos) << xml;
+}
+
+// A rig that cannot be set up (the CAN rig without its bus) gave 3 tests, 3 skipped.
+TEST(CtlJunit, ARigErrorIsAnErrorNotASkip) {
+  hil::test::ServerProcess server;
+  int rc = 0;
+  const std::string xml = served_junit_after(
+      server, "can", [](const hil::bench::ApiClient&) {}, rc);
+  EXPECT_NE(rc, 0) << xml;
+  EXPECT_NE(xml.find("name=\"completed\""), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<error type=\""), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("<skipped"), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("errors=\"0\""), std::string::npos) << xml;
 }

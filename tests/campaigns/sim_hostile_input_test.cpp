@@ -229,7 +229,8 @@ TEST(SimHostileInput, ASecondCtrlCLeavesOnlyWholeLinesAndTheNextSimClearsThem) {
 }
 
 // --runs is a choice of the campaign's runs: a name it does not have is refused with the names it
-// has (none,adaptiv ran only none), and so is a list that names none ('' and ',' ran them all).
+// has (none,adaptiv ran only none), and so is a list that names none ('' and ',' ran them all) or
+// has an empty name (adaptive,,none: a script's empty variable).
 TEST(SimHostileInput, RunsTheCampaignDoesNotHaveOrNoRunAtAllAreRefused) {
   Sandbox s;
   const auto file = s.root.write("cfg/c.yaml", campaign_yaml("name: two", "",
@@ -244,9 +245,13 @@ TEST(SimHostileInput, RunsTheCampaignDoesNotHaveOrNoRunAtAllAreRefused) {
   const Case cases[] = {
       {"none,adaptiv", "--runs: campaign 'two' has no run 'adaptiv' (did you mean 'adaptive'?); its runs are none, adaptive"},
       {"xyzzy,adaptiv", "has no run 'xyzzy', 'adaptiv' (did you mean 'adaptive'?); its runs are none, adaptive"},
-      {"''", "--runs '' names no run: name at least one of none, adaptive, or leave --runs out to run them all"},
+      {"''",
+       "--runs '' names no run: name at least one, or leave --runs out to run them all; the runs of campaign 'two' are "
+       "none, adaptive"},
       {",", "--runs ',' names no run"},
       {"none,none", "--runs names 'none' twice"},
+      {"adaptive,,none", "--runs 'adaptive,,none' has an empty name between its commas"},
+      {"adaptive,", "--runs 'adaptive,' has an empty name between its commas"},
   };
   for (const auto& c : cases) {
     const auto r = sim(c.runs);

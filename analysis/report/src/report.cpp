@@ -357,8 +357,9 @@ std::string Document::page_head() const {
   head.reserve(detail::kDygraphCss.size() + detail::kReportCss.size() + 1024);
   head +=
       "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
-      "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n"
-      "<meta name=\"generator\" content=\"hilbench report\">\n<title>";
+      "<meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\n";
+  head += kGeneratorTag;
+  head += "\n<title>";
   head += html_escape(title_);
   head += "</title>\n<style>\n";
   head += detail::kDygraphCss;

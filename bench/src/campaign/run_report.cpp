@@ -152,8 +152,10 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
   TelemetryStream telemetry(files, options);
   std::vector<RecordedRun> runs;
   std::optional<Campaign> campaign;
+  std::string recorded_by;  // the command that recorded them all, or "" when not one
   for (const auto& dir : run_dirs) {
     const RunRecord run = read_run_record(dir);
+    recorded_by = runs.empty() || run.recorded_by == recorded_by ? run.recorded_by : "";
     const Campaign c = campaign_of(run, dir);
     if (campaign && c.name != campaign->name) {
       throw std::invalid_argument(dir.string() + ": a run of campaign '" + c.name + "', the others are of '" + campaign->name +
@@ -176,7 +178,8 @@ std::vector<RecordedRun> write_run_report(const std::vector<std::filesystem::pat
     runs.push_back(std::move(r));
   }
   std::vector<RunOutcome> outcomes;
-  std::string note = "Recorded by hilbench serve:";
+  // Who recorded them as run.json says (a record older than the key says nobody: "Recorded runs").
+  std::string note = recorded_by.empty() ? "Recorded runs:" : "Recorded by " + recorded_by + ":";
   for (const auto& r : runs) {
     outcomes.push_back(r.digest);
     note += " " + r.digest.name + " " + r.outcome + (r.reason.empty() ? "" : " (" + r.reason + ")") + " [" +

@@ -87,17 +87,27 @@ CLI::App* add_command(CLI::App& parent, const std::string& name, const std::stri
 namespace {
 std::atomic<bool> g_stop{false};
 volatile std::sig_atomic_t g_stop_signal = 0;
-// The first signal asks the work to stop cleanly (it polls the flag); a second one ends the
-// process at once, for work blocked where it cannot poll (a read from a pipe nobody writes:
-// the handler's restarted system call would otherwise wait for ever).
+volatile std::sig_atomic_t g_repeat_exits = 1;
+// The first signal asks the work to stop cleanly (it polls the flag). A second one ends offline
+// work at once, for work blocked where it cannot poll (a read from a pipe nobody writes: the
+// handler's restarted system call would otherwise wait for ever); a bench run only says that
+// its abort is under way (write(2): what a handler may call).
 extern "C" void on_stop_signal(int sig) {
-  if (g_stop.load()) ::_exit(128 + sig);
+  if (g_stop.load()) {
+    if (g_repeat_exits != 0) ::_exit(128 + sig);
+    static const char kBusy[] =
+        "hilbench: the abort is under way: the rig goes to its safe state and the run's record is written first "
+        "(Ctrl-\\ kills at once, leaving the rig as it is and the run interrupted)\n";
+    [[maybe_unused]] const ssize_t n = ::write(2, kBusy, sizeof kBusy - 1);
+    return;
+  }
   g_stop_signal = sig;
   g_stop.store(true);
 }
 }  // namespace
 
-const std::atomic<bool>& StopSignal::install() {
+const std::atomic<bool>& StopSignal::install(Repeat repeat) {
+  g_repeat_exits = repeat == Repeat::exits ? 1 : 0;
   std::signal(SIGINT, on_stop_signal);
   std::signal(SIGTERM, on_stop_signal);
   return g_stop;

@@ -34,10 +34,15 @@ CLI::Validator whole_number(std::int64_t min, std::int64_t max);  // max INT64_M
 // as the folder).
 CLI::Validator path_value();
 
-// Ctrl-C and SIGTERM as a request to stop long offline work (`sim`, `sweep`): from install() on,
-// either signal sets the flag the work polls, so it ends cleanly instead of dying mid-write.
+// Ctrl-C and SIGTERM as a request to stop long work: from install() on, either signal sets the
+// flag the work polls, so it ends cleanly instead of dying mid-write.
 struct StopSignal {
-  static const std::atomic<bool>& install();
+  // What a signal after the first does. Offline work (`sim`, `sweep`, `report`): the process
+  // ends at once, for work blocked where it cannot poll. A bench run (`hilbench run`): nothing
+  // but a line on stderr; the abort under way takes the rig to its safe state and writes the
+  // record first, however often Ctrl-C is pressed (SIGQUIT, Ctrl-\, still kills at once).
+  enum class Repeat { exits, waits_for_safe_state };
+  static const std::atomic<bool>& install(Repeat repeat = Repeat::exits);
   static const char* name();  // "SIGTERM" or "SIGINT" (also before any signal)
   static int exit_code();     // 128 + the signal, as a shell reports a death by it
 };

@@ -14,6 +14,7 @@
 #include "hil/bench/server/api_client.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "hil/config.hpp"
+#include "hil/output_path.hpp"
 #include "hil/progress_line.hpp"
 #include "hil/text_file.hpp"
 
@@ -177,6 +178,7 @@ struct CtlArgs {
   std::string token;
   bool json = false;                        // status
   std::string campaign, rig = "sim", runs;  // start
+  const CLI::Option* runs_opt = nullptr;    // start: given (even empty: refused, never "every run")
   double speed = 1;                         // start, given or not (speed_opt)
   const CLI::Option* speed_opt = nullptr;
   bool detach = false;                       // start
@@ -205,12 +207,15 @@ int inject(const std::string& kind, json body, const ApiClient& api) {
 int start(const CtlArgs& a, const ApiClient& api) {
   json body = {{"rig", a.rig}};
   const bool file = a.campaign.find('/') != std::string::npos || a.campaign.ends_with(".yaml") || a.campaign.ends_with(".yml");
+  // Before anything starts: a --junit the campaign could not end into is said now, not after it.
+  if (!a.junit.empty())
+    check_junit_output(a.junit, file ? std::vector<std::filesystem::path>{a.campaign} : std::vector<std::filesystem::path>{});
   if (file) {
     body["campaign_yaml"] = hil::read_text_file(a.campaign, "a campaign file");
   } else {
     body["campaign"] = a.campaign;
   }
-  if (!a.runs.empty()) body["runs"] = cfg::comma_list(a.runs);
+  if (a.runs_opt->count() > 0) body["runs"] = run_names(a.runs);
   if (a.speed_opt->count() > 0) body["speed"] = a.speed;
   const json j = checked(api.post("/api/start", body));
   std::printf("started %s on %s\n", j.value("started", "?").c_str(), j.value("rig", "?").c_str());
@@ -355,7 +360,7 @@ void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const C
       ->required()
       ->type_name("NAME|FILE.yaml");
   s->add_option("--rig", args.rig, "the rig it runs on")->type_name("R")->capture_default_str();
-  s->add_option("--runs", args.runs, "only these runs of the campaign")->type_name("a,b");
+  args.runs_opt = s->add_option("--runs", args.runs, "only these runs of the campaign")->type_name("a,b");
   args.speed_opt =
       s->add_option("--speed", args.speed, "the simulated rig's speed, times real time")->type_name("X")->check(finite_number());
   CLI::Option* detach = s->add_flag("--detach", args.detach, "return once started, no progress bar");
@@ -450,6 +455,7 @@ void define_commands(CLI::App& ctl, CtlArgs& args, std::vector<std::pair<const C
     // FILE may be a path in the run (analyses/AID/report.html); what is written is its last part.
     const std::filesystem::path out = a.out.empty() ? std::filesystem::path(a.file).filename() : std::filesystem::path(a.out);
     if (out.empty()) throw UsageError("'" + a.file + "' names no file; --out says where it goes");
+    check_output_file("--out", out, {}, "the download");
     const ApiReply r = api.download("/api/runs/" + a.run + "/" + a.file, out);
     if (r.status == 202) {
       const std::string state = r.json().value("analysis", json::object()).value("state", "in flight");

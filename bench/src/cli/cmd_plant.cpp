@@ -18,6 +18,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands.hpp"
+#include "hil/output_path.hpp"
 #include "hil/bench/campaign/campaign.hpp"
 #include "hil/bench/rt/plant_service.hpp"
 #include "hil/drv/cia402_emulator.hpp"
@@ -72,6 +73,7 @@ struct PlantArgs {
 
 int run_plant(const PlantArgs& args) {
   if (args.can_interface.empty() && args.modbus.empty()) throw UsageError("give --can IFACE and/or --modbus tcp:HOST:PORT");
+  if (!args.port_file.empty()) check_output_file("--port-file", args.port_file, {}, "the port file");
   // Before the plant is loaded: a bad endpoint is refused before anything starts.
   const std::optional<drv::ModbusLinkConfig> modbus_link =
       args.modbus.empty() ? std::nullopt : std::optional(tcp_link(args.modbus));

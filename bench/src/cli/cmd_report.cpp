@@ -10,8 +10,10 @@
 
 #include "commands.hpp"
 #include "hil/bench/campaign/run_report.hpp"
+#include "hil/bench/server/runner.hpp"
 #include "hil/output_path.hpp"
 #include "hil/progress_line.hpp"
+#include "hil/report/report.hpp"
 
 namespace hil::bench {
 namespace {
@@ -37,13 +39,19 @@ void check_report_output(const std::vector<std::filesystem::path>& run_dirs, con
       inputs.push_back(it->path());
     }
   }
-  check_output_file("--out", out_file, inputs, "the report");
+  check_output_file("--out", out_file, inputs, "the report", report::kGeneratorTag);
 }
 
 int run_report(const ReportArgs& args) {
   const std::vector<std::filesystem::path> dirs(args.run_dirs.begin(), args.run_dirs.end());
   const std::filesystem::path out = args.out_file.empty() ? dirs.front() / "report.html" : std::filesystem::path(args.out_file);
   check_report_output(dirs, out);
+  // A run whose process was killed (its run.json still "running", no live process holding its
+  // lock) gets its honest end before it is reported.
+  for (const auto& dir : dirs) {
+    if (mark_interrupted_run(dir, "hilbench report"))
+      spdlog::warn("run {}: its process ended during the run; marked interrupted", dir.filename().string());
+  }
   RunReportOptions options;
   // SIGINT/SIGTERM: the reading stops at its next chunk of rows and nothing is written.
   options.cancel = &StopSignal::install();
@@ -82,7 +90,7 @@ int run_report(const ReportArgs& args) {
 
 CommandRun define_report(CLI::App& cmd) {
   auto args = std::make_shared<ReportArgs>();
-  cmd.add_option("runs", args->run_dirs, "run folders recorded by hilbench serve")
+  cmd.add_option("runs", args->run_dirs, "run folders recorded by hilbench serve or hilbench run")
       ->required()
       ->type_name("RUN_DIR")
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);

@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "commands.hpp"
+#include "hil/output_path.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
 #include "hil/bench/server/runner.hpp"
 #include "hil/file_lock.hpp"
@@ -64,6 +65,7 @@ struct ServeArgs {
 };
 
 int run_serve(const ServeArgs& args) {
+  if (!args.port_file.empty()) check_output_file("--port-file", args.port_file, {}, "the port file");
   ApiOptions api;
   std::tie(api.address, api.port) = split_listen(args.listen);
   api.token = args.token;

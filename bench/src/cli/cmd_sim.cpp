@@ -1,5 +1,5 @@
 // hilbench sim CAMPAIGN.yaml... [--out DIR] [--runs a,b] [--sensor-noise-kpa KPA] [--no-telemetry] [--quiet]
-//              [--junit FILE]
+//              [--junit FILE] [--junit-relative]
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -11,8 +11,44 @@
 #include "hil/bench/campaign/sim.hpp"
 #include "hil/config.hpp"
 #include "hil/line_file.hpp"
+#include "hil/output_path.hpp"
 
 namespace hil::bench {
+std::vector<std::string> run_names(const std::string& list) {
+  const std::vector<std::string> names = cfg::comma_list(list);
+  if (names.empty())
+    throw UsageError("--runs '" + list + "' names no run: name at least one, or leave --runs out to run them all");
+  // An empty name between commas is a name lost (a script's empty variable), not a smaller choice.
+  if (list.front() == ',' || list.back() == ',' || list.find(",,") != std::string::npos)
+    throw UsageError("--runs '" + list + "' has an empty name between its commas");
+  if (const std::string* twice = cfg::repeated(names)) throw UsageError("--runs names '" + *twice + "' twice");
+  return names;
+}
+
+std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string& list) {
+  std::vector<std::string> unknown, all;
+  for (const auto& r : campaign.runs) all.push_back(r.name);
+  std::string runs;
+  for (const auto& r : all) runs += (runs.empty() ? "" : ", ") + r;
+  std::vector<std::string> names;
+  try {
+    names = run_names(list);
+  } catch (const UsageError& e) {
+    throw UsageError(std::string(e.what()) + "; the runs of campaign '" + campaign.name + "' are " + runs);
+  }
+  for (const auto& name : names)
+    if (std::find(all.begin(), all.end(), name) == all.end()) unknown.push_back(name);
+  if (!unknown.empty()) {
+    std::string what;
+    for (const auto& u : unknown) {
+      const std::string hint = cfg::closest(u, all);
+      what += (what.empty() ? "'" : ", '") + u + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)");
+    }
+    throw UsageError("--runs: campaign '" + campaign.name + "' has no run " + what + "; its runs are " + runs);
+  }
+  return names;
+}
+
 namespace {
 
 // The exit code of a sim whose runs all completed but a campaign's check failed: not 1 (an error
@@ -29,33 +65,8 @@ struct SimArgs {
   const CLI::Option* sensor_noise = nullptr;  // given: the campaign's sensor noise is overridden
   bool no_telemetry = false;
   bool quiet = false;
+  bool junit_relative = false;  // the report's path in the JUnit XML relative to the current folder
 };
-
-// The runs --runs names, checked against the campaign: an empty list (--runs '' or ',') ran every
-// run, the opposite of a choice; an unknown name was dropped (none,adaptiv ran only none).
-std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string& list) {
-  std::vector<std::string> unknown, all;
-  for (const auto& r : campaign.runs) all.push_back(r.name);
-  const std::vector<std::string> names = cfg::comma_list(list);
-  if (const std::string* twice = cfg::repeated(names)) throw UsageError("--runs names '" + *twice + "' twice");
-  for (const auto& name : names)
-    if (std::find(all.begin(), all.end(), name) == all.end()) unknown.push_back(name);
-  std::string runs;
-  for (const auto& r : all) runs += (runs.empty() ? "" : ", ") + r;
-  if (names.empty()) {
-    throw UsageError("--runs '" + list + "' names no run: name at least one of " + runs +
-                     ", or leave --runs out to run them all");
-  }
-  if (!unknown.empty()) {
-    std::string what;
-    for (const auto& u : unknown) {
-      const std::string hint = cfg::closest(u, all);
-      what += (what.empty() ? "'" : ", '") + u + "'" + (hint.empty() ? "" : " (did you mean '" + hint + "'?)");
-    }
-    throw UsageError("--runs: campaign '" + campaign.name + "' has no run " + what + "; its runs are " + runs);
-  }
-  return names;
-}
 
 Campaign load_for_sim(const SimArgs& args, const std::string& file) {
   Campaign campaign = load_campaign(file);
@@ -82,28 +93,81 @@ long print_checks(const CampaignOutcome& out, bool quiet) {
   return failed;
 }
 
-int run_sim(const SimArgs& args) {
-  // Load and validate every campaign before anything is written.
+// The campaigns to run and the files that could not be read. A broken file does not stop the
+// others: CI gets their verdicts and the broken one as an error (file:line) in the JUnit XML,
+// and the command still exits 1. What is wrong with the command line (two campaigns of one
+// name, --runs) stops everything before anything runs.
+struct Loaded {
   std::vector<Campaign> campaigns;
+  std::vector<std::vector<std::string>> runs;  // each campaign's --runs; empty: every run
+  std::vector<JunitSuite> broken;              // a suite of one error each
+};
+
+Loaded load_all(const SimArgs& args) {
+  Loaded l;
   for (const auto& file : args.campaign_files) {
-    campaigns.push_back(load_for_sim(args, file));
-    for (std::size_t i = 0; i + 1 < campaigns.size(); ++i) {
-      if (campaigns[i].name == campaigns.back().name)
-        throw UsageError("campaigns " + args.campaign_files[i] + " and " + file + " are both named '" + campaigns.back().name +
+    try {
+      l.campaigns.push_back(load_for_sim(args, file));
+    } catch (const cfg::Error& e) {
+      std::fprintf(stderr, "hilbench sim: %s\n", e.what());
+      JunitSuite suite;
+      suite.campaign = file;
+      suite.error = e.what();
+      l.broken.push_back(std::move(suite));
+      continue;
+    }
+    const Campaign& c = l.campaigns.back();
+    for (std::size_t i = 0; i + 1 < l.campaigns.size(); ++i) {
+      if (l.campaigns[i].name == c.name)
+        throw UsageError("campaigns " + l.campaigns[i].file.string() + " and " + file + " are both named '" + c.name +
                          "' (one output folder each): give one a different 'name:'");
     }
+    l.runs.push_back(args.runs_opt->count() > 0 ? chosen_runs(c, args.runs) : std::vector<std::string>{});
   }
+  return l;
+}
+
+// --junit must not replace a campaign or plant it reads, nor anything it did not write.
+void check_junit(const SimArgs& args, const Loaded& l) {
+  if (args.junit.empty()) return;
+  std::vector<std::filesystem::path> inputs(args.campaign_files.begin(), args.campaign_files.end());
+  for (const auto& c : l.campaigns) inputs.push_back(c.plant_file);
+  check_output_file("--junit", args.junit, inputs, "the JUnit XML", kJunitSignature);
+}
+
+// The report as the JUnit XML names it: absolute, or relative to the current folder (the CI
+// job's workspace, where Jenkins and GitLab look for an attachment).
+std::string attachment(const SimArgs& args, const std::filesystem::path& report) {
+  const auto absolute = std::filesystem::absolute(report);
+  return args.junit_relative ? std::filesystem::relative(absolute).string() : absolute.string();
+}
+
+void print_outcome(const Campaign& campaign, const CampaignOutcome& out) {
+  std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
+              out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
+  std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
+  for (const auto& r : out.runs) {
+    std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s, r.summary.stall_s_total,
+                r.summary.gap_est_final_deg, r.summary.touch_state_changes, r.summary.compensation_events);
+  }
+  std::printf("  report: %s\n", (out.dir / "report.html").c_str());
+}
+
+int run_sim(const SimArgs& args) {
+  // Load and validate every campaign before anything is written.
+  const Loaded loaded = load_all(args);
+  check_junit(args, loaded);
   SimOptions options;
   options.out_dir = args.out_dir;
   options.telemetry = !args.no_telemetry;
   options.progress = !args.quiet;
   // SIGINT/SIGTERM: the runs stop at their next step and the half-made campaign folder goes.
   options.cancel = &StopSignal::install();
-  std::vector<JunitSuite> suites;
+  std::vector<JunitSuite> suites = loaded.broken;
   long failed = 0;
-  for (const Campaign& campaign : campaigns) {
-    options.only_runs.clear();
-    if (args.runs_opt->count() > 0) options.only_runs = chosen_runs(campaign, args.runs);
+  for (std::size_t i = 0; i < loaded.campaigns.size(); ++i) {
+    const Campaign& campaign = loaded.campaigns[i];
+    options.only_runs = loaded.runs[i];
     CampaignOutcome out;
     try {
       out = run_campaign(campaign, options);
@@ -112,27 +176,26 @@ int run_sim(const SimArgs& args) {
                    options.out_dir.string());
       return StopSignal::exit_code();
     }
-    if (!args.quiet) {
-      std::printf("%s: %zu run(s), %.1f s simulated in %.3f s (%.0fx real time)\n", campaign.name.c_str(), out.runs.size(),
-                  out.simulated_s, out.wall_s, out.simulated_s / out.wall_s);
-      std::printf("  %-14s %10s %12s %12s %10s %8s\n", "run", "IAE MPa.s", "stall s", "gap est deg", "touch chg", "kicks");
-      for (const auto& r : out.runs) {
-        std::printf("  %-14s %10.4f %12.3f %12.3f %10ld %8ld\n", r.name.c_str(), r.summary.iae_mpa_s, r.summary.stall_s_total,
-                    r.summary.gap_est_final_deg, r.summary.touch_state_changes, r.summary.compensation_events);
-      }
-      std::printf("  report: %s\n", (out.dir / "report.html").c_str());
-    }
+    if (!args.quiet) print_outcome(campaign, out);
     const long campaign_failed = print_checks(out, args.quiet);
     if (campaign_failed > 0) std::printf("%s: %ld check(s) failed\n", campaign.name.c_str(), campaign_failed);
     failed += campaign_failed;
-    JunitSuite suite{campaign.name, std::filesystem::absolute(out.dir / "report.html").string(), out.wall_s, {}};
-    for (const auto& r : out.runs) suite.runs.push_back({r.name, r.wall_s, r.checks});
+    JunitSuite suite;
+    suite.campaign = campaign.name;
+    suite.report_path = attachment(args, out.dir / "report.html");
+    suite.wall_s = out.wall_s;
+    for (const auto& r : out.runs) suite.runs.push_back({r.name, r.wall_s, r.checks, "completed", ""});
     suites.push_back(std::move(suite));
   }
   if (!args.junit.empty()) {
     const std::filesystem::path junit(args.junit);
     if (junit.has_parent_path()) std::filesystem::create_directories(junit.parent_path());
     replace_file(junit, junit_xml(suites));
+  }
+  if (!loaded.broken.empty()) {
+    std::fprintf(stderr, "hilbench sim: %zu campaign file(s) could not be read (above)%s\n", loaded.broken.size(),
+                 args.junit.empty() ? "" : "; each is an error in the JUnit XML");
+    return 1;
   }
   return failed > 0 ? kChecksFailedExit : 0;
 }
@@ -160,6 +223,8 @@ CommandRun define_sim(CLI::App& cmd) {
                  "the exit code is 3 when a check fails")
       ->type_name("FILE")
       ->check(path_value());
+  cmd.add_flag("--junit-relative", args->junit_relative,
+               "the report's path in the JUnit XML relative to the current folder (the CI job's workspace), not absolute");
   return [args] { return run_sim(*args); };
 }
 

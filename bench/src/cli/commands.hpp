@@ -5,10 +5,13 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "cli.hpp"
 
 namespace hil::bench {
+
+struct Campaign;
 
 CommandRun define_sim(CLI::App& cmd);
 CommandRun define_run(CLI::App& cmd);
@@ -23,6 +26,13 @@ CommandRun define_characterise(CLI::App& cmd);
 CommandRun define_plant(CLI::App& cmd);
 CommandRun define_report(CLI::App& cmd);
 CommandRun define_drive(CLI::App& cmd);
+
+// The runs `--runs LIST` names (`sim`, `run`, `ctl start`): throws UsageError for an empty list
+// ('' or ','; it would run every run, the opposite of a choice), an empty name between commas
+// (a script's empty variable) and a name given twice. chosen_runs also refuses a name the
+// campaign does not have (it was dropped, and the rest ran).
+std::vector<std::string> run_names(const std::string& list);
+std::vector<std::string> chosen_runs(const Campaign& campaign, const std::string& list);
 
 // The characterisation table (markdown) of the observers on the paper's scenarios.
 std::string characterise_table(const std::filesystem::path& campaigns_dir);

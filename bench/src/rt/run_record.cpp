@@ -137,6 +137,7 @@ json RunRecord::to_json() const {
     if (telemetry->write_error_known) t["write_error"] = or_null(telemetry->write_error);
     j["telemetry"] = t;
   }
+  if (!recorded_by.empty()) j["recorded_by"] = recorded_by;
   if (!interrupted.is_null()) j["interrupted"] = interrupted;
   if (!checks.is_null()) j["checks"] = checks;
   return j;
@@ -149,6 +150,7 @@ RunRecord RunRecord::from_json(const json& j, const std::string& origin) {
   rec.version = r.text_or_null("version").value_or("");
   rec.host = r.text_or_null("host").value_or("");
   rec.pid = r.integer_if<std::int64_t>("pid").value_or(0);
+  rec.recorded_by = r.text_or_null("recorded_by").value_or("");
   rec.campaign = r.text("campaign");
   rec.run = r.text("run");
   rec.run_index = r.integer_if<std::int64_t>("run_index").value_or(0);

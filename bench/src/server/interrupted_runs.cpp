@@ -121,95 +121,102 @@ json finish_mcap(const std::filesystem::path& dir) {
 
 }  // namespace
 
-std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir) {
+bool mark_interrupted_run(const std::filesystem::path& given, const std::string& found_by) {
+  const std::filesystem::path dir = given.has_filename() ? given : given.parent_path();  // RUN/ as a shell completes it
+  std::error_code ec;
+  const auto type = std::filesystem::symlink_status(dir, ec).type();
+  if (type != std::filesystem::file_type::directory || !FileLock::free(run_lock_file(dir))) return false;  // a live run
+  const bool has_record = plain_file(dir / "run.json");
+  std::optional<RunRecord> unrenamed;
+  if (has_record || std::filesystem::exists(dir / ".reserve")) unrenamed = take_unrenamed_record(dir);
+  if (!has_record && !unrenamed) {
+    if (std::filesystem::remove(dir / ".reserve", ec)) {
+      spdlog::warn("{}: a run folder whose process died before it wrote any record of the run; its reserve is freed",
+                   dir.string());
+    }
+    return false;
+  }
+  RunRecord info;
+  try {
+    info = read_run_record_inside(dir);
+  } catch (const std::exception& ex) {
+    if (!unrenamed) {
+      spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
+      return false;
+    }
+  }
+  if (unrenamed && (!has_record || info.outcome == Outcome::running)) {
+    info = std::move(*unrenamed);
+    spdlog::warn("{}: the record its process wrote last was not yet in place; taken as the run's record", dir.string());
+    if (info.outcome != Outcome::running) {
+      std::filesystem::remove(dir / ".reserve", ec);
+      write_run_record(dir, info);
+      return false;  // the run's end, as its process wrote it
+    }
+  }
+  if (info.outcome == Outcome::interrupted) finish_mcap(dir);  // marked by a process that did not finish it
+  if (info.outcome != Outcome::running) return false;
+  try {
+    // The reserve is freed first: on a full disk it is the room the lines below need.
+    std::filesystem::remove(dir / ".reserve", ec);
+    // What is on disk is the record: a line cut by the crash is removed and counted.
+    json trimmed = json::object();
+    for (const char* file : {"telemetry.csv", "events.jsonl"}) {
+      if (plain_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
+    }
+    const json mcap = finish_mcap(dir);  // its summary and footer: an indexed reader opens it
+    if (mcap.contains("bytes_trimmed")) trimmed["telemetry.mcap"] = mcap["bytes_trimmed"];
+    const auto csv = dir / "telemetry.csv";
+    const std::uint64_t rows = plain_file(csv) ? csv_rows(dir, "telemetry.csv") : 0;
+    const auto last_write = std::filesystem::last_write_time(plain_file(csv) ? csv : dir);
+    const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
+    const std::string found = utc_iso(SysClock::now());
+    const std::string process = info.recorded_by.empty() ? "server" : info.recorded_by;
+    const json end = plain_file(dir / "events.jsonl") ? final_event_unrecorded(dir) : json(nullptr);
+    if (!end.is_null()) {  // the run ended; only its final run.json was not written
+      info.outcome = outcome_from(end.value("outcome", "interrupted"));
+      info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +
+                    "its final run.json could not be written (" + end.value("error", "?") +
+                    ") and was restored from events.jsonl by " + found_by + " at " + found;
+    } else {
+      info.outcome = Outcome::interrupted;
+      info.reason = "the " + process + " process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
+                    ") ended during the run, or could not write anything at its end; found by " + found_by + " at " + found;
+    }
+    info.stop_utc = utc_iso(last_utc);
+    info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
+    if (!mcap.is_null()) info.interrupted["telemetry.mcap"] = mcap;
+    // Only what the files show: the counts the dead process kept are unknown, and left out.
+    RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
+    tel.rows_written = rows;
+    if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
+    info.telemetry = tel;
+    if (plain_file(dir / "events.jsonl")) {
+      try {
+        LineFile events(dir / "events.jsonl", /*append=*/true);
+        events.append(
+            json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
+                .dump() +
+            "\n");
+      } catch (const std::exception& ex) {
+        // The record matters more than the event line: say so in it, and write it.
+        info.interrupted["event_unwritten"] = ex.what();
+        spdlog::error("{}: the interrupted event could not be appended ({}); the run's record says so", dir.string(), ex.what());
+      }
+    }
+    write_run_record(dir, info);
+    return true;
+  } catch (const std::exception& ex) {
+    spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());
+  }
+  return false;
+}
+
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir, const std::string& found_by) {
   std::vector<std::filesystem::path> marked;
   std::error_code ec;
   for (const auto& e : std::filesystem::directory_iterator(runs_dir, ec)) {
-    const auto dir = e.path();
-    if (e.is_symlink() || !e.is_directory() || !FileLock::free(run_lock_file(dir))) continue;  // a live server's run
-    const bool has_record = plain_file(dir / "run.json");
-    std::optional<RunRecord> unrenamed;
-    if (has_record || std::filesystem::exists(dir / ".reserve")) unrenamed = take_unrenamed_record(dir);
-    if (!has_record && !unrenamed) {
-      if (std::filesystem::remove(dir / ".reserve", ec)) {
-        spdlog::warn("{}: a run folder whose server died before it wrote any record of the run; its reserve is freed",
-                     dir.string());
-      }
-      continue;
-    }
-    RunRecord info;
-    try {
-      info = read_run_record_inside(dir);
-    } catch (const std::exception& ex) {
-      if (!unrenamed) {
-        spdlog::warn("{}: unreadable run.json ({}); left as it is", dir.string(), ex.what());
-        continue;
-      }
-    }
-    if (unrenamed && (!has_record || info.outcome == Outcome::running)) {
-      info = std::move(*unrenamed);
-      spdlog::warn("{}: the record its server wrote last was not yet in place; taken as the run's record", dir.string());
-      if (info.outcome != Outcome::running) {
-        std::filesystem::remove(dir / ".reserve", ec);
-        write_run_record(dir, info);
-        continue;  // the run's end, as its server wrote it
-      }
-    }
-    if (info.outcome == Outcome::interrupted) finish_mcap(dir);  // marked by a server that did not finish it
-    if (info.outcome != Outcome::running) continue;
-    try {
-      // The reserve is freed first: on a full disk it is the room the lines below need.
-      std::filesystem::remove(dir / ".reserve", ec);
-      // What is on disk is the record: a line cut by the crash is removed and counted.
-      json trimmed = json::object();
-      for (const char* file : {"telemetry.csv", "events.jsonl"}) {
-        if (plain_file(dir / file)) trimmed[file] = trim_to_whole_lines(dir / file);
-      }
-      const json mcap = finish_mcap(dir);  // its summary and footer: an indexed reader opens it
-      if (mcap.contains("bytes_trimmed")) trimmed["telemetry.mcap"] = mcap["bytes_trimmed"];
-      const auto csv = dir / "telemetry.csv";
-      const std::uint64_t rows = plain_file(csv) ? csv_rows(dir, "telemetry.csv") : 0;
-      const auto last_write = plain_file(csv) ? std::filesystem::last_write_time(csv) : e.last_write_time();
-      const auto last_utc = std::chrono::time_point_cast<SysClock::duration>(std::chrono::file_clock::to_sys(last_write));
-      const std::string found = utc_iso(SysClock::now());
-      const json end = plain_file(dir / "events.jsonl") ? final_event_unrecorded(dir) : json(nullptr);
-      if (!end.is_null()) {  // the run ended; only its final run.json was not written
-        info.outcome = outcome_from(end.value("outcome", "interrupted"));
-        info.reason = (end["reason"].is_string() ? end["reason"].get<std::string>() + "; " : std::string()) +
-                      "its final run.json could not be written (" + end.value("error", "?") +
-                      ") and was restored from events.jsonl by a server started at " + found;
-      } else {
-        info.outcome = Outcome::interrupted;
-        info.reason = "the server process (pid " + (info.pid > 0 ? std::to_string(info.pid) : std::string("?")) +
-                      ") ended during the run, or could not write anything at its end; found by a server started at " + found;
-      }
-      info.stop_utc = utc_iso(last_utc);
-      info.interrupted = {{"found_utc", found}, {"last_write_utc", utc_iso(last_utc)}, {"bytes_trimmed", trimmed}};
-      if (!mcap.is_null()) info.interrupted["telemetry.mcap"] = mcap;
-      // Only what the files show: the counts the dead process kept are unknown, and left out.
-      RunRecord::Telemetry tel = info.telemetry.value_or(RunRecord::Telemetry{});
-      tel.rows_written = rows;
-      if (info.period_s > 0) tel.rows_expected = std::llround(info.duration_s / info.period_s);
-      info.telemetry = tel;
-      if (plain_file(dir / "events.jsonl")) {
-        try {
-          LineFile events(dir / "events.jsonl", /*append=*/true);
-          events.append(
-              json{{"utc", found}, {"kind", "interrupted"}, {"source", "bench"}, {"reason", *info.reason}, {"rows_on_disk", rows}}
-                  .dump() +
-              "\n");
-        } catch (const std::exception& ex) {
-          // The record matters more than the event line: say so in it, and write it.
-          info.interrupted["event_unwritten"] = ex.what();
-          spdlog::error("{}: the interrupted event could not be appended ({}); the run's record says so", dir.string(),
-                        ex.what());
-        }
-      }
-      write_run_record(dir, info);
-      marked.push_back(dir);
-    } catch (const std::exception& ex) {
-      spdlog::error("{}: cannot mark the interrupted run: {}", dir.string(), ex.what());
-    }
+    if (mark_interrupted_run(e.path(), found_by)) marked.push_back(e.path());
   }
   std::sort(marked.begin(), marked.end());
   return marked;

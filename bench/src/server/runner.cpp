@@ -284,7 +284,12 @@ void CampaignRunner::run_campaign(std::shared_ptr<Active> a) {
     const Outcome o = outcome_from(r["outcome"].get<std::string>());
     if (o > worst) worst = o, last["outcome"] = r["outcome"], last["reason"] = r["reason"];
   }
-  if (a->finished.size() < a->runs.size()) last["runs_skipped"] = a->runs.size() - a->finished.size();
+  if (a->finished.size() < a->runs.size()) {
+    last["runs_skipped"] = a->runs.size() - a->finished.size();
+    json names = json::array();  // by name: a JUnit verdict lists each as an error
+    for (std::size_t i = a->finished.size(); i < a->runs.size(); ++i) names.push_back(a->runs[i]->name);
+    last["runs_not_run"] = std::move(names);
+  }
   {
     // A stop or abort that came between runs (or before the first began) ended the campaign
     // without a run to carry it: the campaign says so, not "completed" with runs skipped.
@@ -308,10 +313,12 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   const RunSpec& run = *a.runs[index];
   const RigConfig& rc = a.req.rig;
   const auto start_utc = SysClock::now();
+  const auto started = Clock::now();
   RunRecord info;
   info.version = o_.version;
   info.host = hostname();
   info.pid = ::getpid();
+  info.recorded_by = o_.recorded_by;
   info.campaign = c.name;
   info.run = run.name;
   info.run_index = static_cast<std::int64_t>(index);
@@ -335,14 +342,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
 
   std::unique_ptr<Rig> rig = make_rig(rc, o_.can_transport);
   RunVerdicts verdicts(c, run, rig->knows_truth(), o_.on_row);  // outlives the recorder, which feeds it
-  Recorder rec(dir,
-               {{"source", "hilbench serve"},
-                {"campaign", c.name},
-                {"run", run.name},
-                {"rig", rc.name},
-                {"start_utc", utc_iso(start_utc)}},
-               static_cast<std::size_t>(rc.loop.ring_rows), verdicts.sink(), std::chrono::milliseconds(100), rig->knows_truth(),
-               rc.loop.cpu);
+  Recorder rec(
+      dir,
+      {{"source", o_.recorded_by}, {"campaign", c.name}, {"run", run.name}, {"rig", rc.name}, {"start_utc", utc_iso(start_utc)}},
+      static_cast<std::size_t>(rc.loop.ring_rows), verdicts.sink(), std::chrono::milliseconds(100), rig->knows_truth(),
+      rc.loop.cpu);
   // The run's snapshot in telemetry.mcap, as run.json keeps it: a recording opened alone says
   // what it was made of.
   rec.metadata("campaign", {{"source", info.config.campaign_source},
@@ -422,6 +426,14 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
     info.checks = verdicts.finish(pressure_trip, other);
     if (!info.checks.is_null()) a.summaries.emplace_back(run.name, verdicts.summary());
   }
+  // The end in events.jsonl too: the event log alone tells how the run ended.
+  rec.log({{"kind", "run_end"},
+           {"source", "bench"},
+           {"outcome", to_string(outcome)},
+           {"reason", info.reason ? json(*info.reason) : json(nullptr)},
+           {"trip", info.trip ? json(info.trip->reason) : json(nullptr)},
+           {"rows_written", info.telemetry && info.telemetry->rows_written ? json(*info.telemetry->rows_written) : json(nullptr)},
+           {"checks_failed", info.checks.is_object() ? info.checks.value("failed", json(nullptr)) : json(nullptr)}});
   try {
     folder.write_final(info);
   } catch (const std::exception& e) {
@@ -448,8 +460,11 @@ void CampaignRunner::run_one(Active& a, std::size_t index) {
   if (const std::string e = rec.seal(run_json); !e.empty()) spdlog::warn("run {}: telemetry.mcap: {}", dir.string(), e);
   folder.release();
   const json reason_or_null = info.reason ? json(*info.reason) : json(nullptr);
-  json summary = {
-      {"run", run.name}, {"dir", dir.filename().string()}, {"outcome", to_string(outcome)}, {"reason", reason_or_null}};
+  json summary = {{"run", run.name},
+                  {"dir", dir.filename().string()},
+                  {"outcome", to_string(outcome)},
+                  {"reason", reason_or_null},
+                  {"wall_s", std::chrono::duration<double>(Clock::now() - started).count()}};
   json end = {{"type", "run_end"},
               {"campaign", c.name},
               {"campaign_started_utc", utc_iso(a.started_utc)},

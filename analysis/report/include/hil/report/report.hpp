@@ -13,10 +13,15 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 namespace hil::report {
+
+// In the head of every page Document::html() makes: an existing file without it is not a report
+// the tool wrote, and is not replaced (hil/output_path.hpp).
+inline constexpr std::string_view kGeneratorTag = "<meta name=\"generator\" content=\"hilbench report\">";
 
 // A series longer than 2 * kMaxBuckets points is reduced to the min and max of each of
 // kMaxBuckets index buckets, drawn at the bucket's first and last x; NaN gaps survive.

@@ -13,6 +13,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -191,20 +192,32 @@ class RunChecks {
   std::string run_;
 };
 
-// JUnit XML (the Jenkins/GitLab/GitHub reading): a testsuite per campaign, a testcase per run and
-// check (a run without checks: one testcase "completed"), the failing value and limit in the
-// failure's message, and the campaign's report as an attachment ([[ATTACHMENT|path]]).
+// JUnit XML (the Jenkins/GitLab/GitHub reading, attributes as the Jenkins xUnit JUnit schema
+// allows them): a testsuite per campaign, a testcase per run and check (a run without checks: one
+// testcase "completed"), the failing value and limit in the failure's message, and the campaign's
+// report as an attachment ([[ATTACHMENT|path]]). A run that did not complete (or never ran: a
+// campaign stopped before it) is a testcase "completed" with an <error> naming its outcome and
+// reason, and its checks that were never judged are errors too, never skipped: CI must not go
+// green on a bench that did nothing. A campaign file that could not be read is a testsuite of
+// one testcase with the error (file:line: ...). A testcase's time is its run's wall time (a
+// check's verdict takes the whole run).
 struct JunitRun {
   std::string name;
   double wall_s = 0;
   std::vector<CheckResult> results;
+  std::string outcome = "completed";  // or aborted, error, stopped, interrupted, "not run"
+  std::string reason;                 // why it did not complete
 };
 struct JunitSuite {
   std::string campaign;
-  std::string report_path;  // absolute, or empty
+  std::string report_path;  // as the CI should find it (absolute, or relative to its workspace), or empty
   double wall_s = 0;
   std::vector<JunitRun> runs;
+  std::string error;  // the campaign could not be read: its file in `campaign`, the message here; no runs
 };
 std::string junit_xml(const std::vector<JunitSuite>& suites);
+// What every file junit_xml writes holds near its start: an existing --junit file without it is
+// not one the tool wrote, and is not replaced (hil/output_path.hpp).
+inline constexpr std::string_view kJunitSignature = "<testsuites name=\"hilbench\"";
 
 }  // namespace hil::bench

@@ -25,6 +25,7 @@ struct RunRecord {
   // Written at the start.
   std::string version, host;
   std::int64_t pid = 0;
+  std::string recorded_by;  // the command that recorded the run: "hilbench serve", "hilbench run" ("": not said)
   std::string campaign, run;
   std::int64_t run_index = 0, runs_in_campaign = 0;
   std::string rig_name, rig_kind;

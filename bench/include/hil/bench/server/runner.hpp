@@ -42,11 +42,17 @@ class BadField : public std::invalid_argument {
   BadField(std::string field_name, const std::string& what) : std::invalid_argument(what), field(std::move(field_name)) {}
   std::string field;
 };
-// A run folder's run.json says "running" but no live process holds the run's lock: the server
-// died during it (kill -9, a crash, power). Rewrites run.json to outcome "interrupted" with what
-// is really on disk (a half-written last line is cut off and counted) and appends an event.
-// Returns the folders it marked. Safe while another server runs on the same folder.
-std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir);
+// A run folder's run.json says "running" but no live process holds the run's lock: the process
+// that recorded it (`hilbench serve` or `hilbench run`) died during it (kill -9, a crash, power).
+// Rewrites run.json to outcome "interrupted" with what is really on disk (a half-written last
+// line is cut off and counted) and appends an event. `found_by` names who found it in the
+// reason ("a server started", "hilbench report"). Safe while another process records in the
+// same folder: a run whose lock is held is left alone.
+// The runs of a runs folder; returns the folders it marked.
+std::vector<std::filesystem::path> mark_interrupted_runs(const std::filesystem::path& runs_dir,
+                                                         const std::string& found_by = "a server started");
+// One run folder; true when it marked it.
+bool mark_interrupted_run(const std::filesystem::path& dir, const std::string& found_by);
 
 // The end of the last run a server knows: in the status as "last_run", so that a console opened
 // or reconnected after it (a restart after a crash included) says what became of the run it shows.
@@ -91,6 +97,7 @@ struct RunnerOptions {
   std::filesystem::path runs_dir = "runs";
   std::string version = "0";
   std::string mlock_warning;                             // what lock_memory() said at start ("" = memory locked)
+  std::string recorded_by = "hilbench serve";            // the command, in run.json and telemetry.csv's header
   std::function<void(const TelemetryRecord&)> on_row;    // recorder thread, every row
   std::function<void(const nlohmann::json&)> on_notice;  // run started / finished; any thread
   drv::CanTransportFactory can_transport;                // the CAN rigs' bus; empty: SocketCAN (tests: a loopback bus)
