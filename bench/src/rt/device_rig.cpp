@@ -246,7 +246,7 @@ RigHealth DeviceRig::health() const noexcept {
   h.transducer_reconnects = t.reconnects;
   h.reconnects = d.reconnects + t.reconnects;
   h.fault = !active_ || d.fault || (sensor_ && t.fault) || implausible_ != Implausible::none;
-  char text[256];
+  char text[320];  // room for a drive error of 240 and its prefix; set_last_error keeps what fits
   text[0] = '\0';
   char code[8];
   std::snprintf(code, sizeof code, "0x%04X", d.last_emcy_code);
