@@ -167,16 +167,34 @@ CanFrame emcy(std::uint8_t node, const Emcy& e) {
 }
 
 std::string_view emcy_class_name(std::uint16_t c) {
-  switch (c) {  // specific codes first
+  // CiA 301's emergency error codes, with CiA 402's (IEC 61800-7-201) drive codes: specific
+  // codes first, then the classes.
+  switch (c) {
+    case 0x2220: return "continuous over current inside the device";
+    case 0x2310: return "continuous over current, device output side";
+    case 0x3210: return "DC link over-voltage";
+    case 0x3220: return "DC link under-voltage";
+    case 0x4210: return "excess temperature, device";
+    case 0x4310: return "excess temperature, drive";
+    case 0x6010: return "software reset (watchdog)";
+    case 0x6320: return "parameter error";
+    case 0x7121: return "motor blocked";
+    case 0x7300: return "sensor";
+    case 0x7305: return "incremental sensor 1 fault";
+    case 0x7310: return "speed sensor";
+    case 0x7320: return "position sensor";
     case 0x8110: return "CAN overrun (objects lost)";
     case 0x8120: return "CAN in error passive mode";
-    case 0x8130: return "life guard or heartbeat error";
+    case 0x8130: return "life guard or heartbeat error: the drive lost a heartbeat it consumes (0x1016) or life guarding";
     case 0x8140: return "recovered from bus-off";
     case 0x8150: return "CAN-ID collision";
     case 0x8210: return "PDO not processed due to length error";
     case 0x8220: return "PDO length exceeded";
+    case 0x8240: return "unexpected SYNC data length";
     case 0x8250: return "RPDO timeout";
+    case 0x8311: return "excess torque";
     case 0x8611: return "following error";
+    case 0x8612: return "reference limit";
     default: break;
   }
   switch (c >> 8) {
@@ -227,7 +245,7 @@ std::string describe(const Emcy& e) {
   for (int b = 0; b < 8; ++b) {
     if (e.error_register & (1u << b)) reg += (reg.empty() ? "" : ", ") + std::string(kBits[b]);
   }
-  char buf[160];
+  char buf[240];
   std::snprintf(buf, sizeof buf, "EMCY 0x%04X (%.*s), register 0x%02X (%s), manufacturer %02X %02X %02X %02X %02X", e.error_code,
                 static_cast<int>(emcy_class_name(e.error_code).size()), emcy_class_name(e.error_code).data(), e.error_register,
                 reg.empty() ? "none" : reg.c_str(), e.manufacturer[0], e.manufacturer[1], e.manufacturer[2], e.manufacturer[3],

@@ -185,16 +185,25 @@ std::string following_window_problem(const Cia402Config& c, double window_rad) {
   const double lag_s = std::chrono::duration<double>(c.limits.drive_lag).count();
   const double period_s = std::chrono::duration<double>(c.sync_period).count();
   const double needed_rad = c.target_velocity_rad_s * (lag_s + period_s);
-  if (window_rad >= needed_rad) return {};
   constexpr double kDeg = 180.0 / std::numbers::pi;
   char text[400];
+  if (c.limits.drive_lag.count() == 0) {
+    // Taken as 0 the lag passed any window at a short period, though every drive lags: the check
+    // needs the number.
+    std::snprintf(text, sizeof text,
+                  "following error window 0x6065 = %.4g deg cannot be checked against the bench's targets: the drive's lag "
+                  "is unknown, and at %.4g deg/s each 10 ms of it takes %.4g deg of the window; add limits.drive_lag_ms "
+                  "(the following error at a constant speed over the speed, measured) to the drive file",
+                  window_rad * kDeg, c.target_velocity_rad_s * kDeg, c.target_velocity_rad_s * 0.01 * kDeg);
+    return text;
+  }
+  if (window_rad >= needed_rad) return {};
   std::snprintf(text, sizeof text,
                 "following error window 0x6065 = %.4g deg is narrower than the following error the bench's targets make by "
-                "themselves: %.4g deg/s x (%.4g ms drive lag%s + %.4g ms SYNC period) = %.4g deg; the drive would fault on "
+                "themselves: %.4g deg/s x (%.4g ms drive lag + %.4g ms SYNC period) = %.4g deg; the drive would fault on "
                 "shaping alone (widen limits.following_error_window_deg, or lower the rig's loop.target_shaping."
                 "max_velocity_deg_s)",
-                window_rad * kDeg, c.target_velocity_rad_s * kDeg, lag_s * 1e3,
-                c.limits.drive_lag.count() == 0 ? ", unknown: limits.drive_lag_ms" : "", period_s * 1e3, needed_rad * kDeg);
+                window_rad * kDeg, c.target_velocity_rad_s * kDeg, lag_s * 1e3, period_s * 1e3, needed_rad * kDeg);
   return text;
 }
 

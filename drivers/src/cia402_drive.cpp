@@ -36,6 +36,7 @@ Cia402Drive::Cia402Drive(Cia402Config config, CanTransportFactory transport) : i
 
 Cia402Drive::~Cia402Drive() {
   auto& m = *impl_;
+  m.end_switch_off();  // a switch-off the client started needs the I/O thread until it ends
   asio::post(m.io, [&m] {
     m.tr->stop();
     m.sync_timer.cancel(), m.hb_timer.cancel(), m.sdo->cancel(), m.bus_timer.cancel(), m.bench_hb_timer.cancel(),
@@ -52,7 +53,17 @@ void Cia402Drive::configure() {
   auto& m = *impl_;
   const Impl::SetupCall call(m, "configure()");
   const auto n = m.n;
+  m.loop_write_count.store(0, std::memory_order_release);
+  m.end_switch_off();  // its NMT stop must not land in the middle of this setup
+  {
+    const std::lock_guard lock(m.off_mutex);
+    m.off = {};
+  }
   m.run_on_io([&m] {
+    m.loop_hung = false;
+    m.loop_hang_measured = false;
+    m.drive_lost_bench = false;
+    m.bench_hb_gap_max = {};
     m.pdo_running = false;
     m.expect_heartbeat = false;
     m.rebooted = false;
@@ -365,6 +376,11 @@ void Cia402Drive::activate() {
   const Impl::SetupCall call(m, "activate()");
   const auto fb = m.feedback.load();
   if (!fb.valid) throw DriveError(m.who + ": activate() before configure()");
+  m.loop_write_count.store(0, std::memory_order_release);  // watched from the loop's first write()
+  {
+    const std::lock_guard lock(m.off_mutex);
+    m.off = {};
+  }
   m.command.store({{fb.position_rad, true, false}, m.writes.load()});
   m.reset_request = true;  // activate() is the explicit request: it acknowledges a latched fault
   m.target = static_cast<std::uint8_t>(cia402::Target::operation_enabled);
@@ -385,23 +401,9 @@ void Cia402Drive::activate() {
   }
 }
 
-void Cia402Drive::deactivate() {
-  auto& m = *impl_;
-  m.target = static_cast<std::uint8_t>(cia402::Target::switched_on);
-  // Under a latched fault the client holds the drive below switched on: off is off enough.
-  const auto off = [&] {
-    const auto s = state();
-    return s == cia402::State::switched_on ||
-           (m.fault_hold && (s == cia402::State::switch_on_disabled || s == cia402::State::fault));
-  };
-  if (!detail::wait_for(m.cfg.transition_timeout, off)) {
-    throw DriveError(m.who + ": did not reach switched on within " + std::to_string(m.cfg.transition_timeout.count()) +
-                     " ms (state: " + std::string(cia402::to_string(state())) + ")");
-  }
-}
-
 void Cia402Drive::quick_stop() {
   auto& m = *impl_;
+  m.loop_write_count.store(0, std::memory_order_release);
   m.target = static_cast<std::uint8_t>(cia402::Target::quick_stop);
   if (!detail::wait_for(m.cfg.transition_timeout, [&] { return state() == cia402::State::switch_on_disabled; })) {
     throw DriveError(m.who + ": quick stop did not end in switch on disabled within " +
@@ -417,6 +419,8 @@ DriveFeedback Cia402Drive::read(Clock::time_point, Clock::duration) noexcept { r
 void Cia402Drive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
   const std::uint64_t n = impl_->writes.load(std::memory_order_relaxed) + 1;
   impl_->writes.store(n, std::memory_order_relaxed);
+  // The loop completed a period: what the I/O thread's hang watch and the bench's heartbeat go by.
+  impl_->loop_write_count.store(Clock::now().time_since_epoch().count(), std::memory_order_release);
   impl_->command.store({command, n});
   if (impl_->kick_fd >= 0) {
     const std::uint64_t one = 1;

@@ -20,6 +20,7 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -76,6 +77,9 @@ struct Cia402Drive::Impl {
   // The newest TPDO1 was too short to use: the feedback is stale although TPDOs arrive, and the
   // stale reason must say so rather than "no TPDO".
   std::atomic<bool> tpdo_malformed{false};
+  // The loop's liveness (cfg.loop_hang_bound): write() stores when it ran, as the steady clock's
+  // count; 0 while no loop runs the drive. One atomic word: no lock on the loop's side.
+  std::atomic<Clock::rep> loop_write_count{0};
   std::vector<std::string> notes;  // configure(): optional objects the drive lacks (setup thread only)
   // Set by cancel_setup(), for good: a client whose setup was cancelled is being given up.
   std::atomic<bool> setup_cancelled{false};
@@ -113,6 +117,24 @@ struct Cia402Drive::Impl {
   bool bad_target_reported = false;
   Clock::time_point last_sync{};
   std::string last_emcy_text;  // the newest EMCY decoded, kept for the fault message
+  // The loop was taken for hung (latched until configure()): the bench's heartbeat and guarding
+  // requests stop, fault_hold sends quick stop. loop_last_write: its last write() before.
+  bool loop_hung = false;
+  bool loop_hang_measured = false;  // the loop came back: the hang's length is in the fault cause
+  Clock::time_point loop_last_write{};
+  // EMCY 0x8130 while the drive watches the bench: it lost the bench's heartbeat (or life
+  // guarding) and did its 0x6007 reaction; latched, or the enable sequence walked it back on.
+  bool drive_lost_bench = false;
+  // The bench's heartbeat as it went out: the last one and the longest gap between two (a host
+  // that stalled the whole process), measured on the bench's own clock.
+  Clock::time_point bench_hb_sent{};
+  Clock::duration bench_hb_gap_max{};
+  // Switching off (cia402_drive_off.cpp): the last switch-off's record and the thread the I/O
+  // thread starts for one it asks for itself (the SDO path blocks, the I/O thread must not).
+  std::mutex off_mutex;
+  SwitchOff off;
+  std::thread off_thread;
+  std::atomic<bool> off_busy{false};
   // The SDO client on this channel (configure's object writes, sdo_read/sdo_write, the probe).
   std::unique_ptr<SdoClient> sdo;
 
@@ -170,7 +192,7 @@ struct Cia402Drive::Impl {
   void publish() {
     const auto st = cia402::decode_statusword(fb.statusword);
     const bool drive_fault = fb.valid && (st == cia402::State::fault || st == cia402::State::fault_reaction_active);
-    const bool client_fault = h.heartbeat_lost || rebooted || left_operational || position_jump;
+    const bool client_fault = h.heartbeat_lost || rebooted || left_operational || position_jump || loop_hung || drive_lost_bench;
     // The drive's fault latches on its edge only: after a requested reset the drive still shows
     // fault for a SYNC or two, which must not latch the hold again. Bus-off is left to its
     // policy: `wait` and `recover` resume by configuration, and the drive never saw a fault.
@@ -252,8 +274,12 @@ struct Cia402Drive::Impl {
       left_operational = true;
       char state[8];
       std::snprintf(state, sizeof state, "0x%02X", s);
+      const std::string stall = bench_stall_note(f.rx_time);
       error(who + ": the drive left NMT operational (heartbeat says " + std::string(to_string(static_cast<NmtState>(s))) + ", " +
-            state + "); it no longer processes PDOs; configure() again");
+            state + ")" + (stall.empty() ? "; it no longer processes PDOs; configure() again" : stall));
+      // PDOs no longer carry the controlword: the drive is switched off by SDO (or NMT stop).
+      if (target.load() != static_cast<std::uint8_t>(cia402::Target::disabled))
+        start_switch_off("the drive left NMT operational");
     }
   }
 
@@ -323,6 +349,23 @@ struct Cia402Drive::Impl {
     h.last_emcy_code = e->error_code;
     h.last_emcy_register = e->error_register;
     last_emcy_text = e->error_code == 0 ? std::string() : describe(*e);
+    if (e->error_code == 0x8130 && pdo_running && (bench_heartbeat_on || guarding)) {
+      // The drive's consumer (or life guarding) gave up on the bench and did its 0x6007 reaction:
+      // latched as the cause, with the bench's own heartbeat gap when it was the bench that stalled.
+      drive_lost_bench = true;
+      const std::string stall = bench_stall_note(f.rx_time);
+      static constexpr const char* kReaction[] = {"none", "fault", "disable voltage", "quick stop"};
+      const auto on_loss = cfg.bench_heartbeat.on_loss;
+      const std::string cause = who + ": EMCY 0x8130: the drive lost the bench's " + (guarding ? "life guarding" : "heartbeat") +
+                                " and did its 0x6007 reaction (" +
+                                (on_loss >= 0 && on_loss <= 3 ? kReaction[on_loss] : "its own") + ")" +
+                                (stall.empty() ? ", though the bench's heartbeat went out on time" : stall);
+      if (!fault_hold.exchange(true) || h.fault_cause[0] == '\0') {
+        std::snprintf(h.fault_cause.data(), h.fault_cause.size(), "%s", cause.c_str());
+      }
+      error(who + ": " + describe(*e));  // the frame itself; fault_cause says what it means here
+      return;
+    }
     const bool in_fault = fb.valid && cia402::decode_statusword(fb.statusword) == cia402::State::fault;
     error(who + ": " + (in_fault && e->error_code != 0 ? "drive in fault: " : "") + describe(*e));
   }
@@ -423,6 +466,10 @@ struct Cia402Drive::Impl {
     if (sync_timer.expiry() < Clock::now() - cfg.sync_period) sync_timer.expires_after(cfg.sync_period);
     sync_timer.async_wait([this](const boost::system::error_code& ec) {
       if (ec) return;
+      // A timer this late means the I/O thread itself was stopped (the whole process stalled, not
+      // the loop alone): the loop gets the next period to show it is alive before it is judged.
+      const auto now = Clock::now();
+      if (now - sync_timer.expiry() < cfg.loop_hang_bound / 2) check_loop(now);
       // With sync_source loop the loop's write() drives SYNC; the timer only keeps it alive
       // while no loop runs (during configure/activate, or a stalled loop).
       if (cfg.sync_source == Cia402Config::SyncSource::timer || Clock::now() - last_sync > 2 * cfg.sync_period) {
@@ -451,8 +498,14 @@ struct Cia402Drive::Impl {
   void arm_bench_heartbeat() {
     bench_hb_timer.async_wait([this](const boost::system::error_code& ec) {
       if (ec) return;
-      // While bus-off nothing goes out (as SYNC and RPDO); the drive's consumer then acts as on a dead bench.
-      if (!bus_off_latched) send(canopen::heartbeat(cfg.bench_heartbeat.node_id, NmtState::operational));
+      // While bus-off nothing goes out (as SYNC and RPDO); the drive's consumer then acts as on a dead
+      // bench. Nor while the loop is hung: the heartbeat says the control loop is alive.
+      const auto now = Clock::now();
+      if (now - bench_hb_timer.expiry() < cfg.loop_hang_bound / 2) check_loop(now);  // as in the SYNC timer
+      if (!bus_off_latched && !loop_hung && send(canopen::heartbeat(cfg.bench_heartbeat.node_id, NmtState::operational))) {
+        if (bench_hb_sent != Clock::time_point{}) bench_hb_gap_max = std::max(bench_hb_gap_max, now - bench_hb_sent);
+        bench_hb_sent = now;
+      }
       bench_hb_timer.expires_at(bench_hb_timer.expiry() + cfg.bench_heartbeat.producer);
       if (bench_hb_timer.expiry() < Clock::now()) bench_hb_timer.expires_after(milliseconds(0));  // late: at once, no burst
       arm_bench_heartbeat();
@@ -470,7 +523,8 @@ struct Cia402Drive::Impl {
   void arm_guard() {
     guard_timer.async_wait([this](const boost::system::error_code& ec) {
       if (ec) return;
-      if (!bus_off_latched) {
+      if (Clock::now() - guard_timer.expiry() < cfg.loop_hang_bound / 2) check_loop(Clock::now());  // as in the SYNC timer
+      if (!bus_off_latched && !loop_hung) {
         CanFrame r;
         r.id = kHeartbeat + n;
         r.rtr = true;
@@ -487,8 +541,11 @@ struct Cia402Drive::Impl {
   void arm_hb_timer() {
     const auto check = std::max(milliseconds(5), std::min(milliseconds(50), cfg.heartbeat_timeout / 4));
     hb_timer.expires_after(check);
-    hb_timer.async_wait([this](const boost::system::error_code& ec) {
+    hb_timer.async_wait([this, check](const boost::system::error_code& ec) {
       if (ec) return;
+      // Late by more than a check: the I/O thread itself was stopped (a stalled host), and the
+      // heartbeats that came meanwhile wait in the socket: read them before judging the drive.
+      if (Clock::now() - hb_timer.expiry() > check) return arm_hb_timer();
       if (expect_heartbeat && !h.heartbeat_lost && Clock::now() - h.last_heartbeat > cfg.heartbeat_timeout) {
         h.heartbeat_lost = true;
         error(who + ": heartbeat lost (none for " + std::to_string(cfg.heartbeat_timeout.count()) + " ms)");
@@ -497,6 +554,62 @@ struct Cia402Drive::Impl {
       arm_hb_timer();
     });
   }
+
+  // -- the loop's liveness and the bench's own stalls --
+  static long long ms_of(Clock::duration d) noexcept { return std::chrono::duration_cast<milliseconds>(d).count(); }
+  // How long the drive may go without the bench's heartbeat (0x1016), or life guarding's time.
+  milliseconds drive_watch_time() const {
+    return guarding ? cfg.node_guarding.guard_time * cfg.node_guarding.life_time_factor : cfg.bench_heartbeat.drive_timeout;
+  }
+
+  // "; the bench's heartbeat was 1122 ms late (0x1016 gives the drive 500 ms): the host stalled"
+  // when the longest gap of the bench's own heartbeat (or the one open now, at `now`) exceeded the
+  // time the drive gives it; "" when it went out on time. A drive's reaction to a lost bench is
+  // then the bench's doing, not the drive's.
+  std::string bench_stall_note(Clock::time_point now) const {
+    if (!bench_heartbeat_on && !guarding) return {};
+    if (loop_hung) return "; the bench stopped its heartbeat: its control loop hung";
+    Clock::duration gap = bench_hb_gap_max;
+    if (bench_hb_sent != Clock::time_point{} && now > bench_hb_sent) gap = std::max(gap, now - bench_hb_sent);
+    if (guarding || gap <= drive_watch_time()) return {};
+    return "; the bench's heartbeat was " + std::to_string(ms_of(gap)) + " ms late (0x1016 gives the drive " +
+           std::to_string(drive_watch_time().count()) + " ms): the host stalled";
+  }
+
+  // Every SYNC period and before each heartbeat: the loop must have completed a period (write())
+  // within cfg.loop_hang_bound while it runs the drive. Past it the heartbeat stops and fault_hold
+  // quick-stops the drive; when the loop comes back the cause says how long it was gone.
+  void check_loop(Clock::time_point now) {
+    if (cfg.loop_hang_bound.count() <= 0) return;
+    const Clock::rep count = loop_write_count.load(std::memory_order_acquire);
+    if (count == 0) return;
+    const Clock::time_point last{Clock::duration(count)};
+    const std::string allows = " (the bench allows " + std::to_string(cfg.loop_hang_bound.count()) + " ms)";
+    if (!loop_hung) {
+      if (now - last <= cfg.loop_hang_bound) return;
+      loop_hung = true;
+      loop_last_write = last;
+      error(who + ": control loop hung: no period completed for " + std::to_string(ms_of(now - last)) + " ms" + allows +
+            "; the bench stopped its heartbeat and quick-stopped the drive");
+      publish();
+    } else if (!loop_hang_measured && last > loop_last_write) {
+      loop_hang_measured = true;
+      error(who + ": control loop hung for " + std::to_string(ms_of(last - loop_last_write)) + " ms" + allows +
+            "; the bench stopped its heartbeat and quick-stopped the drive");
+      h.fault_cause = h.last_error;  // the same cause, now with its length
+      publish();
+    }
+  }
+
+  // -- switching off (cia402_drive_off.cpp) --
+  // Blocking, never on the I/O thread: quick stop then disable voltage by SDO (0x6040), the state
+  // read back by SDO (0x6041) and published; where SDO fails, NMT stop. Records it in `off`.
+  void switch_off_by_sdo(const std::string& asked_by, Clock::time_point asked);
+  // I/O thread: runs switch_off_by_sdo on off_thread (once at a time).
+  void start_switch_off(const char* why);
+  // Setup threads: waits for a switch-off the I/O thread started to end (before the next setup
+  // call uses the SDO channel, or the client goes).
+  void end_switch_off();
 
   void run_on_io(std::function<void()> fn) {
     std::promise<void> done;

@@ -96,6 +96,7 @@ std::optional<Cia402DriveEmulator::ConsumerEvent> Cia402DriveEmulator::last_cons
 
 void Cia402DriveEmulator::stop_heartbeat(bool stopped) { impl_->hb_stopped = stopped; }
 void Cia402DriveEmulator::set_silent(bool silent) { impl_->silent = silent; }
+void Cia402DriveEmulator::enter_nmt_state(canopen::NmtState state) { impl_->set_nmt(state); }
 void Cia402DriveEmulator::freeze_position(bool frozen) {
   // Each freeze holds the position of the first SYNC after it, not one a former freeze took (a
   // freeze, a clear and a freeze with no SYNC between, as between two runs, held the old one).

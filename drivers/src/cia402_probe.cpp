@@ -90,6 +90,7 @@ Cia402Probe probe(SdoClient& sdo, const Cia402Config& cfg) {
   const bool vmax = read(cia402::kMaxProfileVelocity, 0, "max profile velocity", false).value.has_value();
   const auto qs_option = read(cia402::kQuickStopOption, 0, "quick stop option code", false).value;
   const bool qs_dec = read(cia402::kQuickStopDeceleration, 0, "quick stop deceleration", false).value.has_value();
+  const bool cycle = read(0x1006, 0, "communication cycle period", false).value.has_value();
 
   for (const auto& o : p.objects) {
     if (o.required && !o.value) {
@@ -191,6 +192,13 @@ Cia402Probe probe(SdoClient& sdo, const Cia402Config& cfg) {
   if (qs_option) {
     p.plan.push_back(std::string("quick stop option code 0x605A = ") + std::to_string(static_cast<std::int16_t>(*qs_option)) +
                      (*qs_option == 2 || *qs_option == 6 ? " (quick stop ramp)" : ""));
+  } else {
+    p.lacks.push_back("0x605A quick stop option code (optional: how the drive stops on quick stop is its maker's choice)");
+  }
+  if (cycle) {
+    p.plan.push_back("0x1006 communication cycle period = the SYNC period");
+  } else {
+    p.lacks.push_back("0x1006 communication cycle period (optional: the drive is not told the SYNC period)");
   }
   if (qs_dec && lim.quick_stop_deceleration_rad_s2 > 0)
     p.plan.push_back("write quick stop deceleration 0x6085 from the drive file");

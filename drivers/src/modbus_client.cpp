@@ -34,22 +34,6 @@ std::string fault_bit_text(const std::string& who, const RegisterMap& map, int b
 }
 }  // namespace
 
-std::string_view modbus_exception_name(int code) {
-  switch (code) {
-    case 0x01: return "ILLEGAL FUNCTION";
-    case 0x02: return "ILLEGAL DATA ADDRESS";
-    case 0x03: return "ILLEGAL DATA VALUE";
-    case 0x04: return "SERVER DEVICE FAILURE";
-    case 0x05: return "ACKNOWLEDGE";
-    case 0x06: return "SERVER DEVICE BUSY";
-    case 0x07: return "NEGATIVE ACKNOWLEDGE";
-    case 0x08: return "MEMORY PARITY ERROR";
-    case 0x0A: return "GATEWAY PATH UNAVAILABLE";
-    case 0x0B: return "GATEWAY TARGET DEVICE FAILED TO RESPOND";
-    default: return "UNKNOWN EXCEPTION";
-  }
-}
-
 namespace {
 // libmodbus cannot be interrupted inside a transaction: a run's end, an abort's included, waits for
 // the one in flight up to this long (it was 600 s). A device that needs longer to answer is no
@@ -458,8 +442,12 @@ struct ModbusDrive::Impl {
   // Set by cancel_setup(), for good: activate() stops waiting for the enabled bit (up to
   // transition_timeout_ms, 600 s at most) and configure() refuses to start.
   std::atomic<bool> setup_cancelled{false};
+  // The loop's liveness (cfg.loop_hang_bound): write() stores when it ran; 0 while no loop runs it.
+  std::atomic<Clock::rep> loop_write_count{0};
+  SwitchOff off;  // setup thread
   // I/O thread
   DriveFeedback fb;
+  bool loop_hung = false;  // latched for this client's life: enable stays off
   bool prev_cmd_reset = false;
   bool reset_pulse = false;
   std::uint16_t last_control = 0xFFFF;
@@ -535,7 +523,8 @@ struct ModbusDrive::Impl {
     const DriveCommand cmd = command.load();
     if (cmd.fault_reset && !prev_cmd_reset) reset_requested = true;
     prev_cmd_reset = cmd.fault_reset;
-    const bool enable = enable_requested && cmd.enable;
+    check_loop();
+    const bool enable = enable_requested && cmd.enable && !loop_hung;
     if (reset_pulse) {
       reset_pulse = false;  // one poll with the bit set, then low again: one rising edge
     } else if (reset_requested.exchange(false)) {
@@ -561,9 +550,23 @@ struct ModbusDrive::Impl {
     return true;
   }
 
+  // Past the bound without a write() from the loop: the control register's safe write (enable
+  // off) goes out in this cycle, and the drive is a fault from here on.
+  void check_loop() {
+    const Clock::rep count = loop_write_count.load(std::memory_order_acquire);
+    if (loop_hung || cfg.loop_hang_bound.count() <= 0 || count == 0) return;
+    const auto silent = Clock::now() - Clock::time_point(Clock::duration(count));
+    if (silent <= cfg.loop_hang_bound) return;
+    loop_hung = true;
+    poller.health().set_last_error(poller.who() + ": control loop hung: no period completed for " +
+                                   std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(silent).count()) +
+                                   " ms (the bench allows " + std::to_string(cfg.loop_hang_bound.count()) +
+                                   " ms); the bench wrote enable off itself");
+  }
+
   void publish() {
     auto& h = poller.health();
-    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected || write_failed || position_jump;
+    fb.fault = (fb.statusword >> bit_fault) & 1 || !h.connected || write_failed || position_jump || loop_hung;
     h.fault = fb.fault;
     feedback.store(fb);
     poller.health_box().store(h);
@@ -587,6 +590,7 @@ void ModbusDrive::activate() {
   const auto fb = m.feedback.load();
   if (!fb.valid) throw ModbusError(m.poller.who() + ": activate() before configure()");
   m.command.store({fb.position_rad, true, false});
+  m.loop_write_count.store(0, std::memory_order_release);  // watched from the loop's first write()
   if (fb.fault) m.reset_requested = true;
   m.enable_requested = true;
   const bool enabled = wait_for(m.cfg.transition_timeout, [&] { return m.setup_cancelled || m.feedback.load().enabled; });
@@ -605,8 +609,21 @@ void ModbusDrive::cancel_setup() noexcept { impl_->setup_cancelled = true; }
 
 void ModbusDrive::deactivate() {
   auto& m = *impl_;
+  m.loop_write_count.store(0, std::memory_order_release);  // no loop runs the drive from here
   m.enable_requested = false;
-  if (!wait_for(m.cfg.transition_timeout, [&] { return !m.feedback.load().enabled; })) {
+  const auto asked = Clock::now();
+  // Off as a poll after the request shows it (an older reading may predate the write).
+  const bool off = wait_for(m.cfg.transition_timeout, [&] {
+    const auto fb = m.feedback.load();
+    return fb.valid && !fb.enabled && fb.rx_time > asked;
+  });
+  const auto fb = m.feedback.load();
+  m.off = {.path = "register",
+           .asked_by = "deactivate()",
+           .after_ms = std::chrono::duration<double, std::milli>(Clock::now() - asked).count(),
+           .state = fb.rx_time > asked ? (fb.enabled ? "enabled" : "disabled") : "unknown (no poll answered)",
+           .off = off};
+  if (!off) {
     throw ModbusError(m.poller.who() + ": did not disable within " + std::to_string(m.cfg.transition_timeout.count()) + " ms");
   }
 }
@@ -614,7 +631,9 @@ void ModbusDrive::deactivate() {
 DriveFeedback ModbusDrive::read(Clock::time_point, Clock::duration) noexcept { return impl_->feedback.load(); }
 void ModbusDrive::write(Clock::time_point, Clock::duration, const DriveCommand& command) noexcept {
   impl_->command.store(command);
+  impl_->loop_write_count.store(Clock::now().time_since_epoch().count(), std::memory_order_release);
 }
+SwitchOff ModbusDrive::last_switch_off() const { return impl_->off; }
 DeviceHealth ModbusDrive::health() const noexcept { return detail::with_age(impl_->poller.health_box()); }
 
 // ---- the transducer --------------------------------------------------------------------------

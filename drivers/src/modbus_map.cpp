@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "hil/config.hpp"
+#include "hil/drv/modbus.hpp"
 
 namespace hil::drv {
 
@@ -202,6 +203,23 @@ std::pair<std::uint16_t, std::uint32_t> RegisterMap::extent(RegisterTable table)
   }
   if (end == 0) return {0, 0};
   return {static_cast<std::uint16_t>(first), end};
+}
+
+// Modbus exception codes (Modbus Application Protocol 1.1b3, 7).
+std::string_view modbus_exception_name(int code) {
+  switch (code) {
+    case 0x01: return "ILLEGAL FUNCTION";
+    case 0x02: return "ILLEGAL DATA ADDRESS";
+    case 0x03: return "ILLEGAL DATA VALUE";
+    case 0x04: return "SERVER DEVICE FAILURE";
+    case 0x05: return "ACKNOWLEDGE";
+    case 0x06: return "SERVER DEVICE BUSY";
+    case 0x07: return "NEGATIVE ACKNOWLEDGE";
+    case 0x08: return "MEMORY PARITY ERROR";
+    case 0x0A: return "GATEWAY PATH UNAVAILABLE";
+    case 0x0B: return "GATEWAY TARGET DEVICE FAILED TO RESPOND";
+    default: return "UNKNOWN EXCEPTION";
+  }
 }
 
 }  // namespace hil::drv

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <memory>
 #include <string>
@@ -58,6 +59,8 @@ class TestLoop {
   std::atomic<bool> enable{true};
   std::atomic<bool> fault_reset{false};
   std::atomic<double> position_rad{kNaN};
+  // A hung loop: no read(), no write() while set (the thread sleeps its periods away).
+  std::atomic<bool> paused{false};
 
  private:
   void run() {
@@ -65,6 +68,10 @@ class TestLoop {
     while (!stop_) {
       next += 1ms;
       const auto now = Clock::now();
+      if (paused) {
+        std::this_thread::sleep_until(next);
+        continue;
+      }
       position_rad = drive_.read(now, 1ms).position_rad;
       drive_.write(now, 1ms, {target_rad.load(), enable.load(), fault_reset.load()});
       std::this_thread::sleep_until(next);
@@ -121,7 +128,14 @@ inline void boots_to_operation_enabled(const CanTransportFactory& f, std::uint8_
   EXPECT_EQ(h.nmt_state, 0x05);
   EXPECT_GT(h.pdo_received, 0u);
   r.client.deactivate();
-  EXPECT_EQ(r.client.state(), cia402::State::switched_on);
+  // Issue 50: a normal end is switch on disabled (it was switched on, left to the drive's consumer).
+  EXPECT_EQ(r.client.state(), cia402::State::switch_on_disabled);
+  EXPECT_EQ(r.emulator.state(), cia402::State::switch_on_disabled);
+  const SwitchOff off = r.client.last_switch_off();
+  EXPECT_EQ(off.path, "pdo");
+  EXPECT_EQ(off.asked_by, "deactivate()");
+  EXPECT_TRUE(off.off);
+  EXPECT_EQ(off.state, "switch on disabled");
 }
 
 inline void csp_position_tracking(const CanTransportFactory& f, std::uint8_t node) {
@@ -211,6 +225,110 @@ inline void drive_watches_the_bench(const CanTransportFactory& f, std::uint8_t n
   std::printf("bench heartbeat lost: the drive reacted %.1f ms after the bench's last heartbeat (consumer time 600 ms): %s\n",
               std::chrono::duration<double, std::milli>(event->silence).count(),
               std::string(cia402::to_string(event->state_after)).c_str());
+}
+
+// The number after `key` in `text` (-1 when absent): "hung for 1502 ms" -> 1502.
+inline long number_after(const std::string& text, const std::string& key) {
+  const auto at = text.find(key);
+  return at == std::string::npos ? -1 : std::atol(text.c_str() + at + key.size());
+}
+
+// Issue 50: the bench's heartbeat means "the control loop is alive". A loop that stops writing
+// (a controller that never returns, a lock) while it runs the drive makes the client's I/O thread
+// quick-stop the drive itself past loop_hang_bound and stop the bench's heartbeat, so a drive's
+// consumer trips too; a drive without a consumer is stopped by the quick stop alone. When the
+// loop comes back the fault's cause says how long it was gone.
+inline void a_hung_loop_stops_the_drive(const CanTransportFactory& f, std::uint8_t node, bool consumer) {
+  auto cfg = test_config(node);
+  cfg.loop_hang_bound = 600ms;  // a loaded machine may starve the test's loop thread for 100 ms
+  cfg.bench_heartbeat.producer = 50ms;
+  cfg.bench_heartbeat.drive_timeout = 600ms;
+  cfg.bench_heartbeat.required = consumer;
+  Rig r(f, cfg, [consumer](Cia402EmulatorConfig& e) { e.heartbeat_consumer = consumer; });
+  r.client.configure();
+  r.client.activate();
+  TestLoop loop(r.client);
+  loop.target_rad = 0.3;
+  ASSERT_TRUE(eventually([&] { return std::abs(loop.position_rad - 0.3) < 1e-3; }));
+  std::this_thread::sleep_for(800ms);  // longer than the bound: a running loop is not hung
+  ASSERT_FALSE(r.client.health().fault) << r.client.health().last_error_text();
+  const auto hung = Clock::now();
+  loop.paused = true;
+  ASSERT_TRUE(eventually([&] { return r.emulator.state() == cia402::State::switch_on_disabled; }, 20s))
+      << cia402::to_string(r.emulator.state());
+  const auto stopped = Clock::now() - hung;
+  EXPECT_GE(stopped, cfg.loop_hang_bound);  // not before the bound
+  // The I/O thread's own quick stop does it within the bound (and a SYNC or two); the drive's
+  // consumer would by bound + consumer time: the drive is stopped by then, with margin for load.
+  EXPECT_LE(stopped, cfg.loop_hang_bound + cfg.bench_heartbeat.drive_timeout + 2s);
+  if (consumer) {  // the bench's heartbeat stopped with the loop: the drive's consumer trips too
+    ASSERT_TRUE(eventually([&] { return r.emulator.heartbeat_consumer_events() > 0; }, 20s));
+    EXPECT_GE(r.emulator.last_consumer_event()->silence, cfg.bench_heartbeat.drive_timeout);
+  }
+  const auto h = r.client.health();
+  EXPECT_TRUE(h.fault);
+  EXPECT_NE(h.fault_cause_text().find("control loop hung: no period completed for "), std::string_view::npos)
+      << h.fault_cause_text();
+  std::this_thread::sleep_until(hung + 2500ms);  // hung 2.5 s in all
+  loop.paused = false;
+  std::string cause;
+  ASSERT_TRUE(eventually([&] {
+    cause = std::string(r.client.health().fault_cause_text());
+    return cause.find("control loop hung for ") != std::string::npos;
+  })) << cause;
+  const long hung_ms = number_after(cause, "control loop hung for ");
+  EXPECT_GE(hung_ms, 2400) << cause;
+  EXPECT_NE(cause.find("(the bench allows 600 ms)"), std::string::npos) << cause;
+  EXPECT_TRUE(r.client.read(Clock::now(), 1ms).fault);  // held until a reset: the loop trips on it
+  std::printf(
+      "loop hung %ld ms (consumer %s): the drive reached switch on disabled %.0f ms after the loop's last write "
+      "(bound 600 ms, consumer 600 ms)\n",
+      hung_ms, consumer ? "on" : "off", std::chrono::duration<double, std::milli>(stopped).count());
+}
+
+// Issue 50: a drive that leaves NMT operational by itself while enabled (its 0x1029 error
+// behaviour) no longer takes the cyclic controlword: the client switches it off by SDO at once
+// (0x6040 written, 0x6041 read back) and reports the state read back, not the last TPDO's; where
+// SDO is refused too, it stops the node (NMT) and says the state is unknown.
+inline void a_drive_out_of_operational_is_switched_off(const CanTransportFactory& f, std::uint8_t node, bool sdo_refused) {
+  Rig r(f, test_config(node));
+  r.client.configure();
+  r.client.activate();
+  TestLoop loop(r.client);
+  ASSERT_TRUE(eventually([&] { return r.emulator.state() == cia402::State::operation_enabled; }));
+  if (sdo_refused) r.emulator.fail_sdo(cia402::kControlword, 0, 0x08000022);
+  const auto left = Clock::now();
+  r.emulator.enter_nmt_state(canopen::NmtState::pre_operational);
+  ASSERT_TRUE(eventually([&] { return !r.client.last_switch_off().path.empty(); }, 20s));
+  const SwitchOff off = r.client.last_switch_off();
+  EXPECT_NE(off.asked_by.find("the drive left NMT operational"), std::string::npos) << off.asked_by;
+  if (sdo_refused) {
+    EXPECT_EQ(off.path, "nmt_stop");
+    EXPECT_FALSE(off.off);
+    EXPECT_NE(off.state.find("unknown"), std::string::npos) << off.state;
+    EXPECT_TRUE(eventually([&] { return r.emulator.nmt_state() == canopen::NmtState::stopped; }));
+    loop.paused = true;
+    try {
+      r.client.deactivate();
+      ADD_FAILURE() << "deactivate() said off with the state unknown";
+    } catch (const DriveError& e) {
+      EXPECT_NE(std::string(e.what()).find("not switched off: nmt_stop"), std::string::npos) << e.what();
+    }
+    return;
+  }
+  EXPECT_EQ(off.path, "sdo");
+  EXPECT_TRUE(off.off);
+  EXPECT_EQ(off.state, "switch on disabled");
+  EXPECT_EQ(r.emulator.state(), cia402::State::switch_on_disabled);
+  EXPECT_EQ(r.emulator.nmt_state(), canopen::NmtState::pre_operational);  // by SDO, not by NMT
+  EXPECT_EQ(r.client.state(), cia402::State::switch_on_disabled);         // the state read back, not the stale TPDO's
+  std::printf(
+      "drive left NMT operational while enabled: switched off by %s %.1f ms after the client saw it (%.0f ms "
+      "after the drive left)\n",
+      off.path.c_str(), off.after_ms, std::chrono::duration<double, std::milli>(Clock::now() - left).count());
+  loop.paused = true;
+  r.client.deactivate();  // already off: the record stays the client's own
+  EXPECT_EQ(r.client.last_switch_off().path, "sdo");
 }
 
 inline void sdo_abort_names_object(const CanTransportFactory& f, std::uint8_t node) {
@@ -501,6 +619,9 @@ inline void probe_variants(const CanTransportFactory& f, std::uint8_t node) {
     EXPECT_FALSE(p.find(0x6065, 0)->value.has_value());
     const std::string rep = p.report();
     EXPECT_NE(rep.find("0x6065/0x6066 following error window and timeout (optional"), std::string::npos) << rep;
+    // Issue 50: 0x1006, which configure() writes, is read and planned.
+    EXPECT_NE(rep.find("0x1006 communication cycle period = the SYNC period"), std::string::npos) << rep;
+    EXPECT_TRUE(p.find(0x1006, 0)->value.has_value());
     EXPECT_NE(rep.find("verdict: usable"), std::string::npos) << rep;
     // Nothing moved: the drive is where it booted, pre-operational, no SYNC seen.
     EXPECT_EQ(r.emulator.nmt_state(), canopen::NmtState::pre_operational);
@@ -525,6 +646,16 @@ inline void probe_variants(const CanTransportFactory& f, std::uint8_t node) {
     EXPECT_NE(rep.find("0x60C2 interpolation time period (optional"), std::string::npos) << rep;
     EXPECT_NE(rep.find("quick stop option code 0x605A = 2 (quick stop ramp)"), std::string::npos) << rep;
     EXPECT_EQ(r.emulator.syncs_seen(), 0u);
+  }
+  {  // Issue 50: a drive without 0x605A and 0x1006 (both optional): each listed as lacking
+    Rig r(f, test_config(node));
+    r.emulator.fail_sdo(0x605A, 0, 0x06020000);
+    r.emulator.fail_sdo(0x1006, 0, 0x06020000);
+    const Cia402Probe p = probe(r.client);
+    EXPECT_TRUE(p.usable) << p.report();
+    const std::string rep = p.report();
+    EXPECT_NE(rep.find("0x605A quick stop option code (optional"), std::string::npos) << rep;
+    EXPECT_NE(rep.find("0x1006 communication cycle period (optional"), std::string::npos) << rep;
   }
 }
 

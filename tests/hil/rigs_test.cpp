@@ -562,7 +562,7 @@ TEST(HybridRig, ShapedTargetsKeepAFollowingErrorDriveOutOfFault) {
   RigOptions o = lockstep_rig_options();
   o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";
   o.safety_extra = "following_error: {max_deg: 1, time_ms: 0}";  // the bench's own check, as tight: no trip either
-  const std::string limits = "{following_error_window_deg: 1, following_error_timeout_ms: 0}";
+  const std::string limits = "{following_error_window_deg: 1, following_error_timeout_ms: 0, drive_lag_ms: 10}";
   const LockstepResult r = run_lockstep_hybrid(
       campaign, "adaptive", motor, [&bus] { bus.inject(drv::canopen::sync()); },
       rig_yaml("hybrid", can_drive_yaml("vcan0", "recover", 100, limits), "", o), bus.factory());

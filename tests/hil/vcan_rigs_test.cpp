@@ -77,6 +77,12 @@ TEST(VcanCanRig, LockstepMatchesTheSimulation) {
 // the loop for more than 0.5 s, 86 % of the periods stale), every row is on disk, one RPDO1 goes out with each SYNC and the drive answers each
 // SYNC with one TPDO1. The trace is printed; its equivalence with the simulation is the
 // lock-step test above.
+// The number after `key` in `text` (-1 when absent): "hung for 1502 ms" -> 1502.
+static long number_after(const std::string& text, const std::string& key) {
+  const auto at = text.find(key);
+  return at == std::string::npos ? -1 : std::atol(text.c_str() + at + key.size());
+}
+
 TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
   ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
   TempDir dir;
@@ -86,15 +92,39 @@ TEST(VcanCanRig, PaperAdaptiveThroughServeEndToEnd) {
   o.watchdog_misses = 1000000;  // never within the run: stalls of the loaded VM are not under test here
   o.loop_extra = "target_shaping: {max_velocity_deg_s: 60, max_acceleration_deg_s2: 30000}";  // as the shipped rigs
   const ServeResult r = serve_paper_adaptive(
-      g_period_ms, {"--can", "vcan0", "--modbus", "tcp:127.0.0.1:0", "--period-ms", "1"}, [&](const PlantProcess& p) {
+      g_period_ms, {"--can", "vcan0", "--modbus", "tcp:127.0.0.1:0", "--period-ms", "1"},
+      [&](const PlantProcess& p) {
         // A device's own timeouts as generous as the watchdog: a reply 100 ms late in a loaded VM is
         // the machine, not the device (the fault tests check those timeouts).
         return rig_yaml("can", can_drive_yaml("vcan0", "recover", 2000),
                         modbus_device_yaml(p.transducer_port(), "modbus_transducer_map.yaml", 4, 2000), o);
-      });
+      },
+      /*may_abort=*/true);
   kill(candump, SIGTERM);
   wait_exit(candump, std::chrono::seconds(5));
   EXPECT_EQ(r.run["rig"]["kind"], "can");
+  // Issue 50: a VM that cannot keep the period may stall the whole bench past the drive's consumer
+  // time (its 0x1016), and the drive then quick-stops as configured. That run ends aborted, and
+  // only with the bench's own stall named, truthfully: its heartbeat gap longer than the time the
+  // drive gives it, or a loop hang longer than the bench allows. Anything else fails, as does a
+  // run that ended otherwise.
+  if (r.outcome != "completed") {
+    ASSERT_EQ(r.outcome, "aborted") << r.reason;
+    const long late_ms = number_after(r.reason, "the bench's heartbeat was ");
+    const long allowed_ms = number_after(r.reason, "ms late (0x1016 gives the drive ");
+    const long hung_ms = number_after(r.reason, "control loop hung for ");
+    ASSERT_TRUE((late_ms > 0 && r.reason.find("): the host stalled") != std::string::npos) || hung_ms > 0) << r.reason;
+    if (late_ms > 0) {
+      EXPECT_GT(allowed_ms, 0) << r.reason;
+      EXPECT_GT(late_ms, allowed_ms) << r.reason;
+      EXPECT_NE(r.reason.find("EMCY 0x8130: the drive lost the bench's heartbeat"), std::string::npos) << r.reason;
+    }
+    if (hung_ms > 0) {
+      EXPECT_GE(r.run["trip"]["longest_gap_ms"].get<double>(), number_after(r.reason, "(the bench allows ")) << r.reason;
+    }
+    std::printf("the loaded VM stalled the bench: the run aborted naming it: %s\n", r.reason.c_str());
+    return;
+  }
   // The bus carried the loop: SYNC (0x080), RPDO1 (0x205: controlword + target), TPDO1 (0x185).
   const std::string frames = slurp(dump);
   long sync = 0, rpdo = 0, tpdo = 0;
@@ -238,6 +268,62 @@ TEST(VcanCanRig, KillNineOfServeMidRunQuickStopsTheDrive) {
       "(consumer time 400 ms), state %s\n",
       std::chrono::duration<double, std::milli>(event->silence).count(),
       std::string(drv::cia402::to_string(side.can.state())).c_str());
+}
+
+// Issue 50: `hilbench serve` stopped (SIGSTOP) for 1.2 s mid-run, three times the drive's consumer
+// time: the drive sees the bench's heartbeat missing, sends EMCY 0x8130 and quick-stops; on
+// SIGCONT the run aborts with a reason that says so in words and names the bench's own heartbeat
+// gap as measured by the bench (not "the drive left operational", not a drive fault), and
+// run.json says how the drive was switched off.
+TEST(VcanCanRig, SigstopOfServeIsNamedAsTheBenchsStall) {
+  ASSERT_TRUE(have_vcan0()) << "run me with tests/drivers/vcan/run-on-vcan.sh";
+  TempDir configs;
+  std::filesystem::create_symlink(source_path("configs/plant"), configs.path() / "plant");
+  const auto campaign_file = configs.write("campaigns/paper_adaptive.yaml", paper_adaptive_yaml(2));
+  const bench::Campaign campaign = bench::load_campaign(campaign_file);
+  SimulatorSide side(campaign, {}, "vcan0");
+  RigOptions o;
+  o.watchdog_misses = 1000000;  // the loaded VM's stalls are not under test
+  configs.write("rigs/stop.yaml",
+                rig_yaml("can",
+                         can_drive_yaml("vcan0", "recover", 2000, "",
+                                        "{node_id: 100, producer_ms: 50, drive_timeout_ms: 400, on_loss: quick_stop}"),
+                         modbus_device_yaml(side.transducer.port(), "modbus_transducer_map.yaml", 4, 2000), o));
+  ServerProcess server({"--configs", configs.path().string()});
+  const auto api = server.client();
+  const auto started = api.post("/api/start", {{"campaign", "paper_adaptive"}, {"rig", "stop"}, {"runs", {"adaptive"}}});
+  ASSERT_EQ(started.status, 202) << started.body;
+  ASSERT_TRUE(wait_state([&] { return side.can.state() == drv::cia402::State::operation_enabled; }, std::chrono::seconds(60)))
+      << server.log();
+  const auto syncs = side.can.syncs_seen();
+  ASSERT_TRUE(wait_state([&] { return side.can.syncs_seen() > syncs + 100; }, std::chrono::seconds(60)));  // mid-run
+  ASSERT_EQ(kill(server.pid(), SIGSTOP), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  ASSERT_EQ(kill(server.pid(), SIGCONT), 0);
+  ASSERT_TRUE(wait_state([&] { return side.can.heartbeat_consumer_events() > 0; }, std::chrono::seconds(30)));
+  nlohmann::json s;
+  ASSERT_TRUE(wait_state(
+      [&] {
+        s = api.get("/api/status").json();
+        return s["state"] == "idle";
+      },
+      std::chrono::seconds(120)))
+      << s.dump(2);
+  const RunFiles f(only_run(server.runs_dir()));
+  ASSERT_EQ(f.run["outcome"], "aborted") << f.run.dump(2);
+  const std::string reason = f.run["reason"].get<std::string>();
+  EXPECT_NE(reason.find("EMCY 0x8130: the drive lost the bench's heartbeat and did its 0x6007 reaction (quick stop)"),
+            std::string::npos)
+      << reason;
+  EXPECT_NE(reason.find("ms late (0x1016 gives the drive 400 ms): the host stalled"), std::string::npos) << reason;
+  EXPECT_GE(number_after(reason, "the bench's heartbeat was "), 1100) << reason;  // the stop, as the bench measured it
+  EXPECT_EQ(reason.find("left NMT operational"), std::string::npos) << reason;
+  const auto& off = f.run["rig_health"]["switch_off"];
+  ASSERT_TRUE(off.is_object()) << f.run["rig_health"].dump(2);
+  EXPECT_TRUE(off["off"].get<bool>()) << off.dump();
+  EXPECT_GE(f.run["trip"]["longest_gap_ms"].get<double>(), 1000) << f.run["trip"].dump();
+  std::printf("SIGSTOP of hilbench serve for 1200 ms: %s; switched off by %s in %.1f ms (%s)\n", reason.c_str(),
+              off["path"].get<std::string>().c_str(), off["after_ms"].get<double>(), off["state"].get<std::string>().c_str());
 }
 
 // `hilbench drive probe --rig FILE` against the emulator as other legal drives on vcan0: it reads

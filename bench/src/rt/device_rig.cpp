@@ -11,6 +11,7 @@
 
 #include "hil/bench/rt/loop_input.hpp"
 #include "hil/bench/rt/rt_thread.hpp"
+#include "hil/drv/canopen.hpp"
 
 namespace hil::bench {
 
@@ -136,8 +137,8 @@ void DeviceRig::cancel_setup() noexcept {
 void DeviceRig::deactivate() noexcept {
   if (!active_ || !drive_) return;
   active_ = false;
-  const drv::DriveFeedback fb = drive_->read(Clock::now(), Clock::duration::zero());
-  if (fb.valid && !fb.enabled) return;  // already off (a drive in fault): nothing to wait for
+  // Always asked, also of a drive that reads as off: its feedback may be stale (a CAN drive out of
+  // NMT operational sends no TPDO), and a client that watches the loop stops watching here.
   try {
     drive_->deactivate();
   } catch (const std::exception& e) {
@@ -245,7 +246,7 @@ RigHealth DeviceRig::health() const noexcept {
   h.transducer_reconnects = t.reconnects;
   h.reconnects = d.reconnects + t.reconnects;
   h.fault = !active_ || d.fault || (sensor_ && t.fault) || implausible_ != Implausible::none;
-  char text[256];
+  char text[320];  // room for a drive error of 240 and its prefix; set_last_error keeps what fits
   text[0] = '\0';
   char code[8];
   std::snprintf(code, sizeof code, "0x%04X", d.last_emcy_code);
@@ -264,6 +265,12 @@ RigHealth DeviceRig::health() const noexcept {
                   "drive: switched itself off during the run without reporting a fault (status 0x%04X); every command "
                   "asked it to stay enabled",
                   implausible_status_);
+    if (d.last_emcy_code != 0) {  // what the drive said last, in words (0x8130: it lost the bench's heartbeat)
+      const std::string_view name = drv::canopen::emcy_class_name(d.last_emcy_code);
+      const std::size_t used = std::strlen(text);
+      std::snprintf(text + used, sizeof text - used, "; last EMCY 0x%04X (%.*s)", d.last_emcy_code, static_cast<int>(name.size()),
+                    name.data());
+    }
   } else if (sensor_ && t.fault) {
     std::snprintf(text, sizeof text, "transducer: %s", t.last_error.data());
   } else if (stale_ == Stale::drive && drive_freshness_ == drv::FeedbackFreshness::reply_to_each_write) {
@@ -290,9 +297,10 @@ RigHealth DeviceRig::health() const noexcept {
 
 DeviceRig::DriveFactory drive_from_file(const RigConfig& config, drv::CanTransportFactory can_transport) {
   if (!config.devices.drive) throw std::invalid_argument(config.file.string() + ": rig '" + config.name + "' has no drive");
-  return [recipe = config.devices.drive,
+  const int misses = config.safety.watchdog_misses;
+  return [recipe = config.devices.drive, misses,
           can_transport = std::move(can_transport)](const RigSetup& setup) -> std::unique_ptr<drv::PositionDrive> {
-    return recipe->make({.period_s = setup.period_s, .can_transport = can_transport});
+    return recipe->make({.period_s = setup.period_s, .watchdog_s = misses * setup.period_s, .can_transport = can_transport});
   };
 }
 

@@ -188,9 +188,13 @@ void RunLoop::enter_safe(Trip trip, double value, double limit, double t_s) noex
 }
 
 void RunLoop::cycle(Clock::time_point deadline, Clock::time_point woke) noexcept {
+  const double t = static_cast<double>(k_) * c_.period_s;
+  if (timed_ && woke_ != Clock::time_point{} && woke - woke_ > longest_gap_) {
+    longest_gap_ = woke - woke_;
+    longest_gap_t_s_ = t;
+  }
   deadline_ = deadline;
   woke_ = woke;
-  const double t = static_cast<double>(k_) * c_.period_s;
   const double dt = c_.period_s;
   std::uint32_t flags = 0;
 

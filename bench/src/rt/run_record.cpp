@@ -114,10 +114,13 @@ json RunRecord::to_json() const {
               {"plant_file", config.plant_file},
               {"plant_yaml", config.plant_yaml}}}};
   if (ended) {
-    j["trip"] =
-        trip
-            ? json{{"reason", trip->reason}, {"t_s", trip->t_s}, {"value", or_null(trip->value)}, {"limit", or_null(trip->limit)}}
-            : json(nullptr);
+    j["trip"] = trip ? json{{"reason", trip->reason},
+                            {"t_s", trip->t_s},
+                            {"value", or_null(trip->value)},
+                            {"limit", or_null(trip->limit)},
+                            {"longest_gap_ms", or_null(trip->longest_gap_ms)},
+                            {"longest_gap_t_s", or_null(trip->longest_gap_t_s)}}
+                     : json(nullptr);
     j["rig_health"] = rig_health;
   }
   if (periods_run) j["periods_run"] = *periods_run;
@@ -176,7 +179,12 @@ RunRecord RunRecord::from_json(const json& j, const std::string& origin) {
     rec.ended = true;
     if (!trip->is_null()) {
       const Reader t{r.object("trip"), origin};
-      rec.trip = Trip{t.text("reason"), t.number("t_s"), t.number_or_null("value"), t.number_or_null("limit")};
+      rec.trip = Trip{t.text("reason"),
+                      t.number("t_s"),
+                      t.number_or_null("value"),
+                      t.number_or_null("limit"),
+                      trip->contains("longest_gap_ms") ? t.number_or_null("longest_gap_ms") : std::nullopt,
+                      trip->contains("longest_gap_t_s") ? t.number_or_null("longest_gap_t_s") : std::nullopt};
     }
   }
   if (const json* h = r.find("rig_health")) rec.rig_health = *h;

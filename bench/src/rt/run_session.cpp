@@ -75,6 +75,8 @@ json loop_stats_json(const RunLoop& loop) {
           {"missed_reads", loop.snapshot().missed_reads},
           {"limited_periods", loop.snapshot().limited_periods},
           {"wake_latency_us", loop.wake_latency().summary().to_json()},
+          {"longest_gap_ms", std::chrono::duration<double, std::milli>(loop.longest_gap()).count()},
+          {"longest_gap_t_s", std::isfinite(loop.longest_gap_t_s()) ? json(loop.longest_gap_t_s()) : json(nullptr)},
           {"compute_us", loop.compute_time().summary().to_json()},
           {"rig_read_us", loop.rig().read_time().summary().to_json()},
           {"rig_write_us", loop.rig().write_time().summary().to_json()}};
@@ -159,6 +161,14 @@ void RunSession::run_loop(const RunSessionHooks& hooks) {
         reason_ = abort ? *abort : "operator abort";
       } else {
         reason_ = describe_trip(*loop_);
+        // A stalled loop (a busy host, a hung controller) explains many trips: said beside one when
+        // it was long against the period (it is in run.json's trip either way).
+        const double gap_ms = std::chrono::duration<double, std::milli>(loop_->longest_gap()).count();
+        const double period_ms = std::chrono::duration<double, std::milli>(loop_->wall_period()).count();
+        if (gap_ms >= 50 && gap_ms > 10 * period_ms) {
+          reason_ += fmt("; the loop's longest gap between two periods was %.0f ms (%.0f periods) at t = %.3f s", gap_ms,
+                         gap_ms / period_ms, loop_->longest_gap_t_s());
+        }
       }
       break;
   }
@@ -178,6 +188,11 @@ void RunSession::deactivate() {
                  {"reconnects_by_device", {{"drive", h.drive_reconnects}, {"transducer", h.transducer_reconnects}}},
                  {"last_error", std::string(h.last_error_text())}};
   rig_.deactivate();
+  if (const drv::SwitchOff off = rig_.switch_off(); !off.path.empty()) {
+    // Which path switched the drive off, what asked, how long it took, the state read back.
+    rig_health_["switch_off"] = {
+        {"path", off.path}, {"asked_by", off.asked_by}, {"after_ms", off.after_ms}, {"state", off.state}, {"off", off.off}};
+  }
   if (say_drive_not_disabled(rig_, rec_, reason_)) {
     rig_health_["disable_error"] = rig_.deactivate_failure();
     if (outcome_ == Outcome::completed) outcome_ = Outcome::error;  // the run is over, the drive may not be
@@ -207,9 +222,12 @@ void RunSession::record_end(RunRecord& info) const {
   if (loop_) {
     const RunLoop& loop = *loop_;
     if (loop.trip() != Trip::none) {
-      info.trip = RunRecord::Trip{std::string(to_string(loop.trip())), loop.trip_t_s(),
+      info.trip = RunRecord::Trip{std::string(to_string(loop.trip())),
+                                  loop.trip_t_s(),
                                   std::isfinite(loop.trip_value()) ? std::optional(loop.trip_value()) : std::nullopt,
-                                  std::isfinite(loop.trip_limit()) ? std::optional(loop.trip_limit()) : std::nullopt};
+                                  std::isfinite(loop.trip_limit()) ? std::optional(loop.trip_limit()) : std::nullopt,
+                                  std::chrono::duration<double, std::milli>(loop.longest_gap()).count(),
+                                  std::isfinite(loop.longest_gap_t_s()) ? std::optional(loop.longest_gap_t_s()) : std::nullopt};
     }
     info.periods_run = loop.periods_run();
     json stats = loop_stats_json(loop);

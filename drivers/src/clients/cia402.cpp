@@ -4,6 +4,7 @@
 #include "hil/drv/cia402_drive.hpp"
 #include "hil/drv/clients.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace hil::drv {
@@ -20,6 +21,10 @@ class Cia402Recipe final : public ConfigRecipe<PositionDrive, Cia402Config> {
     // The campaign's period as it is (it used to be bent into 100 us..100 ms without a word, and
     // the drive told a wrong interpolation period): one the bus cannot carry fails here, named.
     run.sync_period = std::chrono::microseconds(std::lround(setup.period_s * 1e6));
+    // The loop is hung when it misses no less than the drive's own allowance for a silent bench
+    // (0x1016's time) and the rig's watchdog: a host late by less is the drive's tolerance too.
+    const auto watchdog = std::chrono::milliseconds(std::lround(std::ceil(setup.watchdog_s * 1e3)));
+    run.loop_hang_bound = std::max(watchdog, run.bench_heartbeat.drive_timeout);
     return std::make_unique<Cia402Drive>(std::move(run), setup.can_transport);
   }
 };

@@ -93,11 +93,15 @@ TEST(CanopenCodec, EmcyDecoding) {
   EXPECT_EQ(e->error_code, 0x2310);
   EXPECT_EQ(e->error_register, 0x03);
   EXPECT_EQ(e->manufacturer, (std::array<std::uint8_t, 5>{1, 2, 3, 4, 5}));
-  EXPECT_EQ(describe(*e),
-            "EMCY 0x2310 (current, device output side), register 0x03 (generic, current), manufacturer 01 02 03 04 05");
-  EXPECT_EQ(emcy_class_name(0x8130), "life guard or heartbeat error");
+  EXPECT_EQ(
+      describe(*e),
+      "EMCY 0x2310 (continuous over current, device output side), register 0x03 (generic, current), manufacturer 01 02 03 04 05");
+  EXPECT_EQ(emcy_class_name(0x8130),
+            "life guard or heartbeat error: the drive lost a heartbeat it consumes (0x1016) or life guarding");
   EXPECT_EQ(emcy_class_name(0x0000), "error reset or no error");
-  EXPECT_EQ(emcy_class_name(0x4210), "device temperature");
+  EXPECT_EQ(emcy_class_name(0x4210), "excess temperature, device");  // CiA 402's own code
+  EXPECT_EQ(emcy_class_name(0x4280), "device temperature");          // else the class
+  EXPECT_EQ(emcy_class_name(0x7121), "motor blocked");
   EXPECT_EQ(emcy(5, *e).data, f.data);
   f.dlc = 5;
   EXPECT_FALSE(parse_emcy(f));

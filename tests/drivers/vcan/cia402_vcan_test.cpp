@@ -164,6 +164,9 @@ TEST(Cia402Vcan, VariantQuickStopRamp) { variant_quick_stop_ramp(kVcan, 5); }
 TEST(Cia402Vcan, ProbeReadsEachVariantWithoutMovingIt) { probe_variants(kVcan, 5); }
 TEST(Cia402Vcan, EmcyTextSurvivesTheFault) { emcy_text_survives_the_fault(kVcan, 5); }
 TEST(Cia402Vcan, ADeadBenchQuickStopsTheDrive) { drive_watches_the_bench(kVcan, 5, 3, cia402::State::switch_on_disabled); }
+TEST(Cia402Vcan, AHungLoopStopsTheDriveAndItsHeartbeat) { a_hung_loop_stops_the_drive(kVcan, 5, true); }
+TEST(Cia402Vcan, ADriveThatLeftOperationalIsSwitchedOffBySdo) { a_drive_out_of_operational_is_switched_off(kVcan, 5, false); }
+TEST(Cia402Vcan, ADriveThatRefusesSdoIsStoppedByNmt) { a_drive_out_of_operational_is_switched_off(kVcan, 5, true); }
 TEST(Cia402Vcan, BusOffPolicyReport) { bus_off_policy(kVcan, 5, BusOffPolicy::report); }
 TEST(Cia402Vcan, BusOffPolicyWait) { bus_off_policy(kVcan, 5, BusOffPolicy::wait); }
 TEST(Cia402Vcan, BusOffPolicyRecover) { bus_off_policy(kVcan, 5, BusOffPolicy::recover); }

@@ -108,6 +108,11 @@ struct Cia402Config {
   // safety.rate_limit (no key of the drive file); 0: unknown. With the drive's lag it says what
   // following error the bench's targets make by themselves (following_window_problem()).
   double target_velocity_rad_s = 0;
+  // The longest the loop may go without a write() while it runs the drive (from its first write()
+  // after activate() until deactivate()): past it the I/O thread takes the loop for hung, stops
+  // the bench's heartbeat (so the drive's consumer trips too) and sends quick stop itself. Set by
+  // the rig (the longer of its watchdog time and bench_heartbeat.drive_timeout); 0: not watched.
+  std::chrono::milliseconds loop_hang_bound{0};
 
   // `node` is the drive's mapping (see drivers/configs/cia402_drive.yaml); errors name file:line:key.
   static Cia402Config from_yaml(const cfg::Node& node);
@@ -147,8 +152,13 @@ class Cia402Drive final : public PositionDrive {
   // starts at the actual position. Acknowledges a latched fault (see reset_fault()). When it
   // fails (timeout, cancel) the client goes back to disable voltage.
   void activate() override;
-  // Enable operation -> switched on (power stage idle, drive keeps its position).
+  // The power stage off, whatever the drive's NMT state: disable voltage (switch on disabled) by
+  // the cyclic controlword while the PDOs run; where they cannot carry it (pre-operational,
+  // stopped, no TPDO) 0x6040 by SDO (quick stop, then disable voltage) with 0x6041 read back by
+  // SDO; where SDO fails too, NMT stop. Throws when the state read back is not off (or nothing
+  // answered); last_switch_off() says which path did it, how long it took and the state read back.
   void deactivate() override;
+  SwitchOff last_switch_off() const override;
   // Quick stop (controlword 0x0002): the drive stops on its quick stop ramp and, with the
   // default quick stop option code, goes to switch on disabled; waits for that.
   void quick_stop();

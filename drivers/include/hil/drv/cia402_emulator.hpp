@@ -99,6 +99,10 @@ class Cia402DriveEmulator {
 
   // Misbehaviour on command, thread-safe.
   void stop_heartbeat(bool stopped);
+  // Changes its NMT state by itself, as a drive's 0x1029 error behaviour does on a communication
+  // error (pre-operational: SDO still answered, PDOs not processed; stopped: NMT only). The CiA
+  // 402 state stays as it was: a drive enabled stays enabled, powered.
+  void enter_nmt_state(canopen::NmtState state);
   void set_silent(bool silent);                              // answer nothing at all: no SDO, PDO, heartbeat, NMT reaction
   void set_response_delay(std::chrono::microseconds delay);  // SDO replies and TPDOs go out this late
   // A frozen encoder: 0x6064 keeps the position it had (0x606C reads 0) while the motor moves on.

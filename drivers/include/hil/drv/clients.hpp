@@ -26,7 +26,10 @@ namespace hil::drv {
 // What a client is made with at the rig's configure (not at load: a client may open its channel
 // when constructed, and a CAN drive takes the run's period as its SYNC period).
 struct DeviceSetup {
-  double period_s = 1e-3;             // the loop's period
+  double period_s = 1e-3;  // the loop's period
+  // The rig's watchdog time (safety.watchdog_misses x the period; 0: none): a drive client that
+  // watches the loop's liveness (Cia402Config::loop_hang_bound, ModbusDriveConfig's) allows at least this.
+  double watchdog_s = 0;
   CanTransportFactory can_transport;  // CAN clients: carries the frames (empty: SocketCAN on the configured interface)
 };
 

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <string_view>
 #include <type_traits>
 
@@ -23,6 +24,19 @@ struct DriveCommand {
   // A rising edge acknowledges a latched fault: one fault reset if the drive is in fault (a CiA 402
   // drive is held disabled after a fault until then, or until activate()).
   bool fault_reset = false;
+};
+
+// How a drive was last switched off (by deactivate(), or by the client itself when its link could
+// no longer carry the loop's commands): the path that did it, what asked for it, how long it took
+// and the state read back from the drive afterwards (never a stale cyclic reply's). Setup threads only.
+struct SwitchOff {
+  // "pdo" (the cyclic controlword), "sdo" (0x6040 written, 0x6041 read back by SDO), "nmt_stop"
+  // (SDO failed too: the node was stopped), "register" (a Modbus control register); "" none yet.
+  std::string path;
+  std::string asked_by;  // "deactivate()", or the fault that made the client do it
+  double after_ms = -1;  // from the request to the state read back (or the last attempt)
+  std::string state;     // as read back; "unknown" when nothing answered
+  bool off = false;      // the state read back has the power stage off
 };
 
 struct DriveFeedback {
@@ -81,12 +95,12 @@ struct DeviceHealth {
   std::uint64_t reconnects = 0;                   // Modbus reconnects, CAN bus-off recoveries
   std::uint16_t last_emcy_code = 0;
   std::uint8_t last_emcy_register = 0;
-  std::array<char, 192> last_error{};  // NUL-terminated; empty when nothing went wrong yet
+  std::array<char, 240> last_error{};  // NUL-terminated; empty when nothing went wrong yet
   // CAN: what made the client latch the fault it holds the drive in (heartbeat lost, the drive's
   // fault, a reboot, a position jump), as last_error said it then; kept until the fault is reset,
   // also when the cause has gone (a heartbeat that came back) and later errors overwrote
   // last_error. Empty while no fault is held.
-  std::array<char, 192> fault_cause{};
+  std::array<char, 240> fault_cause{};
 
   std::string_view last_error_text() const noexcept { return last_error.data(); }
   std::string_view fault_cause_text() const noexcept { return fault_cause.data(); }

@@ -56,6 +56,11 @@ struct ModbusDriveConfig {
   ModbusLinkConfig link;
   RegisterMap map;  // needs: control, target_position (holding); status, actual_position; optional actual_velocity, fault_code
   std::chrono::milliseconds transition_timeout{2000};
+  // The longest the loop may go without a write() while it runs the drive (its first write()
+  // after activate() until deactivate()): past it the I/O thread takes the loop for hung and
+  // writes the control register with enable off itself (a fault until set up again). Set by the
+  // rig (the longer of its watchdog time and 500 ms); 0: not watched.
+  std::chrono::milliseconds loop_hang_bound{0};
   // `node`: {link: {...}, register_map: <file relative to this one> or {registers: ...}, transition_ms}
   static ModbusDriveConfig from_yaml(const cfg::Node& node);
   static ModbusDriveConfig load(const std::filesystem::path& file);  // top level or `modbus_drive:`
@@ -89,8 +94,9 @@ class ModbusDrive final : public PositionDrive {
   // "... reading input registers 0..7 (status, actual_position): ILLEGAL DATA ADDRESS"),
   // then starts the I/O thread.
   void configure() override;
-  void activate() override;    // enable; waits for the status register's enabled bit
-  void deactivate() override;  // disable; waits for it to clear
+  void activate() override;                    // enable; waits for the status register's enabled bit
+  void deactivate() override;                  // disable; waits for it to clear
+  SwitchOff last_switch_off() const override;  // path "register": enable off, the status register polled
   // Any thread, for good: activate() stops waiting (throws "activate() cancelled") within a poll
   // (2 ms), configure() refuses to start.
   void cancel_setup() noexcept override;

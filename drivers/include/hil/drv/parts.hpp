@@ -68,6 +68,8 @@ class PositionDrive {
   // its I/O thread sent carried it). A client that sends only the newest command replaces one
   // written before that unsent; the bench shapes the next target from the last one sent.
   virtual bool last_command_sent() const noexcept { return true; }
+  // Setup threads: how the drive was last switched off (io_types.hpp), for the run's record.
+  virtual SwitchOff last_switch_off() const { return {}; }
 };
 
 class PressureSensor {

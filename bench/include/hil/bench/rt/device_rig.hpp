@@ -63,6 +63,7 @@ class DeviceRig final : public Rig {
   void deactivate() noexcept override;    // disables it; errors are kept in health() and deactivate_failure()
   void cancel_setup() noexcept override;  // passed on to the drive, the one made now or later
   std::string deactivate_failure() const override { return deactivate_error_.data(); }
+  drv::SwitchOff switch_off() const override { return drive_ ? drive_->last_switch_off() : drv::SwitchOff{}; }
 
   // Real-time safe. Stale: the drive's feedback or the pressure is not fresh (a drive answering
   // each write: no reply since the last write; polled parts: older than their limit). Fault: a

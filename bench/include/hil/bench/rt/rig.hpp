@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "hil/bench/rt/loop_stats.hpp"
+#include "hil/drv/io_types.hpp"
 
 namespace hil::bench {
 
@@ -118,6 +119,9 @@ class Rig {
   // Why the last deactivate() could not switch the drive off (it may still be enabled); empty
   // when it did, or when there is nothing to switch off.
   virtual std::string deactivate_failure() const { return {}; }
+  // How the drive was last switched off (the path, what asked, how long, the state read back):
+  // the run's record. Empty path for a rig with no drive to switch off.
+  virtual drv::SwitchOff switch_off() const { return {}; }
 
   // Real-time safe: noexcept, no allocation, no lock, no I/O, no waiting.
   virtual RigStatus read(Clock::time_point now, Clock::duration period, RigReading& out) noexcept = 0;

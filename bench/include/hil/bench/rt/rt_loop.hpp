@@ -196,6 +196,10 @@ class RunLoop {
   std::int64_t overruns() const noexcept { return overruns_; }
   std::int64_t skipped_deadlines() const noexcept { return skipped_; }
   std::int64_t periods_run() const noexcept { return k_; }
+  // The longest time between two periods' starts (a stalled host or loop: 0 before two periods)
+  // and the t of the period that ended it.
+  Clock::duration longest_gap() const noexcept { return longest_gap_; }
+  double longest_gap_t_s() const noexcept { return longest_gap_t_s_; }
   // Any thread (status):
   const LatencyHistogram& wake_latency() const noexcept { return wake_latency_; }
   const LatencyHistogram& compute_time() const noexcept { return compute_; }
@@ -252,6 +256,8 @@ class RunLoop {
   std::int64_t overruns_ = 0, overruns_in_a_row_ = 0, skipped_ = 0, missed_reads_ = 0, limited_periods_ = 0;
   std::uint64_t rows_pushed_ = 0, rows_lost_ = 0, events_lost_ = 0;
   Clock::time_point deadline_{}, woke_{};
+  Clock::duration longest_gap_{};
+  double longest_gap_t_s_ = kNaN;
   // The period's record, written where the recorder will read it: in the ring's next slot, or
   // in spare_ when the ring is full (the row is then lost, and counted). Composing it elsewhere
   // and copying it in cost a stall each period (the copy's wide loads waited for the narrow

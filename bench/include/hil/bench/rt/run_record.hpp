@@ -46,6 +46,9 @@ struct RunRecord {
     std::string reason;
     double t_s = 0;
     std::optional<double> value, limit;  // null when the trip has none (an operator abort)
+    // The run's longest time between two periods' starts (a stalled host or loop) and the t of
+    // the period that ended it: beside the trip, since a stall explains many trips.
+    std::optional<double> longest_gap_ms, longest_gap_t_s;
   };
   bool ended = false;  // the end keys below are written ("trip": null when there was none)
   std::optional<Trip> trip;
