@@ -527,6 +527,9 @@ std::vector<double> ar_by_aic(const std::vector<double>& r, double rows, double&
 constexpr double kMaxAlpha = 2.5;
 constexpr double kLawOverWhite = 0.05;
 constexpr double kModelHoldsBand = 0.04;
+// A law standing more than this above the first-order model at the band edge is a misfit's (a
+// sensor step's harmonics fall as f^-2, like brown noise), not the noise's.
+constexpr double kLawOverModel = 4;
 void power_law_fit(const std::vector<double>& d, const std::vector<double>& scale, std::size_t k0, std::size_t k1, double& A,
                    double& alpha) {
   double best = std::numeric_limits<double>::infinity();
@@ -589,8 +592,9 @@ void complete_noise_model(NoiseModel& m, const ResidualSpectrum& s) {
       sse_law += std::pow((d[k] - A * std::pow(static_cast<double>(k), -alpha)) / scale[k], 2);
     }
     const double n_band = static_cast<double>(2 * k_band + 1);
+    const double law_at_edge = A * std::pow(static_cast<double>(k_band), -alpha);
     law = sse_model > 2 * sse_law + n_band * kModelHoldsBand * kModelHoldsBand &&
-          A * std::pow(static_cast<double>(k_band), -alpha) > kLawOverWhite * w2 / static_cast<double>(M);
+          law_at_edge > kLawOverWhite * w2 / static_cast<double>(M) && law_at_edge <= kLawOverModel * model_bin(k_band);
     for (std::size_t k = 1; k < k_band; ++k) {
       const double bound = law ? w2 / static_cast<double>(M) + A * std::pow(static_cast<double>(k), -alpha) : model_bin(k);
       P[k] = std::min(sm[k], bound);

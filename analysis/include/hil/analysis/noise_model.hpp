@@ -22,10 +22,9 @@
 // That model holds the noise above kNoiseBandHz. Below it the chamber's own pressure hides the
 // noise from the reading's differences, and a transducer's 1/f or brown noise has most of its power
 // there; the residual's spectrum completes it (complete_noise_model, analysis/README.md "The noise
-// as a spectrum"): the noise spectrum is the model's, raised in each low-frequency bin to what the
-// residual holds there, but never above the power law the residual's spectrum follows just above
-// the band (a missing effect's misfit, far above the noise at low frequency, does not become
-// noise). Outliers (spikes) are found on the residual, counted, and left out of every sum that
+// as a spectrum"): the noise spectrum is the residual's, below the band bounded by the power law it
+// follows just above the band or by the model's continuation (a missing effect's misfit, far above
+// the noise at low frequency, does not become noise). Outliers (spikes) are found on the residual, counted, and left out of every sum that
 // decides a verdict; a reading on an ADC's grid of step q has at least q^2/12 of white noise.
 // Offline code: allocates.
 #pragma once
