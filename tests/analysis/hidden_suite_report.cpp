@@ -92,4 +92,55 @@ std::string markdown(const std::vector<Score>& scores, const SuiteSpec& spec, do
   return o;
 }
 
+std::string noise_markdown(const std::vector<Score>& scores, std::uint64_t seed, double wall_s) {
+  struct ClassTally {
+    Tally healthy, read, hits;
+    int not_identifiable = 0;
+    double worst_read = 1;  // read / truth farthest from 1
+  };
+  std::map<std::string, ClassTally> per;
+  ClassTally all;
+  auto add = [](ClassTally& c, const Score& s) {
+    if (s.n_effects == 0) {
+      ++c.healthy.n, c.healthy.pass += s.pass;
+      const double ratio = s.noise_truth_kpa > 0 ? s.noise_read_kpa / s.noise_truth_kpa : 0;
+      ++c.read.n, c.read.pass += std::abs(ratio - 1) <= 0.25;
+      if (std::abs(ratio - 1) > std::abs(c.worst_read - 1)) c.worst_read = ratio;
+    } else if (!s.identifiable) {
+      ++c.not_identifiable;
+    } else {
+      ++c.hits.n, c.hits.pass += s.pass;
+    }
+  };
+  for (const auto& s : scores) add(per[s.noise_class], s), add(all, s);
+  auto pct = [](const Tally& t, bool fail) {
+    return t.n == 0 ? std::string("-") : f1(100.0 * (fail ? t.n - t.pass : t.pass) / t.n) + " %";
+  };
+  std::string o = "Noise suite, seed " + std::to_string(seed) + ": " + std::to_string(scores.size()) + " files; wall " +
+                  f1(wall_s) +
+                  " s.\n\n| class | healthy | false alarms | noise read within 25 % | worst read / truth | "
+                  "identifiable with effects | found in full | not identifiable |\n|---|---|---|---|---|---|---|---|\n";
+  auto row = [&](const std::string& name, const ClassTally& c) {
+    return "| " + name + " | " + std::to_string(c.healthy.n) + " | " + std::to_string(c.healthy.n - c.healthy.pass) + " (" +
+           pct(c.healthy, true) + ") | " + c.read.cell() + " | " + f2(c.worst_read) + " | " + std::to_string(c.hits.n) + " | " +
+           c.hits.cell() + " (" + pct(c.hits, false) + ") | " + std::to_string(c.not_identifiable) + " |\n";
+  };
+  for (const auto& [name, c] : per) o += row(name, c);
+  o += row("**all**", all);
+  o += "\n| file | class | noise | logger, rate | reference | effects | verdict | found | noise read / truth kPa | spikes "
+       "added / found | result | s |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& s : scores) {
+    const std::string result = s.n_effects == 0  ? (s.pass ? "no alarm" : "FALSE ALARM")
+                               : !s.identifiable ? "not identifiable: " + s.why_not_identifiable
+                               : s.pass          ? "found"
+                                                 : "MISSED";
+    o += "| " + s.name + " | " + s.noise_class + " | " + s.colour + ", " + f1(s.level_kpa) + " kPa | " + s.logger + ", " +
+         std::to_string(1000 / std::max(1, s.keep_every)) + " Hz | " + s.reference + " | " + s.effects + " | " + s.verdict +
+         " | " + (s.found.empty() ? "-" : s.found) + " | " + f2(s.noise_read_kpa) + " / " + f2(s.noise_truth_kpa) + " | " +
+         std::to_string(s.spikes) + " / " + std::to_string(s.outliers) + " | " + result +
+         (s.params.empty() ? "" : " (" + s.params + ")") + " | " + f1(s.wall_s) + " |\n";
+  }
+  return o;
+}
+
 }  // namespace hil::test::suite
