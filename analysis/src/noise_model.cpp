@@ -220,10 +220,11 @@ constexpr double kPhiStep = 0.0025;
 // still read 0.38 kPa of colour into 0.5 kPa of white noise, 1 draw in 3. The median where it
 // holds, because a chamber's fast transients and a log's holes leave differences of a few sigma
 // that a mean square counts (1 kPa of coloured noise on a chamber stepping every 2.5 s: sigma +3
-// to +10 % from the mean squares, 0 to +5 % from the median). Before (to 2026-12-02), steps coarser than half the noise made the reading white,
-// from second differences, which see only the part of a colour that changes between rows (6 - 8
-// phi + 2 phi^2 of 6 coloured^2): 1 kPa behind a 50 Hz filter plus 0.3 kPa white, in 1 kPa steps
-// (s = 1.04 q: dithered), read 0.64 kPa for 1.08, and healthy DAQ logs were `unexplained`.
+// to +10 % from the mean squares, 0 to +5 % from the median). Steps coarser than half the noise
+// must not make the reading white, from second differences, which see only the part of a colour
+// that changes between rows (6 - 8 phi + 2 phi^2 of 6 coloured^2): 1 kPa behind a 50 Hz filter
+// plus 0.3 kPa white, in 1 kPa steps (s = 1.04 q: dithered), would read 0.64 kPa for 1.08, and
+// healthy DAQ logs would be `unexplained`.
 constexpr double kDitherNoisePerStep = 0.6;
 
 std::string text_kpa(double pa) {

@@ -34,8 +34,7 @@ const RunSpec& run_named(const Campaign& c, const std::string& name) {
 // sim` runs it, averaged over the 18 s run of paper_adaptive. Every 18 s the run starts again from
 // a settled state (not timed), as a run does: carried on for hours instead, the chamber's free
 // volume keeps growing as the grain burns, the chamber slows down, and a period gets ~20 % cheaper
-// than in any real run (docs/benchmarks.md). Until 2026-12-02 this timed its own copy of the
-// controller-and-plant period instead of RunLoop.
+// than in any real run (docs/benchmarks.md).
 // compensator: the run's controller with another registered compensator (its defaults) instead.
 void BM_Step(benchmark::State& state, const char* run_name, const char* compensator = nullptr) {
   const Campaign& c = paper_adaptive();

@@ -88,8 +88,8 @@ void Cia402Drive::configure() {
   }
   const std::uint32_t device_type = sdo_read(0x1000, 0);
   // A boot-up from here on means the drive reset while we set it up: its PDO mapping, 0x1017 and
-  // mode are back at their defaults, so what configure() wrote is gone (it used to carry on and
-  // fail later, or run on the drive's default mapping). Counted from the first SDO reply, not from
+  // mode are back at their defaults, so what configure() wrote is gone (carrying on would fail
+  // later, or run on the drive's default mapping). Counted from the first SDO reply, not from
   // the reset's boot-up: a drive just powered on sends its own boot-up too, and on a real bus
   // (vcan) that one can be the boot-up waited for above, the reset's coming just after. The bus
   // keeps a node's frames in order, so both come before the reply to a request sent after them.
@@ -150,7 +150,7 @@ void Cia402Drive::configure() {
   if (m.cfg.disable_unused_pdos) {
     // CiA 301: a PDO is made invalid by setting bit 31 of its own COB-ID (a drive may use other
     // ids than the predefined connection set, and bits 29/30 say more than the id): read, then
-    // written back with bit 31. It used to write the predefined id with bit 31.
+    // written back with bit 31, never the predefined id with bit 31.
     const auto invalidate = [&](std::uint16_t comm, const std::string& name) {
       std::uint32_t cob = 0;
       try {
@@ -189,8 +189,8 @@ void Cia402Drive::configure() {
                      std::to_string(m.cfg.transition_timeout.count()) + " ms (0x6061:00 = " + std::to_string(mode) + ")");
   }
   // 0x60C2 is a u8 value times 10^index seconds: the coarsest exact (value, index), else the
-  // nearest the u8 can hold, with a note. (It used to be us/100 cast to a byte: 1050 us was sent
-  // as 1.0 ms, and 25600 us as 0.)
+  // nearest the u8 can hold, with a note. (us/100 cast to a byte would send 1050 us as 1.0 ms,
+  // and 25600 us as 0.)
   const long long us = m.cfg.sync_period.count();
   long long ip_value = 0;
   int ip_index = 0;

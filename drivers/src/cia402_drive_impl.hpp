@@ -203,8 +203,8 @@ struct Cia402Drive::Impl {
     if (!fault_hold) h.fault_cause[0] = '\0';
     was_drive_fault = drive_fault;
     // The hold is a fault until it is reset: a heartbeat that came back clears heartbeat_lost, but
-    // the client still holds the drive in quick stop, and the rig must see why (it used to see a
-    // drive that "switched itself off" with no fault).
+    // the client still holds the drive in quick stop, and the rig must see why (not a drive that
+    // "switched itself off" with no fault).
     h.fault = drive_fault || client_fault || bus_off_latched || fault_hold;
     h.connected = expect_heartbeat && !h.heartbeat_lost && h.bus_state != BusState::bus_off;
     h.statusword = fb.statusword;
@@ -418,7 +418,7 @@ struct Cia402Drive::Impl {
     if (cmd.fault_reset && !prev_cmd_reset) reset_request = true;
     prev_cmd_reset = cmd.fault_reset;
     const auto st = fb.valid ? cia402::decode_statusword(fb.statusword) : cia402::State::not_ready_to_switch_on;
-    // A request is used now or dropped: one made while the drive was healthy used to stay armed
+    // A request is used now or dropped: one made while the drive was healthy must not stay armed
     // and reset the next fault the moment it came, unasked.
     if (reset_request.exchange(false)) {
       fault_hold = false;

@@ -31,8 +31,8 @@ Cia402Probe probe(SdoClient& sdo, const Cia402Config& cfg) {
                      ": not a CiA 402 device (0x1000:00 device type = " + hex(p.device_type, 8) + ")");
   }
   // A drive that does not answer one object (no abort: a timeout, or a segmented reply) is
-  // reported for it, and the probe goes on: it used to end the whole probe with that one
-  // object's error. Three in a row mean the drive stopped answering: that does end it.
+  // reported for it, and the probe goes on: one object's error does not end the
+  // whole probe. Three in a row mean the drive stopped answering: that does end it.
   int unanswered_in_a_row = 0;
   const auto read = [&](std::uint16_t index, std::uint8_t sub, const std::string& name, bool required) -> Cia402Probe::Object& {
     Cia402Probe::Object o{index, sub, name, required, std::nullopt, 0, {}};

@@ -303,8 +303,8 @@ SweepOutputs write_sweep_outputs(const std::filesystem::path& dir, const SweepPl
     replace_file(folder / "campaign.yaml", "# sweep " + plan.name + ", point " + std::to_string(p) + "\n" + y.campaign);
     replace_file(folder / "plant.yaml", y.plant);
   }
-  // The three outputs are one result: all replaced or none (a full disk used to leave a new
-  // sweep.csv beside no sweep.json, and `--status` called that "outputs written"). They are
+  // The three outputs are one result: all replaced or none (else a full disk could leave a
+  // new sweep.csv beside no sweep.json, and `--status` would call that "outputs written"). They are
   // written before the worst points' traces, which are a convenience (about 0.7 MB a report):
   // traces that do not fit on the disk must not cost the results.
   const std::size_t n_traced = std::min(kTracedPoints, order.size());

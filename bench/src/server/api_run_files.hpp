@@ -32,7 +32,7 @@ RunFile open_run_file(const std::filesystem::path& base, const std::vector<std::
 
 // A file below `base` (parts: plain names), opened now without following a symbolic link at any
 // part (open_inside): what is served is the file that was checked, never one a link points at
-// outside the runs folder (a tester's events.jsonl -> /etc/passwd was served). 404 `missing`
+// outside the runs folder (an events.jsonl linked to /etc/passwd is refused). 404 `missing`
 // when it is not there, 403 naming the path (never its content) when it is a link or no file.
 Reply opened_file(const std::filesystem::path& base, const std::vector<std::string>& parts, const std::string& missing);
 

@@ -18,8 +18,8 @@ class Cia402Recipe final : public ConfigRecipe<PositionDrive, Cia402Config> {
     // next period's fresh feedback. The client's timer only keeps SYNC going while no loop runs.
     Cia402Config run = config;
     run.sync_source = Cia402Config::SyncSource::loop;
-    // The campaign's period as it is (it used to be bent into 100 us..100 ms without a word, and
-    // the drive told a wrong interpolation period): one the bus cannot carry fails here, named.
+    // The campaign's period as it is (bent into 100 us..100 ms without a word, it would tell
+    // the drive a wrong interpolation period): one the bus cannot carry fails here, named.
     run.sync_period = std::chrono::microseconds(std::lround(setup.period_s * 1e6));
     // The loop is hung when it misses no less than the drive's own allowance for a silent bench
     // (0x1016's time) and the rig's watchdog: a host late by less is the drive's tolerance too.

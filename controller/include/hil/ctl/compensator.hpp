@@ -4,8 +4,8 @@
 // HIL_REGISTER_COMPENSATOR, declaring its parameters with units, ranges and defaults
 // (hil/param_spec.hpp, the plant's effects' type). A campaign picks one per run
 // (`compensator: NAME`, its parameters in a block named after it); `hilbench compensators` lists
-// them. Shipped: `robust` (this project's observer) and `paper` (the paper's eq. (3), (4), (7),
-// (10)).
+// them. Shipped: `robust` (this project's observer), `paper` (the paper's eq. (3), (4), (7),
+// (10)) and `tracking` (docs/tracking_compensator.md).
 //
 // The controller owns the integral law, the KI schedule, the free-volume estimate, the motor
 // model and the traverse boost; a compensator owns the rest of the period's decision, over its

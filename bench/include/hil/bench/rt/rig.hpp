@@ -136,7 +136,7 @@ class Rig {
 };
 
 // The non-virtual wrapper the loop calls: it measures every read and write, so rigs hold no
-// timing code. `now` is the clock used to measure (tests pass a fake); nullptr: simulated time,
+// timing code. `now` is the clock that measures (tests pass a fake); nullptr: simulated time,
 // where a call takes no time, and nothing is measured. Real-time safe.
 class TimedRig {
  public:

@@ -37,7 +37,7 @@ struct RunRecord {
   struct Config {  // what the run was made of, as loaded (files as absolute paths)
     std::string campaign_source, campaign_file, campaign_yaml, rig_file, rig_yaml;
     // The campaign's plant file and its text: the run's report is made from the plant the run
-    // had, even once the file is edited or gone (empty in run.json written before 2026-11-27).
+    // had, even once the file is edited or gone (empty when a run.json lacks it: no plant text kept).
     std::string plant_file, plant_yaml;
   } config;
 
