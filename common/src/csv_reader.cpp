@@ -220,7 +220,7 @@ bool CsvReader::parse_cell(std::string_view cell, double& v) {
     const bool comma = cell.find(',') != std::string_view::npos, point = cell.find('.') != std::string_view::npos;
     if (comma != point) header_.decimal = comma ? ',' : '.', decimal_known_ = true, decimal_line_ = line_no_;
   }
-  char buf[64];
+  char buf[64] = {};
   if (header_.decimal == ',' && cell.size() < sizeof buf) {
     const std::size_t n = static_cast<std::size_t>(last - first);
     for (std::size_t i = 0; i < n; ++i) buf[i] = first[i] == ',' ? '.' : first[i] == '.' ? ',' : first[i];

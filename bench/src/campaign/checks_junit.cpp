@@ -60,7 +60,10 @@ std::string outcome_tag(const char* tag, const std::string& type, const std::str
 
 std::string system_out(const std::string& text, const std::string& report_path) {
   std::string t = text;
-  if (!report_path.empty()) t += (t.empty() ? "" : "\n") + ("[[ATTACHMENT|" + report_path + "]]");
+  if (!report_path.empty()) {
+    if (!t.empty()) t += '\n';
+    t.append("[[ATTACHMENT|").append(report_path).append("]]");
+  }
   return t.empty() ? "" : "      <system-out>" + xml(t) + "</system-out>\n";
 }
 

@@ -38,7 +38,7 @@ struct CsvRequest {
   std::vector<std::string> required;  // must be present
   std::vector<std::string> optional;  // parsed when present
   std::string increasing;             // a column that must strictly increase (time); may be empty
-  CsvDialect dialect;
+  CsvDialect dialect{};
   // The increasing column may restart at or below the first value of its run: a second
   // acquisition appended to the file (CsvChunk::restarts). Otherwise that is an error.
   bool restarts = false;
