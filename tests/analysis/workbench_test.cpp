@@ -280,7 +280,8 @@ TEST(MeasurementFile, BadModelFileIsALocatedConfigError) {
   hil::test::TempDir dir;
   const auto model = dir.write("m.yaml", "effects:\n  motor_servo: {time_constant_s: -1, rate_limit_deg_s: 60}\n");
   const auto data = dir.write("d.csv", "t_s,theta_cmd_deg,p_meas_mpa\n" + rows(60));
-  hil::analysis::CompareOptions o{model, data, dir.path() / "out", false, true};
+  hil::analysis::CompareOptions o{
+      .model_file = model, .data_file = data, .out_dir = dir.path() / "out", .dialect = {}, .progress = false, .quiet = true};
   const std::string e = error_of([&] { hil::analysis::run_compare(o); });
   EXPECT_NE(e.find("m.yaml:2:"), std::string::npos) << e;
   EXPECT_NE(e.find("time_constant_s"), std::string::npos) << e;
