@@ -130,7 +130,7 @@ std::filesystem::path run_folder(const std::filesystem::path& runs, const std::s
   r.outcome = outcome;
   if (outcome != hil::bench::Outcome::running) r.stop_utc = "2026-12-08T03:00:18.000Z", r.reason = "operator abort: x";
   r.ended = outcome != hil::bench::Outcome::running;  // the end keys, "trip" among them, are written
-  if (outcome == hil::bench::Outcome::aborted) r.trip = hil::bench::RunRecord::Trip{"operator abort", 4.0, {}, {}};
+  if (outcome == hil::bench::Outcome::aborted) r.trip = hil::bench::RunRecord::Trip{"operator abort", 4.0, {}, {}, {}, {}};
   const auto dir = runs / name;
   std::filesystem::create_directories(dir);
   hil::bench::write_run_record(dir, r);

@@ -136,7 +136,7 @@ RunRecord ended_record() {
               "/x/nominal.yaml",
               "effects: []\n"};
   r.ended = true;
-  r.trip = RunRecord::Trip{"overpressure", 12.5, 2.61e6, 2.5e6};
+  r.trip = RunRecord::Trip{"overpressure", 12.5, 2.61e6, 2.5e6, {}, {}};
   r.rig_health = {{"connected", true}};
   r.periods_run = 12700;
   r.loop = {{"overruns", 0}};
