@@ -10,8 +10,7 @@
 // sample size N / tau_int of the residual did (N_eff fell to 11-24 of 30 000 rows on a file with
 // a drifting gap still missing, and an effect whose removal cost 1.8 times the noise power could
 // not earn its place). Fitting only noise lowers W by about one per parameter, against ln N.
-// Several files: each segment is whitened by its own file's noise model. The noise's outlier rows
-// (spikes, noise_model.hpp) count in neither W nor the RSS the shares are taken of.
+// Several files: each segment is whitened by its own file's noise model.
 //
 // Which of several candidates that earn their place is added first is a different question: the
 // order of choice. There the residual still holds the large misfit of everything missing, and
@@ -74,15 +73,6 @@ class Criterion {
     for (std::size_t i = 0; i < data_.segments.size(); ++i) {
       const std::size_t b = data_.segment_begin(i), e = data_.segment_end(i);
       sum += noise_[i].whitened_rss(residual_pa.subspan(b, e - b));
-    }
-    return sum;
-  }
-  // Sum of squares of the residual over the rows that are not outliers (each file's noise model).
-  double rss(std::span<const double> residual_pa) const {
-    double sum = 0;
-    for (std::size_t i = 0; i < data_.segments.size(); ++i) {
-      const std::size_t b = data_.segment_begin(i), e = data_.segment_end(i);
-      sum += noise_[i].rss(residual_pa.subspan(b, e - b));
     }
     return sum;
   }

@@ -29,7 +29,7 @@ Score score_of(const Context& ctx, const plant::Plant& model) {
   std::vector<double> res;
   Score sc;
   sc.rss = rss_of(model, ctx.full, &res);
-  if (std::isfinite(sc.rss)) sc.rss = ctx.criterion.rss(res), sc.wrss = ctx.criterion.whitened_rss(res);
+  if (std::isfinite(sc.rss)) sc.wrss = ctx.criterion.whitened_rss(res);
   return sc;
 }
 

@@ -51,10 +51,6 @@ nlohmann::json noise_model_json(const NoiseModel& m) {
           {"corner_hz", number(m.corner_hz())},
           {"innovation_kpa", number(m.innovation_sigma_pa / kKpa)},
           {"correlation_time_rows", number(m.correlation_time_samples())},
-          {"low_band_kpa", number(m.low_band_sigma_pa / kKpa)},
-          {"quantisation_step_kpa", number(m.quantisation_step_pa / kKpa)},
-          {"outliers", m.outliers},
-          {"whitening_order", m.ar.size()},
           {"method", m.method}};
 }
 

@@ -4,9 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <numbers>
-#include <set>
 #include <unordered_map>
 
 #include "hil/units.hpp"
@@ -52,15 +50,15 @@ class LogHistogram {
 };
 
 // The robust RMS of a stream of differences of the reading (1.4826 * median|d|, Gaussian d): the
-// median ignores the transients the differences still carry. A reading that comes off an ADC in
-// steps of q (ValueGrid: read from the values themselves) makes every difference a multiple of q,
-// and the plain median then sits on a multiple of q: 3 kPa instead of 3.3 kPa for 2 kPa noise in
-// 1 kPa steps, a sigma 10 % low and a noise floor that no model can reach. So the distinct |d|
-// values are counted exactly while there are few of them, and on a grid the median is read as
-// grouped data (multiple j stands for [(j - 1/2) q, (j + 1/2) q], j = 0 for [0, q/2]), which
-// estimates the noise a perfect model leaves: sigma^2 + q^2/12 (quantisation error included).
-// Differences that the values' printed resolution leaves off the grid (0.1 Pa in a file written
-// in MPa with 7 decimals) group with the multiple they round to.
+// median ignores the transients the differences still carry. A reading that
+// comes off an ADC in steps of q makes every difference a multiple of q, and the plain
+// median then sits on a multiple of q: 3 kPa instead of 3.3 kPa for 2 kPa noise in 1 kPa steps, a
+// sigma 10 % low and a noise floor that no model can reach. So the distinct |d2| values are
+// counted exactly while there are few of them; when 99 % of them are multiples of the smallest,
+// the median is read as grouped data (multiple j stands for [(j - 1/2) q, (j + 1/2) q], j = 0 for
+// [0, q/2]), which estimates the noise a perfect model leaves: sigma^2 + q^2/12 (quantisation
+// error included). Fine lattices (a 1 Pa log resolution) overflow the exact count and need no
+// correction.
 class RobustRms {
  public:
   void add(double d2_pa) {
@@ -71,7 +69,6 @@ class RobustRms {
     ++exact_[std::llround(std::min(std::abs(d2_pa), 1e12) * kKeyPerPa)];
     if (exact_.size() > kMaxDistinct) overflow_ = true, exact_.clear();
   }
-  void set_step(double q_pa) { q_ = overflow_ ? 0.0 : q_pa; }  // the values' grid (0: none)
   // RMS of the differences (a Gaussian's: 1.4826 times the median of |d|).
   double rms_pa() const {
     if (const double q = lattice_step_pa(); q > 0) return 1.4826 * grouped_median(q);
@@ -115,7 +112,21 @@ class RobustRms {
   // 4.8 % high, at 4 sigma 1.3 %.
   static constexpr double kTrimSigmas = 4;
   static constexpr std::size_t kMaxDistinct = 4096;
-  double lattice_step_pa() const { return overflow_ || exact_.empty() ? 0.0 : q_; }
+  // The step q when 99 % of the second differences are multiples of the smallest nonzero one; 0 else.
+  double lattice_step_pa() const {
+    if (overflow_ || exact_.empty()) return 0;
+    long long q = 0;
+    for (const auto& [key, count] : exact_)
+      if (key > 0 && (q == 0 || key < q)) q = key;
+    if (q == 0) return 0;
+    std::size_t on = 0, total = 0;
+    for (const auto& [key, count] : exact_) {
+      const double j = static_cast<double>(key) / static_cast<double>(q);
+      total += count;
+      if (std::abs(j - std::round(j)) < 1e-3) on += count;
+    }
+    return on >= 0.99 * static_cast<double>(total) ? static_cast<double>(q) / kKeyPerPa : 0.0;
+  }
   double grouped_median(double q_pa) const {
     std::vector<std::pair<long long, std::size_t>> bins;  // multiple of q, count
     std::size_t total = 0;
@@ -137,47 +148,9 @@ class RobustRms {
     return 0;
   }
   LogHistogram hist_;
-  double q_ = 0;
   double sum2_ = 0;
   std::size_t n_ = 0;
   std::unordered_map<long long, std::size_t> exact_;
-  bool overflow_ = false;
-};
-
-// The ADC's step from the values themselves: while the reading takes at most kMaxValues distinct
-// values (to 0.01 Pa), the gaps between neighbouring distinct values are one step q where the
-// pressure visited neighbouring levels, several where it skipped some. q is their median when 99 %
-// of the gaps lie within 2 % of a multiple of it (a printed resolution's rounding stays far inside);
-// a reading with more distinct values has a step far below its noise, and none is needed.
-class ValueGrid {
- public:
-  void add(double y_pa) {
-    if (overflow_) return;
-    values_.insert(std::llround(y_pa * kKeyPerPa));
-    if (values_.size() > kMaxValues) overflow_ = true, values_.clear();
-  }
-  double step_pa() const {
-    if (overflow_ || values_.size() < 3) return 0;
-    std::vector<double> gaps;
-    long long prev = *values_.begin();
-    for (auto it = std::next(values_.begin()); it != values_.end(); ++it)
-      gaps.push_back(static_cast<double>(*it - prev)), prev = *it;
-    std::vector<double> sorted = gaps;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
-    const double q = sorted[sorted.size() / 2];
-    if (!(q > 0)) return 0;
-    std::size_t on = 0;
-    for (double g : gaps) {
-      const double j = std::round(g / q);
-      if (j >= 1 && std::abs(g - j * q) <= 0.02 * q) ++on;
-    }
-    return static_cast<double>(on) >= 0.99 * static_cast<double>(gaps.size()) ? q / kKeyPerPa : 0.0;
-  }
-
- private:
-  static constexpr double kKeyPerPa = 100;
-  static constexpr std::size_t kMaxValues = 8192;
-  std::set<long long> values_;
   bool overflow_ = false;
 };
 
@@ -227,12 +200,6 @@ constexpr double kPhiStep = 0.0025;
 // healthy DAQ logs would be `unexplained`.
 constexpr double kDitherNoisePerStep = 0.6;
 
-std::string text_kpa(double pa) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.3g kPa", pa / units::kPaPerKpa);
-  return b;
-}
-
 double h_of(double phi, std::size_t a) {
   const double p = std::pow(phi, static_cast<double>(a));
   return 20 - 30 * p + 12 * p * p - 2 * p * p * p;
@@ -272,74 +239,25 @@ double NoiseModel::correlation_time_samples() const {
   return 1 + 2 * coloured_sigma_pa * coloured_sigma_pa * phi / ((1 - phi) * total);
 }
 
-namespace {
-
-// The noise's one-step innovations of e (rows of one file), divided by the innovation RMS, through
-// the AR whitening filter when there is one (else the ARMA(1,1) of the first-order model); outlier
-// rows are replaced by their prediction (innovation 0). out(k, w) is called for every row k >= 1.
-template <class Out>
-void innovations(const NoiseModel& m, std::span<const double> e, Out out) {
-  const double inv = m.innovation_sigma_pa > 0 ? 1 / m.innovation_sigma_pa : 1;  // noise-free data: plain sums
-  if (e.empty()) return;
-  auto next_outlier = m.outlier_rows.begin();
-  auto is_outlier = [&](std::size_t k) {
-    while (next_outlier != m.outlier_rows.end() && *next_outlier < k) ++next_outlier;
-    return next_outlier != m.outlier_rows.end() && *next_outlier == k;
-  };
-  if (m.ar.empty()) {
-    double eps = 0, prev = e[0];
-    for (std::size_t k = 1; k < e.size(); ++k) {
-      const double pred = m.phi * prev - m.theta * eps;
-      const double ek = is_outlier(k) ? pred : e[k];
-      eps = ek - pred;
-      prev = ek;
-      out(k, eps * inv);
-    }
-    return;
-  }
-  const std::size_t p = m.ar.size();
-  std::vector<double> past(p, 0.0);  // cleaned e, newest first (a ring)
-  std::size_t head = 0, have = 0;
-  auto push = [&](double v) {
-    head = (head + p - 1) % p;
-    past[head] = v;
-    have = std::min(have + 1, p);
-  };
-  push(e[0]);
-  for (std::size_t k = 1; k < e.size(); ++k) {
-    double pred = 0;
-    for (std::size_t j = 0; j < have; ++j) pred += m.ar[j] * past[(head + j) % p];
-    const double ek = is_outlier(k) ? pred : e[k];
-    out(k, (ek - pred) * inv);
-    push(ek);
-  }
-}
-
-}  // namespace
-
 void NoiseModel::whiten(std::span<const double> e, std::span<double> out) const {
+  const double inv = innovation_sigma_pa > 0 ? 1 / innovation_sigma_pa : 1;  // noise-free data: plain sums
   if (e.empty()) return;
   out[0] = 0;
-  innovations(*this, e, [&](std::size_t k, double w) { out[k] = w; });
+  double eps = 0;
+  for (std::size_t k = 1; k < e.size(); ++k) {
+    eps = e[k] - phi * e[k - 1] + theta * eps;
+    out[k] = eps * inv;
+  }
 }
 
 double NoiseModel::whitened_rss(std::span<const double> e) const {
-  double sum = 0;
-  innovations(*this, e, [&](std::size_t, double w) { sum += w * w; });
-  return sum;
-}
-
-double NoiseModel::rss(std::span<const double> e) const {
-  double sum = 0;
-  auto next = outlier_rows.begin();
-  for (std::size_t k = 0; k < e.size(); ++k) {
-    if (next != outlier_rows.end() && *next == k) {
-      ++next;
-      continue;
-    }
-    sum += e[k] * e[k];
+  const double inv = innovation_sigma_pa > 0 ? 1 / innovation_sigma_pa : 1;  // noise-free data: plain sums
+  double eps = 0, sum = 0;
+  for (std::size_t k = 1; k < e.size(); ++k) {
+    eps = e[k] - phi * e[k - 1] + theta * eps;
+    sum += eps * eps;
   }
-  return sum;
+  return sum * inv * inv;
 }
 
 struct NoiseEstimator::Impl {
@@ -348,8 +266,7 @@ struct NoiseEstimator::Impl {
   double dt_s = 0;
   std::vector<std::size_t> spacings;
   std::vector<RobustRms> rms;  // per spacing
-  ValueGrid grid;
-  std::vector<double> ring;  // the last 3 a_max + 1 readings
+  std::vector<double> ring;    // the last 3 a_max + 1 readings
   std::size_t head = 0, seen = 0;
 
   void start(double dt) {
@@ -364,7 +281,6 @@ struct NoiseEstimator::Impl {
   void push(double y) {
     const std::size_t n = ring.size();
     ring[head] = y;
-    grid.add(y);
     ++seen;
     auto at = [&](std::size_t back) { return ring[(head + n - back) % n]; };  // back rows ago
     for (std::size_t i = 0; i < spacings.size(); ++i) {
@@ -406,8 +322,6 @@ NoiseModel NoiseEstimator::finish() {
   if (!im.started) im.flush();  // a short stream: its rows are still buffered
   NoiseModel m;
   m.sample_period_s = im.dt_s;
-  m.quantisation_step_pa = im.grid.step_pa();
-  for (auto& r : im.rms) r.set_step(m.quantisation_step_pa);
   std::vector<std::size_t> sp;
   std::vector<double> v;
   std::vector<const RobustRms*> used;
@@ -462,12 +376,6 @@ NoiseModel NoiseEstimator::finish() {
   // The scatter of one relative variance from a median of N (correlated) differences.
   const double s2 = 2.33 * 2.33 * 3.0 / static_cast<double>(std::max<std::size_t>(n_first, 1));
   if (!(sse_white - best_sse > kColourEvidence * s2)) w = w0 + a0, a = 0, phi = 0;
-  // A reading on a grid holds at least the quantisation error of a uniform q^2/12, which the
-  // differences read as nothing when the noise under the steps is well below a step (most
-  // neighbours equal): 0.3 kPa of noise in 2.44 kPa steps read 1.6e-9 kPa.
-  const double q = m.quantisation_step_pa;
-  const bool floored = q > 0 && w + a < q * q / 12;
-  if (floored) w = q * q / 12 - a;
   m.white_sigma_pa = std::sqrt(w);
   m.coloured_sigma_pa = std::sqrt(a);
   m.phi = a > 0 ? phi : 0;
@@ -493,152 +401,7 @@ NoiseModel NoiseEstimator::finish() {
                   sp.back(), how.c_str());
   }
   m.method = b;
-  if (floored) m.method += "; raised to the quantisation floor q/sqrt(12) = " + text_kpa(q / std::sqrt(12.0));
   return m;
-}
-
-namespace {
-
-// Levinson-Durbin on the autocovariance r(0..P): the AR(p) one-step predictors; the order by AIC
-// on `rows` rows (N ln sigma_p^2 + 2 p). Returns the coefficients, innovation variance out.
-std::vector<double> ar_by_aic(const std::vector<double>& r, double rows, double& innovation_var) {
-  std::vector<double> a, best;
-  double err = r[0], best_aic = rows * std::log(err);
-  innovation_var = err;
-  for (std::size_t p = 1; p < r.size() && err > 0; ++p) {
-    double acc = r[p];
-    for (std::size_t j = 0; j < a.size(); ++j) acc -= a[j] * r[p - 1 - j];
-    const double k = acc / err;
-    std::vector<double> next(p);
-    for (std::size_t j = 0; j + 1 < p; ++j) next[j] = a[j] - k * a[p - 2 - j];
-    next[p - 1] = k;
-    a = std::move(next);
-    err *= 1 - k * k;
-    const double aic = rows * std::log(err) + 2.0 * static_cast<double>(p);
-    if (err > 0 && aic < best_aic) best_aic = aic, best = a, innovation_var = err;
-  }
-  return best;
-}
-
-// A power law A f^-alpha fitted (relative least squares) to d(k) over bins [k0, k1]; A = 0 when
-// nothing lies above.
-// The power law's steepest slope (brown noise is 2; a second-order filter's skirt is 4, but a law
-// that steep extrapolated over a decade is the misfit's, not the noise's) and the least it must
-// stand above the white part at the band edge (of its per-bin power) to be taken.
-constexpr double kMaxAlpha = 2.5;
-constexpr double kLawOverWhite = 0.05;
-constexpr double kModelHoldsBand = 0.04;
-// A law standing more than this above the first-order model at the band edge is a misfit's (a
-// sensor step's harmonics fall as f^-2, like brown noise), not the noise's.
-constexpr double kLawOverModel = 4;
-void power_law_fit(const std::vector<double>& d, const std::vector<double>& scale, std::size_t k0, std::size_t k1, double& A,
-                   double& alpha) {
-  double best = std::numeric_limits<double>::infinity();
-  A = 0, alpha = 0;
-  for (double al = 0; al <= kMaxAlpha + 1e-9; al += 0.05) {
-    double sgg = 0, sdg = 0;
-    for (std::size_t k = k0; k <= k1; ++k) {
-      const double g = std::pow(static_cast<double>(k), -al) / scale[k];
-      sgg += g * g, sdg += d[k] / scale[k] * g;
-    }
-    const double a = sgg > 0 ? std::max(0.0, sdg / sgg) : 0;
-    double sse = 0;
-    for (std::size_t k = k0; k <= k1; ++k) {
-      const double r = (d[k] - a * std::pow(static_cast<double>(k), -al)) / scale[k];
-      sse += r * r;
-    }
-    if (sse < best) best = sse, A = a, alpha = al;
-  }
-}
-
-}  // namespace
-
-void complete_noise_model(NoiseModel& m, const ResidualSpectrum& s) {
-  m.outlier_rows = s.outlier_rows;
-  m.outliers = s.outlier_rows.size();
-  const std::size_t M = s.bins, half = M / 2;
-  const double dt = m.sample_period_s;
-  if (M < 16 || s.power_pa2.size() != half + 1 || !(dt > 0)) return;
-  // The first-order model's power in bin k (two-sided, Pa^2).
-  const double w2 = m.white_sigma_pa * m.white_sigma_pa, c2 = m.coloured_sigma_pa * m.coloured_sigma_pa;
-  auto model_bin = [&](std::size_t k) {
-    const double nu = 2 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(M);
-    const double den = 1 - 2 * m.phi * std::cos(nu) + m.phi * m.phi;
-    return (w2 + (c2 > 0 ? c2 * (1 - m.phi * m.phi) / den : 0.0)) / static_cast<double>(M);
-  };
-  // The residual's bins smoothed over +-20 % in frequency (at least the two neighbours).
-  std::vector<double> sm(half + 1, 0.0);
-  for (std::size_t k = 1; k <= half; ++k) {
-    const std::size_t lo = std::max<std::size_t>(1, std::min(k - 1, static_cast<std::size_t>(0.8 * static_cast<double>(k))));
-    const std::size_t hi = std::min(half, std::max(k + 1, static_cast<std::size_t>(1.25 * static_cast<double>(k))));
-    double sum = 0;
-    for (std::size_t j = lo; j <= hi; ++j) sum += s.power_pa2[j];
-    sm[k] = sum / static_cast<double>(hi - lo + 1);
-  }
-  const double f_band = std::min(kNoiseBandHz, 0.25 / dt);
-  const auto k_band = static_cast<std::size_t>(std::ceil(f_band * static_cast<double>(M) * dt));
-  // The noise spectrum: the residual's above the band; below, the residual's up to a bound U, the
-  // power law the residual follows above the band or, where the first-order model holds that band
-  // as well as the law, the model's own continuation.
-  std::vector<double> P(sm);
-  double A = 0, alpha = 0, low = 0;
-  bool law = false;
-  if (k_band >= 2 && 3 * k_band <= half) {
-    std::vector<double> d(half + 1), scale(half + 1);
-    for (std::size_t k = 1; k <= half; ++k) d[k] = sm[k] - w2 / static_cast<double>(M), scale[k] = std::max(sm[k], 1e-300);
-    power_law_fit(d, scale, k_band, 3 * k_band, A, alpha);
-    double sse_model = 0, sse_law = 0;
-    for (std::size_t k = k_band; k <= 3 * k_band; ++k) {
-      sse_model += std::pow((sm[k] - model_bin(k)) / scale[k], 2);
-      sse_law += std::pow((d[k] - A * std::pow(static_cast<double>(k), -alpha)) / scale[k], 2);
-    }
-    const double n_band = static_cast<double>(2 * k_band + 1);
-    const double law_at_edge = A * std::pow(static_cast<double>(k_band), -alpha);
-    law = sse_model > 2 * sse_law + n_band * kModelHoldsBand * kModelHoldsBand &&
-          law_at_edge > kLawOverWhite * w2 / static_cast<double>(M) && law_at_edge <= kLawOverModel * model_bin(k_band);
-    for (std::size_t k = 1; k < k_band; ++k) {
-      const double bound = law ? w2 / static_cast<double>(M) + A * std::pow(static_cast<double>(k), -alpha) : model_bin(k);
-      P[k] = std::min(sm[k], bound);
-    }
-  }
-  P[0] = P[1];  // the segment means were removed: the lowest bin stands for DC
-  double total = P[0] + (M % 2 == 0 ? P[half] : 2 * P[half]);
-  for (std::size_t k = 1; k < half; ++k) total += 2 * P[k];
-  low = P[0];
-  for (std::size_t k = 1; k < std::min(k_band, half); ++k) low += 2 * P[k];
-  // A reading on a grid keeps its floor (the spectrum of a quantised residual is its own).
-  const double q = m.quantisation_step_pa;
-  if (q > 0 && total < q * q / 12) {
-    for (double& p : P) p *= q * q / 12 / total;
-    low *= q * q / 12 / total, total = q * q / 12;
-  }
-  m.low_band_sigma_pa = std::sqrt(low);
-  m.sigma_pa = std::sqrt(total);
-  // The whitening filter of the whole spectrum: its autocovariance, then AR by Levinson-Durbin.
-  std::vector<double> r(kMaxWhiteningOrder + 1, 0.0);
-  for (std::size_t l = 0; l <= kMaxWhiteningOrder; ++l) {
-    double sum = P[0] + (M % 2 == 0 ? P[half] * std::cos(std::numbers::pi * static_cast<double>(l)) : 0.0);
-    for (std::size_t k = 1; k < half; ++k)
-      sum += 2 * P[k] * std::cos(2 * std::numbers::pi * static_cast<double>(k * l) / static_cast<double>(M));
-    r[l] = sum;
-  }
-  double var = 0;
-  if (r[0] > 0) {
-    m.ar = ar_by_aic(r, static_cast<double>(std::max<std::size_t>(s.rows, 16)), var);
-    if (m.ar.empty()) m.ar = {0.0};  // white: the filter is the identity
-    m.innovation_sigma_pa = std::sqrt(var);
-  }
-  char bound[120], b[400];
-  if (law)
-    std::snprintf(bound, sizeof bound, "the power law f^-%.2f the residual follows above", alpha);
-  else
-    std::snprintf(bound, sizeof bound, "the first-order model's continuation");
-  std::snprintf(b, sizeof b,
-                "; as a spectrum (the residual's, Welch): %s in all, %s of it below %.3g Hz (bounded there by %s); "
-                "whitened by AR(%zu)",
-                text_kpa(m.sigma_pa).c_str(), text_kpa(m.low_band_sigma_pa).c_str(), f_band, bound, m.ar.size());
-  m.method += b;
-  if (m.outliers > 0) m.method += "; " + std::to_string(m.outliers) + " outlier rows (spikes) left out";
 }
 
 NoiseModel noise_model_from_data(std::span<const double> y_pa, double sample_period_s) {

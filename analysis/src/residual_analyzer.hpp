@@ -185,16 +185,11 @@ struct ResidualAnalyzer::Impl {
 
   // Welch spectrum.
   std::size_t seg = 4096;
-  std::vector<double> ring_e, ring_u, ring_y;
+  std::vector<double> ring_e, ring_u;
   std::size_t ring_e_count = 0, since_seg = 0, segments = 0;
   std::vector<double> psd_acc, psd_u_acc;
   std::vector<double> hann;
   double hann_power = 0;
-  // The noise's view of the same segments (noise_segment): spikes found and cleaned, means removed.
-  std::vector<double> noise_psd_acc;
-  std::size_t ring_rows = 0, next_row_to_test = 0;  // rows written into ring_e; the first not yet tested
-  std::vector<std::size_t> outlier_rows;
-  double outlier_se = 0, outlier_se2 = 0;
 
   SeriesDecimator plotted;
 
@@ -209,10 +204,8 @@ struct ResidualAnalyzer::Impl {
     }
     ring_e.assign(seg, 0.0);
     ring_u.assign(seg, 0.0);
-    ring_y.assign(seg, 0.0);
     psd_acc.assign(seg / 2 + 1, 0.0);
     psd_u_acc.assign(seg / 2 + 1, 0.0);
-    noise_psd_acc.assign(seg / 2 + 1, 0.0);
     hann.resize(seg);
     for (std::size_t i = 0; i < seg; ++i) {
       hann[i] = 0.5 - 0.5 * std::cos(2 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(seg));
@@ -346,53 +339,7 @@ struct ResidualAnalyzer::Impl {
     bu.clear();
   }
 
-  // The last `len` rows of the ring for the noise spectrum (noise_model.hpp, complete_noise_model).
-  // A row is a spike when its reading stands kOutlierSigmas robust sigmas off its two neighbours'
-  // mean, more than either neighbour does (a spike's neighbours stand off by half of it). The
-  // reading, not the residual: the same rows whatever the model, and the chamber's curvature leaves
-  // under a kPa in a row. The robust sigma of that difference over the segment: 1.4826 * median,
-  // not below the RMS of its lowest 99 % nor its 99th percentile / 2.58 (a reading on a coarse
-  // grid has most differences 0 and the rest whole steps). A spike is counted once, its row noted,
-  // and its residual replaced in the ring by the neighbours' mean, so the next (overlapping)
-  // segment sees it cleaned.
-  void noise_segment(std::size_t len) {
-    const std::size_t start = (ring_e_count + seg - len) % seg, first_row = ring_rows - len;
-    std::vector<double> x(len), d(len, 0.0);
-    for (std::size_t i = 0; i < len; ++i) x[i] = ring_e[(start + i) % seg];
-    for (std::size_t i = 1; i + 1 < len; ++i) {
-      const auto y = [&](std::size_t j) { return ring_y[(start + j) % seg]; };
-      d[i] = std::abs(y(i) - 0.5 * (y(i - 1) + y(i + 1)));
-    }
-    if (len >= 16) {
-      std::vector<double> sorted(d.begin() + 1, d.end() - 1);
-      std::sort(sorted.begin(), sorted.end());
-      const std::size_t keep = sorted.size() - sorted.size() / 100;
-      double ms = 0;
-      for (std::size_t i = 0; i < keep; ++i) ms += sorted[i] * sorted[i];
-      const double sigma = std::max({1.4826 * sorted[sorted.size() / 2], std::sqrt(ms / static_cast<double>(keep)),
-                                     sorted[keep > 0 ? keep - 1 : 0] / 2.58});
-      for (std::size_t i = 1; i + 1 < len && sigma > 0; ++i) {
-        const std::size_t row = first_row + i;
-        if (row < next_row_to_test) continue;  // tested in the segment before
-        next_row_to_test = row + 1;
-        if (!(d[i] > kOutlierSigmas * sigma && d[i] >= d[i - 1] && d[i] >= d[i + 1])) continue;
-        outlier_rows.push_back(row);
-        outlier_se += x[i], outlier_se2 += x[i] * x[i];
-        x[i] = 0.5 * (x[i - 1] + x[i + 1]);
-        ring_e[(start + i) % seg] = x[i];
-      }
-    }
-    const double mean = std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(len);
-    const detail::Fft fft(seg);
-    std::vector<cplx> a(seg);
-    for (std::size_t i = 0; i < len; ++i) a[i] = (x[i] - mean) * hann[i * seg / len];
-    fft.forward(a);
-    const double scale = static_cast<double>(seg) / static_cast<double>(len);
-    for (std::size_t k = 0; k <= seg / 2; ++k) noise_psd_acc[k] += std::norm(a[k]) * scale;
-  }
-
   void process_segment(std::size_t len) {
-    noise_segment(len);
     // The last `len` samples of the ring, Hann windowed.
     // Residual and drive increments together: z = e + i u, separated after the transform.
     const detail::Fft fft(seg);
@@ -455,9 +402,7 @@ struct ResidualAnalyzer::Impl {
     // Welch segments.
     ring_e[ring_e_count % seg] = e;
     ring_u[ring_e_count % seg] = du;
-    ring_y[ring_e_count % seg] = s.y_pa;
     ring_e_count = (ring_e_count + 1) % seg;
-    ++ring_rows;
     ++since_seg;
     if (n + 1 >= seg && since_seg >= seg / 2) {
       process_segment(seg);
@@ -473,7 +418,6 @@ struct ResidualAnalyzer::Impl {
   }
 
   ResidualReport finish();
-  void finish_noise(ResidualReport& r);
   void finish_diagnostics(ResidualReport& r);
   void name_peaks(ResidualReport& r);
   void describe(ResidualReport& r);

@@ -119,12 +119,6 @@ void ResidualAnalyzer::Impl::describe(ResidualReport& r) {
     out.push_back(
         fmt("RMS error %.3g kPa is %.3g times the measurement noise (%.3g kPa).", rmse / kpa, rmse / sigma, sigma / kpa));
   }
-  if (r.noise.outliers > 0) {
-    out.push_back(
-        fmt("%.0f rows (one in %.0f) are outliers, spikes off their neighbours by more than 6 robust sigmas: "
-            "counted here, left out of the RMS error and of diagnose's criterion.",
-            static_cast<double>(r.noise.outliers), static_cast<double>(r.rows) / static_cast<double>(r.noise.outliers)));
-  }
   // A filtered transducer's noise is correlated over a few rows by itself: say so, so that a short
   // residual correlation time is read as the noise's, not as a missing effect.
   if (r.noise.coloured()) {

@@ -49,46 +49,18 @@ ResidualAnalyzer::~ResidualAnalyzer() = default;
 void ResidualAnalyzer::add(const ResidualSample& s) { impl_->add(s); }
 ResidualReport ResidualAnalyzer::finish() { return impl_->finish(); }
 
-// The noise completed by the residual's spectrum and its outliers (noise_model.hpp); the error's
-// RMS, bias and sum of squares over the rows that are not outliers, which never decide a verdict.
-void ResidualAnalyzer::Impl::finish_noise(ResidualReport& r) {
-  r.error = all.stats();
-  r.rss_pa2 = all.se2;
-  if (static_cast<double>(outlier_rows.size()) > kMaxOutlierShare * static_cast<double>(n))
-    outlier_rows.clear(), outlier_se = outlier_se2 = 0;  // that many is the noise's own tail
-  ResidualSpectrum spec;
-  spec.bins = seg;
-  spec.rows = n;
-  spec.outlier_rows = outlier_rows;
-  if (segments > 0) {
-    const double norm = 1.0 / (static_cast<double>(seg) * hann_power * static_cast<double>(segments));
-    for (double p : noise_psd_acc) spec.power_pa2.push_back(p * norm);
-  }
-  complete_noise_model(r.noise, spec);
-  const std::size_t clean = n - outlier_rows.size();
-  if (!outlier_rows.empty() && clean > 0) {
-    r.rss_pa2 = std::max(0.0, all.se2 - outlier_se2);
-    r.error.rmse_pa = std::sqrt(r.rss_pa2 / static_cast<double>(clean));
-    r.error.bias_pa = (all.se - outlier_se) / static_cast<double>(clean);
-  }
-}
-
 ResidualReport ResidualAnalyzer::Impl::finish() {
   ResidualReport r;
   r.rows = n;
   if (n == 0) return r;
   r.t0_s = t_first;
   r.duration_s = t_last - t_first;
-  if (segments == 0 && n >= 16) {  // a short file: one segment of the largest power of two
-    std::size_t len = 16;
-    while (len * 2 <= std::min(n, seg)) len *= 2;
-    process_segment(len);
-  }
-  r.noise = noise.finish();
-  finish_noise(r);
+  r.error = all.stats();
+  r.rss_pa2 = all.se2;
   const double spread2 = std::max(0.0, syy - sy * sy / static_cast<double>(n));
   r.y_spread_pa = std::sqrt(spread2 / static_cast<double>(n));
-  r.fit_pct = fit_percent(r.rss_pa2, r.y_spread_pa, n);
+  r.fit_pct = fit_percent(all.se2, r.y_spread_pa, n);
+  r.noise = noise.finish();
   r.noise_sigma_pa = r.noise.sigma_pa;
   r.noise_method = r.noise.method;
   r.noise_floor_fit_pct = r.y_spread_pa > 0 ? 100.0 * (1.0 - r.noise_sigma_pa / r.y_spread_pa) : kNaN;

@@ -3,9 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cctype>
 #include <cstdio>
-#include <fstream>
 #include <numbers>
 #include <stdexcept>
 
@@ -323,24 +321,7 @@ std::vector<SuiteFile> draw_suite(const SuiteSpec& spec) {
   return out;
 }
 
-// Keeps one data row in `m` (a logger at a lower rate), the header and metadata lines as they are.
-void keep_every_row(const fs::path& csv, int m) {
-  if (m <= 1) return;
-  std::ifstream in(csv, std::ios::binary);
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  in.close();
-  std::ofstream out(csv, std::ios::binary | std::ios::trunc);
-  bool header = false;
-  long row = 0;
-  for (const auto& line : lines) {
-    const bool data = header && !line.empty() && line[0] != '#';
-    if (!header && !line.empty() && line[0] != '#') header = true;
-    if (!data || row++ % m == 0) out << line << '\n';
-  }
-}
-
-fs::path write_file(const SuiteFile& f, const fs::path& dir, NoiseTruth* truth) {
+fs::path write_file(const SuiteFile& f, const fs::path& dir) {
   plant::Rng rng(mix(f.seed, 7));
   fs::path file;
   if (f.logger == Logger::bench) {
@@ -373,130 +354,12 @@ fs::path write_file(const SuiteFile& f, const fs::path& dir, NoiseTruth* truth) 
     lab.truth = [&f](const Plant& p) { return f.truth(p); };
     file = make_lab_log(lab, dir);
   }
-  keep_every_row(file, f.keep_every);
-  const NoiseTruth t = add_sensor_noise(file, f.noise);
-  if (truth) *truth = t;
+  add_sensor_noise(file, f.noise);
   return file;
 }
 
-// --- the noise suite (issue 49) -----------------------------------------------------------------
-
-namespace {
-
-// AR coefficients of prod_i (1 - r_i z^-1) for real poles r_i.
-std::vector<double> ar_of_poles(const std::vector<double>& r) {
-  std::vector<double> c = {1.0};  // polynomial in z^-1
-  for (double p : r) {
-    std::vector<double> next(c.size() + 1, 0.0);
-    for (std::size_t i = 0; i < c.size(); ++i) next[i] += c[i], next[i + 1] -= p * c[i];
-    c = next;
-  }
-  std::vector<double> a;
-  for (std::size_t i = 1; i < c.size(); ++i) a.push_back(-c[i]);
-  return a;
-}
-
-// One class's noise at level L (kPa) for rows dt_s apart, and its description.
-SensorNoise noise_of_class(const std::string& cls, double L, double dt_s, plant::Rng& rng, std::string& what) {
-  SensorNoise n;
-  n.seed = rng.next();
-  n.white_kpa = 0.3;
-  auto u = [&](double lo, double hi) { return lo + (hi - lo) * rng.uniform(); };
-  const double nyq = 0.5 / dt_s;
-  if (cls == "white") {
-    n.white_kpa = L, what = "white";
-  } else if (cls == "AR(1)") {
-    n.coloured_kpa = L, n.phi = u(0.3, 0.9), what = "AR(1) phi " + num(n.phi, "%.2f");
-  } else if (cls == "AR(2-4)") {
-    std::vector<double> poles;
-    const int p = 2 + static_cast<int>(3 * rng.uniform());
-    for (int i = 0; i < p; ++i) poles.push_back(u(0.2, 0.85));
-    n.coloured_kpa = L, n.ar = ar_of_poles(poles), what = "AR(" + std::to_string(p) + ")";
-  } else if (cls == "resonant") {
-    const double f0 = std::min(u(20, 200), 0.35 * 2 * nyq), q = u(2, 10);
-    const double r = std::exp(-std::numbers::pi * f0 / q * dt_s);
-    n.coloured_kpa = L, n.ar = {2 * r * std::cos(2 * std::numbers::pi * f0 * dt_s), -r * r};
-    what = "resonance " + num(f0, "%.0f") + " Hz Q " + num(q, "%.1f");
-  } else if (cls == "1/f") {
-    n.pink_kpa = L, what = "1/f from 0.5 Hz";
-  } else if (cls == "brown") {
-    n.brown_kpa = L, n.brown_corner_hz = u(0.3, 1.0), what = "brown from " + num(n.brown_corner_hz, "%.2f") + " Hz";
-  } else if (cls == "hum") {
-    n.white_kpa = L, n.hum_hz = rng.uniform() < 0.5 ? 50 : 60, n.hum_kpa = u(0.3, 1.0) * L;
-    n.hum_harmonics = {u(0.05, 0.3), u(0.2, 0.6)};
-    what = num(n.hum_hz, "%.0f") + " Hz hum " + num(n.hum_kpa, "%.2f") + " kPa + 2nd, 3rd";
-  } else if (cls == "spikes") {
-    const double rates[] = {1.0 / 500, 1.0 / 2000, 1.0 / 10000};
-    n.white_kpa = L, n.spike_rate = rates[static_cast<int>(3 * rng.uniform())];
-    n.spike_lo_kpa = (rng.uniform() < 0.5 ? 8 : 15) * L, n.spike_hi_kpa = 3 * n.spike_lo_kpa;
-    what = "spikes 1/" + num(1 / n.spike_rate, "%.0f") + " of " + num(n.spike_lo_kpa, "%.0f") + "-" +
-           num(n.spike_hi_kpa, "%.0f") + " kPa";
-  } else if (cls == "ADC") {
-    const int bits = 8 + 2 * static_cast<int>(5 * rng.uniform());
-    const double full_mpa = bits == 8 ? 2.5 : bits == 10 ? 5.0 : 10.0;
-    n.white_kpa = L * u(0.1, 1.0), n.step_kpa = 1e3 * full_mpa / std::pow(2.0, bits);
-    what = std::to_string(bits) + "-bit over " + num(full_mpa, "%.1f") + " MPa (" + num(n.step_kpa, "%.3g") + " kPa steps)";
-  } else if (cls == "filter") {
-    n.coloured_kpa = L, n.filter_hz = u(50, 300), n.filter_order = 1 + static_cast<int>(4 * rng.uniform());
-    what = "order-" + std::to_string(n.filter_order) + " filter " + num(n.filter_hz, "%.0f") + " Hz";
-  } else if (cls == "combination") {
-    n.pink_kpa = 0.6 * L, n.coloured_kpa = 0.6 * L, n.filter_hz = u(50, 300), n.filter_order = 2;
-    n.hum_kpa = 0.3 * L, n.hum_harmonics = {0.2, 0.4};
-    n.spike_rate = 1.0 / 2000, n.spike_lo_kpa = 15 * L, n.spike_hi_kpa = 40 * L;
-    n.step_kpa = 1e4 / 4096;
-    what = "1/f + order-2 filter " + num(n.filter_hz, "%.0f") + " Hz + 50 Hz hum + spikes + 12-bit";
-  } else {
-    throw std::invalid_argument("noise suite: no class '" + cls + "'");
-  }
-  return n;
-}
-
-}  // namespace
-
-std::vector<std::string> noise_classes() {
-  return {"white", "AR(1)", "AR(2-4)", "resonant", "1/f", "brown", "hum", "spikes", "ADC", "filter", "combination"};
-}
-
-std::vector<SuiteFile> draw_noise_suite(std::uint64_t seed, int healthy_per_class, int hits_per_class, double duration_s) {
-  const Plant nominal = Plant::load(nominal_model());
-  plant::Rng rng(seed);
-  std::vector<SuiteFile> out;
-  for (const auto& cls : noise_classes())
-    for (int i = 0; i < healthy_per_class + hits_per_class; ++i) {
-      SuiteFile f;
-      draw_setup(f, rng, 0.3);
-      f.duration_s = duration_s;
-      const double rates[] = {1, 1, 2, 4};
-      f.keep_every = f.logger == Logger::daq ? static_cast<int>(rates[static_cast<int>(4 * rng.uniform())]) : 1;
-      f.level_kpa = 1 + 4 * rng.uniform();
-      f.noise_class = cls;
-      f.noise = noise_of_class(cls, f.level_kpa, 1e-3 * f.keep_every, rng, f.colour);
-      if (f.logger == Logger::daq && f.noise.step_kpa == 0) f.noise.step_kpa = 1.0;  // the DAQ's ADC
-      std::string tag = cls;
-      for (char& c : tag)
-        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-      if (i < healthy_per_class) {
-        f.name = "n" + std::to_string(out.size()) + "_" + tag + "_healthy";
-      } else {
-        const int n = 1 + static_cast<int>(3 * rng.uniform());
-        f.hidden = hidden_of(draw_tags(n, f.encoder, rng), rng, nominal);
-        std::string tags = f.effects_text();
-        std::replace(tags.begin(), tags.end(), '+', '_');
-        f.name = "n" + std::to_string(out.size()) + "_" + tag + "_" + tags;
-      }
-      out.push_back(std::move(f));
-    }
-  return out;
-}
-
-Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::Diagnosis& d, double noise_truth_kpa) {
+Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::Diagnosis& d) {
   Score s;
-  s.noise_class = f.noise_class;
-  s.keep_every = f.keep_every;
-  s.noise_truth_kpa = noise_truth_kpa > 0 ? noise_truth_kpa : f.noise.total_kpa();
-  s.noise_read_kpa = d.noise_sigma_pa / 1e3;
-  for (const auto& file : d.files) s.outliers += file.before.noise.outliers;
-  if (!d.files.empty()) s.noise_method = d.files.front().before.noise.method;
   s.name = f.name;
   s.effects = f.effects_text();
   s.colour = f.colour;
@@ -531,7 +394,7 @@ Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::
       }
   const Plant nominal = Plant::load(nominal_model());
   auto rss = [&](const Plant& model) { return analysis::compare_measurement(model, m, false).rss_pa2; };
-  const double noise_power = static_cast<double>(m.rows.size()) * std::pow(1e3 * s.noise_truth_kpa, 2);
+  const double noise_power = static_cast<double>(m.rows.size()) * std::pow(1e3 * f.noise.total_kpa(), 2);
   const double truth_rss = rss(f.truth(nominal));
   s.min_drop_cost = INFINITY;
   for (std::size_t i = 0; i < f.hidden.size(); ++i) {
@@ -564,16 +427,14 @@ Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::
 }
 
 Score run_file(const SuiteFile& f, const fs::path& dir, unsigned threads) {
-  NoiseTruth truth;
-  const fs::path file = write_file(f, dir, &truth);
+  const fs::path file = write_file(f, dir);
   const analysis::Measurement m = analysis::load_measurement(file);
   analysis::DiagnoseSettings settings;
   settings.threads = threads;
   settings.keep_series = false;
   const auto t0 = std::chrono::steady_clock::now();
   const analysis::Diagnosis d = analysis::diagnose(Plant::load(nominal_model()), m, settings);
-  Score s = score(f, m, d, truth.rms_kpa);
-  s.spikes = truth.spikes;
+  Score s = score(f, m, d);
   s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;
 }

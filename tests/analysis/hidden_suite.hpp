@@ -51,10 +51,8 @@ struct SuiteFile {
   std::string compensation = "none";  // bench logger: none | constant | adaptive
   double duration_s = 30;
   SensorNoise noise;
-  std::string colour;       // "AR(1) phi 0.55", "filter 100 Hz"
-  double level_kpa = 0;     // the coloured part's RMS
-  std::string noise_class;  // the noise suite's class ("1/f", "spikes", ...; empty: the colours above)
-  int keep_every = 1;       // the logger's rate: one row in this many of the 1 kHz rows
+  std::string colour;    // "AR(1) phi 0.55", "filter 100 Hz"
+  double level_kpa = 0;  // the coloured part's RMS
   // The nominal plant with the hidden effects (without one of them: `except` its index).
   plant::Plant truth(const plant::Plant& nominal, int except = -1) const;
   std::string effects_text() const;  // "gap+lag", "none"
@@ -77,22 +75,11 @@ std::vector<SuiteFile> draw_suite(const SuiteSpec& spec);
 // test's picks); the rest (reference, encoder, compensation, magnitudes) drawn from `seed`.
 SuiteFile draw_file(std::uint64_t seed, const std::string& name, const std::vector<std::string>& tags, const std::string& colour,
                     double level_kpa, Logger logger, double duration_s = 30);
-// Writes DIR/<name>.csv (noise-free, then the transducer's noise added; what it added in `truth`).
-std::filesystem::path write_file(const SuiteFile& f, const std::filesystem::path& dir, NoiseTruth* truth = nullptr);
-
-// The noise suite (issue 49): instruments' noise by class (white; AR(1); AR(2)-(4); resonant; 1/f;
-// brown; hum with harmonics; spikes; an ADC of 8-16 bits; filters of order 1-4 at 50-300 Hz;
-// combinations), 1-5 kPa, the references, loggers and rates drawn. `healthy` files per class
-// without effects, `hits` with one to three hidden effects.
-std::vector<std::string> noise_classes();
-std::vector<SuiteFile> draw_noise_suite(std::uint64_t seed, int healthy_per_class, int hits_per_class, double duration_s = 30);
+// Writes DIR/<name>.csv (noise-free, then the transducer's noise added).
+std::filesystem::path write_file(const SuiteFile& f, const std::filesystem::path& dir);
 
 struct Score {
-  std::string name, effects, colour, reference, logger, verdict, noise_class;
-  double noise_truth_kpa = 0, noise_read_kpa = 0;  // what the file holds, what diagnose read
-  std::size_t spikes = 0, outliers = 0;            // added, found
-  std::string noise_method;                        // how the (first) file's noise was read
-  int keep_every = 1;
+  std::string name, effects, colour, reference, logger, verdict;
   double level_kpa = 0;
   int n_effects = 0;
   bool encoder = false;
@@ -108,16 +95,12 @@ struct Score {
 };
 
 // Scores a diagnosis of `f` (written and read back as `m`).
-// noise_truth_kpa: what the file's noise holds (0: SensorNoise::total_kpa()).
-Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::Diagnosis& d, double noise_truth_kpa = 0);
+Score score(const SuiteFile& f, const analysis::Measurement& m, const analysis::Diagnosis& d);
 // Writes the file, diagnoses it (the nominal model, every candidate) and scores it.
 Score run_file(const SuiteFile& f, const std::filesystem::path& dir, unsigned threads = 0);
 
 // The results as Markdown: the headline (hit rate over identifiable combinations, false alarms),
 // per noise colour and level, per class (effects), and every file's line.
 std::string markdown(const std::vector<Score>& scores, const SuiteSpec& spec, double wall_s);
-// The noise suite's results: false alarms and the noise read against the truth, overall and per
-// class; the hit rate per class; every file's line.
-std::string noise_markdown(const std::vector<Score>& scores, std::uint64_t seed, double wall_s);
 
 }  // namespace hil::test::suite

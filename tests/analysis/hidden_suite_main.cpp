@@ -5,10 +5,6 @@
 //
 //   hil_hidden_suite [--seed N] [--singles N] [--pairs N] [--triples N] [--healthy-per-noise N]
 //                    [--duration S] [--threads N] [--only NAME] [--out DIR] [--keep-files]
-//                    [--noise-healthy N] [--noise-hits N] [--shard I/K]
-// --noise-healthy / --noise-hits: the noise suite (issue 49, hidden_suite.hpp draw_noise_suite) in
-// place of the colours': N healthy files and N with effects per noise class; --shard I/K runs the
-// files i with i % K == I (several processes side by side), OUT/noise_suite.md from what it ran.
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -39,7 +35,6 @@ int main(int argc, char** argv) {
   fs::path out = "out/hidden_suite";
   std::string only;
   bool keep = false;
-  int noise_healthy = -1, noise_hits = 0, shard = 0, shards = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--keep-files") {
@@ -65,14 +60,7 @@ int main(int argc, char** argv) {
         threads = static_cast<unsigned>(std::stoul(v));
       else if (a == "--only")
         only = v;
-      else if (a == "--noise-healthy")
-        noise_healthy = std::stoi(v);
-      else if (a == "--noise-hits")
-        noise_hits = std::stoi(v);
-      else if (a == "--shard") {
-        if (std::sscanf(v.c_str(), "%d/%d", &shard, &shards) != 2 || shards < 1 || shard < 0 || shard >= shards)
-          return usage("--shard: I/K with 0 <= I < K");
-      } else if (a == "--out")
+      else if (a == "--out")
         out = v;
       else
         return usage("unknown option " + a);
@@ -82,16 +70,10 @@ int main(int argc, char** argv) {
   }
   if (spec.duration_s < 10 || spec.duration_s > 600) return usage("--duration: 10 to 600 s");
   fs::create_directories(out / "files");
-  fs::remove(out / "scores.tsv");
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<Score> scores;
-  const bool noise_suite = noise_healthy >= 0 || noise_hits > 0;
-  const std::vector<SuiteFile> files =
-      noise_suite ? draw_noise_suite(spec.seed, std::max(noise_healthy, 0), noise_hits, spec.duration_s) : draw_suite(spec);
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    const SuiteFile& f = files[i];
+  for (const SuiteFile& f : draw_suite(spec)) {
     if (!only.empty() && f.name != only) continue;
-    if (static_cast<int>(i % static_cast<std::size_t>(shards)) != shard) continue;
     try {
       scores.push_back(run_file(f, out / "files", threads));
     } catch (const std::exception& e) {  // a file the generator or diagnose failed on: scored as failed
@@ -100,34 +82,25 @@ int main(int argc, char** argv) {
       s.effects = f.effects_text();
       s.n_effects = static_cast<int>(f.hidden.size());
       s.colour = f.colour;
-      s.noise_class = f.noise_class;
       s.level_kpa = f.level_kpa;
       s.verdict = std::string("error: ") + e.what();
       scores.push_back(s);
     }
     const Score& s = scores.back();
-    std::printf(
-        "%-28s %-20s %-5s enc %-3s %-11s %-15s %.1f kPa (read %.2f of %.2f, spikes %zu/%zu): %-16s found %-40s %s %s (%.1f s)\n",
-        s.name.c_str(), s.effects.c_str(), s.logger.c_str(), s.encoder ? "yes" : "no", s.reference.c_str(), s.colour.c_str(),
-        s.level_kpa, s.noise_read_kpa, s.noise_truth_kpa, s.spikes, s.outliers, s.verdict.c_str(),
-        s.found.empty() ? "-" : s.found.c_str(),
-        s.n_effects == 0  ? (s.pass ? "no alarm" : "FALSE ALARM")
-        : !s.identifiable ? "not identifiable"
-        : s.pass          ? "found"
-                          : "MISSED",
-        s.params.c_str(), s.wall_s);
+    std::printf("%-28s %-20s %-5s enc %-3s %-11s %-15s %.1f kPa: %-16s found %-40s %s %s (%.1f s)\n", s.name.c_str(),
+                s.effects.c_str(), s.logger.c_str(), s.encoder ? "yes" : "no", s.reference.c_str(), s.colour.c_str(), s.level_kpa,
+                s.verdict.c_str(), s.found.empty() ? "-" : s.found.c_str(),
+                s.n_effects == 0  ? (s.pass ? "no alarm" : "FALSE ALARM")
+                : !s.identifiable ? "not identifiable"
+                : s.pass          ? "found"
+                                  : "MISSED",
+                s.params.c_str(), s.wall_s);
     std::fflush(stdout);
-    // One line per file for the shards' merge (run_noise_suite.sh): class, effects, identifiable,
-    // pass, noise read and truth, spikes added and found, name, verdict.
-    std::ofstream(out / "scores.tsv", std::ios::app)
-        << (s.noise_class.empty() ? s.colour : s.noise_class) << '\t' << s.n_effects << '\t' << s.identifiable << '\t' << s.pass
-        << '\t' << s.noise_read_kpa << '\t' << s.noise_truth_kpa << '\t' << s.spikes << '\t' << s.outliers << '\t' << s.name
-        << '\t' << s.verdict << '\t' << s.wall_s << '\n';
     if (!keep) fs::remove(out / "files" / (f.name + ".csv"));
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::string md = noise_suite ? noise_markdown(scores, spec.seed, wall) : markdown(scores, spec, wall);
-  std::ofstream(out / (noise_suite ? "noise_suite.md" : "suite.md")) << md;
+  const std::string md = markdown(scores, spec, wall);
+  std::ofstream(out / "suite.md") << md;
   std::printf("\n%s", md.c_str());
   return 0;
 }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -152,113 +151,7 @@ double SensorNoise::total_kpa() const {
   return std::sqrt(coloured_kpa * coloured_kpa + white_kpa * white_kpa + step_kpa * step_kpa / 12);
 }
 
-namespace {
-
-// Variance of the output of y(k) = sum_j a[j] y(k-1-j) + u(k) for unit-variance white u, from the
-// impulse response (an unstable or slow filter is cut at 200 000 rows).
-double ar_variance_gain(const std::vector<double>& a) {
-  std::vector<double> h(a.size(), 0.0);
-  double sum = 0;
-  for (int k = 0; k < 200000; ++k) {
-    double v = k == 0 ? 1.0 : 0.0;
-    for (std::size_t j = 0; j < a.size(); ++j) v += a[j] * h[h.size() - 1 - j];
-    h.push_back(v);
-    sum += v * v;
-    if (k > 1000 && v * v < 1e-18 * sum) break;
-  }
-  return sum;
-}
-
-// The extra instruments' noise of SensorNoise, row by row (dt: the row spacing, s; dt0 the median).
-class InstrumentNoise {
- public:
-  InstrumentNoise(const SensorNoise& n, double dt0, std::mt19937_64& rng) : n_(n), rng_(rng) {
-    if (!n.ar.empty()) {
-      ar_gain_ = std::sqrt(ar_variance_gain(n.ar));
-      ar_past_.assign(n.ar.size(), 0.0);
-      for (int k = 0; k < 20000; ++k) ar_step();  // stationary from the first row
-    }
-    if (n.filter_hz > 0 && n.filter_order > 1) {
-      sections_.assign(static_cast<std::size_t>(n.filter_order), 0.0);
-      const double phi = std::exp(-2 * std::numbers::pi * n.filter_hz * dt0);
-      std::vector<double> s(sections_.size(), 0.0);
-      double sum = 0;
-      for (int k = 0; k < 100000; ++k) {  // unit-variance gain of the cascade, from its impulse response
-        double in = k == 0 ? 1.0 : 0.0;
-        for (double& x : s) x = phi * x + (1 - phi) * in, in = x;
-        sum += in * in;
-      }
-      filter_gain_ = std::sqrt(sum);
-      for (int k = 0; k < 20000; ++k) filter_step(dt0);
-    }
-    if (n.pink_kpa > 0) {
-      for (double f = n.pink_from_hz; f < 0.5 / dt0; f *= 2) pink_hz_.push_back(f);
-      pink_.assign(pink_hz_.size(), 0.0);
-      for (double& x : pink_) x = g_(rng_) * n.pink_kpa / std::sqrt(static_cast<double>(pink_hz_.size()));
-    }
-    // Nothing is drawn for a part that is absent: the first-order noise's draws stay as they were.
-    if (n.brown_kpa > 0) brown_ = n.brown_kpa * g_(rng_);
-    if (n.hum_kpa > 0)
-      for (std::size_t h = 0; h <= n.hum_harmonics.size(); ++h) hum_phase_.push_back(2 * std::numbers::pi * u_(rng_));
-  }
-  // The AR(p) or higher-order filtered coloured part (kPa), or NaN when SensorNoise's own is used.
-  double coloured(double dt) {
-    if (!n_.ar.empty()) return n_.coloured_kpa * ar_step() / ar_gain_;
-    if (!sections_.empty()) return n_.coloured_kpa * filter_step(dt) / filter_gain_;
-    return std::nan("");
-  }
-  double extra(double t, double dt) {
-    double v = 0;
-    for (std::size_t j = 0; j < pink_.size() && dt > 0; ++j) {
-      const double phi = std::exp(-2 * std::numbers::pi * pink_hz_[j] * dt);
-      pink_[j] =
-          phi * pink_[j] + std::sqrt(1 - phi * phi) * n_.pink_kpa / std::sqrt(static_cast<double>(pink_.size())) * g_(rng_);
-      v += pink_[j];
-    }
-    if (n_.brown_kpa > 0 && dt > 0) {
-      const double phi = std::exp(-2 * std::numbers::pi * n_.brown_corner_hz * dt);
-      brown_ = phi * brown_ + std::sqrt(1 - phi * phi) * n_.brown_kpa * g_(rng_);
-      v += brown_;
-    }
-    if (n_.hum_kpa > 0) {
-      v += std::sqrt(2.0) * n_.hum_kpa * std::sin(2 * std::numbers::pi * n_.hum_hz * t + hum_phase_[0]);
-      for (std::size_t h = 0; h < n_.hum_harmonics.size(); ++h)
-        v += std::sqrt(2.0) * n_.hum_kpa * n_.hum_harmonics[h] *
-             std::sin(2 * std::numbers::pi * n_.hum_hz * static_cast<double>(h + 2) * t + hum_phase_[h + 1]);
-    }
-    return v;
-  }
-  double spike() {
-    if (!(n_.spike_rate > 0) || !(u_(rng_) < n_.spike_rate)) return 0;
-    const double size = n_.spike_lo_kpa + (n_.spike_hi_kpa - n_.spike_lo_kpa) * u_(rng_);
-    return u_(rng_) < 0.5 ? -size : size;
-  }
-
- private:
-  double ar_step() {
-    double v = g_(rng_);
-    for (std::size_t j = 0; j < n_.ar.size(); ++j) v += n_.ar[j] * ar_past_[j];
-    for (std::size_t j = ar_past_.size(); j-- > 1;) ar_past_[j] = ar_past_[j - 1];
-    ar_past_[0] = v;
-    return v;
-  }
-  double filter_step(double dt) {
-    const double phi = std::exp(-2 * std::numbers::pi * n_.filter_hz * dt);
-    double in = g_(rng_);
-    for (double& x : sections_) x = phi * x + (1 - phi) * in, in = x;
-    return in;
-  }
-  const SensorNoise& n_;
-  std::mt19937_64& rng_;
-  std::normal_distribution<double> g_{0, 1};
-  std::uniform_real_distribution<double> u_{0, 1};
-  std::vector<double> ar_past_, sections_, pink_, pink_hz_, hum_phase_;
-  double ar_gain_ = 1, filter_gain_ = 1, brown_ = 0;
-};
-
-}  // namespace
-
-NoiseTruth add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n) {
+void add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n) {
   std::ifstream in(csv, std::ios::binary);
   if (!in) throw std::runtime_error("cannot read " + csv.string());
   std::vector<std::string> lines;
@@ -284,18 +177,10 @@ NoiseTruth add_sensor_noise(const std::filesystem::path& csv, const SensorNoise&
     if (strip(names[i]) == "p_meas_mpa") col_p = i;
   }
   if (col_t == names.size() || col_p == names.size()) throw std::runtime_error(csv.string() + ": no t_s or p_meas_mpa");
-  std::vector<double> dts;  // the median row spacing, for the higher-order parts' gains
-  for (std::size_t li = header + 2; li < lines.size() && dts.size() < 2000; ++li)
-    if (!lines[li].empty() && !lines[li - 1].empty() && li - 1 > header)
-      dts.push_back(std::stod(split(lines[li])[col_t]) - std::stod(split(lines[li - 1])[col_t]));
-  std::sort(dts.begin(), dts.end());
-  const double dt0 = dts.empty() || !(dts[dts.size() / 2] > 0) ? 1e-3 : dts[dts.size() / 2];
   std::mt19937_64 rng(n.seed);
   std::normal_distribution<double> g(0, 1);
   double x_kpa = n.coloured_kpa * g(rng);  // stationary from the first row
-  InstrumentNoise extra(n, dt0, rng);
-  double t_prev = std::nan(""), t_first = std::nan(""), sum2 = 0;
-  NoiseTruth truth;
+  double t_prev = std::nan("");
   std::ofstream out(csv, std::ios::binary | std::ios::trunc);
   for (std::size_t li = 0; li < lines.size(); ++li) {
     if (li <= header || lines[li].empty()) {
@@ -306,37 +191,18 @@ NoiseTruth add_sensor_noise(const std::filesystem::path& csv, const SensorNoise&
     auto cells = split(crlf ? lines[li].substr(0, lines[li].size() - 1) : lines[li]);
     const double t = std::stod(cells[col_t]);
     const double dt = std::isfinite(t_prev) ? t - t_prev : 0;
-    if (!std::isfinite(t_first)) t_first = t;
     t_prev = t;
     const double phi = n.filter_hz > 0 ? std::exp(-2 * 3.141592653589793 * n.filter_hz * dt) : n.phi;
-    const double other = extra.coloured(dt);
-    double coloured = other;
-    if (std::isnan(other)) {
-      if (dt > 0) x_kpa = phi * x_kpa + std::sqrt(1 - phi * phi) * n.coloured_kpa * g(rng);
-      coloured = x_kpa;
-    }
-    const double clean_mpa = std::stod(cells[col_p]);
-    const double white_kpa = n.white_kpa * g(rng);
-    const double other_kpa = extra.extra(t - t_first, dt);
-    const double spike_kpa = extra.spike();
-    double v_mpa = clean_mpa + 1e-3 * (coloured + white_kpa + other_kpa + spike_kpa);
+    if (dt > 0) x_kpa = phi * x_kpa + std::sqrt(1 - phi * phi) * n.coloured_kpa * g(rng);
+    double v_mpa = std::stod(cells[col_p]) + 1e-3 * (x_kpa + n.white_kpa * g(rng));
     if (n.step_kpa > 0) v_mpa = 1e-3 * n.step_kpa * std::round(v_mpa / (1e-3 * n.step_kpa));
     char b[40];
     std::snprintf(b, sizeof b, "%.7f", v_mpa);
     cells[col_p] = b;
-    ++truth.rows;
-    if (spike_kpa != 0) {
-      ++truth.spikes;
-    } else {
-      sum2 += std::pow(1e3 * (std::stod(b) - clean_mpa), 2);
-    }
     for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
     out << (crlf ? "\r\n" : "\n");
   }
   if (!out) throw std::runtime_error("cannot write " + csv.string());
-  const std::size_t clean_rows = truth.rows - truth.spikes;
-  truth.rms_kpa = clean_rows > 0 ? std::sqrt(sum2 / static_cast<double>(clean_rows)) : 0.0;
-  return truth;
 }
 
 }  // namespace hil::test

@@ -79,26 +79,9 @@ struct SensorNoise {
   double white_kpa = 0;     // RMS of the white part
   double step_kpa = 0;      // quantisation step of the reading (0: none)
   std::uint64_t seed = 1;
-  // Other instruments' noise, each added to the above (issue 49):
-  std::vector<double> ar = {};  // the coloured part as an AR(p), x(k) = sum_j ar[j] x(k-1-j) + u (in place of phi)
-  int filter_order = 1;         // filter_hz: a cascade of this many first-order sections (unit DC gain)
-  double pink_kpa = 0;          // 1/f noise from pink_from_hz to the Nyquist frequency (octave-spaced
-  double pink_from_hz = 0.5;    // first-order sections of equal power)
-  double brown_kpa = 0;         // integrated white noise, flat below brown_corner_hz
-  double brown_corner_hz = 0.5;
-  double hum_kpa = 0, hum_hz = 50;         // mains pick-up: RMS of the fundamental,
-  std::vector<double> hum_harmonics = {};  // amplitudes of the 2nd, 3rd, ... harmonic relative to it
-  double spike_rate = 0;                   // per row: a spike of spike_lo..hi kPa, random sign (EMI)
-  double spike_lo_kpa = 0, spike_hi_kpa = 0;
-  // RMS of the whole noise a perfect model leaves (quantisation error included; first-order parts).
+  // RMS of the whole noise a perfect model leaves (quantisation error included).
   double total_kpa() const;
 };
-// What add_sensor_noise added: the RMS of the reading less the noise-free pressure over the rows
-// without a spike (quantisation error included), and the spikes.
-struct NoiseTruth {
-  double rms_kpa = 0;
-  std::size_t spikes = 0, rows = 0;
-};
-NoiseTruth add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n);
+void add_sensor_noise(const std::filesystem::path& csv, const SensorNoise& n);
 
 }  // namespace hil::test

@@ -18,14 +18,6 @@
 // noise alone (noise_model.cpp: kColourEvidence). The total sigma^2 = white^2 + coloured^2 is the
 // noise floor. Spacings reach 8 ms of time (longer, the chamber's own curvature enters), so a
 // colour slower than about phi = 0.9 per row is seen only in part.
-//
-// That model holds the noise above kNoiseBandHz. Below it the chamber's own pressure hides the
-// noise from the reading's differences, and a transducer's 1/f or brown noise has most of its power
-// there; the residual's spectrum completes it (complete_noise_model, analysis/README.md "The noise
-// as a spectrum"): the noise spectrum is the residual's, below the band bounded by the power law it
-// follows just above the band or by the model's continuation (a missing effect's misfit, far above
-// the noise at low frequency, does not become noise). Outliers (spikes) are found on the residual, counted, and left out of every sum that
-// decides a verdict; a reading on an ADC's grid of step q has at least q^2/12 of white noise.
 // Offline code: allocates.
 #pragma once
 
@@ -38,14 +30,6 @@
 namespace hil::analysis {
 
 inline constexpr double kNoiseMaxPhi = 0.95;  // beyond this the second difference cannot see the colour
-// Below this the noise spectrum is completed from the residual's (at most a quarter of the rate).
-inline constexpr double kNoiseBandHz = 30;
-// A row is an outlier when its residual stands this many robust sigmas off its neighbours' mean.
-inline constexpr double kOutlierSigmas = 6;
-// At most this share of rows is taken as outliers: more is the noise's own distribution.
-inline constexpr double kMaxOutlierShare = 0.01;
-// The whitening filter's longest order (AR by Levinson-Durbin on the noise spectrum, order by AIC).
-inline constexpr std::size_t kMaxWhiteningOrder = 32;
 
 struct NoiseModel {
   double sigma_pa = 0;           // total RMS: the error a perfect model leaves (the noise floor)
@@ -58,14 +42,6 @@ struct NoiseModel {
   // innovation_sigma_pa: the one-step prediction error of the noise. Filled by NoiseEstimator::finish.
   double theta = 0;
   double innovation_sigma_pa = 0;
-  // The noise as a spectrum (complete_noise_model): the low band's share added from the residual,
-  // the ADC step read from the values' grid (0: none), the spikes found, and the whitening filter
-  // n(k) - sum_j ar[j] n(k-1-j) = eps(k) fitted to the whole spectrum (empty: the ARMA(1,1) above).
-  double low_band_sigma_pa = 0;
-  double quantisation_step_pa = 0;
-  std::size_t outliers = 0;
-  std::vector<std::size_t> outlier_rows;  // rows of the file, in order (the criterion leaves them out)
-  std::vector<double> ar;
   bool coloured() const { return coloured_sigma_pa > 0 && phi > 0; }
   // The coloured part's corner frequency -ln(phi) / (2 pi dt), Hz (0: white or dt unknown).
   double corner_hz() const;
@@ -77,22 +53,8 @@ struct NoiseModel {
   void whiten(std::span<const double> e_pa, std::span<double> out) const;
   // Sum of squares of whiten(e): the residual's misfit counted in units of the noise's own
   // one-step prediction error (diagnose's criterion).
-  // Outlier rows count nothing: their residual is replaced by its prediction from the rows before.
   double whitened_rss(std::span<const double> e_pa) const;
-  // Sum of squares of e over the rows that are not outliers.
-  double rss(std::span<const double> e_pa) const;
 };
-
-// The residual's spectrum, for complete_noise_model: Welch per-bin powers (Pa^2; bin k of `bins`
-// at k / (bins * dt), one-sided 0..bins/2, spikes cleaned, segment means removed) and the spikes.
-struct ResidualSpectrum {
-  std::vector<double> power_pa2;  // bins/2 + 1 values, sum over the two-sided bins = the variance
-  std::size_t bins = 0;
-  std::size_t rows = 0;
-  std::vector<std::size_t> outlier_rows;
-};
-// Completes m (from NoiseEstimator::finish) with the low band, the outliers and the whitening filter.
-void complete_noise_model(NoiseModel& m, const ResidualSpectrum& s);
 
 // Streams the measured pressure row by row; finish() fits the noise model.
 class NoiseEstimator {
