@@ -89,7 +89,7 @@ async function main() {
     const b = document.body.dataset;
     const what = document.getElementById("what");
     const msg = document.getElementById("message");
-    return b.link === "live" && b.badge === "interrupted" && what.dataset.run === d && /last: run 'none' of paper_adaptive interrupted at \d\d:\d\d:\d\d: the server process/.test(what.textContent) &&
+    return b.link === "live" && b.badge === "interrupted" && what.dataset.run === d && /last: run 'none' of paper_adaptive interrupted at \d\d:\d\d:\d\d: the hilbench serve process/.test(what.textContent) &&
       b.verdictsUnjudged === d && /run 'none' interrupted at/.test(document.getElementById("verdict-summary").textContent) &&
       document.getElementById("plots-run").dataset.outcome === "interrupted" && b.abort === "answered";
   }, killed, 5000);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -140,12 +142,30 @@ std::string describe_marks(const std::vector<RunMark>& marks, std::size_t max_it
   return s;
 }
 
+namespace {
+
+// The one legend entry of a figure's fault windows names what was shaded ("sensor stuck 1.001 MPa;
+// dropout"), the first few of them, so a reader need not hover each band to learn it.
+std::string windows_legend(const RunMarks& marks, const std::string& prefix) {
+  constexpr std::size_t kNamed = 3;
+  std::vector<std::string> labels;
+  for (const auto& e : marks.marks)
+    if (std::isfinite(e.end_s) && std::find(labels.begin(), labels.end(), e.label) == labels.end()) labels.push_back(e.label);
+  std::string legend = prefix;
+  for (std::size_t i = 0; i < labels.size() && i < kNamed; ++i) legend.append(i ? "; " : "").append(labels[i]);
+  if (labels.size() > kNamed)
+    legend.append("; and ").append(std::to_string(labels.size() - kNamed)).append(" more fault windows");
+  return legend;
+}
+
+}  // namespace
+
 void mark_figure(Figure& figure, const RunMarks& marks, bool with_bands, const std::string& prefix) {
   const std::string line(palette::color("event")), window(palette::color("fault_window"));
+  const std::string legend = with_bands ? windows_legend(marks, prefix) : std::string();
   for (const auto& e : marks.marks) {
     figure.markers.push_back({e.t_s, prefix + e.label, line});
-    if (with_bands && std::isfinite(e.end_s))
-      figure.bands.push_back({e.t_s, e.end_s, prefix + e.label, window, prefix + "fault windows"});
+    if (with_bands && std::isfinite(e.end_s)) figure.bands.push_back({e.t_s, e.end_s, prefix + e.label, window, legend});
   }
 }
 
