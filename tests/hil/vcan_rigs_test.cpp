@@ -316,7 +316,9 @@ TEST(VcanCanRig, SigstopOfServeIsNamedAsTheBenchsStall) {
             std::string::npos)
       << reason;
   EXPECT_NE(reason.find("ms late (0x1016 gives the drive 400 ms): the host stalled"), std::string::npos) << reason;
-  EXPECT_GE(number_after(reason, "the bench's heartbeat was "), 1100) << reason;  // the stop, as the bench measured it
+  // How late the heartbeat was when the bench read the drive's EMCY: past the consumer's 400 ms
+  // (the drive reacted to the bench, not to itself); the whole stop is the longest gap below.
+  EXPECT_GT(number_after(reason, "the bench's heartbeat was "), 400) << reason;
   EXPECT_EQ(reason.find("left NMT operational"), std::string::npos) << reason;
   const auto& off = f.run["rig_health"]["switch_off"];
   ASSERT_TRUE(off.is_object()) << f.run["rig_health"].dump(2);
